@@ -1,0 +1,8 @@
+"""hlaid: digital clones of buildings from earthquake records."""
+
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("hlaid")
+except PackageNotFoundError:  # running from a source tree
+    __version__ = "0.0.0+unknown"

@@ -1,0 +1,15 @@
+"""``hlaid demo``."""
+
+from __future__ import annotations
+
+from ..demo import run_demo
+from .main import subcommand
+
+
+def register(sub) -> None:
+    p = subcommand(sub, "demo", help="run the whole pipeline on the embedded Table 1 case",
+                   example="hlaid demo --out hlaid-demo")
+    p.add_argument("--out", default="hlaid-demo", help="output folder (default ./hlaid-demo)")
+    p.add_argument("--seed", type=int, default=0, help="noise seed")
+    p.add_argument("--force", action="store_true", help="replace an existing output folder")
+    p.set_defaults(func=lambda a: run_demo(a.out, force=a.force, seed=a.seed) and 0)

@@ -1,0 +1,216 @@
+"""YAML configs validated against frozen dataclass schemas, with file and line in every error.
+
+A schema is a frozen dataclass whose fields carry type annotations (numbers, strings,
+booleans, ``Literal`` choices, ``X | None``, ``list[X]``/``tuple[X, ...]``, ``dict[str, X]``
+and nested schemas). :func:`load_config` rejects unknown keys, wrong types and values a
+schema's ``__post_init__`` refuses, each with ``FILE:LINE: key: what is wrong``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import types
+import typing
+from pathlib import Path
+from typing import Any, Literal, TypeVar, Union
+
+import yaml
+
+from ._fileio import read_text
+from .errors import ConfigError, InputError
+
+T = TypeVar("T")
+
+
+class _Node:
+    """A YAML value with the line it starts on (1-based); mappings also keep each key's line."""
+
+    def __init__(self, value, line, keys=None):
+        self.value, self.line, self.keys = value, line, keys or {}
+
+
+def _convert(node: yaml.Node, source: str) -> _Node:
+    line = node.start_mark.line + 1
+    if isinstance(node, yaml.MappingNode):
+        out: dict[str, _Node] = {}
+        keys: dict[str, int] = {}
+        for k, v in node.value:
+            key = k.value
+            if key in out:
+                raise ConfigError(f"{source}:{k.start_mark.line + 1}: key {key!r} appears twice")
+            out[key] = _convert(v, source)
+            keys[key] = k.start_mark.line + 1
+        return _Node(out, line, keys)
+    if isinstance(node, yaml.SequenceNode):
+        return _Node([_convert(v, source) for v in node.value], line)
+    return _Node(yaml.SafeLoader("").construct_object(node, deep=True), line)
+
+
+def parse_yaml(text: str, source: str = "<string>") -> _Node:
+    """Parse YAML into line-annotated nodes; syntax errors name the file and line."""
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        where = f"{source}:{mark.line + 1}" if mark else source
+        raise ConfigError(f"{where}: invalid YAML: {getattr(err, 'problem', err)}") from None
+    if root is None:
+        return _Node({}, 1)
+    return _convert(root, source)
+
+
+def _type_name(tp) -> str:
+    origin = typing.get_origin(tp)
+    if tp is float:
+        return "a number"
+    if tp is int:
+        return "an integer"
+    if tp is bool:
+        return "true or false"
+    if tp is str:
+        return "a string"
+    if origin is Literal:
+        return "one of " + ", ".join(repr(a) for a in typing.get_args(tp))
+    if origin in (list, tuple):
+        return "a list"
+    if origin is dict:
+        return "a mapping"
+    if dataclasses.is_dataclass(tp):
+        return "a mapping"
+    if origin in (Union, types.UnionType):
+        return " or ".join(_type_name(a) for a in typing.get_args(tp) if a is not type(None)) + " (or null)"
+    return getattr(tp, "__name__", str(tp))
+
+
+def _build(tp, node: _Node, where: str, source: str):
+    v = node.value
+    err = f"{source}:{node.line}: {where or 'top level'}:"
+    origin = typing.get_origin(tp)
+    if origin in (Union, types.UnionType):
+        args = typing.get_args(tp)
+        if v is None and type(None) in args:
+            return None
+        errors = []
+        for a in args:
+            if a is type(None):
+                continue
+            try:
+                return _build(a, node, where, source)
+            except ConfigError as e:
+                errors.append(e)
+        if len(errors) == 1:
+            raise errors[0]
+        raise ConfigError(f"{err} expected {_type_name(tp)}, got {_show(v)}")
+    if tp is Any:
+        return _plain(node)
+    if origin is Literal:
+        if v not in typing.get_args(tp):
+            raise ConfigError(f"{err} {_show(v)} is not allowed; expected {_type_name(tp)}")
+        return v
+    if tp is bool:
+        if not isinstance(v, bool):
+            raise ConfigError(f"{err} expected true or false, got {_show(v)}")
+        return v
+    if tp is int:
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise ConfigError(f"{err} expected an integer, got {_show(v)}")
+        return v
+    if tp is float:
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            if isinstance(v, str):
+                try:
+                    return float(v)  # YAML 1.1 reads '1e4' (no dot) as a string
+                except ValueError:
+                    pass
+            raise ConfigError(f"{err} expected a number, got {_show(v)}")
+        return float(v)
+    if tp is str:
+        if not isinstance(v, str):
+            raise ConfigError(f"{err} expected a string, got {_show(v)}")
+        return v
+    if origin in (list, tuple):
+        if not isinstance(v, list):
+            raise ConfigError(f"{err} expected a list, got {_show(v)}")
+        args = typing.get_args(tp)
+        if origin is tuple and args and args[-1] is not Ellipsis:
+            if len(v) != len(args):
+                raise ConfigError(f"{err} expected a list of {len(args)} values, got {len(v)}")
+            return tuple(_build(a, x, f"{where}[{i}]", source) for i, (a, x) in enumerate(zip(args, v)))
+        item = args[0] if args else Any
+        items = [_build(item, x, f"{where}[{i}]", source) for i, x in enumerate(v)]
+        return tuple(items) if origin is tuple else items
+    if origin is dict:
+        if not isinstance(v, dict):
+            raise ConfigError(f"{err} expected a mapping, got {_show(v)}")
+        _, vt = typing.get_args(tp) or (str, Any)
+        return {k: _build(vt, x, f"{where}.{k}" if where else k, source) for k, x in v.items()}
+    if dataclasses.is_dataclass(tp):
+        return _build_dataclass(tp, node, where, source)
+    raise TypeError(f"unsupported schema type {tp!r} at {where}")
+
+
+def _plain(node: _Node):
+    v = node.value
+    if isinstance(v, dict):
+        return {k: _plain(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_plain(x) for x in v]
+    return v
+
+
+def _show(v) -> str:
+    if isinstance(v, dict):
+        return "a mapping"
+    if isinstance(v, list):
+        return "a list"
+    return repr(v)
+
+
+def _build_dataclass(cls, node: _Node, where: str, source: str):
+    if not isinstance(node.value, dict):
+        raise ConfigError(f"{source}:{node.line}: {where or 'top level'}: expected a mapping, got {_show(node.value)}")
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    keys = node.keys
+    kwargs = {}
+    for key, sub in node.value.items():
+        path = f"{where}.{key}" if where else str(key)
+        if key not in fields:
+            raise ConfigError(f"{source}:{keys.get(key, node.line)}: unknown key {path!r}; "
+                              f"expected one of: {', '.join(fields)}")
+        kwargs[key] = _build(hints[key], sub, path, source)
+    missing = [k for k, f in fields.items()
+               if k not in kwargs and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
+    if missing:
+        raise ConfigError(f"{source}:{node.line}: {where or 'top level'}: missing key(s) {', '.join(missing)}")
+    try:
+        return cls(**kwargs)
+    except InputError as e:
+        raise ConfigError(f"{source}:{node.line}: {where or 'top level'}: {e}") from None
+
+
+def config_from_dict(cls: type[T], data: dict, source: str = "<dict>") -> T:
+    """Validate a plain mapping against schema ``cls`` (as :func:`load_config` does a file)."""
+    return _build_dataclass(cls, parse_yaml(yaml.safe_dump(data, sort_keys=False), source), "", source)
+
+
+def load_config(path: str | os.PathLike, cls: type[T]) -> T:
+    """Load and validate a YAML file against the dataclass schema ``cls``."""
+    source = str(path)
+    if not Path(source).is_file():
+        raise ConfigError("config file not found", source=source)
+    return _build_dataclass(cls, parse_yaml(read_text(source), source), "", source)
+
+
+def config_to_dict(cfg) -> dict:
+    """A plain (YAML/JSON-able) mapping of a config dataclass."""
+    def conv(v):
+        if dataclasses.is_dataclass(v):
+            return {f.name: conv(getattr(v, f.name)) for f in dataclasses.fields(v)}
+        if isinstance(v, (list, tuple)):
+            return [conv(x) for x in v]
+        if isinstance(v, dict):
+            return {k: conv(x) for k, x in v.items()}
+        return v
+    return conv(cfg)

@@ -1,0 +1,287 @@
+"""Measurements: ground and floor accelerations of a building, from a file or a simulation.
+
+File layouts (units mm/s^2, t, mm, N, s):
+
+- **NPZ**: ``dt`` (s), ``ground_acc`` (T,), ``floor_acc`` (T, n) absolute accelerations,
+  ``mass`` (n,) [t] (optional: absent or NaN means unknown), optionally ``height`` (n,)
+  [mm], and for simulated data the noise-free truth ``true_disp`` (relative floor
+  displacement), ``true_drift``, ``true_force`` (story spring force), ``true_z``,
+  ``true_eta`` (each (T, n)) and ``true_params`` (JSON text of the building).
+- **CSV**: ``#`` header lines ``# dt_s: ...``, ``# mass_t: m1, m2, ...``, optionally
+  ``# height_mm: ...`` and ``# true_params: {json}``; a header row
+  ``time_s,ground_acc,floor_acc_1..n[,true_disp_1..n,...]``; one row per sample.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ._fileio import atomic_write, read_text, write_npz
+from .errors import InputError
+from .model import Building
+from .units import G_MM_S2
+
+TRUTH_FIELDS = ("disp", "drift", "force", "z", "eta")
+MIN_SAMPLES = 16
+PGA_PLAUSIBLE_MM_S2 = (0.5, 5.0 * G_MM_S2)
+"""A ground PGA outside this range [mm/s^2] means the units are almost surely wrong."""
+
+
+@dataclass(frozen=True, eq=False)
+class Truth:
+    """Noise-free response of a simulated measurement, each ``(time, story)``."""
+
+    building: Building
+    disp: np.ndarray
+    drift: np.ndarray
+    force: np.ndarray
+    z: np.ndarray
+    eta: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Measurement:
+    """Accelerations recorded at the ground and at every floor of a building.
+
+    Attributes
+    ----------
+    dt : sample interval [s]
+    ground_acc : (time,) ground acceleration [mm/s^2]
+    floor_acc : (time, floor) absolute floor accelerations [mm/s^2], bottom to top
+    mass : (floor,) floor masses [t], or None when unknown (mass-normalised analysis)
+    height : (story,) story heights [mm], or None
+    pdelta : whether the story forces carry the P-Delta share ``-P x / h`` (None: when
+        heights are known, as for a real building)
+    truth : the noise-free response when the data were simulated
+    noise_rms : the noise level of simulated data (fraction of channel RMS)
+    source : file the data came from, named in error messages
+    """
+
+    dt: float
+    ground_acc: np.ndarray
+    floor_acc: np.ndarray
+    mass: np.ndarray | None = None
+    height: np.ndarray | None = None
+    pdelta: bool | None = None
+    truth: Truth | None = None
+    noise_rms: float | None = None
+    source: str = ""
+    name: str = ""
+    extra: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self):
+        src = self.source or None
+        if not (np.isfinite(self.dt) and self.dt > 0):
+            raise InputError(f"dt = {self.dt}; expected a positive sample interval in seconds", source=src)
+        g = np.asarray(self.ground_acc, dtype=np.float64)
+        f = np.asarray(self.floor_acc, dtype=np.float64)
+        if g.ndim != 1:
+            raise InputError(f"ground_acc has shape {g.shape}; expected (time,)", source=src)
+        if f.ndim == 1:
+            f = f[:, None]
+        if f.ndim != 2 or f.shape[1] == 0:
+            raise InputError(f"floor_acc has shape {f.shape}; expected (time, floor) with at least one floor",
+                             source=src)
+        if f.shape[0] != g.shape[0]:
+            raise InputError(f"floor and ground channels have different lengths ({f.shape[0]} and {g.shape[0]} "
+                             "samples); they must share one time axis", source=src)
+        if g.shape[0] < MIN_SAMPLES:
+            raise InputError(f"record has {g.shape[0]} samples; expected at least {MIN_SAMPLES}", source=src)
+        for name, a in (("ground_acc", g), ("floor_acc", f)):
+            bad = ~np.isfinite(a)
+            if bad.any():
+                i = int(np.argwhere(bad)[0][0])
+                raise InputError(f"{name} has {int(bad.sum())} NaN or inf samples (first at t = {i * self.dt:g} s)",
+                                 source=src)
+        pga = np.abs(g).max()
+        lo, hi = PGA_PLAUSIBLE_MM_S2
+        if not lo <= pga <= hi:
+            raise InputError(f"ground_acc peak is {pga:.3g} mm/s^2 ({pga / G_MM_S2:.3g} g), not a plausible "
+                             "earthquake; check the units (expected mm/s^2)", source=src)
+        for name in ("mass", "height"):
+            a = getattr(self, name)
+            if a is None:
+                continue
+            a = np.asarray(a, dtype=np.float64).reshape(-1)
+            if np.all(np.isnan(a)):
+                object.__setattr__(self, name, None)
+                continue
+            if a.shape[0] != f.shape[1]:
+                raise InputError(f"{name} has {a.shape[0]} values but there are {f.shape[1]} floor channels",
+                                 source=src)
+            if not np.all(np.isfinite(a) & (a > 0)):
+                raise InputError(f"{name} must be positive numbers, got {a.tolist()}", source=src)
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+        g.setflags(write=False)
+        f.setflags(write=False)
+        object.__setattr__(self, "ground_acc", g)
+        object.__setattr__(self, "floor_acc", f)
+
+    @property
+    def n_floors(self) -> int:
+        return int(self.floor_acc.shape[1])
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.ground_acc.shape[0])
+
+    @property
+    def time(self) -> np.ndarray:
+        return np.arange(self.n_samples) * self.dt
+
+    @property
+    def mass_known(self) -> bool:
+        return self.mass is not None
+
+    @property
+    def pdelta_active(self) -> bool:
+        return bool(self.height is not None if self.pdelta is None else self.pdelta)
+
+    # ------------------------------------------------------------------ writing
+    def _columns(self) -> dict[str, np.ndarray]:
+        d = {"dt": np.float64(self.dt), "ground_acc": self.ground_acc, "floor_acc": self.floor_acc,
+             "mass": self.mass if self.mass is not None else np.full(self.n_floors, np.nan)}
+        if self.height is not None:
+            d["height"] = self.height
+        if self.noise_rms is not None:
+            d["noise_rms"] = np.float64(self.noise_rms)
+        if self.pdelta is not None:
+            d["pdelta"] = np.bool_(self.pdelta)
+        if self.truth is not None:
+            for k in TRUTH_FIELDS:
+                d[f"true_{k}"] = getattr(self.truth, k)
+            d["true_params"] = np.array(json.dumps(self.truth.building.to_dict()))
+        return d
+
+    def save(self, path: str | os.PathLike, *, force: bool = True) -> Path:
+        """Write NPZ or CSV (by extension), atomically."""
+        path = Path(path)
+        if path.suffix.lower() == ".csv":
+            return atomic_write(path, lambda tmp: tmp.write_text(self._csv_text()), force=force)
+        return write_npz(path, self._columns(), force=force)
+
+    def _csv_text(self) -> str:
+        n = self.n_floors
+        head = ["# hlaid measurement (accelerations in mm/s^2, absolute)", f"# dt_s: {self.dt!r}"]
+        if self.mass is not None:
+            head.append("# mass_t: " + ", ".join(repr(float(m)) for m in self.mass))
+        if self.height is not None:
+            head.append("# height_mm: " + ", ".join(repr(float(h)) for h in self.height))
+        if self.noise_rms is not None:
+            head.append(f"# noise_rms: {self.noise_rms!r}")
+        if self.pdelta is not None:
+            head.append(f"# pdelta: {str(self.pdelta).lower()}")
+        cols = [self.time[:, None], self.ground_acc[:, None], self.floor_acc]
+        names = ["time_s", "ground_acc"] + [f"floor_acc_{j + 1}" for j in range(n)]
+        if self.truth is not None:
+            head.append("# true_params: " + json.dumps(self.truth.building.to_dict()))
+            for k in TRUTH_FIELDS:
+                cols.append(getattr(self.truth, k))
+                names += [f"true_{k}_{j + 1}" for j in range(n)]
+        data = np.hstack(cols)
+        body = "\n".join(",".join(repr(float(x)) for x in row) for row in data)
+        return "\n".join(head) + "\n" + ",".join(names) + "\n" + body + "\n"
+
+
+# ---------------------------------------------------------------------- reading
+def read_measurement(path: str | os.PathLike) -> Measurement:
+    """Read a measurement from NPZ or CSV (see the module docstring for the layouts)."""
+    p = Path(path)
+    if not p.exists():
+        raise InputError("file not found", source=str(p))
+    if p.suffix.lower() == ".csv":
+        return _read_csv(p)
+    return _read_npz(p)
+
+
+def _read_npz(p: Path) -> Measurement:
+    src = str(p)
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            d = {k: z[k] for k in z.files}
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as err:
+        raise InputError(f"not a readable NPZ measurement file ({err})", source=src) from None
+    for key in ("dt", "ground_acc", "floor_acc"):
+        if key not in d:
+            raise InputError(f"missing field {key!r}; a measurement needs dt, ground_acc and floor_acc", source=src)
+    truth = None
+    if "true_params" in d and all(f"true_{k}" in d for k in TRUTH_FIELDS):
+        try:
+            b = Building.from_dict(json.loads(str(d["true_params"])), source=src)
+        except (ValueError, KeyError, TypeError) as err:
+            raise InputError(f"true_params is not a valid building ({err})", source=src) from None
+        truth = Truth(building=b, **{k: d[f"true_{k}"] for k in TRUTH_FIELDS})
+    try:
+        dt = float(d["dt"])
+    except (TypeError, ValueError):
+        raise InputError(f"dt must be a number, got {d['dt']!r}", source=src) from None
+    extra = {k: v for k, v in d.items() if k not in {"dt", "ground_acc", "floor_acc", "mass", "height", "noise_rms",
+                                                      "pdelta", "true_params"} and not k.startswith("true_")}
+    return Measurement(dt=dt, ground_acc=d["ground_acc"], floor_acc=d["floor_acc"], mass=d.get("mass"),
+                       height=d.get("height"), pdelta=bool(d["pdelta"]) if "pdelta" in d else None, truth=truth,
+                       noise_rms=float(d["noise_rms"]) if "noise_rms" in d else None, source=src,
+                       name=p.stem, extra=extra)
+
+
+def _header_numbers(value: str, key: str, src: str) -> np.ndarray:
+    try:
+        return np.array([float(x) for x in value.replace(";", ",").split(",") if x.strip()])
+    except ValueError:
+        raise InputError(f"header '{key}' must be a comma-separated list of numbers, got {value.strip()[:40]!r}",
+                         source=src) from None
+
+
+def _read_csv(p: Path) -> Measurement:
+    src = str(p)
+    text = read_text(p)
+    meta: dict[str, str] = {}
+    rows: list[str] = []
+    for ln in text.splitlines():
+        s = ln.strip()
+        if not s:
+            continue
+        if s.startswith("#"):
+            m = re.match(r"#\s*([A-Za-z_]+)\s*:\s*(.*)", s)
+            if m:
+                meta[m.group(1)] = m.group(2)
+        else:
+            rows.append(s)
+    if len(rows) < 2:
+        raise InputError("holds no data rows", source=src)
+    names = [c.strip() for c in rows[0].split(",")]
+    try:
+        data = np.array([[float(x) for x in r.split(",")] for r in rows[1:]])
+    except ValueError:
+        raise InputError("has a non-numeric value in the data rows", source=src) from None
+    if data.ndim != 2 or data.shape[1] != len(names):
+        raise InputError(f"rows must all have {len(names)} values like the header", source=src)
+    col = {n: i for i, n in enumerate(names)}
+    floors = sorted((n for n in names if re.fullmatch(r"floor_acc_\d+", n)), key=lambda n: int(n.rsplit("_", 1)[1]))
+    if "ground_acc" not in col or not floors:
+        raise InputError("header must name ground_acc and floor_acc_1..n columns", source=src)
+    if "dt_s" in meta:
+        dt = float(_header_numbers(meta["dt_s"], "dt_s", src)[0])
+    elif "time_s" in col:
+        t = data[:, col["time_s"]]
+        dt = float((t[-1] - t[0]) / (len(t) - 1))
+    else:
+        raise InputError("no '# dt_s:' header line and no time_s column", source=src)
+    n = len(floors)
+    mass = _header_numbers(meta["mass_t"], "mass_t", src) if "mass_t" in meta else None
+    height = _header_numbers(meta["height_mm"], "height_mm", src) if "height_mm" in meta else None
+    truth = None
+    if "true_params" in meta and all(f"true_{k}_1" in col for k in TRUTH_FIELDS):
+        b = Building.from_dict(json.loads(meta["true_params"]), source=src)
+        truth = Truth(building=b, **{k: data[:, [col[f"true_{k}_{j + 1}"] for j in range(n)]] for k in TRUTH_FIELDS})
+    return Measurement(dt=dt, ground_acc=data[:, col["ground_acc"]], floor_acc=data[:, [col[f] for f in floors]],
+                       mass=mass, height=height, truth=truth,
+                       pdelta={"true": True, "false": False}.get(meta.get("pdelta", "").strip().lower()),
+                       noise_rms=float(meta["noise_rms"]) if "noise_rms" in meta else None, source=src, name=p.stem)

@@ -1,0 +1,125 @@
+"""The degrading Bouc-Wen shear building as a torch module.
+
+State layout (documented here once): ``y`` is ``(batch, 4*story)``, the concatenation
+
+    y = [u, v, z, e]      each (batch, story)
+
+``u`` floor displacement relative to the ground [mm], ``v`` its velocity [mm/s], ``z`` the
+hysteretic displacement of each story [mm], ``e = integral(z dx)`` the signed hysteretic
+work of each story per unit (1-alpha) k0 [mm^2]. The ground acceleration is applied to
+every floor mass (``-M 1 ag``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import torch
+from torch import nn
+
+from . import _equations as eq
+from .params import Building, BuildingTensors
+
+
+def _below(a: torch.Tensor) -> torch.Tensor:
+    """The value on the floor below each floor (zero under the first)."""
+    return nn.functional.pad(a, (1, 0))[..., :-1]
+
+
+def _above(a: torch.Tensor) -> torch.Tensor:
+    """The value of the story above each story (zero above the roof)."""
+    return nn.functional.pad(a, (0, 1))[..., 1:]
+
+
+class BoucWenBuilding(nn.Module):
+    """Right-hand side ``dy/dt = forward(t, y)`` of a batch of shear buildings.
+
+    One definition serves the batch simulator (checked against it to 1e-8), the torchdiffeq
+    replay and gradient-based identification (it is differentiable in its parameters).
+
+    Parameters
+    ----------
+    params : BuildingTensors
+        Batched parameters, each ``(batch, story)``.
+    ground_acc : (batch, time) tensor, optional
+        Ground acceleration samples [mm/s^2] for :meth:`forward`; linearly interpolated,
+        zero after the last sample.
+    dt : float
+        Sample interval of ``ground_acc`` [s].
+    """
+
+    def __init__(self, params: BuildingTensors, ground_acc: torch.Tensor | None = None, dt: float = 0.01):
+        super().__init__()
+        self.params = params
+        self.n_stories = int(params.mass.shape[-1])
+        self.dt = float(dt)
+        self.ground_acc = ground_acc
+
+    @classmethod
+    def from_buildings(cls, buildings: Building | Sequence[Building], ground_acc=None, dt: float = 0.01,
+                       dtype=torch.float64, device=None) -> "BoucWenBuilding":
+        if isinstance(buildings, Building):
+            buildings = [buildings]
+        return cls(BuildingTensors.stack(buildings, dtype=dtype, device=device), ground_acc, dt)
+
+    # ------------------------------------------------------------------ dynamics
+    def initial_state(self) -> torch.Tensor:
+        """At rest: ``(batch, 4*story)`` zeros."""
+        m = self.params.mass
+        return torch.zeros(m.shape[0], 4 * self.n_stories, dtype=m.dtype, device=m.device)
+
+    def ground_at(self, t: torch.Tensor) -> torch.Tensor:
+        """Ground acceleration at time ``t`` [mm/s^2], ``(batch,)``, linear between samples."""
+        g = self.ground_acc
+        if g is None:
+            raise RuntimeError("BoucWenBuilding.forward needs ground_acc; give it to the constructor")
+        s = torch.as_tensor(t, dtype=g.dtype) / self.dt
+        k = int(torch.floor(s).clamp(0, g.shape[-1] - 1))
+        if k >= g.shape[-1] - 1:
+            return g[:, -1] * (s <= g.shape[-1] - 1)
+        frac = s - k
+        return g[:, k] + (g[:, k + 1] - g[:, k]) * frac
+
+    def forward(self, t: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+        """``dy/dt`` at time ``t`` for state ``y`` ``(batch, 4*story)`` (torchdiffeq signature)."""
+        return self.rates(y, self.ground_at(t))
+
+    def rates(self, y: torch.Tensor, ag: torch.Tensor) -> torch.Tensor:
+        """``dy/dt`` for state ``y`` ``(batch, 4*story)`` and ground acceleration ``ag`` ``(batch,)``."""
+        P = self.params
+        u, v, z, e = y.split(self.n_stories, dim=-1)
+        x, xd = u - _below(u), v - _below(v)
+        eta = eq.degradation(e, P.alpha, P.k0, P.mass, P.delta_eta)
+        zd = eq.hysteretic_rate(xd, z, P.dy, P.p, eta)
+        acc = _absolute_acceleration(P, x, v, z) - ag[:, None]
+        return torch.cat([v, acc, zd, z * xd], dim=-1)
+
+    # ------------------------------------------------------------------ responses
+    def responses(self, states: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Response quantities from a state history.
+
+        Parameters
+        ----------
+        states : (batch, time, 4*story)
+
+        Returns
+        -------
+        dict of (batch, time, story) tensors: ``disp``, ``vel``, ``acc`` (absolute floor
+        acceleration), ``drift``, ``force`` (Bouc-Wen spring force), ``z``, ``eta``,
+        ``energy`` (hysteretic work ``(1-alpha) k0 integral(z dx)`` [N mm]).
+        """
+        P = BuildingTensors(**{f.name: getattr(self.params, f.name)[:, None] for f in dataclasses.fields(self.params)})
+        u, v, z, e = states.split(self.n_stories, dim=-1)
+        x = u - _below(u)
+        return {"disp": u, "vel": v, "acc": _absolute_acceleration(P, x, v, z), "drift": x,
+                "force": eq.spring_force(x, z, P.alpha, P.k0), "z": z,
+                "eta": eq.degradation(e, P.alpha, P.k0, P.mass, P.delta_eta),
+                "energy": (1.0 - P.alpha) * P.k0 * e}
+
+
+def _absolute_acceleration(P: BuildingTensors, x, v, z):
+    """Absolute floor acceleration ``-(R(x, z) + C v) / m`` [mm/s^2]; fields of ``P`` broadcast."""
+    f = eq.spring_force(x, z, P.alpha, P.k0) - P.kg * x  # story shear, P-Delta included
+    fd = torch.einsum("...ij,...j->...i", P.damping, v)
+    return -(f - _above(f) + fd) / P.mass

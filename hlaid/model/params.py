@@ -1,0 +1,299 @@
+"""Parameter sets of the degrading Bouc-Wen shear building, as frozen dataclasses."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+
+from ..errors import InputError
+from ..units import G_MM_S2, weight_kn_to_mass_t
+from . import _structure as S
+
+STORY_FIELDS = ("mass", "k0", "alpha", "p", "dy", "delta_eta")
+"""Per-story parameters of the hysteretic model, in this order."""
+
+_RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
+    # name: (low, high, low_inclusive, high_inclusive, human form)
+    "mass": (0.0, np.inf, False, False, "mass > 0 [t]"),
+    "k0": (0.0, np.inf, False, False, "k0 > 0 [N/mm]"),
+    "alpha": (0.0, 1.0, True, True, "0 <= alpha <= 1"),
+    "p": (1.0, np.inf, True, False, "p >= 1"),
+    "dy": (0.0, np.inf, False, False, "dy > 0 [mm]"),
+    "delta_eta": (0.0, np.inf, True, False, "delta_eta >= 0 [s^2/m^2]"),
+    "height": (0.0, np.inf, False, False, "height > 0 [mm]"),
+    "gravity_load": (0.0, np.inf, True, False, "gravity_load >= 0 [N]"),
+}
+
+
+def check_story_value(name: str, value: float) -> None:
+    """Raise :class:`InputError` if a per-story parameter is out of its range."""
+    lo, hi, lo_in, hi_in, form = _RANGES[name]
+    ok = np.isfinite(value) and (value >= lo if lo_in else value > lo) and (value <= hi if hi_in else value < hi)
+    if not ok:
+        raise InputError(f"{name} = {value:g} is out of range; expected {form}")
+
+
+def _check_range(name: str, values: np.ndarray, source: str | None) -> None:
+    for i, v in enumerate(values):
+        try:
+            check_story_value(name, v)
+        except InputError as e:
+            raise InputError(f"story {i + 1}: {e}", source=source) from None
+
+
+def _frozen_array(values: Any, name: str, n: int | None, source: str | None) -> np.ndarray:
+    try:
+        a = np.array(values, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a list of numbers, got {values!r}", source=source) from None
+    if n is not None and a.shape[0] != n:
+        raise InputError(f"{name} has {a.shape[0]} values but the building has {n} stories", source=source)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, kw_only=True)
+class Damping:
+    """Viscous damping of the shear building: ``C = a0 M + a1 K0``.
+
+    Attributes
+    ----------
+    kind : ``"rayleigh"`` (``ratio`` on the two ``modes``), ``"stiffness"`` or ``"mass"``
+        (proportional, ``ratio`` on ``modes[0]``), or ``"none"``.
+    ratio : damping ratio (0.05 is 5 %).
+    modes : the two modes (1-based) that get ``ratio``.
+    """
+
+    kind: str = "rayleigh"
+    ratio: float = 0.05
+    modes: tuple[int, int] = (1, 2)
+
+    def __post_init__(self):
+        if self.kind not in S.DAMPING_KINDS:
+            raise InputError(f"damping kind {self.kind!r} is unknown; expected one of {sorted(S.DAMPING_KINDS)}")
+        if not (0.0 <= self.ratio < 1.0):
+            raise InputError(f"damping ratio = {self.ratio:g} is out of range; expected 0 <= ratio < 1")
+        modes = tuple(int(m) for m in self.modes)
+        if len(modes) != 2 or min(modes) < 1:
+            raise InputError(f"damping modes = {list(self.modes)}; expected two mode numbers >= 1")
+        object.__setattr__(self, "modes", modes)
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, "ratio": self.ratio, "modes": list(self.modes)}
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class Building:
+    """A shear building with one degrading Bouc-Wen spring per story.
+
+    Stories are listed bottom to top; every array is ``(story,)``. Units N, mm, t, s.
+
+    Attributes
+    ----------
+    mass : floor masses [t] (floor ``i`` at the top of story ``i``)
+    k0 : initial story stiffness [N/mm]
+    alpha : post-yield stiffness ratio, in [0, 1]
+    p : smoothness of the elastic-plastic transition, >= 1
+    dy : yield displacement [mm], > 0
+    delta_eta : stiffness degradation per unit dissipated energy [s^2/m^2], >= 0
+    height : story heights [mm], or None when unknown (no P-Delta, no drift ratios)
+    gravity_load : gravity load on each floor [N]; None means ``mass * g``
+    damping : viscous damping model
+    pdelta : include the geometric stiffness ``-P_i/h_i``; None means "when heights are known"
+    name : a label
+    """
+
+    mass: np.ndarray
+    k0: np.ndarray
+    alpha: np.ndarray
+    p: np.ndarray
+    dy: np.ndarray
+    delta_eta: np.ndarray
+    height: np.ndarray | None = None
+    gravity_load: np.ndarray | None = None
+    damping: Damping = field(default_factory=Damping)
+    pdelta: bool | None = None
+    name: str = ""
+    source: str | None = field(default=None, repr=False)
+
+    def __post_init__(self):
+        n = None
+        for name in STORY_FIELDS:
+            a = _frozen_array(getattr(self, name), name, n, self.source)
+            n = a.shape[0]
+            object.__setattr__(self, name, a)
+        if n == 0:
+            raise InputError("a building needs at least one story", source=self.source)
+        for name in ("height", "gravity_load"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, _frozen_array(getattr(self, name), name, n, self.source))
+        for name in _RANGES:
+            a = getattr(self, name)
+            if a is not None:
+                _check_range(name, a, self.source)
+        if self.pdelta and self.height is None:
+            raise InputError("pdelta is on but story heights are unknown; give height for every story",
+                             source=self.source)
+        if not isinstance(self.damping, Damping):
+            raise InputError(f"damping must be a Damping, got {type(self.damping).__name__}", source=self.source)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_stories(cls, stories: Sequence[Mapping[str, float]], **kwargs) -> "Building":
+        """Build from per-story mappings, bottom to top.
+
+        Each story gives ``mass_t`` (or ``weight_kN``), ``k0``, ``alpha``, ``p``, ``dy``,
+        ``delta_eta`` and optionally ``height_mm`` and ``gravity_kN``.
+        """
+        source = kwargs.get("source")
+        cols: dict[str, list] = {k: [] for k in STORY_FIELDS}
+        heights, gravity = [], []
+        for i, s in enumerate(stories):
+            s = dict(s)
+            if ("mass_t" in s) == ("weight_kN" in s):
+                raise InputError(f"story {i + 1}: give exactly one of mass_t or weight_kN", source=source)
+            cols["mass"].append(s.pop("mass_t") if "mass_t" in s else weight_kn_to_mass_t(s.pop("weight_kN")))
+            for k in STORY_FIELDS[1:]:
+                if k not in s:
+                    raise InputError(f"story {i + 1}: missing {k}", source=source)
+                cols[k].append(s.pop(k))
+            heights.append(s.pop("height_mm", None))
+            gravity.append(s.pop("gravity_kN", None))
+            if s:
+                raise InputError(f"story {i + 1}: unknown field(s) {sorted(s)}", source=source)
+        for name, vals in (("height_mm", heights), ("gravity_kN", gravity)):
+            if any(v is None for v in vals) and not all(v is None for v in vals):
+                raise InputError(f"{name} is given for some stories but not all", source=source)
+        if heights[0] is not None:
+            kwargs.setdefault("height", heights)
+        if gravity[0] is not None:
+            kwargs.setdefault("gravity_load", np.asarray(gravity, dtype=float) * 1000.0)
+        return cls(**cols, **kwargs)
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any], *, source: str | None = None) -> "Building":
+        """Inverse of :meth:`to_dict`."""
+        d = dict(d)
+        stories = d.pop("stories")
+        damping = Damping(**d.pop("damping", {}))
+        return cls.from_stories(stories, damping=damping, source=source, **d)
+
+    def to_dict(self) -> dict:
+        """A JSON-able description (units N, mm, t, s)."""
+        stories = []
+        for i in range(self.n_stories):
+            s = {"mass_t": float(self.mass[i])}
+            s.update({k: float(getattr(self, k)[i]) for k in STORY_FIELDS[1:]})
+            if self.height is not None:
+                s["height_mm"] = float(self.height[i])
+            if self.gravity_load is not None:
+                s["gravity_kN"] = float(self.gravity_load[i]) / 1000.0
+            stories.append(s)
+        out = {"stories": stories, "damping": self.damping.to_dict(), "pdelta": self.pdelta}
+        if self.name:
+            out["name"] = self.name
+        return out
+
+    def replace(self, **changes) -> "Building":
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def n_stories(self) -> int:
+        return int(self.mass.shape[0])
+
+    @property
+    def pdelta_active(self) -> bool:
+        return bool(self.height is not None if self.pdelta is None else self.pdelta)
+
+    def floor_gravity(self) -> np.ndarray:
+        """Gravity load on each floor [N], ``(story,)``."""
+        return self.mass * G_MM_S2 if self.gravity_load is None else np.asarray(self.gravity_load)
+
+    def geometric_stiffness(self) -> np.ndarray:
+        """P-Delta stiffness ``P_i / h_i`` [N/mm] subtracted from each story, zeros when inactive."""
+        if not self.pdelta_active:
+            return np.zeros(self.n_stories)
+        return np.cumsum(self.floor_gravity()[::-1])[::-1] / self.height
+
+    def _t(self, name):
+        return torch.tensor(np.asarray(getattr(self, name)), dtype=torch.float64)[None]
+
+    def rayleigh(self) -> tuple[float, float]:
+        """Damping coefficients ``(a0, a1)`` of ``C = a0 M + a1 K0``."""
+        a0, a1 = S.rayleigh_coefficients(self._t("k0"), self._t("mass"), self.damping.kind,
+                                         self.damping.ratio, self.damping.modes)
+        return float(a0[0]), float(a1[0])
+
+    def damping_matrix(self) -> np.ndarray:
+        """``C`` [N s/mm], ``(story, story)``."""
+        a0, a1 = self.rayleigh()
+        return S.damping_matrix(self._t("k0"), self._t("mass"), torch.tensor([a0], dtype=torch.float64),
+                                torch.tensor([a1], dtype=torch.float64))[0].numpy()
+
+    def stiffness_matrix(self) -> np.ndarray:
+        """Initial elastic stiffness matrix ``K0`` [N/mm], ``(story, story)``."""
+        return S.stiffness_matrix(self._t("k0"))[0].numpy()
+
+    def periods(self) -> np.ndarray:
+        """Initial elastic periods [s], longest first, ``(story,)``."""
+        w = S.natural_frequencies(self._t("k0"), self._t("mass"))[0].numpy()
+        return 2.0 * np.pi / w
+
+    def elastic_stiffness(self, eta: np.ndarray) -> np.ndarray:
+        """``ke = alpha k0 + (1-alpha) k0 / eta`` [N/mm] for degradation ``eta`` ``(..., story)``."""
+        from ._equations import elastic_stiffness
+        return elastic_stiffness(np.asarray(eta), self.alpha, self.k0)
+
+
+@dataclass(frozen=True)
+class BuildingTensors:
+    """Batched parameters of buildings with the same number of stories.
+
+    Every per-story field is ``(batch, story)``; ``damping`` is ``(batch, story, story)``;
+    ``kg`` is the P-Delta stiffness ``P/h`` (zeros where inactive).
+    """
+
+    mass: torch.Tensor
+    k0: torch.Tensor
+    alpha: torch.Tensor
+    p: torch.Tensor
+    dy: torch.Tensor
+    delta_eta: torch.Tensor
+    kg: torch.Tensor
+    damping: torch.Tensor
+
+    @classmethod
+    def stack(cls, buildings: Sequence[Building], dtype=torch.float64, device=None) -> "BuildingTensors":
+        buildings = list(buildings)
+        if not buildings:
+            raise InputError("no buildings given")
+        n = {b.n_stories for b in buildings}
+        if len(n) != 1:
+            raise InputError(f"buildings in one batch must have the same number of stories, got {sorted(n)}")
+
+        def t(values):
+            return torch.tensor(np.stack(values), dtype=dtype, device=device)
+
+        fields = {k: t([getattr(b, k) for b in buildings]) for k in STORY_FIELDS}
+        fields["kg"] = t([b.geometric_stiffness() for b in buildings])
+        fields["damping"] = t([b.damping_matrix() for b in buildings])
+        return cls(**fields)
+
+    @property
+    def batch_size(self) -> int:
+        return int(self.mass.shape[0])
+
+    def index(self, idx) -> "BuildingTensors":
+        """Select (or repeat) batch rows: ``idx`` is a 1-D index tensor or array."""
+        idx = torch.as_tensor(idx, dtype=torch.long, device=self.mass.device)
+        return BuildingTensors(**{f.name: getattr(self, f.name)[idx] for f in dataclasses.fields(self)})
+
+    def numpy(self) -> dict[str, np.ndarray]:
+        return {f.name: getattr(self, f.name).detach().cpu().numpy() for f in dataclasses.fields(self)}

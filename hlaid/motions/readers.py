@@ -1,0 +1,226 @@
+"""Readers for ground motion files: PEER NGA ``.AT2``, one- or two-column text, CSV.
+
+Every reader returns a :class:`GroundMotion` in mm/s^2 and raises
+:class:`~hlaid.errors.InputError` naming the file and what is wrong.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from .._fileio import read_text as _read_file_text
+from ..errors import InputError
+from ..units import acceleration_factor
+from .record import GroundMotion
+
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][-+]?\d+)?"
+
+
+def _floats(text: str, source: str) -> np.ndarray:
+    try:
+        return np.array(text.replace("D", "E").replace("d", "e").split(), dtype=np.float64)
+    except ValueError:
+        bad = next(t for t in text.split() if not re.fullmatch(_NUM, t))
+        raise InputError(f"non-numeric value {bad[:30]!r} in the data", source=source) from None
+
+
+def read_at2(path: str | os.PathLike, *, name: str | None = None) -> GroundMotion:
+    """Read a PEER NGA ``.AT2`` file (units g, 4 header lines, ``NPTS= n, DT= dt SEC``).
+
+    The old NGA layout (``n dt NPTS, DT`` on line 4) is accepted too. The number of values
+    must equal NPTS.
+    """
+    src = str(path)
+    lines = _read_file_text(path).splitlines()
+    if len(lines) < 5:
+        raise InputError(f"has {len(lines)} lines; an AT2 file has 4 header lines and data", source=src)
+    header = lines[3]
+    m_n = re.search(r"NPTS\s*=\s*(\d+)", header, re.I)
+    m_dt = re.search(rf"DT\s*=\s*({_NUM})", header, re.I)
+    if m_n and m_dt:
+        npts, dt = int(m_n.group(1)), float(m_dt.group(1))
+    else:
+        m_old = re.match(rf"\s*(\d+)\s+({_NUM})\s+NPTS", header, re.I)
+        if not m_old:
+            raise InputError(f"line 4 should give NPTS and DT (e.g. 'NPTS= 5372, DT= .0100 SEC'), got {header.strip()[:60]!r}",
+                             source=src)
+        npts, dt = int(m_old.group(1)), float(m_old.group(2))
+    units = lines[2].upper()
+    if re.search(r"CM/S", units):
+        factor = acceleration_factor("cm/s^2")
+    elif re.search(r"\bG\b", units) or "UNITS OF G" in units or units.strip() == "":
+        factor = acceleration_factor("g")
+    else:
+        raise InputError(f"cannot tell the units from line 3 {lines[2].strip()[:60]!r}; expected 'UNITS OF G'",
+                         source=src)
+    values = _floats("\n".join(lines[4:]), src)
+    if values.size != npts:
+        raise InputError(f"header says NPTS = {npts} but the file holds {values.size} values", source=src)
+    label = name or Path(src).name.split(".")[0]
+    return GroundMotion(dt=dt, acc=values * factor, name=label, source=src)
+
+
+def _header_hints(comments: list[str]) -> dict:
+    """dt and units mentioned in comment lines, e.g. 'Acc. in cm/sec^2 and dt=0.005 sec.'."""
+    text = " ".join(comments).lower()
+    hints = {}
+    m = re.search(rf"\bdt\s*=\s*({_NUM})", text)
+    if m:
+        hints["dt"] = float(m.group(1))
+    for pat, unit in ((r"cm/s(ec)?(\^2|2|/s(ec)?)", "cm/s^2"), (r"\bgal\b", "cm/s^2"),
+                      (r"mm/s(ec)?(\^2|2|/s(ec)?)", "mm/s^2"), (r"\bm/s(ec)?(\^2|2|/s(ec)?)", "m/s^2"),
+                      (r"units? (of|in|:)\s*g\b", "g")):
+        if re.search(pat, text):
+            hints["units"] = unit
+            break
+    return hints
+
+
+def read_text(path: str | os.PathLike, *, units: str | None = None, dt: float | None = None,
+              column: int | None = None, name: str | None = None) -> GroundMotion:
+    """Read a whitespace-separated text record.
+
+    Layouts: one column of accelerations (``dt`` needed), or two or more columns where the
+    first is time when it increases uniformly (``time, acceleration``); otherwise columns
+    are channels and ``column`` picks one (default 0). Lines starting with ``#`` or ``%``
+    are comments; ``dt=...`` and the units may be read from them when not given.
+
+    Parameters
+    ----------
+    units : acceleration units of the file: g, m/s^2, cm/s^2 (gal), mm/s^2
+    dt : sample interval [s] when there is no time column
+    column : which acceleration column to read (0-based, not counting a time column)
+    """
+    src = str(path)
+    text = _read_file_text(path)
+    comments = [ln.strip()[1:] for ln in text.splitlines() if ln.strip()[:1] in ("#", "%")]
+    body = [ln.replace(",", " ") for ln in text.splitlines() if ln.strip() and ln.strip()[:1] not in ("#", "%")]
+    if not body:
+        raise InputError("holds no data lines", source=src)
+    widths = {len(ln.split()) for ln in body}
+    if len(widths) != 1:
+        raise InputError(f"rows have different numbers of columns {sorted(widths)}", source=src)
+    data = _floats("\n".join(body), src).reshape(len(body), -1)
+    hints = _header_hints(comments)
+    units = units or hints.get("units")
+    if units is None:
+        raise InputError("units are not stated in the file; give units (g, m/s^2, cm/s^2 or mm/s^2)", source=src)
+    t = data[:, 0]
+    has_time = data.shape[1] >= 2 and data.shape[0] > 2 and _is_uniform_time(t)
+    channels = data[:, 1:] if has_time else data
+    col = 0 if column is None else int(column)
+    if not 0 <= col < channels.shape[1]:
+        raise InputError(f"column {col} requested but the file has {channels.shape[1]} acceleration column(s)",
+                         source=src)
+    if has_time:
+        step = float(np.round((t[-1] - t[0]) / (len(t) - 1), 12))
+        if dt is not None and abs(dt - step) > 1e-6 * step:
+            raise InputError(f"dt = {dt} s given but the time column steps by {step:g} s", source=src)
+        dt = step
+    dt = dt if dt is not None else hints.get("dt")
+    if dt is None:
+        raise InputError("no time column and no dt; give dt", source=src)
+    try:
+        factor = acceleration_factor(units)
+    except ValueError as err:
+        raise InputError(str(err), source=src) from None
+    return GroundMotion(dt=dt, acc=channels[:, col] * factor, name=name or Path(src).name.split(".")[0], source=src)
+
+
+def _is_uniform_time(t: np.ndarray) -> bool:
+    d = np.diff(t)
+    step = np.median(d)
+    return bool(step > 0 and np.all(np.abs(d - step) <= 1e-3 * step + 1e-9) and abs(t[0]) <= 10 * step + 1e-9)
+
+
+def read_csv(path: str | os.PathLike, *, units: str | None = None, dt: float | None = None,
+             column: int | str | None = None, name: str | None = None) -> GroundMotion:
+    """Read a CSV record with a header row, e.g. ``time,acc (g)``.
+
+    A column named ``t``/``time`` (optionally with a unit) is the time axis; ``column`` picks
+    the acceleration column by name or index (default: the first non-time column). Units
+    may be given in the header in parentheses or brackets.
+    """
+    src = str(path)
+    text = _read_file_text(path)
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    if len(lines) < 2:
+        raise InputError("holds no data rows", source=src)
+    header = [h.strip() for h in lines[0].split(",")]
+    if all(re.fullmatch(_NUM, h) for h in header):
+        return read_text(path, units=units, dt=dt, column=column if isinstance(column, int) else None, name=name)
+    rows = [ln.split(",") for ln in lines[1:]]
+    if any(len(r) != len(header) for r in rows):
+        bad = next(i for i, r in enumerate(rows) if len(r) != len(header))
+        raise InputError(f"row {bad + 2} has {len(rows[bad])} fields but the header has {len(header)}", source=src)
+    data = _floats("\n".join(" ".join(r) for r in rows), src).reshape(len(rows), len(header))
+    base = [re.sub(r"[\(\[].*", "", h).strip().lower() for h in header]
+    tcol = next((i for i, b in enumerate(base) if b in ("t", "time", "t_s", "time_s")), None)
+    if isinstance(column, str):
+        if column not in header and column.lower() not in base:
+            raise InputError(f"no column {column!r}; columns are {header}", source=src)
+        col = header.index(column) if column in header else base.index(column.lower())
+    elif isinstance(column, int):
+        col = column
+    else:
+        col = next(i for i in range(len(header)) if i != tcol) if len(header) > 1 or tcol is None else None
+    if col is None or not 0 <= col < len(header):
+        raise InputError(f"cannot pick an acceleration column from {header}", source=src)
+    unit_in_header = re.search(r"[\(\[]\s*([^\)\]]+?)\s*[\)\]]", header[col])
+    units = units or (unit_in_header.group(1) if unit_in_header else None)
+    if units is None:
+        raise InputError(f"units of column {header[col]!r} are not stated; give units", source=src)
+    if tcol is not None:
+        if not _is_uniform_time(data[:, tcol]):
+            raise InputError("the time column is not uniformly increasing", source=src)
+        tt = data[:, tcol]
+        dt = float(np.round((tt[-1] - tt[0]) / (len(tt) - 1), 12))
+    if dt is None:
+        raise InputError("no time column and no dt; give dt", source=src)
+    try:
+        factor = acceleration_factor(units)
+    except ValueError as err:
+        raise InputError(str(err), source=src) from None
+    return GroundMotion(dt=dt, acc=data[:, col] * factor, name=name or Path(src).name.split(".")[0], source=src)
+
+
+READERS: dict[str, Callable[..., GroundMotion]] = {"at2": read_at2, "text": read_text, "csv": read_csv}
+"""Record formats by name; :func:`read_motion` picks one from the file extension."""
+
+
+def _format_of(path: str) -> str:
+    name = path.lower()
+    if name.endswith(".gz"):
+        name = name[:-3]
+    if name.endswith(".at2"):
+        return "at2"
+    if name.endswith(".csv"):
+        return "csv"
+    return "text"
+
+
+def read_motion(spec: str | os.PathLike, *, units: str | None = None, dt: float | None = None,
+                column: int | str | None = None, format: str | None = None) -> GroundMotion:
+    """Read a record from a path, or ``builtin:NAME`` for a record shipped with hlaid.
+
+    Parameters
+    ----------
+    spec : path or ``builtin:NAME`` (see :func:`hlaid.motions.builtin_records`)
+    units, dt, column : passed to the text and CSV readers
+    format : ``"at2"``, ``"text"`` or ``"csv"``; default from the extension
+    """
+    spec = str(spec)
+    if spec.startswith("builtin:"):
+        from .builtin import load_builtin
+        return load_builtin(spec[len("builtin:"):])
+    fmt = format or _format_of(spec)
+    if fmt not in READERS:
+        raise InputError(f"unknown record format {fmt!r}; expected one of {sorted(READERS)}", source=spec)
+    if fmt == "at2":
+        return read_at2(spec)
+    return READERS[fmt](spec, units=units, dt=dt, column=column)

@@ -1,0 +1,7 @@
+"""Simulation: the compiled batch simulator and torchdiffeq replay."""
+
+from .batch import BACKENDS, HISTORY_FIELDS, STATUS, SimulationResult, simulate
+from .replay import SOLVERS, integrate_module, replay, replay_module
+
+__all__ = ["simulate", "SimulationResult", "BACKENDS", "HISTORY_FIELDS", "STATUS", "replay", "replay_module",
+           "integrate_module", "SOLVERS"]
