@@ -7,9 +7,10 @@ File layouts (units mm/s^2, t, mm, N, s):
   [mm], and for simulated data the noise-free truth ``true_disp`` (relative floor
   displacement), ``true_drift``, ``true_force`` (story spring force), ``true_z``,
   ``true_eta`` (each (T, n)) and ``true_params`` (JSON text of the building).
+  Optionally ``floor_disp`` (T, n): measured floor displacements relative to the ground [mm].
 - **CSV**: ``#`` header lines ``# dt_s: ...``, ``# mass_t: m1, m2, ...``, optionally
   ``# height_mm: ...`` and ``# true_params: {json}``; a header row
-  ``time_s,ground_acc,floor_acc_1..n[,true_disp_1..n,...]``; one row per sample.
+  ``time_s,ground_acc,floor_acc_1..n[,floor_disp_1..n][,true_disp_1..n,...]``; one row per sample.
 """
 
 from __future__ import annotations
@@ -61,6 +62,8 @@ class Measurement:
         heights are known, as for a real building)
     truth : the noise-free response when the data were simulated
     noise_rms : the noise level of simulated data (fraction of channel RMS)
+    floor_disp : (time, floor) floor displacements relative to the ground [mm] when the data
+        include measured displacements (e.g. shake-table LVDTs), else None
     source : file the data came from, named in error messages
     """
 
@@ -72,6 +75,7 @@ class Measurement:
     pdelta: bool | None = None
     truth: Truth | None = None
     noise_rms: float | None = None
+    floor_disp: np.ndarray | None = None
     source: str = ""
     name: str = ""
     extra: dict = field(default_factory=dict, repr=False)
@@ -105,6 +109,15 @@ class Measurement:
         if not lo <= pga <= hi:
             raise InputError(f"ground_acc peak is {pga:.3g} mm/s^2 ({pga / G_MM_S2:.3g} g), not a plausible "
                              "earthquake; check the units (expected mm/s^2)", source=src)
+        if self.floor_disp is not None:
+            d = np.asarray(self.floor_disp, dtype=np.float64)
+            d = d[:, None] if d.ndim == 1 else d
+            if d.shape != f.shape:
+                raise InputError(f"floor_disp has shape {d.shape}; expected {f.shape} like floor_acc", source=src)
+            if not np.all(np.isfinite(d)):
+                raise InputError("floor_disp has NaN or inf samples", source=src)
+            d.setflags(write=False)
+            object.__setattr__(self, "floor_disp", d)
         for name in ("mass", "height"):
             a = getattr(self, name)
             if a is None:
@@ -155,6 +168,8 @@ class Measurement:
             d["noise_rms"] = np.float64(self.noise_rms)
         if self.pdelta is not None:
             d["pdelta"] = np.bool_(self.pdelta)
+        if self.floor_disp is not None:
+            d["floor_disp"] = self.floor_disp
         if self.truth is not None:
             for k in TRUTH_FIELDS:
                 d[f"true_{k}"] = getattr(self.truth, k)
@@ -181,6 +196,9 @@ class Measurement:
             head.append(f"# pdelta: {str(self.pdelta).lower()}")
         cols = [self.time[:, None], self.ground_acc[:, None], self.floor_acc]
         names = ["time_s", "ground_acc"] + [f"floor_acc_{j + 1}" for j in range(n)]
+        if self.floor_disp is not None:
+            cols.append(self.floor_disp)
+            names += [f"floor_disp_{j + 1}" for j in range(n)]
         if self.truth is not None:
             head.append("# true_params: " + json.dumps(self.truth.building.to_dict()))
             for k in TRUTH_FIELDS:
@@ -224,9 +242,10 @@ def _read_npz(p: Path) -> Measurement:
     except (TypeError, ValueError):
         raise InputError(f"dt must be a number, got {d['dt']!r}", source=src) from None
     extra = {k: v for k, v in d.items() if k not in {"dt", "ground_acc", "floor_acc", "mass", "height", "noise_rms",
-                                                      "pdelta", "true_params"} and not k.startswith("true_")}
+                                                      "pdelta", "floor_disp", "true_params"} and not k.startswith("true_")}
     return Measurement(dt=dt, ground_acc=d["ground_acc"], floor_acc=d["floor_acc"], mass=d.get("mass"),
                        height=d.get("height"), pdelta=bool(d["pdelta"]) if "pdelta" in d else None, truth=truth,
+                       floor_disp=d.get("floor_disp"),
                        noise_rms=float(d["noise_rms"]) if "noise_rms" in d else None, source=src,
                        name=p.stem, extra=extra)
 
@@ -277,11 +296,13 @@ def _read_csv(p: Path) -> Measurement:
     n = len(floors)
     mass = _header_numbers(meta["mass_t"], "mass_t", src) if "mass_t" in meta else None
     height = _header_numbers(meta["height_mm"], "height_mm", src) if "height_mm" in meta else None
+    disp_cols = [f"floor_disp_{j + 1}" for j in range(n)]
+    floor_disp = data[:, [col[c] for c in disp_cols]] if all(c in col for c in disp_cols) else None
     truth = None
     if "true_params" in meta and all(f"true_{k}_1" in col for k in TRUTH_FIELDS):
         b = Building.from_dict(json.loads(meta["true_params"]), source=src)
         truth = Truth(building=b, **{k: data[:, [col[f"true_{k}_{j + 1}"] for j in range(n)]] for k in TRUTH_FIELDS})
     return Measurement(dt=dt, ground_acc=data[:, col["ground_acc"]], floor_acc=data[:, [col[f] for f in floors]],
-                       mass=mass, height=height, truth=truth,
+                       mass=mass, height=height, truth=truth, floor_disp=floor_disp,
                        pdelta={"true": True, "false": False}.get(meta.get("pdelta", "").strip().lower()),
                        noise_rms=float(meta["noise_rms"]) if "noise_rms" in meta else None, source=src, name=p.stem)
