@@ -37,6 +37,17 @@ def read_text(path: str | os.PathLike) -> str:
         return raw.decode("latin-1")
 
 
+def _creation_mode(directory: bool = False) -> int:
+    """Permissions a plain ``open``/``mkdir`` would give (0o666 / 0o777 less the umask).
+
+    ``tempfile`` creates private (0o600 / 0o700) entries; an output renamed into place from
+    one would otherwise stay unreadable to everyone else.
+    """
+    umask = os.umask(0)
+    os.umask(umask)
+    return (0o777 if directory else 0o666) & ~umask
+
+
 def _check_target(path: Path, force: bool) -> None:
     if path.exists() and not force:
         raise InputError("already exists; use --force to overwrite", source=str(path))
@@ -61,6 +72,7 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], None], *, forc
     tmp = Path(tmp)
     try:
         write(tmp)
+        os.chmod(tmp, _creation_mode())
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
@@ -114,6 +126,7 @@ def atomic_directory(path: str | os.PathLike, *, force: bool = False) -> Iterato
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=parent))
     try:
         yield tmp
+        os.chmod(tmp, _creation_mode(directory=True))
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

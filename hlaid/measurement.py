@@ -252,10 +252,13 @@ def _read_npz(p: Path) -> Measurement:
 
 def _header_numbers(value: str, key: str, src: str) -> np.ndarray:
     try:
-        return np.array([float(x) for x in value.replace(";", ",").split(",") if x.strip()])
+        out = np.array([float(x) for x in value.replace(";", ",").split(",") if x.strip()])
     except ValueError:
+        out = np.empty(0)
+    if out.size == 0:
         raise InputError(f"header '{key}' must be a comma-separated list of numbers, got {value.strip()[:40]!r}",
-                         source=src) from None
+                         source=src)
+    return out
 
 
 def _read_csv(p: Path) -> Measurement:
@@ -276,12 +279,15 @@ def _read_csv(p: Path) -> Measurement:
     if len(rows) < 2:
         raise InputError("holds no data rows", source=src)
     names = [c.strip() for c in rows[0].split(",")]
+    fields = [r.split(",") for r in rows[1:]]
+    for i, r in enumerate(fields):
+        if len(r) != len(names):
+            raise InputError(f"data row {i + 1} has {len(r)} values but the header names {len(names)} columns",
+                             source=src)
     try:
-        data = np.array([[float(x) for x in r.split(",")] for r in rows[1:]])
+        data = np.array([[float(x) for x in r] for r in fields])
     except ValueError:
         raise InputError("has a non-numeric value in the data rows", source=src) from None
-    if data.ndim != 2 or data.shape[1] != len(names):
-        raise InputError(f"rows must all have {len(names)} values like the header", source=src)
     col = {n: i for i, n in enumerate(names)}
     floors = sorted((n for n in names if re.fullmatch(r"floor_acc_\d+", n)), key=lambda n: int(n.rsplit("_", 1)[1]))
     if "ground_acc" not in col or not floors:
@@ -300,9 +306,13 @@ def _read_csv(p: Path) -> Measurement:
     floor_disp = data[:, [col[c] for c in disp_cols]] if all(c in col for c in disp_cols) else None
     truth = None
     if "true_params" in meta and all(f"true_{k}_1" in col for k in TRUTH_FIELDS):
-        b = Building.from_dict(json.loads(meta["true_params"]), source=src)
+        try:
+            b = Building.from_dict(json.loads(meta["true_params"]), source=src)
+        except (ValueError, KeyError, TypeError) as err:  # InputError is a ValueError too
+            raise InputError(f"'# true_params:' is not a valid building ({err})", source=src) from None
         truth = Truth(building=b, **{k: data[:, [col[f"true_{k}_{j + 1}"] for j in range(n)]] for k in TRUTH_FIELDS})
+    noise_rms = float(_header_numbers(meta["noise_rms"], "noise_rms", src)[0]) if "noise_rms" in meta else None
     return Measurement(dt=dt, ground_acc=data[:, col["ground_acc"]], floor_acc=data[:, [col[f] for f in floors]],
                        mass=mass, height=height, truth=truth, floor_disp=floor_disp,
                        pdelta={"true": True, "false": False}.get(meta.get("pdelta", "").strip().lower()),
-                       noise_rms=float(meta["noise_rms"]) if "noise_rms" in meta else None, source=src, name=p.stem)
+                       noise_rms=noise_rms, source=src, name=p.stem)

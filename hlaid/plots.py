@@ -14,12 +14,13 @@ import numpy as np  # noqa: E402
 from ._fileio import atomic_write  # noqa: E402
 
 
-def story_axes(n: int, *, ncols: int | None = None, size=(4.2, 3.4), sharex=False, sharey=False):
+def story_axes(n: int, *, ncols: int | None = None, size=(4.2, 3.4), sharex=False, sharey=False,
+               layout: str | None = None):
     """A figure with one panel per story; returns ``(fig, axes)`` with ``axes`` a flat list."""
     ncols = ncols or min(n, 3)
     nrows = int(np.ceil(n / ncols))
     fig, axes = plt.subplots(nrows, ncols, figsize=(size[0] * ncols, size[1] * nrows), squeeze=False,
-                             sharex=sharex, sharey=sharey)
+                             sharex=sharex, sharey=sharey, layout=layout)
     axes = axes.ravel().tolist()
     for ax in axes[n:]:
         ax.set_visible(False)
@@ -28,7 +29,8 @@ def story_axes(n: int, *, ncols: int | None = None, size=(4.2, 3.4), sharex=Fals
 
 def save_figure(fig, path: str | os.PathLike, *, dpi: int = 110) -> Path:
     """Save a figure atomically as PNG and close it."""
-    fig.tight_layout()
+    if fig.get_layout_engine() is None:
+        fig.tight_layout()
     try:
         return atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format="png"))
     finally:

@@ -18,6 +18,8 @@ from ..errors import InputError
 COMMANDS = [
     "hlaid.cli.simulate",
     "hlaid.cli.demo",
+    "hlaid.cli.hla",
+    "hlaid.cli.ida",
 ]
 """Modules that each register one or more subcommands."""
 

@@ -21,6 +21,20 @@ from .record import GroundMotion
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][-+]?\d+)?"
 
 
+def _default_name(src: str) -> str:
+    """A record's label from its file name: ``RSN6_IMPVALL.I_I-ELC180-hor1.AT2`` ->
+    ``RSN6_IMPVALL.I_I-ELC180-hor1`` (only the extension, and ``.gz``, are dropped)."""
+    name = Path(src).name
+    if name.lower().endswith(".gz"):
+        name = name[:-3]
+    return Path(name).stem or name
+
+
+def _number(token: str) -> float:
+    """``float`` that also reads a Fortran exponent (``.01D00``); raises ValueError."""
+    return float(token.strip().replace("D", "E").replace("d", "e"))
+
+
 def _floats(text: str, source: str) -> np.ndarray:
     try:
         return np.array(text.replace("D", "E").replace("d", "e").split(), dtype=np.float64)
@@ -43,13 +57,13 @@ def read_at2(path: str | os.PathLike, *, name: str | None = None) -> GroundMotio
     m_n = re.search(r"NPTS\s*=\s*(\d+)", header, re.I)
     m_dt = re.search(rf"DT\s*=\s*({_NUM})", header, re.I)
     if m_n and m_dt:
-        npts, dt = int(m_n.group(1)), float(m_dt.group(1))
+        npts, dt = int(m_n.group(1)), _number(m_dt.group(1))
     else:
         m_old = re.match(rf"\s*(\d+)\s+({_NUM})\s+NPTS", header, re.I)
         if not m_old:
             raise InputError(f"line 4 should give NPTS and DT (e.g. 'NPTS= 5372, DT= .0100 SEC'), got {header.strip()[:60]!r}",
                              source=src)
-        npts, dt = int(m_old.group(1)), float(m_old.group(2))
+        npts, dt = int(m_old.group(1)), _number(m_old.group(2))
     units = lines[2].upper()
     if re.search(r"CM/S", units):
         factor = acceleration_factor("cm/s^2")
@@ -61,7 +75,7 @@ def read_at2(path: str | os.PathLike, *, name: str | None = None) -> GroundMotio
     values = _floats("\n".join(lines[4:]), src)
     if values.size != npts:
         raise InputError(f"header says NPTS = {npts} but the file holds {values.size} values", source=src)
-    label = name or Path(src).name.split(".")[0]
+    label = name or _default_name(src)
     return GroundMotion(dt=dt, acc=values * factor, name=label, source=src)
 
 
@@ -71,10 +85,10 @@ def _header_hints(comments: list[str]) -> dict:
     hints = {}
     m = re.search(rf"\bdt\s*=\s*({_NUM})", text)
     if m:
-        hints["dt"] = float(m.group(1))
+        hints["dt"] = _number(m.group(1))
     for pat, unit in ((r"cm/s(ec)?(\^2|2|/s(ec)?)", "cm/s^2"), (r"\bgal\b", "cm/s^2"),
                       (r"mm/s(ec)?(\^2|2|/s(ec)?)", "mm/s^2"), (r"\bm/s(ec)?(\^2|2|/s(ec)?)", "m/s^2"),
-                      (r"units? (of|in|:)\s*g\b", "g")):
+                      (r"units?\s*(of|in|:|=)\s*g\b", "g")):
         if re.search(pat, text):
             hints["units"] = unit
             break
@@ -86,8 +100,9 @@ def read_text(path: str | os.PathLike, *, units: str | None = None, dt: float | 
     """Read a whitespace-separated text record.
 
     Layouts: one column of accelerations (``dt`` needed), or two or more columns where the
-    first is time when it increases uniformly (``time, acceleration``); otherwise columns
-    are channels and ``column`` picks one (default 0). Lines starting with ``#`` or ``%``
+    first is time when it increases uniformly (``time, acceleration``; a first column that
+    increases in unequal steps is an error); otherwise columns are channels and ``column``
+    picks one (default 0). Lines starting with ``#`` or ``%``
     are comments; ``dt=...`` and the units may be read from them when not given.
 
     Parameters
@@ -112,6 +127,10 @@ def read_text(path: str | os.PathLike, *, units: str | None = None, dt: float | 
         raise InputError("units are not stated in the file; give units (g, m/s^2, cm/s^2 or mm/s^2)", source=src)
     t = data[:, 0]
     has_time = data.shape[1] >= 2 and data.shape[0] > 2 and _is_uniform_time(t)
+    if not has_time and data.shape[1] >= 2 and data.shape[0] > 2 and np.all(np.diff(t) > 0):
+        d = np.diff(t)
+        raise InputError(f"the first column increases like a time axis but its steps are not uniform "
+                         f"({d.min():g} to {d.max():g}); give a uniformly sampled record", source=src)
     channels = data[:, 1:] if has_time else data
     col = 0 if column is None else int(column)
     if not 0 <= col < channels.shape[1]:
@@ -129,13 +148,15 @@ def read_text(path: str | os.PathLike, *, units: str | None = None, dt: float | 
         factor = acceleration_factor(units)
     except ValueError as err:
         raise InputError(str(err), source=src) from None
-    return GroundMotion(dt=dt, acc=channels[:, col] * factor, name=name or Path(src).name.split(".")[0], source=src)
+    return GroundMotion(dt=dt, acc=channels[:, col] * factor, name=name or _default_name(src), source=src)
 
 
 def _is_uniform_time(t: np.ndarray) -> bool:
+    """Whether ``t`` increases in equal steps (it may start at any time; the record's origin is its
+    first sample)."""
     d = np.diff(t)
     step = np.median(d)
-    return bool(step > 0 and np.all(np.abs(d - step) <= 1e-3 * step + 1e-9) and abs(t[0]) <= 10 * step + 1e-9)
+    return bool(step > 0 and np.all(np.abs(d - step) <= 1e-3 * step + 1e-9))
 
 
 def read_csv(path: str | os.PathLike, *, units: str | None = None, dt: float | None = None,
@@ -158,7 +179,14 @@ def read_csv(path: str | os.PathLike, *, units: str | None = None, dt: float | N
     if any(len(r) != len(header) for r in rows):
         bad = next(i for i, r in enumerate(rows) if len(r) != len(header))
         raise InputError(f"row {bad + 2} has {len(rows[bad])} fields but the header has {len(header)}", source=src)
-    data = _floats("\n".join(" ".join(r) for r in rows), src).reshape(len(rows), len(header))
+    data = np.empty((len(rows), len(header)))
+    for i, r in enumerate(rows):
+        for j, v in enumerate(r):
+            try:
+                data[i, j] = _number(v)
+            except ValueError:
+                raise InputError(f"row {i + 2}, column {header[j]!r}: {v.strip()[:30]!r} is not a number",
+                                 source=src) from None
     base = [re.sub(r"[\(\[].*", "", h).strip().lower() for h in header]
     tcol = next((i for i, b in enumerate(base) if b in ("t", "time", "t_s", "time_s")), None)
     if isinstance(column, str):
@@ -186,7 +214,7 @@ def read_csv(path: str | os.PathLike, *, units: str | None = None, dt: float | N
         factor = acceleration_factor(units)
     except ValueError as err:
         raise InputError(str(err), source=src) from None
-    return GroundMotion(dt=dt, acc=data[:, col] * factor, name=name or Path(src).name.split(".")[0], source=src)
+    return GroundMotion(dt=dt, acc=data[:, col] * factor, name=name or _default_name(src), source=src)
 
 
 READERS: dict[str, Callable[..., GroundMotion]] = {"at2": read_at2, "text": read_text, "csv": read_csv}

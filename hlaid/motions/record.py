@@ -87,6 +87,8 @@ class GroundMotion:
         """The record scaled so that its PGA is ``pga_g`` [g]."""
         if not pga_g > 0:
             raise InputError(f"target PGA = {pga_g} g; expected a positive value", source=self.source or None)
+        if self.pga == 0.0:
+            raise InputError("the record is all zeros; it cannot be scaled to a PGA", source=self.source or None)
         return self.scaled(pga_g * G_MM_S2 / self.pga)
 
     def resampled(self, rate_hz: float) -> "GroundMotion":

@@ -226,7 +226,11 @@ def simulate(buildings: Building | Sequence[Building], motions: GroundMotion | S
     if y0 is None:
         y0 = np.zeros((bi.size, 4 * n))
     else:
-        y0 = np.ascontiguousarray(np.broadcast_to(np.asarray(y0, dtype=np.float64), (bi.size, 4 * n)))
+        try:  # a writable copy: a read-only view would make numba compile the kernel a second time
+            y0 = np.broadcast_to(np.asarray(y0, dtype=np.float64), (bi.size, 4 * n)).copy()
+        except ValueError:
+            raise InputError(f"y0 of shape {np.shape(y0)}; expected (batch, 4*story) = ({bi.size}, {4 * n}) "
+                             f"or ({4 * n},)") from None
     stop = _stop_array(stop_drift, bi, n, len(buildings))
     states, peak_drift, peak_acc, final, n_done, status = BACKENDS[backend](
         P, ag, dt, nt, mi.astype(np.int64), bi.astype(np.int64), sc, int(substeps), y0, stop, outputs == "full")

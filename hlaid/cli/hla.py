@@ -1,0 +1,43 @@
+"""``hlaid hla``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .. import _progress
+from .._fileio import atomic_directory
+from ..config import load_config
+from ..hla import HLAConfig, hla
+from ..hla.plots import plot_loops, plot_stiffness
+from ..io_dispatch import read_measurement_any
+from ..plots import save_figure
+from .main import subcommand
+
+
+def register(sub) -> None:
+    p = subcommand(sub, "hla", help="hysteresis loop analysis: story force-drift loops, half cycles, k0, ke(t), k(t)",
+                   example="hlaid hla meas.npz -o hla-out --plot")
+    p.add_argument("measurement", help="measurement file (.npz, .csv, or a format hlaid reads)")
+    p.add_argument("-o", "--out", required=True, help="output folder (hla.npz, hla.json, plots)")
+    p.add_argument("--config", help="HLA config YAML (see configs/hla.yaml)")
+    p.add_argument("--plot", action="store_true", help="write loops.png and stiffness.png")
+    p.add_argument("--force", action="store_true", help="replace an existing output folder")
+    p.set_defaults(func=run_hla)
+
+
+def run_hla(args) -> int:
+    cfg = load_config(args.config, HLAConfig) if args.config else HLAConfig()
+    meas = read_measurement_any(args.measurement)
+    _progress.info(f"HLA of {meas.n_floors} stories, {meas.n_samples} samples at {1 / meas.dt:g} Hz")
+    res = hla(meas, cfg)
+    with atomic_directory(args.out, force=args.force) as tmp:
+        res.save(tmp)
+        if args.plot:
+            save_figure(plot_loops(res), Path(tmp) / "loops.png")
+            save_figure(plot_stiffness(res, meas.truth), Path(tmp) / "stiffness.png")
+    for s in res.stories:
+        hc = s.half_cycles
+        state = f"ke/k0 final {hc.ke[-1] / s.k0:.3f}" if s.yielded else "elastic (no yielding)"
+        _progress.info(f"story {s.story}: k0 = {s.k0:.5g} {res.units['stiffness']}, {len(hc)} half cycles, {state}")
+    _progress.info(f"wrote {args.out}/")
+    return 0

@@ -1,0 +1,112 @@
+"""``hlaid ida`` and ``hlaid export-opensees``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .. import _progress
+from ..errors import InputError
+from .main import subcommand
+
+
+def _numbers(text: str, what: str) -> list[float]:
+    """``"0.1,0.2 0.3"`` or ``"start:stop:step"`` -> floats."""
+    text = text.strip()
+    try:
+        if text.count(":") == 2:
+            import numpy as np
+            a, b, s = (float(v) for v in text.split(":"))
+            if not s > 0:
+                raise ValueError
+            return [float(f"{v:.10g}") for v in np.arange(a, b + 0.5 * s, s)]
+        return [float(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        raise InputError(f"{what} must be numbers such as 0.2,0.4,0.6 or start:stop:step, got {text!r}") from None
+
+
+def register(sub) -> None:
+    p = subcommand(sub, "ida", help="incremental dynamic analysis and collapse fragility of a clone",
+                   example="hlaid ida clone.json --records builtin-suite -o ida-out")
+    p.add_argument("clone", help="clone file (hlaid-clone JSON)")
+    p.add_argument("--records", nargs="+", metavar="DIR|builtin-suite|FILE",
+                   help="a folder of AT2/text records, builtin-suite, or record files (default: the config's)")
+    p.add_argument("-o", "--out", required=True, help="output folder (written atomically)")
+    p.add_argument("--config", help="IDA settings (YAML, see configs/ida.yaml); options below override it")
+    p.add_argument("--im", choices=["sa_t1", "pga"], help="intensity measure (default sa_t1: Sa(T1, 5%%))")
+    p.add_argument("--levels", nargs="+", metavar="G",
+                   help="IM levels [g], strictly increasing: 0.2 0.4 ..., 0.2,0.4,... or start:stop:step")
+    p.add_argument("--n-levels", type=int, help="number of automatic levels (default 20)")
+    p.add_argument("--drift-limit", type=float, help="collapse drift ratio (default 0.10)")
+    p.add_argument("--no-refine", action="store_true", help="skip the hunt-and-fill refinement of collapse")
+    pd = p.add_mutually_exclusive_group()
+    pd.add_argument("--pdelta", dest="pdelta", action="store_true", default=None,
+                    help="include P-Delta (default: when story heights are known)")
+    pd.add_argument("--no-pdelta", dest="pdelta", action="store_false", help="leave P-Delta out")
+    p.add_argument("--heights", metavar="MM", help="story heights [mm], bottom to top, e.g. 3000,3000,3000")
+    p.add_argument("--gravity-kN", metavar="KN", help="floor gravity loads [kN] for P-Delta, bottom to top")
+    p.add_argument("--units", help="acceleration units of text records: g, m/s^2, cm/s^2, mm/s^2")
+    p.add_argument("--period", type=float, help="period [s] of Sa instead of the clone's T1")
+    p.add_argument("--bootstrap", type=int, help="bootstrap resamples of the fragility interval (default 1000)")
+    p.add_argument("--seed", type=int, help="bootstrap seed (default 0)")
+    p.add_argument("--no-plots", action="store_true", help="write no PNG figures")
+    p.add_argument("--force", action="store_true", help="replace an existing output folder")
+    p.set_defaults(func=run_ida)
+
+    e = subcommand(sub, "export-opensees", help="write a runnable OpenSeesPy script of a clone",
+                   example="hlaid export-opensees clone.json -o model.py && python model.py record.AT2")
+    e.add_argument("clone", help="clone file (hlaid-clone JSON)")
+    e.add_argument("-o", "--out", required=True, help="output script (.py)")
+    ep = e.add_mutually_exclusive_group()
+    ep.add_argument("--pdelta", dest="pdelta", action="store_true", default=None,
+                    help="include P-Delta (default: when story heights are known, as hlaid ida does)")
+    ep.add_argument("--no-pdelta", dest="pdelta", action="store_false", help="leave P-Delta out")
+    e.add_argument("--heights", metavar="MM", help="story heights [mm], bottom to top")
+    e.add_argument("--gravity-kN", metavar="KN", help="floor gravity loads [kN], bottom to top")
+    e.add_argument("--force", action="store_true", help="overwrite an existing file")
+    e.set_defaults(func=run_export)
+
+
+def run_ida(args) -> int:
+    from ..ida import IDAConfig, ida_from_config, load_ida_config, prepare_building
+
+    out = Path(args.out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())) and not args.force:
+        raise InputError("output folder exists and is not empty; use --force to replace it", source=str(out))
+    cfg = load_ida_config(args.config) if args.config else IDAConfig()
+    levels = _numbers(" ".join(args.levels), "--levels") if args.levels else None
+    cfg = cfg.replace(im=args.im, levels=levels, n_levels=args.n_levels, drift_limit=args.drift_limit,
+                      refine=False if args.no_refine else None, pdelta=args.pdelta,
+                      heights_mm=_numbers(args.heights, "--heights") if args.heights else None,
+                      gravity_kN=_numbers(args.gravity_kN, "--gravity-kN") if args.gravity_kN else None,
+                      units=args.units, period=args.period, bootstrap=args.bootstrap, seed=args.seed)
+    # fail on a bad clone before reading records
+    prepare_building(args.clone, pdelta=cfg.pdelta, heights=cfg.heights_mm,
+                     gravity_load=None if cfg.gravity_kN is None else [v * 1000.0 for v in cfg.gravity_kN])
+    base = Path(args.config).parent if args.config else None
+    res = ida_from_config(args.clone, cfg, records=args.records, base_dir=base)
+    res.save(out, force=args.force, plots=not args.no_plots, n_boot=cfg.bootstrap, ci=cfg.ci, seed=cfg.seed)
+    s = res.summary(n_boot=0)
+    f = s["collapse_fragility"]["capacities"]
+    if "median_g" in f:
+        _progress.info(f"collapse fragility ({res.im_label}): median {f['median_g']:.3g} g, beta {f['beta']:.2f} "
+                       f"({res.n_records} records, {f['n_censored']} censored)")
+    for note in res.notes:
+        _progress.debug(f"note: {note}")
+    _progress.info(f"wrote {out}/ (points.csv, summary.json, ida.npz"
+                   + ("" if args.no_plots else ", ida_curves.png, fragility.png, exceedance.png") + ")")
+    return 0
+
+
+def run_export(args) -> int:
+    from ..ida import prepare_building
+    from ..opensees import export_opensees
+
+    b, notes = prepare_building(args.clone, pdelta=args.pdelta, require_heights=False,
+                                heights=_numbers(args.heights, "--heights") if args.heights else None,
+                                gravity_load=[v * 1000.0 for v in _numbers(args.gravity_kN, "--gravity-kN")]
+                                if args.gravity_kN else None)
+    path = export_opensees(b, args.out, force=args.force)
+    _progress.info(f"wrote {path} ({b.n_stories} stories, P-Delta {'on' if b.pdelta_active else 'off'}); "
+                   f"run it with: python {path} RECORD.AT2 [--pga-g 0.5] [--out peaks.json]")
+    return 0
+

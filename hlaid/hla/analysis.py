@@ -1,0 +1,258 @@
+"""Hysteresis loop analysis of a measurement: ``hla(measurement, config) -> HLAResult``.
+
+Steps (DESIGN.md section 5): band-pass and integrate the accelerations to floor motion
+relative to the ground; inter-story drift and drift velocity; story restoring force
+``f_i = -sum_{j>=i} m_j a_j`` (eq 1-2) less its damping share and plus the P-Delta share;
+half cycles between drift reversals; per half cycle the elastic stiffness ``ke`` after the
+reversal, along it the tangent stiffness ``k(t)``; the initial stiffness ``k0`` from the
+elastic stiffness before degradation sets in.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from scipy import integrate
+
+from ..errors import InputError
+from ..measurement import Measurement
+from ..model import _structure
+from ..units import G_MM_S2
+from . import preprocess as pp
+from .config import HLAConfig
+from .halfcycles import half_cycle_bounds
+from .result import HalfCycleTable, HLAResult, StoryHLA
+from .stiffness import degradation_trend, elastic_window, isotonic_decreasing, slope_with_drift_check, sliding_slope
+
+
+def _masses(meas: Measurement, cfg: HLAConfig) -> tuple[np.ndarray, bool]:
+    n = meas.n_floors
+    if meas.mass is not None:
+        return np.asarray(meas.mass, dtype=float), False
+    ratios = cfg.force.mass_ratios
+    if ratios is None:
+        ratios = [1.0] * n
+    if len(ratios) != n:
+        raise InputError(f"force.mass_ratios has {len(ratios)} values but there are {n} floors", source=meas.source)
+    r = np.asarray(ratios, dtype=float)
+    return r / r.sum(), True
+
+
+def story_force(acc: np.ndarray, mass: np.ndarray) -> np.ndarray:
+    """Story restoring force ``f_i = -sum_{j>=i} m_j a_j`` (eq 1-2), ``(time, story)``."""
+    return -np.cumsum((acc * mass[None, :])[:, ::-1], axis=1)[:, ::-1]
+
+
+def _pdelta_active(meas: Measurement, cfg: HLAConfig) -> bool:
+    mode = cfg.force.pdelta
+    if mode == "off":
+        return False
+    if meas.height is None:
+        if mode == "on":
+            raise InputError("force.pdelta is 'on' but the measurement has no story heights", source=meas.source)
+        return False
+    return True if mode == "on" else meas.pdelta_active
+
+
+def floor_motion(meas: Measurement, cfg: HLAConfig):
+    """Filtered absolute floor accelerations, relative floor velocities and displacements.
+
+    Returns ``(acc, acc_full, vel, disp)``, each ``(time, floor)`` [mm/s^2, mm/s, mm]:
+    ``acc`` band-passed like the drift (for stiffness fits, so both carry the same filter),
+    ``acc_full`` only low-passed (for the reported force).
+    """
+    p = cfg.preprocess
+    band = resolved_band(meas, cfg)
+    pp.check_record_length(meas.n_samples, meas.dt, band, p.order, meas.source or None)
+    # force and drift pass through the same zero-phase filter, so whatever the filter takes
+    # out of one it takes out of the other and the loops stay consistent
+    acc = pp.bandpass(np.asarray(meas.floor_acc), meas.dt, band, p.order)
+    ag = pp.bandpass(np.asarray(meas.ground_acc), meas.dt, band, p.order)
+    # the reported force keeps its low frequencies (no integration, nothing drifts)
+    acc_full = pp.bandpass(np.asarray(meas.floor_acc), meas.dt, (0.0, band[1]), p.order)
+    use_measured = p.displacement == "measured" or (p.displacement == "auto" and meas.floor_disp is not None)
+    if use_measured:
+        if meas.floor_disp is None:
+            raise InputError("preprocess.displacement is 'measured' but the data hold no floor displacements",
+                             source=meas.source)
+        disp = pp.bandpass(np.asarray(meas.floor_disp), meas.dt, band, p.order)
+        vel = np.gradient(disp, meas.dt, axis=0)
+    else:
+        vel, disp = pp.integrate_twice(acc - ag[:, None], meas.dt, band, p.order)
+    return acc, acc_full, vel, disp
+
+
+def resolved_band(meas: Measurement, cfg: HLAConfig) -> tuple[float, float]:
+    """The band-pass corners used for ``meas``: the config's, or chosen from the record."""
+    p = cfg.preprocess
+    if p.band_hz is not None:
+        return tuple(p.band_hz)
+    return pp.auto_band(np.asarray(meas.ground_acc), np.asarray(meas.floor_acc)[:, -1], meas.dt, p.highpass_ratio)
+
+
+def _story_stiffness(x, f, dx, t, bounds, cfg: HLAConfig, band, regress_damping: bool) -> HalfCycleTable:
+    """Half-cycle table of one story: raw ke per half cycle, then the smoothed ke."""
+    sc = cfg.stiffness
+    work = integrate.cumulative_trapezoid(f * dx, t, initial=0.0)
+    corr = max(1.0, 1.0 / (2.0 * band[1] * (t[1] - t[0])))  # samples per independent one
+    rows = []
+    for s, e in bounds:
+        w = elastic_window(f, s, e, sc.ke_force_fraction, sc.ke_min_samples)
+        xs, fs = x[s:w], f[s:w]
+        c = np.nan
+        if regress_damping:
+            c = float(np.linalg.lstsq(np.stack([xs, dx[s:w], np.ones(w - s)], axis=1), fs, rcond=None)[0][1])
+            fs = fs - c * dx[s:w]
+        ke, var = slope_with_drift_check(xs, fs, t[s:w], sc.ke_trend_z)
+        b = float(fs[0] - ke * xs[0]) if np.isfinite(ke) else np.nan
+        zero = s + int(np.argmin(np.abs(f[s:e + 1])))  # energy where the force crosses zero
+        seg = slice(s, e + 1)
+        rows.append((s, e, t[s], t[e], np.sign(x[e] - x[s]), abs(x[e] - x[s]), np.max(np.abs(x[seg])), ke,
+                     ke, np.sqrt(var * corr), -b / ke if ke else np.nan, np.trapezoid(f[seg], x[seg]),
+                     work[zero], c))
+    cols = [np.asarray(c) for c in zip(*rows)] if rows else [np.zeros(0)] * 14
+    table = HalfCycleTable(*(c.astype(np.int64 if i < 2 else np.float64) for i, c in enumerate(cols)))
+    return table
+
+
+def _smooth(table: HalfCycleTable, ptp: float, yielded: bool, cfg: HLAConfig) -> tuple[HalfCycleTable, float]:
+    """Smoothed ke of every half cycle and k0 (see :class:`StiffnessConfig`)."""
+    raw = table.ke_raw
+    big = table.drift_increment >= cfg.stiffness.k0_min_amplitude * ptp
+    w = np.where(big, 1.0 / np.maximum(table.ke_std, 1e-9 * np.abs(raw)) ** 2, 0.0)
+    w = np.where(np.isfinite(raw) & (raw > 0), w, 0.0)
+    if len(table) == 0 or not (w > 0).any():
+        return table, np.nan
+    if not yielded:  # an elastic story: one stiffness, k0, pooled over every half cycle
+        k0 = float(np.sum(w * np.nan_to_num(raw)) / np.sum(w))
+        return table.replace(ke=np.full(len(table), k0)), k0
+    ke_fit, k0 = degradation_trend(raw, table.energy_before, w)
+    mode = cfg.stiffness.ke_smoothing
+    if mode == "energy":
+        ke = ke_fit
+    elif mode == "monotone":
+        ok = w > 0
+        fit = isotonic_decreasing(raw[ok], w[ok])
+        ke = np.interp(np.arange(len(raw)), np.flatnonzero(ok), fit)
+    else:
+        ke = raw.copy()
+    return table.replace(ke=ke), k0
+
+
+def _analyse(x, f, dx, t, cfg: HLAConfig, band, regress_damping: bool):
+    """Half cycles, stiffness table, k(t), yield flag and k0 of one story."""
+    ptp = float(np.ptp(x))
+    bounds = half_cycle_bounds(x, cfg.half_cycles.min_increment * ptp)
+    table = _story_stiffness(x, f, dx, t, bounds, cfg, band, regress_damping)
+    k = sliding_slope(x, f, bounds, cfg.stiffness.k_window)
+    yielded = _yielded(k, table, cfg)
+    table, k0 = _smooth(table, ptp, yielded, cfg)
+    return _StoryFit(bounds, table, k, yielded, k0)
+
+
+@dataclass(frozen=True)
+class _StoryFit:
+    bounds: np.ndarray
+    table: HalfCycleTable
+    k: np.ndarray
+    yielded: bool
+    k0: float
+
+
+def hla(measurement: Measurement, config: HLAConfig | None = None) -> HLAResult:
+    """Hysteresis loop analysis of every story.
+
+    Parameters
+    ----------
+    measurement : ground and absolute floor accelerations (masses optional)
+    config : analysis settings (defaults: :class:`HLAConfig`)
+
+    Returns
+    -------
+    HLAResult
+    """
+    cfg = config or HLAConfig()
+    meas = measurement
+    m, normalised = _masses(meas, cfg)
+    band = resolved_band(meas, cfg)
+    acc, acc_full, vel, disp = floor_motion(meas, cfg)
+    x = pp.story_drift(disp)
+    dx = pp.story_drift(vel)
+    t = meas.time
+    f = story_force(acc, m)
+    share = np.zeros_like(f)  # what is added to the inertia force: P-Delta, minus damping
+    pdelta = _pdelta_active(meas, cfg)
+    if pdelta:
+        P = np.cumsum((m * G_MM_S2)[::-1])[::-1]
+        share = share + x * (P / meas.height)[None, :]
+        f = f + share
+    n = meas.n_floors
+    damping = cfg.force.damping
+    regress = damping == "regression"
+    results = [_analyse(x[:, i], f[:, i], dx[:, i], t, cfg, band, regress) for i in range(n)]
+    for i, r in enumerate(results):
+        if len(r.table) == 0:
+            raise InputError(f"story {i + 1}: no complete half cycle; the record is too short or too weak for HLA",
+                             source=meas.source)
+    if damping == "rayleigh":
+        f0 = f
+        mv = np.cumsum((vel * m[None, :])[:, ::-1], axis=1)[:, ::-1]
+        for _ in range(cfg.force.max_iterations):
+            k0 = np.array([r.k0 for r in results])
+            if not np.all(np.isfinite(k0) & (k0 > 0)):
+                bad = int(np.argmax(~(np.isfinite(k0) & (k0 > 0)))) + 1
+                raise InputError(f"story {bad}: no half cycle to estimate k0 from; the record is too short or too "
+                                 "weak", source=meas.source)
+            a0, a1 = _structure.rayleigh_coefficients(torch.tensor(k0)[None], torch.tensor(m)[None], "rayleigh",
+                                                      cfg.force.damping_ratio, cfg.force.damping_modes)
+            damp = float(a0) * mv + float(a1) * k0[None, :] * dx
+            f = f0 - damp
+            results = [_analyse(x[:, i], f[:, i], dx[:, i], t, cfg, band, False) for i in range(n)]
+            k0_new = np.array([r.k0 for r in results])
+            if np.all(np.abs(k0_new / k0 - 1) < 1e-3):
+                break
+        share = share - damp
+    elif regress:
+        cs = []
+        for i, r in enumerate(results):
+            c = np.nanmedian(r.table.damping_coefficient) if len(r.table) else 0.0
+            cs.append(c if np.isfinite(c) else 0.0)
+            f[:, i] = f[:, i] - cs[-1] * dx[:, i]
+            share[:, i] -= cs[-1] * dx[:, i]
+        results = [_analyse(x[:, i], f[:, i], dx[:, i], t, cfg, band, False) for i in range(n)]
+        results = [dataclasses.replace(r, table=r.table.replace(damping_coefficient=np.full(len(r.table), cs[i])))
+                   for i, r in enumerate(results)]
+    f_out = story_force(acc_full, m) + share
+    stories = []
+    for i, r in enumerate(results):
+        if len(r.table) == 0:
+            raise InputError(f"story {i + 1}: no complete half cycle; the record is too short or too weak for HLA",
+                             source=meas.source)
+        ke_t = np.full(meas.n_samples, np.nan)
+        for (s, e), ke in zip(r.bounds, r.table.ke):
+            ke_t[s:e + 1] = ke
+        stories.append(StoryHLA(story=i + 1, force=f_out[:, i], drift=x[:, i], drift_velocity=dx[:, i], k=r.k,
+                                ke=ke_t, k0=r.k0, yielded=r.yielded, half_cycles=r.table))
+    return HLAResult(dt=meas.dt, stories=tuple(stories), mass=m, mass_normalised=normalised, damping=damping,
+                     pdelta_corrected=pdelta, config=cfg, band_hz=band, source=meas.source)
+
+
+def _yielded(k: np.ndarray, table: HalfCycleTable, cfg: HLAConfig, n_largest: int = 3) -> bool:
+    """Whether the story left the elastic range.
+
+    Over the ``n_largest`` half cycles with the largest drift increments (the best signal to
+    noise), the tangent stiffness over the last fifth of each is compared with its elastic
+    stiffness; the story has yielded when the median ratio is below ``yield_ratio``.
+    """
+    order = np.argsort(table.drift_increment)[::-1][:n_largest]
+    ratios = []
+    for j in order:
+        s, e, ke = table.start[j], table.end[j], table.ke_raw[j]
+        tail = k[e - max((e - s) // 5, 2): e + 1]
+        tail = tail[np.isfinite(tail)]
+        if tail.size and np.isfinite(ke) and ke > 0:
+            ratios.append(np.median(tail) / ke)
+    return bool(ratios) and float(np.median(ratios)) < cfg.stiffness.yield_ratio

@@ -1,0 +1,69 @@
+"""Figures of hysteresis loop analysis: loops by half cycle, stiffness evolution."""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib import cm
+from matplotlib.collections import LineCollection
+
+from ..measurement import Truth
+from ..plots import story_axes
+from .result import HLAResult
+
+
+def _force_unit(result: HLAResult) -> tuple[float, str]:
+    return (1.0, "force / total mass [N/t]") if result.mass_normalised else (1e-3, "story force [kN]")
+
+
+def plot_loops(result: HLAResult, *, max_cycles: int | None = None):
+    """Force-drift loops of every story, each half cycle in its own colour (time: dark to light)."""
+    scale, label = _force_unit(result)
+    fig, axes = story_axes(result.n_stories, layout="constrained")
+    for s, ax in zip(result.stories, axes):
+        hc = s.half_cycles
+        n = len(hc) if max_cycles is None else min(len(hc), max_cycles)
+        segs = [np.column_stack([s.drift[a:b + 1], s.force[a:b + 1] * scale]) for a, b in hc.bounds[:n]]
+        lc = LineCollection(segs, cmap=cm.viridis, linewidths=0.8)
+        lc.set_array(np.arange(n))
+        ax.add_collection(lc)
+        ax.autoscale()
+        ax.set_title(f"story {s.story}: {len(hc)} half cycles" + ("" if s.yielded else " (elastic)"))
+        ax.set_xlabel("inter-story drift [mm]")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    cb = fig.colorbar(lc, ax=axes, shrink=0.8, pad=0.01)
+    cb.set_label("half cycle")
+    fig.suptitle("HLA: story restoring force against drift")
+    return fig
+
+
+def plot_stiffness(result: HLAResult, truth: Truth | None = None, *, clone_ke: np.ndarray | None = None):
+    """Stiffness evolution of every story: ke(t) per half cycle (raw slopes and the pooled
+    estimate), the tangent stiffness k(t), k0; the truth ``alpha k0 + (1-alpha) k0 / eta(t)``
+    when known, and a clone's ke(t) ``(time, story)`` when given."""
+    from ..plots import plt  # noqa: F401  (backend set there)
+
+    t = result.time
+    fig, axes = story_axes(result.n_stories, ncols=1, size=(11, 2.6), sharex=True)
+    unit = "k/M [N/mm/t]" if result.mass_normalised else "stiffness [kN/mm]"
+    sc = 1.0 if result.mass_normalised else 1e-3
+    for i, (s, ax) in enumerate(zip(result.stories, axes)):
+        hc = s.half_cycles
+        ax.plot(t, s.k * sc, color="0.75", lw=0.5, label="k(t) tangent")
+        ax.plot(hc.t_start, hc.ke_raw * sc, ".", color="C0", ms=3, alpha=0.6, label="ke per half cycle (raw)")
+        ax.step(hc.t_start, hc.ke * sc, where="post", color="C0", lw=1.5, label="ke(t) HLA")
+        ax.axhline(s.k0 * sc, color="C0", ls=":", lw=1, label=f"k0 = {s.k0 * sc:.4g}")
+        if truth is not None:
+            b = truth.building
+            ke_true = b.alpha[i] * b.k0[i] + (1 - b.alpha[i]) * b.k0[i] / truth.eta[:, i]
+            ax.plot(t, ke_true * sc, color="k", lw=1, label="ke(t) true")
+        if clone_ke is not None:
+            ax.plot(t[: clone_ke.shape[0]], clone_ke[:, i] * sc, color="C3", lw=1, ls="--", label="ke(t) clone")
+        lo = np.nanmin(hc.ke_raw) if len(hc) else s.k0
+        ax.set_ylim(max(0.0, 0.5 * min(lo, s.k0) * sc), 1.25 * s.k0 * sc)
+        ax.set_ylabel(f"story {s.story}\n{unit}")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7, ncol=3, loc="lower left")
+    axes[-1].set_xlabel("time [s]")
+    fig.suptitle("HLA: stiffness evolution")
+    return fig

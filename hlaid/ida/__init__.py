@@ -1,0 +1,21 @@
+"""Incremental dynamic analysis (IDA) and collapse fragility of a clone.
+
+``ida(clone, records)`` scales every record to increasing intensities, runs them in batches
+of the simulator, finds each record's collapse intensity (drift limit, IDA slope, or
+divergence; hunt-and-fill refinement) and returns an :class:`IDAResult` with fractile
+curves, lognormal collapse fragility (maximum likelihood, Baker 2015) and drift-limit
+exceedance. Method and verification: ``docs/ida.md``.
+"""
+
+from .analysis import ida, ida_from_config, prepare_building, scan_collapse
+from .config import IDAConfig, load_ida_config
+from .fragility import LognormalFragility, fit_capacities, fit_counts, fragility_from_capacities, \
+    fragility_from_exceedance
+from .intensity import INTENSITY_MEASURES, IntensityMeasure, get_intensity_measure, intensity, response_spectrum
+from .records import load_records
+from .results import IDAResult
+
+__all__ = ["ida", "ida_from_config", "prepare_building", "scan_collapse", "IDAResult", "IDAConfig",
+           "load_ida_config", "LognormalFragility", "fit_capacities", "fit_counts", "fragility_from_capacities",
+           "fragility_from_exceedance", "INTENSITY_MEASURES", "IntensityMeasure", "get_intensity_measure",
+           "intensity", "response_spectrum", "load_records"]

@@ -1,0 +1,398 @@
+"""Incremental dynamic analysis of a clone over a record set (Vamvatsikos & Cornell 2002).
+
+Every record is scaled to IM levels and the clone is run with the batch simulator
+(:func:`hlaid.simulate.simulate`, ``outputs="peaks"``), many records x levels per call. The
+engineering demand parameter (EDP) is the peak inter-story drift ratio (largest over the
+stories). A point is a *collapse* when
+
+* a story's drift ratio exceeds ``drift_limit`` (the simulator stops the run there), or
+* the response diverges (non-finite state), or
+* the IDA curve's secant slope ``dIM/dEDP`` between consecutive points drops below
+  ``slope_ratio`` x the elastic slope (the point above the flat segment is on the flatline).
+
+A run that diverges, or that the drift stop catches more than 1.5x past the limit (a jump
+within one sample), is re-run with 4x and then 16x more sub-steps first, so an integration
+blow-up is never taken for a collapse.
+
+Stages (each a few batched simulator calls):
+
+1. *probe*: every record at a tiny intensity (scale 1e-4: linear response) gives its elastic
+   slope ``IM / EDP``;
+2. *grid*: every record at every level (ascending, in chunks; a record that has collapsed
+   is not run at higher levels);
+3. *hunt*: records that did not collapse on the grid are stepped up (IM x ``hunt_factor``)
+   until they do (at most ``max_hunt`` steps; otherwise they are right-censored);
+4. *fill*: the bracket [last survived, first collapsed] of every record is bisected until its
+   width is below ``tolerance`` x IM. The collapse IM is the bracket's midpoint.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from .. import _progress
+from ..clone import Clone
+from ..errors import InputError
+from ..model import Building
+from ..motions import GroundMotion
+from ..simulate import simulate
+from ..units import G_MM_S2
+from .config import DEFAULT_EXCEEDANCE, IDAConfig, check_levels
+from .intensity import get_intensity_measure, period_for
+from .records import load_records
+from .results import IDAResult
+
+PROBE_SCALE = 1e-4
+"""Scale factor of the elastic probe run (linear response for any practical clone)."""
+
+_CONFIRM_FACTOR = 4
+"""Divergent runs are repeated with this many times more sub-steps (twice)."""
+
+_JUMP = 1.5
+"""A run stopped at the drift limit with a drift above this multiple of the limit jumped there
+within one sample: an integration blow-up, re-run with finer steps."""
+
+
+# ---------------------------------------------------------------------------- the building
+def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: bool | None = None,
+                     heights=None, gravity_load=None, require_heights: bool = True) -> tuple[Building, list[str]]:
+    """The building an IDA runs, with P-Delta resolved, and notes on what was decided.
+
+    P-Delta (``pdelta=None``): on when story heights are known, even when a clone file says
+    ``pdelta: false`` (clones identified from P-Delta-free responses store false). A
+    mass-normalised clone has no absolute gravity loads: P-Delta then needs ``gravity_load``
+    (in the clone's force units), otherwise it is off with a warning. Story heights are
+    required (``require_heights``): IDA reports drift ratios.
+    """
+    source = None
+    if isinstance(model, (str, os.PathLike)):
+        source = str(model)
+        model = Clone.load(model)
+    if isinstance(model, Clone):
+        building, normalised = model.building, model.mass_normalised
+    elif isinstance(model, Building):
+        building, normalised = model, False
+    else:
+        raise InputError(f"expected a Clone, a Building or a clone file, got {type(model).__name__}")
+    source = source or building.source
+    notes: list[str] = []
+    if heights is not None:
+        building = building.replace(height=heights)
+    if gravity_load is not None:
+        building = building.replace(gravity_load=gravity_load)
+    if building.height is None and require_heights:
+        raise InputError("story heights are unknown; IDA reports drift ratios and needs them: give heights "
+                         "in mm (hlaid ida --heights 3000,3000,...)", source=source)
+    want = (building.height is not None) if pdelta is None else bool(pdelta)
+    if want and building.height is None:
+        raise InputError("P-Delta needs story heights; give heights in mm (--heights 3000,3000,...)", source=source)
+    if want and normalised and building.gravity_load is None:
+        if pdelta:
+            raise InputError("P-Delta needs absolute gravity loads but the clone is mass-normalised; give "
+                             "gravity loads (--gravity-kN) or turn P-Delta off", source=source)
+        _progress.warn("the clone is mass-normalised (no absolute gravity loads): P-Delta is off; give gravity "
+                       "loads (--gravity-kN) to include it")
+        notes.append("P-Delta off: mass-normalised clone without gravity loads")
+        want = False
+    elif want and pdelta is None and building.pdelta is False:
+        notes.append("P-Delta on (story heights known) although the clone says pdelta: false "
+                     "(identification without P-Delta); pass pdelta=False to keep it off")
+    elif not want:
+        notes.append("P-Delta off" + (" (requested)" if pdelta is False else " (story heights unknown)"))
+    building = building.replace(pdelta=want)
+    if want:
+        kg = building.geometric_stiffness()
+        post = building.alpha * building.k0 - kg
+        notes.append("P-Delta on: P/h = " + ", ".join(f"{v:.4g}" for v in kg) + " N/mm per story")
+        if np.all(post > 0):
+            notes.append("every story keeps a positive post-yield stiffness alpha*k0 - P/h: collapse can "
+                         "only come from the drift limit or the slope criterion")
+    return building, notes
+
+
+# ---------------------------------------------------------------------------- runs
+class _Runner:
+    """Runs (record, IM) points through the batch simulator and accumulates them."""
+
+    def __init__(self, building: Building, motions: list[GroundMotion], im0: np.ndarray, drift_limit: float,
+                 max_step: float):
+        self.b, self.motions, self.im0 = building, motions, im0
+        self.h = np.asarray(building.height, dtype=np.float64)
+        self.stop = drift_limit * self.h
+        self.drift_limit = drift_limit
+        dt = np.array([m.dt for m in motions])
+        self.substeps = np.maximum(1, np.ceil(dt / max_step - 1e-9)).astype(np.int64)
+        self.cols: dict[str, list] = {k: [] for k in ("record", "im", "scale", "stage", "status", "substeps",
+                                                      "peak", "residual")}
+        self.n_runs = 0
+
+    def _sim(self, recs: np.ndarray, scales: np.ndarray, substeps: int):
+        """Product runs of ``recs`` x their rows of ``scales`` ``(len(recs), k)``, one substep count."""
+        r = simulate(self.b, [self.motions[i] for i in recs], scales, substeps=int(substeps), outputs="peaks",
+                     stop_drift=self.stop)
+        self.n_runs += r.batch_size
+        return r.peak_drift, r.residual_drift, r.status
+
+    def run(self, recs: np.ndarray, ims: np.ndarray, stage: str) -> None:
+        """Run records ``recs`` ``(m,)`` at IM rows ``ims`` ``(m, k)`` [g]."""
+        recs = np.asarray(recs, dtype=np.int64)
+        ims = np.asarray(ims, dtype=np.float64).reshape(recs.size, -1)
+        if recs.size == 0:
+            return
+        k = ims.shape[1]
+        scales = ims / self.im0[recs, None]
+        n = self.b.n_stories
+        peak = np.empty((recs.size, k, n))
+        resid = np.empty((recs.size, k, n))
+        status = np.empty((recs.size, k), dtype=np.int64)
+        sub = np.empty((recs.size, k), dtype=np.int64)
+        for s in np.unique(self.substeps[recs]):
+            sel = np.flatnonzero(self.substeps[recs] == s)
+            pk, rs, st = self._sim(recs[sel], scales[sel], s)
+            peak[sel], resid[sel], status[sel] = pk.reshape(sel.size, k, n), rs.reshape(sel.size, k, n), \
+                st.reshape(sel.size, k)
+            sub[sel] = s
+        # divergence, or a jump far past the drift limit within one sample (an integration
+        # blow-up caught by the drift stop), is re-run with finer steps before it counts
+        for _ in range(2):
+            jump = (status == 1) & (np.max(peak / self.stop, axis=-1) > _JUMP)
+            bad = np.argwhere((status == 2) | jump)
+            if bad.size == 0:
+                break
+            for i, j in bad:
+                s = int(sub[i, j]) * _CONFIRM_FACTOR
+                pk, rs, st = self._sim(recs[i:i + 1], scales[i:i + 1, j:j + 1], s)
+                peak[i, j], resid[i, j], status[i, j], sub[i, j] = pk[0], rs[0], st[0], s
+        c = self.cols
+        c["record"].append(np.repeat(recs, k))
+        c["im"].append(ims.ravel())
+        c["scale"].append(scales.ravel())
+        c["stage"].append(np.full(recs.size * k, stage, dtype=object))
+        c["status"].append(status.ravel())
+        c["substeps"].append(sub.ravel())
+        c["peak"].append(peak.reshape(-1, n))
+        c["residual"].append(resid.reshape(-1, n))
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {k: np.concatenate(v) for k, v in self.cols.items()}
+
+    def edp(self, a: dict) -> np.ndarray:
+        return np.max(a["peak"] / self.h, axis=1)
+
+
+def scan_collapse(im: np.ndarray, edp: np.ndarray, failed: np.ndarray, elastic_slope: float,
+                  slope_ratio: float) -> tuple[int | None, str]:
+    """Find the first collapse along one record's IDA curve.
+
+    Parameters
+    ----------
+    im, edp, failed : (point,) IM [g], EDP (drift ratio), True where the run collapsed
+        (drift limit or divergence); any order
+    elastic_slope : IM per unit EDP of the linear response
+    slope_ratio : the flatline criterion (0.2: slope below 20 % of the elastic slope)
+
+    Returns
+    -------
+    (index of the first point on the flatline or None, mode: ``"drift limit or divergence"``,
+    ``"slope"`` or ``"none"``)
+    """
+    order = np.argsort(im, kind="stable")
+    prev_im, prev_edp = 0.0, 0.0
+    for i in order:
+        if failed[i]:
+            return int(i), "failed"
+        d = edp[i] - prev_edp
+        if d > 0 and (im[i] - prev_im) / d < slope_ratio * elastic_slope:
+            return int(i), "slope"
+        prev_im, prev_edp = im[i], edp[i]
+    return None, "none"
+
+
+def _auto_levels(elastic_slope: np.ndarray, drift_limit: float, n: int) -> list[float]:
+    """``n`` equal steps up to the median equal-displacement IM at the drift limit (3 digits)."""
+    top = float(np.median(elastic_slope * drift_limit))
+    lv = [top * (i + 1) / n for i in range(n)]
+    return [float(f"{v:.3g}") for v in lv]
+
+
+# ---------------------------------------------------------------------------- the analysis
+def ida(model: Clone | Building | str | os.PathLike,
+        records: str | os.PathLike | GroundMotion | Sequence[str | os.PathLike | GroundMotion], *,
+        im: str = "sa_t1", levels: Sequence[float] | None = None, n_levels: int = 20, drift_limit: float = 0.10,
+        slope_ratio: float = 0.20, exceedance_limits: Sequence[float] | None = None,
+        refine: bool = True, hunt_factor: float = 1.5, max_hunt: int = 10, tolerance: float = 0.02,
+        max_fill: int = 12, max_step: float = 0.0025, pdelta: bool | None = None, heights=None,
+        gravity_load=None, period: float | None = None, units: str | None = None) -> IDAResult:
+    """Incremental dynamic analysis of a clone (or building) over a record set.
+
+    Parameters
+    ----------
+    model : a :class:`~hlaid.clone.Clone`, a :class:`~hlaid.model.Building` or a clone file
+    records : a folder of AT2/text records, ``"builtin-suite"``, files, or GroundMotions
+        (see :func:`hlaid.ida.load_records`; unreadable files are skipped with a warning)
+    im : intensity measure, a name in :data:`hlaid.ida.INTENSITY_MEASURES`
+    levels : (level,) strictly increasing IM levels [g]; None: ``n_levels`` equal steps up to
+        the median (over records) equal-displacement estimate of the IM at the drift limit
+    drift_limit : collapse drift ratio (0.10 = 10 %); also where the simulator stops a run
+    slope_ratio : collapse when the IDA slope falls below this fraction of the elastic slope
+    exceedance_limits : drift ratios whose probability of exceedance is summarised; None: 0.5, 1,
+        2 and 4 % (those below ``drift_limit``)
+    refine : hunt and bisect (fill) each record's collapse intensity
+    hunt_factor, max_hunt, tolerance, max_fill : refinement settings (see the module doc)
+    max_step : largest RK4 step [s] (sub-steps per record: ``ceil(dt / max_step)``)
+    pdelta, heights, gravity_load : see :func:`prepare_building`; ``heights`` [mm] and
+        ``gravity_load`` [N per floor] replace the clone's
+    period : period [s] of Sa(T1) instead of the clone's first elastic period
+    units : acceleration units of text records
+
+    Returns
+    -------
+    IDAResult
+    """
+    t0 = time.perf_counter()
+    if exceedance_limits is None:
+        exceedance_limits = [d for d in DEFAULT_EXCEEDANCE if d < drift_limit]
+    cfg = IDAConfig(im=im, levels=None if levels is None else list(levels), n_levels=n_levels,
+                    drift_limit=drift_limit, slope_ratio=slope_ratio, exceedance_limits=list(exceedance_limits),
+                    refine=refine, hunt_factor=hunt_factor, max_hunt=max_hunt, tolerance=tolerance,
+                    max_fill=max_fill, max_step=max_step, pdelta=pdelta, period=period)
+    building, notes = prepare_building(model, pdelta=pdelta, heights=heights, gravity_load=gravity_load)
+    motions = records if _all_motions(records) else load_records(records, units=units)
+    motions = [motions] if isinstance(motions, GroundMotion) else list(motions)
+    measure = get_intensity_measure(im)
+    T1 = period_for(measure, building, period)
+    im0 = measure.compute(motions, T1, 0.05) / G_MM_S2
+    if np.any(~(im0 > 0)):
+        bad = [m.name for m, v in zip(motions, im0) if not v > 0]
+        raise InputError(f"record(s) with zero {measure.label}: {', '.join(bad)}")
+    R = len(motions)
+    runner = _Runner(building, motions, im0, drift_limit, max_step)
+    _progress.info(f"IDA of {building.name or 'the clone'}: {R} records, IM {measure.label}"
+                   + (f" at T1 = {T1:.3f} s" if measure.needs_period else "")
+                   + f", collapse at {drift_limit:.0%} drift, P-Delta {'on' if building.pdelta else 'off'}")
+
+    # 1. elastic probe
+    ar = np.arange(R)
+    runner.run(ar, (im0 * PROBE_SCALE)[:, None], "probe")
+    a = runner.arrays()
+    slope_el = a["im"] / runner.edp(a)
+    if levels is None:
+        levels = _auto_levels(slope_el, drift_limit, n_levels)
+        notes.append(f"levels: {n_levels} equal steps up to {levels[-1]:g} g, the median equal-displacement "
+                     "estimate of the IM at the drift limit")
+    levels = np.array(check_levels(levels))
+
+    # 2. grid, ascending chunks; collapsed records stop climbing
+    chunks = np.array_split(np.arange(levels.size), min(levels.size, 5))
+    alive = np.ones(R, dtype=bool)
+    for ch in _progress.progress(chunks, desc="IDA grid"):
+        recs = np.flatnonzero(alive)
+        runner.run(recs, np.broadcast_to(levels[ch], (recs.size, ch.size)), "grid")
+        a = runner.arrays()
+        failed = (a["status"] != 0) | (runner.edp(a) > drift_limit)
+        alive &= ~np.isin(ar, a["record"][failed])
+        if not alive.any():
+            break
+
+    # 3-4. hunt and fill
+    state = _scan_all(runner, slope_el, slope_ratio)
+    if refine:
+        for step in range(max_hunt):
+            need = np.flatnonzero(state["first"] < 0)
+            if need.size == 0:
+                break
+            nxt = state["max_im"][need] * hunt_factor
+            _progress.debug(f"hunt step {step + 1}: {need.size} record(s) not collapsed yet")
+            runner.run(need, nxt[:, None], "hunt")
+            state = _scan_all(runner, slope_el, slope_ratio)
+        for step in range(max_fill):
+            lo, hi = state["lo"], state["hi"]
+            need = np.flatnonzero((state["first"] >= 0) & (hi - lo > tolerance * hi))
+            if need.size == 0:
+                break
+            _progress.debug(f"fill step {step + 1}: bisecting {need.size} collapse bracket(s)")
+            runner.run(need, (0.5 * (lo[need] + hi[need]))[:, None], "fill")
+            state = _scan_all(runner, slope_el, slope_ratio)
+    a = runner.arrays()
+    n_cens = int((state["first"] < 0).sum())
+    if n_cens:
+        notes.append(f"{n_cens} record(s) did not collapse up to the highest IM run (right-censored)")
+    wide = (state["first"] >= 0) & (state["hi"] - state["lo"] > tolerance * state["hi"])
+    if wide.any():
+        notes.append(f"{int(wide.sum())} collapse bracket(s) wider than the tolerance {tolerance:g} "
+                     + ("(refinement off)" if not refine else f"after {max_fill} bisections"))
+    wall = time.perf_counter() - t0
+    _progress.info(f"IDA done: {runner.n_runs} runs in {wall:.1f} s; "
+                   f"{R - n_cens}/{R} records collapsed")
+    collapse_im = np.where(state["first"] >= 0, 0.5 * (state["lo"] + state["hi"]), np.nan)
+    return IDAResult(
+        building=building, im=measure.name, im_label=measure.label, period=T1,
+        record_names=tuple(m.name for m in motions), record_sources=tuple(m.source or m.name for m in motions),
+        record_im=im0, record_dt=np.array([m.dt for m in motions]), levels=levels,
+        drift_limit=drift_limit, slope_ratio=slope_ratio, exceedance_limits=tuple(exceedance_limits),
+        elastic_slope=slope_el, point_record=a["record"], point_im=a["im"], point_scale=a["scale"],
+        point_stage=a["stage"].astype(str), point_status=a["status"], point_substeps=a["substeps"],
+        peak_drift=a["peak"], residual_drift=a["residual"],
+        collapse_im=collapse_im, collapse_lo=np.where(state["first"] >= 0, state["lo"], np.nan),
+        collapse_hi=np.where(state["first"] >= 0, state["hi"], np.nan), collapse_mode=tuple(state["mode"]),
+        censored_im=np.where(state["first"] < 0, state["max_im"], np.nan),
+        settings=_settings(cfg), notes=tuple(notes),
+        timing={"wall_s": wall, "runs": runner.n_runs})
+
+
+def _scan_all(runner: _Runner, slope_el: np.ndarray, slope_ratio: float) -> dict:
+    """Per record: first flatline point, bracket [lo, hi], mode, highest IM run."""
+    a = runner.arrays()
+    edp = runner.edp(a)
+    failed = (a["status"] != 0) | (edp > runner.drift_limit)
+    R = slope_el.size
+    out = {"first": np.full(R, -1), "lo": np.full(R, np.nan), "hi": np.full(R, np.nan),
+           "max_im": np.zeros(R), "mode": ["none"] * R}
+    for r in range(R):
+        idx = np.flatnonzero(a["record"] == r)
+        out["max_im"][r] = a["im"][idx].max()
+        i, mode = scan_collapse(a["im"][idx], edp[idx], failed[idx], slope_el[r], slope_ratio)
+        if i is None:
+            continue
+        p = idx[i]
+        below = a["im"][idx][a["im"][idx] < a["im"][p]]
+        out["first"][r] = p
+        out["hi"][r] = a["im"][p]
+        out["lo"][r] = below.max() if below.size else 0.0
+        if mode == "failed":
+            mode = {1: "drift limit", 2: "diverged"}.get(int(a["status"][p]), "drift limit")
+        out["mode"][r] = mode
+    return out
+
+
+def _all_motions(records) -> bool:
+    if isinstance(records, GroundMotion):
+        return True
+    if isinstance(records, (str, Path, os.PathLike)):
+        return False
+    try:
+        return len(records) > 0 and all(isinstance(m, GroundMotion) for m in records)
+    except TypeError:
+        return False
+
+
+def _settings(cfg: IDAConfig) -> dict:
+    from ..config import config_to_dict
+    d = config_to_dict(cfg)
+    for k in ("records", "units", "heights_mm", "gravity_kN", "bootstrap", "ci", "seed"):
+        d.pop(k, None)
+    return d
+
+
+def ida_from_config(model, cfg: IDAConfig, records=None, *, base_dir: str | Path | None = None) -> IDAResult:
+    """Run :func:`ida` with the settings of an :class:`IDAConfig` (``records`` overrides the config's)."""
+    recs = records if records is not None else cfg.record_specs(base_dir)
+    if recs is None:
+        raise InputError("no records: give them in the config ('records:') or on the command line (--records)")
+    return ida(model, recs, **cfg.ida_kwargs())
+

@@ -1,0 +1,136 @@
+"""``hlaid ida`` configuration: a YAML file validated against :class:`IDAConfig`."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+from ..config import load_config
+from ..errors import InputError
+
+DEFAULT_EXCEEDANCE = (0.005, 0.01, 0.02, 0.04)
+"""Drift-ratio limits whose probability of exceedance is reported (0.5, 1, 2, 4 %)."""
+
+
+def _positive(name, v, *, upper=math.inf):
+    if v is not None and not (math.isfinite(v) and 0 < v < upper):
+        raise InputError(f"{name} = {v}; expected a number in (0, {upper:g})")
+
+
+@dataclass(frozen=True, kw_only=True)
+class IDAConfig:
+    """Settings of an incremental dynamic analysis (units: IM in g, heights in mm, step in s).
+
+    Attributes
+    ----------
+    records : a folder of AT2/text records, ``builtin-suite``, or a list of files (relative
+        paths are taken from the config file's folder); the command line's ``--records`` wins
+    units : acceleration units of text records (AT2 files state theirs)
+    im : intensity measure, ``sa_t1`` (Sa(T1, 5%)) or ``pga``
+    levels : IM levels [g], strictly increasing; None: ``n_levels`` levels up to the
+        equal-displacement estimate of the median IM at the drift limit
+    drift_limit : collapse when a story's drift ratio exceeds it (0.10 is 10 %)
+    slope_ratio : collapse when the IDA curve's slope drops below this fraction of the elastic slope
+    exceedance_limits : drift ratios whose probability of exceedance is reported; None: 0.5, 1,
+        2 and 4 % (those below the drift limit)
+    refine : hunt (step up until collapse) and bisect (fill) the collapse intensity per record
+    hunt_factor, max_hunt : hunting steps multiply the IM by ``hunt_factor``, at most ``max_hunt`` times
+    tolerance, max_fill : bisect until the collapse bracket is narrower than ``tolerance`` x IM
+    max_step : largest RK4 step [s]; each record gets ``ceil(dt / max_step)`` sub-steps
+    pdelta : None: on when story heights are known; true/false force it
+    heights_mm, gravity_kN : per-story heights and floor gravity loads replacing the clone's
+    period : the period [s] of Sa instead of the clone's T1
+    bootstrap, ci, seed : bootstrap resamples, confidence level and seed of the fragility intervals
+    """
+
+    records: str | list[str] | None = None
+    units: str | None = None
+    im: Literal["sa_t1", "pga"] = "sa_t1"
+    levels: list[float] | None = None
+    n_levels: int = 20
+    drift_limit: float = 0.10
+    slope_ratio: float = 0.20
+    exceedance_limits: list[float] | None = None
+    refine: bool = True
+    hunt_factor: float = 1.5
+    max_hunt: int = 10
+    tolerance: float = 0.02
+    max_fill: int = 12
+    max_step: float = 0.0025
+    pdelta: bool | None = None
+    heights_mm: list[float] | None = None
+    gravity_kN: list[float] | None = None
+    period: float | None = None
+    bootstrap: int = 1000
+    ci: float = 0.90
+    seed: int = 0
+
+    def __post_init__(self):
+        _positive("drift_limit", self.drift_limit, upper=10.0)
+        _positive("slope_ratio", self.slope_ratio, upper=1.0)
+        _positive("tolerance", self.tolerance, upper=1.0)
+        _positive("max_step", self.max_step)
+        _positive("period", self.period)
+        _positive("ci", self.ci, upper=1.0)
+        if not self.hunt_factor > 1:
+            raise InputError(f"hunt_factor = {self.hunt_factor}; expected a factor > 1")
+        for name in ("n_levels", "max_hunt", "max_fill", "bootstrap"):
+            if getattr(self, name) < 0 or (name == "n_levels" and self.n_levels < 2):
+                raise InputError(f"{name} = {getattr(self, name)}; expected a non-negative integer"
+                                 + (" >= 2" if name == "n_levels" else ""))
+        if self.levels is not None:
+            check_levels(self.levels)
+        for d in self.exceedance_limits or ():
+            _positive("exceedance_limits", d, upper=self.drift_limit)
+
+    def replace(self, **changes) -> "IDAConfig":
+        """A copy with the given fields changed (None values are ignored)."""
+        return dataclasses.replace(self, **{k: v for k, v in changes.items() if v is not None})
+
+    def ida_kwargs(self) -> dict:
+        """Keyword arguments of :func:`hlaid.ida.ida`."""
+        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        for k in ("records", "bootstrap", "ci", "seed"):
+            d.pop(k)
+        d["heights"] = d.pop("heights_mm")
+        g = d.pop("gravity_kN")
+        d["gravity_load"] = None if g is None else [v * 1000.0 for v in g]
+        return d
+
+    def record_specs(self, base_dir: str | Path | None = None) -> list[str] | None:
+        """The records, relative paths resolved against ``base_dir``."""
+        if self.records is None:
+            return None
+        specs = [self.records] if isinstance(self.records, str) else list(self.records)
+        out = []
+        for s in specs:
+            if base_dir is not None and not s.startswith("builtin") and not Path(s).is_absolute():
+                s = str(Path(base_dir) / s)
+            out.append(s)
+        return out
+
+
+def check_levels(levels) -> list[float]:
+    """Validate IM levels: finite, positive, strictly increasing; returns them as floats."""
+    try:
+        lv = [float(v) for v in levels]
+    except (TypeError, ValueError):
+        raise InputError(f"levels must be numbers [g], got {levels!r}") from None
+    if not lv:
+        raise InputError("levels is empty; give increasing IM levels [g]")
+    if not all(math.isfinite(v) and v > 0 for v in lv):
+        raise InputError(f"levels must be positive IM values [g], got {lv}")
+    bad = [i for i in range(1, len(lv)) if lv[i] <= lv[i - 1]]
+    if bad:
+        i = bad[0]
+        raise InputError(f"levels must be strictly increasing; level {i + 1} ({lv[i]:g} g) is not above "
+                         f"level {i} ({lv[i - 1]:g} g)")
+    return lv
+
+
+def load_ida_config(path) -> IDAConfig:
+    """Load and validate an IDA config YAML (unknown keys and wrong types name file:line)."""
+    return load_config(path, IDAConfig)

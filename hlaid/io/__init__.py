@@ -1,0 +1,136 @@
+"""Readers for real-structure monitoring data; each returns a :class:`~hlaid.measurement.Measurement`.
+
+Accelerations come back absolute in mm/s^2, floor displacements relative to the ground in mm,
+``mass=None`` when the file does not give masses. What each shipped dataset is, and the
+evidence for it, is in ``docs/data.md``.
+
+Readers by name (:data:`MEASUREMENT_READERS`):
+
+- ``npz``, ``csv``: hlaid's own measurement files (:func:`hlaid.measurement.read_measurement`)
+- ``steel-frame``: shake-table TSV ``Time, aextx, s2..s5`` (:func:`read_steel_frame`)
+- ``mini-shake-table``: Xsens IMU CSV ``t_s, ground_AccX, floor1_AccX, ...`` (:func:`read_mini_shake_table`)
+- ``smc``: a folder (or list) of USGS ``.smc`` channels of one building (:func:`smc_measurement`)
+- ``csmip``: a CSMIP V2 file or CESMD zip, channels chosen by the caller (:func:`csmip_measurement`)
+- ``columns``: any table, mapped by a YAML file (:func:`read_columns`)
+- ``hotel``: the PhyCNN 6-story hotel ``.mat``, one earthquake chosen by the caller (:func:`read_hotel`)
+
+:func:`read_any` picks the reader from the extension and the first lines of the file.
+"""
+
+from __future__ import annotations
+
+import os
+import zipfile
+from collections.abc import Callable
+from pathlib import Path
+
+from .._fileio import read_text
+from ..errors import InputError
+from ..measurement import Measurement, read_measurement
+from .columns import ChannelSpec, ColumnsConfig, load_columns_config, read_columns
+from .csmip import CsmipChannel, csmip_measurement, read_csmip, read_csmip_channels
+from .hotel import hotel_events, read_hotel
+from .mini_shake_table import read_mini_shake_table, sniff_mini_shake_table
+from .smc import SmcChannel, read_smc, read_smc_channel, smc_measurement, sniff_smc
+from .steel_frame import read_steel_frame, sniff_steel_frame
+
+MEASUREMENT_READERS: dict[str, Callable[..., Measurement]] = {
+    "npz": read_measurement,
+    "csv": read_measurement,
+    "steel-frame": read_steel_frame,
+    "mini-shake-table": read_mini_shake_table,
+    "smc": smc_measurement,
+    "csmip": csmip_measurement,
+    "columns": read_columns,
+    "hotel": read_hotel,
+}
+"""Measurement readers by name; each takes the path first and keyword options after it."""
+
+__all__ = ["MEASUREMENT_READERS", "read_any", "detect_format", "read_steel_frame", "read_mini_shake_table",
+           "read_smc", "read_smc_channel", "smc_measurement", "SmcChannel", "read_csmip", "read_csmip_channels",
+           "csmip_measurement", "CsmipChannel", "read_columns", "load_columns_config", "ColumnsConfig",
+           "ChannelSpec", "read_hotel", "hotel_events"]
+
+
+def _head(p: Path) -> str:
+    try:
+        return "\n".join(read_text(p).splitlines()[:40])
+    except InputError:
+        return ""
+
+
+def detect_format(path: str | os.PathLike) -> str:
+    """The :data:`MEASUREMENT_READERS` name for ``path``, from its extension and first lines.
+
+    Raises InputError, naming the file, when the format cannot be told.
+    """
+    p = Path(path)
+    src = str(p)
+    if not p.exists():
+        raise InputError("file not found", source=src)
+    if p.is_dir():
+        if any(q.suffix.lower() == ".smc" for q in p.iterdir()):
+            return "smc"
+        raise InputError("folder holds no .smc files; give a file or format=", source=src)
+    name = p.name.lower()
+    bare = name.removesuffix(".gz")
+    if bare.endswith((".yaml", ".yml")):
+        return "columns"
+    if bare.endswith(".npz"):
+        return "npz"
+    if bare.endswith(".mat"):
+        return "hotel"
+    if bare.endswith(".smc"):
+        return "smc"
+    if bare.endswith(".zip") or bare.endswith(".v2"):
+        return "csmip"
+    if zipfile.is_zipfile(p):
+        try:
+            with zipfile.ZipFile(p) as zf:
+                names = zf.namelist()
+        except (zipfile.BadZipFile, OSError):
+            names = []
+        return "npz" if any(n.endswith(".npy") for n in names) else "csmip"
+    head = _head(p)
+    if sniff_steel_frame(head):
+        return "steel-frame"
+    if sniff_mini_shake_table(head):
+        return "mini-shake-table"
+    if sniff_smc(head):
+        return "smc"
+    if "CORRECTED ACCELEROGRAM" in head[:200].upper():
+        return "csmip"
+    if bare.endswith(".csv") and "ground_acc" in head and "floor_acc_1" in head:
+        return "csv"
+    raise InputError("cannot tell the data format from the name or the first lines; give format= (one of "
+                     f"{', '.join(sorted(MEASUREMENT_READERS))}) or describe the columns in a YAML file "
+                     "(see hlaid.io.columns)", source=src)
+
+
+def read_any(path: str | os.PathLike, format: str | None = None, **kw) -> Measurement:
+    """Read a measurement with the reader named ``format``, or the one :func:`detect_format` picks.
+
+    Parameters
+    ----------
+    path : file or folder (a folder of ``.smc`` channels)
+    format : a key of :data:`MEASUREMENT_READERS`
+    **kw : options of that reader (e.g. ``event=13`` for ``hotel``, ``ground=3, floors=[7]``
+        for ``csmip``)
+    """
+    src = str(path)
+    fmt = format or detect_format(path)
+    if fmt not in MEASUREMENT_READERS:
+        raise InputError(f"unknown measurement format {fmt!r}; expected one of {', '.join(sorted(MEASUREMENT_READERS))}",
+                         source=src)
+    if fmt == "hotel" and "event" not in kw:
+        raise InputError(f"holds one record per earthquake; give event= (one of {hotel_events(path)})", source=src)
+    if fmt == "csmip" and ("ground" not in kw or "floors" not in kw):
+        chans = "; ".join(c.describe() for c in read_csmip_channels(path))
+        raise InputError(f"a CSMIP record holds many channels; give ground= and floors= (channels: {chans})",
+                         source=src)
+    try:
+        return MEASUREMENT_READERS[fmt](path, **kw)
+    except TypeError as err:
+        if "unexpected keyword" in str(err) or "positional argument" in str(err):
+            raise InputError(f"format {fmt!r}: {err}", source=src) from None
+        raise

@@ -1,0 +1,13 @@
+"""Reading a measurement from any supported file (hlaid NPZ/CSV and the formats of :mod:`hlaid.io`)."""
+
+from __future__ import annotations
+
+import os
+
+from .io import read_any
+from .measurement import Measurement
+
+
+def read_measurement_any(path: str | os.PathLike, format: str | None = None, **kwargs) -> Measurement:
+    """Read a measurement in any format :func:`hlaid.io.read_any` knows."""
+    return read_any(path, format=format, **kwargs)

@@ -1,0 +1,248 @@
+"""Combining the one-vs-one binary machines into a multi-class decision.
+
+:class:`PairwiseMachines` holds the ``m (m - 1) / 2`` trained machines in a
+class-padded layout built from scikit-learn's SVC attributes
+(``support_vectors_``, ``dual_coef_``, ``n_support_``, ``intercept_``):
+
+* ``sv``  (m * Ls, n_features): support vectors of class ``c`` in rows
+  ``c * Ls ...`` (``Ls`` = largest per-class SV count, zero padding);
+* ``W``   (m, m, Ls): ``W[c, o, k]`` is the coefficient of the ``k``-th SV of
+  class ``c`` in the machine separating ``c`` from ``o``;
+* ``b``   (n_pairs,): machine offsets (``intercept_`` before scikit-learn's
+  binary sign flip), the machine ``(a, b)``, ``a < b``, says ``a`` when
+  ``sum W K + b > 0``.
+
+Combination rules (registry :data:`MULTICLASS`):
+
+* ``"ddag"``: Decision Directed Acyclic Graph (Platt, Cristianini &
+  Shawe-Taylor, 2000).  Each sample starts with the candidate list
+  ``[0, ..., m-1]`` and evaluates the machine (first, last); the loser is
+  removed, so ``m - 1`` binary evaluations per sample, each one restricted to
+  the support vectors of its two classes, all samples in a block at once.
+* ``"ovo"``: libsvm's max-wins voting over all machines (ties go to the
+  smaller class index), identical to :meth:`sklearn.svm.SVC.predict`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import torch
+
+from ._kernels import Kernel
+
+__all__ = ["MULTICLASS", "PairwiseMachines", "ovr_decision", "predict_ddag",
+           "predict_vote", "resolve_multiclass"]
+
+#: Kernel entries per prediction block (bounds the temporary memory).
+BLOCK_ELEMENTS = 1 << 22
+
+
+def pair_index(m: int, device: torch.device | str | None = None) -> torch.Tensor:
+    """Table ``(m, m)`` of machine indices in libsvm order (symmetric, -1 on the diagonal).
+
+    Parameters
+    ----------
+    m : int
+        Number of classes.
+    device : torch.device, optional
+
+    Returns
+    -------
+    LongTensor of shape (m, m)
+    """
+    pairs = torch.combinations(torch.arange(m, device=device), 2)
+    tab = torch.full((m, m), -1, dtype=torch.long, device=device)
+    idx = torch.arange(pairs.shape[0], device=device)
+    tab[pairs[:, 0], pairs[:, 1]] = idx
+    tab[pairs[:, 1], pairs[:, 0]] = idx
+    return tab
+
+
+class PairwiseMachines:
+    """All one-vs-one machines of a fitted multi-class SVC, ready to evaluate.
+
+    Parameters
+    ----------
+    kernel : Kernel
+    support_vectors : Tensor of shape (n_SV, n_features)
+        Grouped by class (scikit-learn's ``support_vectors_``).
+    dual_coef : Tensor of shape (n_classes - 1, n_SV)
+        libsvm's one-vs-one layout, before the binary sign flip.
+    n_support : LongTensor of shape (n_classes,)
+    intercept : Tensor of shape (n_pairs,)
+        ``-rho`` per machine, before the binary sign flip.
+    """
+
+    def __init__(self, kernel: Kernel, support_vectors: torch.Tensor, dual_coef: torch.Tensor,
+                 n_support: torch.Tensor, intercept: torch.Tensor) -> None:
+        dev, dt = support_vectors.device, support_vectors.dtype
+        m = int(n_support.shape[0])
+        self.kernel, self.m = kernel, m
+        self.pidx = pair_index(m, dev)
+        self.pairs = torch.combinations(torch.arange(m, device=dev), 2)
+        n_support = n_support.to(dev)
+        Ls = max(1, int(n_support.max()))
+        self.Ls = Ls
+        starts = torch.cumsum(n_support, 0) - n_support
+        n_sv = support_vectors.shape[0]
+        cls_of = torch.repeat_interleave(torch.arange(m, device=dev), n_support)
+        pos = torch.arange(n_sv, device=dev) - starts[cls_of]
+        slot = cls_of * Ls + pos
+        sv = support_vectors.new_zeros(m * Ls, support_vectors.shape[1])
+        sv[slot] = support_vectors
+        # dual_coef scattered into class-padded columns: (m - 1, m * Ls)
+        dcp = dual_coef.new_zeros(max(m - 1, 1), m * Ls)
+        dcp[:, slot] = dual_coef.to(dt)
+        dcp = dcp.view(-1, m, Ls)
+        c = torch.arange(m, device=dev)
+        rows = torch.where(c[None, :] > c[:, None], c[None, :] - 1, c[None, :])  # (c, o)
+        rows = rows.clamp_max(max(m - 2, 0))  # diagonal entries are zeroed below
+        W = dcp[rows, c[:, None].expand(m, m)]          # (m, m, Ls)
+        W[c, c] = 0.0
+        self.W = W
+        self.b = intercept.to(device=dev, dtype=dt)
+        # dense (m * Ls, n_pairs) coefficients for evaluating every machine
+        coef = dual_coef.new_zeros(m * Ls, self.pairs.shape[0])
+        pa, pb = self.pairs[:, 0], self.pairs[:, 1]
+        pcol = torch.arange(self.pairs.shape[0], device=dev)
+        kk = torch.arange(Ls, device=dev)
+        coef[(pa[:, None] * Ls + kk).reshape(-1), pcol.repeat_interleave(Ls)] = W[pa, pb].reshape(-1)
+        coef[(pb[:, None] * Ls + kk).reshape(-1), pcol.repeat_interleave(Ls)] = W[pb, pa].reshape(-1)
+        self.coef = coef
+        self._sv_prep = kernel.prepare(sv)
+
+    def blocks(self, X: torch.Tensor):
+        """Yield ``(start, K)`` with kernel blocks ``K`` (B, m, Ls) against the SVs.
+
+        Parameters
+        ----------
+        X : Tensor of shape (n_samples, n_features)
+        """
+        B = max(1, BLOCK_ELEMENTS // (self.m * self.Ls))
+        for s in range(0, X.shape[0], B):
+            Kb = self.kernel(self.kernel.prepare_left(X[s:s + B]), self._sv_prep, prepared=True)
+            yield s, Kb.view(-1, self.m, self.Ls)
+
+    def decision_ovo(self, X: torch.Tensor) -> torch.Tensor:
+        """Decision values of every machine.
+
+        Parameters
+        ----------
+        X : Tensor of shape (n_samples, n_features)
+
+        Returns
+        -------
+        Tensor of shape (n_samples, n_pairs)
+            Column ``p`` is machine ``pairs[p] = (a, b)``; positive means ``a``.
+        """
+        out = X.new_empty(X.shape[0], self.pairs.shape[0])
+        for s, Kb in self.blocks(X):
+            torch.addmm(self.b, Kb.reshape(Kb.shape[0], -1), self.coef, out=out[s:s + Kb.shape[0]])
+        return out
+
+
+def ovr_decision(dec: torch.Tensor, m: int) -> torch.Tensor:
+    """One-vs-rest shaped scores from one-vs-one values (as scikit-learn's SVC).
+
+    Votes plus confidences squashed into ``(-1/3, 1/3)``, exactly as
+    ``sklearn.utils.multiclass._ovr_decision_function(dec < 0, -dec, m)``.
+
+    Parameters
+    ----------
+    dec : Tensor of shape (n_samples, n_pairs)
+    m : int
+
+    Returns
+    -------
+    Tensor of shape (n_samples, m)
+    """
+    pairs = torch.combinations(torch.arange(m, device=dec.device), 2)
+    n = dec.shape[0]
+    win = torch.where(dec > 0, pairs[:, 0], pairs[:, 1])
+    votes = torch.zeros(n, m, dtype=dec.dtype, device=dec.device)
+    votes.scatter_add_(1, win, torch.ones_like(dec))
+    conf = torch.zeros(n, m, dtype=dec.dtype, device=dec.device)
+    conf.index_add_(1, pairs[:, 0], dec)
+    conf.index_add_(1, pairs[:, 1], -dec)
+    return votes + conf / (3 * (conf.abs() + 1))
+
+
+def predict_vote(machines: PairwiseMachines, X: torch.Tensor) -> torch.Tensor:
+    """libsvm max-wins voting over all machines.
+
+    Parameters
+    ----------
+    machines : PairwiseMachines
+    X : Tensor of shape (n_samples, n_features)
+
+    Returns
+    -------
+    LongTensor of shape (n_samples,)
+        Class indices; ties go to the smallest index.
+    """
+    dec = machines.decision_ovo(X)
+    pairs = machines.pairs
+    win = torch.where(dec > 0, pairs[:, 0], pairs[:, 1])
+    votes = torch.zeros(X.shape[0], machines.m, dtype=torch.long, device=X.device)
+    votes.scatter_add_(1, win, torch.ones_like(win))
+    return votes.argmax(1)   # first maximum, like libsvm
+
+
+def predict_ddag(machines: PairwiseMachines, X: torch.Tensor) -> torch.Tensor:
+    """Decision DAG: ``m - 1`` binary evaluations per sample.
+
+    Parameters
+    ----------
+    machines : PairwiseMachines
+    X : Tensor of shape (n_samples, n_features)
+
+    Returns
+    -------
+    LongTensor of shape (n_samples,)
+        Class indices.
+    """
+    m, W, b, pidx = machines.m, machines.W, machines.b, machines.pidx
+    out = torch.empty(X.shape[0], dtype=torch.long, device=X.device)
+    for s, Kb in machines.blocks(X):
+        B = Kb.shape[0]
+        rows = torch.arange(B, device=X.device)
+        lo = torch.zeros(B, dtype=torch.long, device=X.device)
+        hi = torch.full((B,), m - 1, dtype=torch.long, device=X.device)
+        for _ in range(m - 1):
+            # machine (lo, hi): SVs of class lo and of class hi only
+            d = ((Kb[rows, lo] * W[lo, hi]).sum(1) + (Kb[rows, hi] * W[hi, lo]).sum(1)
+                 + b[pidx[lo, hi]])
+            lo_wins = d > 0
+            hi = hi - lo_wins.long()
+            lo = lo + (~lo_wins).long()
+        out[s:s + B] = lo
+    return out
+
+
+#: Registry of multi-class combination rules: name -> predict function.
+MULTICLASS: dict[str, Callable[[PairwiseMachines, torch.Tensor], torch.Tensor]] = {
+    "ddag": predict_ddag,
+    "ovo": predict_vote,
+}
+
+
+def resolve_multiclass(name: str) -> Callable[[PairwiseMachines, torch.Tensor], torch.Tensor]:
+    """Look up a combination rule.
+
+    Parameters
+    ----------
+    name : str
+        Key of :data:`MULTICLASS`.
+
+    Raises
+    ------
+    ValueError
+        If ``name`` is unknown; the message lists the valid names.
+    """
+    try:
+        return MULTICLASS[name]
+    except (KeyError, TypeError):
+        raise ValueError(
+            f"Unknown multiclass rule {name!r}; valid rules are {sorted(MULTICLASS)}."
+        ) from None

@@ -1,0 +1,431 @@
+"""The :class:`KernelSVC` estimator (scikit-learn contract, torch inside)."""
+
+from __future__ import annotations
+
+import numbers
+import os
+from typing import Any
+
+import numpy as np
+import torch
+from sklearn.base import BaseEstimator, ClassifierMixin
+from sklearn.utils.multiclass import check_classification_targets
+from sklearn.utils.validation import check_is_fitted, column_or_1d
+
+from .._fileio import atomic_write
+from ..errors import InputError
+from ._ddag import PairwiseMachines, ovr_decision, resolve_multiclass
+from ._kernels import KERNELS, make_kernel, resolve_gamma
+from ._smo import smo_ovo
+
+try:  # scikit-learn >= 1.6
+    from sklearn.utils.validation import validate_data as _validate_data
+except ImportError:  # pragma: no cover - older scikit-learn
+    def _validate_data(estimator, X="no_validation", y="no_validation", **kw):
+        return estimator._validate_data(X, y, **kw)
+
+__all__ = ["KernelSVC"]
+
+_FORMAT = "hlaid.svm.KernelSVC"
+_FORMAT_VERSION = 1
+_DTYPES = {"float64": torch.float64, "float32": torch.float32}
+
+
+def _to_numpy(a: Any) -> Any:
+    """Tensors to numpy (host copy); anything else unchanged."""
+    if isinstance(a, torch.Tensor):
+        return a.detach().cpu().numpy()
+    return a
+
+
+def _resolve_dtype(dtype: Any) -> torch.dtype:
+    if isinstance(dtype, torch.dtype) and dtype in _DTYPES.values():
+        return dtype
+    if isinstance(dtype, str) and dtype in _DTYPES:
+        return _DTYPES[dtype]
+    raise ValueError(f"dtype must be torch.float64 or torch.float32; got {dtype!r}.")
+
+
+class KernelSVC(ClassifierMixin, BaseEstimator):
+    """Multi-class kernel C-SVC trained by batched SMO in torch.
+
+    All ``n_classes (n_classes - 1) / 2`` one-vs-one binary machines are
+    trained together as one batched SMO problem (second-order working-set
+    selection of Fan, Chen & Lin 2005, libsvm's stopping rule and intercept),
+    and combined by a Decision Directed Acyclic Graph (Platt et al. 2000) or
+    by libsvm's one-vs-one voting.  Fitted attributes follow the layout of
+    :class:`sklearn.svm.SVC`, so the two can be compared directly.
+
+    Parameters
+    ----------
+    C : float, default=1.0
+        Box constraint of the dual (``0 <= alpha <= C``), > 0.
+    kernel : str, default="rbf"
+        One of :data:`hlaid.svm.KERNELS` (``"rbf"``, ``"linear"``, ``"poly"``,
+        ``"sigmoid"``).
+    degree : int, default=3
+        Degree of the ``poly`` kernel.
+    gamma : {"scale", "auto"} or float, default="scale"
+        Kernel coefficient, as in scikit-learn: ``"scale"`` is
+        ``1 / (n_features * X.var())``, ``"auto"`` is ``1 / n_features``.
+    coef0 : float, default=0.0
+        Independent term of ``poly`` and ``sigmoid``.
+    tol : float, default=1e-3
+        SMO stops when the maximal violating pair gap ``m(alpha) - M(alpha)``
+        is below ``tol`` (per binary problem).
+    max_iter : int, default=-1
+        Cap on SMO steps per binary problem; ``-1`` (or None) means libsvm's
+        safety cap ``max(1e7, 100 * n)``.  Stopping on the cap issues a
+        :class:`~sklearn.exceptions.ConvergenceWarning`.
+    shrinking : bool, default=True
+        Use libsvm's shrinking heuristic (drops bounded variables that cannot
+        be selected from the working tensors; optimality is always checked on
+        all variables).
+    multiclass : {"ddag", "ovo"}, default="ddag"
+        Combination rule used by :meth:`predict` (see
+        :data:`hlaid.svm.MULTICLASS`).
+    decision_function_shape : {"ovr", "ovo"}, default="ovr"
+        Shape of :meth:`decision_function` for more than two classes, as in
+        :class:`sklearn.svm.SVC`.
+    cache_size : float, default=1024.0
+        Memory for kernel rows during training, in MB.  If the full kernel
+        does not fit in float64 the rows are stored in float32.
+    device : str or torch.device, optional
+        Device of the computation; by default the device of ``X`` when it is
+        a tensor, else the CPU.
+    dtype : torch.dtype, default=torch.float64
+        Working dtype (``torch.float64`` or ``torch.float32``).
+
+    Attributes
+    ----------
+    classes_ : ndarray of shape (n_classes,)
+    support_ : ndarray of shape (n_SV,)
+        Indices of the support vectors, grouped by class.
+    support_vectors_ : ndarray of shape (n_SV, n_features)
+    dual_coef_ : ndarray of shape (n_classes - 1, n_SV)
+        ``y * alpha`` in libsvm's one-vs-one layout (sign flipped for two
+        classes, as scikit-learn does).
+    intercept_ : ndarray of shape (n_classes * (n_classes - 1) / 2,)
+    n_support_ : ndarray of shape (n_classes,)
+    n_features_in_ : int
+    feature_names_in_ : ndarray of shape (n_features_in_,)
+        Only when ``X`` had string feature names.
+    gamma_ : float
+        The resolved kernel coefficient.
+    n_iter_ : ndarray of shape (n_classes * (n_classes - 1) / 2,)
+        SMO steps per binary problem.
+    dual_objective_ : ndarray of shape (n_classes * (n_classes - 1) / 2,)
+        Final dual objective ``1/2 a^T Q a - e^T a`` per binary problem
+        (libsvm's ``obj``).
+    fit_status_ : int
+        0 when every binary problem converged, 1 otherwise.
+    """
+
+    def __init__(self, *, C: float = 1.0, kernel: str = "rbf", degree: int = 3,
+                 gamma: str | float = "scale", coef0: float = 0.0, tol: float = 1e-3,
+                 max_iter: int | None = -1, shrinking: bool = True, multiclass: str = "ddag",
+                 decision_function_shape: str = "ovr", cache_size: float = 1024.0,
+                 device: str | torch.device | None = None,
+                 dtype: torch.dtype = torch.float64) -> None:
+        self.C = C
+        self.kernel = kernel
+        self.degree = degree
+        self.gamma = gamma
+        self.coef0 = coef0
+        self.tol = tol
+        self.max_iter = max_iter
+        self.shrinking = shrinking
+        self.multiclass = multiclass
+        self.decision_function_shape = decision_function_shape
+        self.cache_size = cache_size
+        self.device = device
+        self.dtype = dtype
+
+    # ------------------------------------------------------------------ checks
+    def _check_params(self) -> None:
+        def real(name: str, lo: float, closed: bool) -> None:
+            v = getattr(self, name)
+            ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and np.isfinite(v)
+            if not ok or v < lo or (v == lo and not closed):
+                rel = ">=" if closed else ">"
+                raise ValueError(f"{name} must be a finite number {rel} {lo}; got {v!r}.")
+
+        real("C", 0.0, False)
+        real("tol", 0.0, False)
+        real("cache_size", 0.0, False)
+        real("coef0", -np.inf, True)
+        if self.kernel not in KERNELS:
+            raise ValueError(f"Unknown kernel {self.kernel!r}; valid kernels are {sorted(KERNELS)}.")
+        if not isinstance(self.gamma, str):
+            real("gamma", 0.0, True)
+        elif self.gamma not in ("scale", "auto"):
+            raise ValueError(f"gamma must be 'scale', 'auto' or a non-negative float; got {self.gamma!r}.")
+        if not isinstance(self.degree, numbers.Integral) or isinstance(self.degree, bool) \
+                or self.degree < 0:
+            raise ValueError(f"degree must be a non-negative integer; got {self.degree!r}.")
+        mi = self.max_iter
+        if mi is not None and (not isinstance(mi, numbers.Integral) or isinstance(mi, bool)
+                               or (mi < 1 and mi != -1)):
+            raise ValueError(f"max_iter must be -1, None or a positive integer; got {mi!r}.")
+        resolve_multiclass(self.multiclass)
+        if self.decision_function_shape not in ("ovr", "ovo"):
+            raise ValueError("decision_function_shape must be 'ovr' or 'ovo'; got "
+                             f"{self.decision_function_shape!r}.")
+        _resolve_dtype(self.dtype)
+
+    def _resolve_device(self, X: Any) -> torch.device:
+        if self.device is None:
+            return X.device if isinstance(X, torch.Tensor) else torch.device("cpu")
+        try:
+            return torch.device(self.device)
+        except (RuntimeError, TypeError):
+            raise ValueError(f"Invalid device {self.device!r}.") from None
+
+    # --------------------------------------------------------------------- fit
+    def fit(self, X: Any, y: Any) -> "KernelSVC":
+        """Train the one-vs-one machines.
+
+        Parameters
+        ----------
+        X : array-like or Tensor of shape (n_samples, n_features)
+            Training samples (finite values).
+        y : array-like or Tensor of shape (n_samples,)
+            Class labels; at least two classes.
+
+        Returns
+        -------
+        self : KernelSVC
+        """
+        self._check_params()
+        dtype = _resolve_dtype(self.dtype)
+        device = self._resolve_device(X)
+        X, y = _validate_data(self, _to_numpy(X), _to_numpy(y), dtype=np.float64,
+                              order="C", y_numeric=False)
+        y = column_or_1d(y, warn=True)
+        check_classification_targets(y)
+        classes, y_enc = np.unique(y, return_inverse=True)
+        if classes.shape[0] < 2:
+            raise ValueError("The number of classes has to be greater than one; got "
+                             f"{classes.shape[0]} class.")
+        self.classes_ = classes
+        m = classes.shape[0]
+        self.gamma_ = resolve_gamma(self.gamma, X)
+        kern = make_kernel(self.kernel, gamma=self.gamma_, degree=self.degree, coef0=self.coef0)
+        Xt = torch.tensor(X, dtype=dtype, device=device)
+        yt = torch.tensor(y_enc, dtype=torch.long, device=device)
+        res, layout = smo_ovo(Xt, yt, m, kernel=kern, C=float(self.C), tol=float(self.tol),
+                              max_iter=-1 if self.max_iter is None else int(self.max_iter),
+                              shrinking=bool(self.shrinking), cache_size=float(self.cache_size))
+
+        # --- libsvm / scikit-learn attribute layout ----------------------
+        Lc = layout.Lc
+        pa, pb = layout.pairs[:, 0], layout.pairs[:, 1]
+        side_b = torch.zeros_like(layout.valid)
+        side_b[:, Lc:] = True
+        # coefficients of class a go to row b - 1, those of class b to row a
+        row = torch.where(side_b, pa[:, None], pb[:, None] - 1)
+        coef_sorted = torch.zeros(max(m - 1, 1), X.shape[0], dtype=dtype, device=device)
+        v = layout.valid
+        coef_sorted[row[v], layout.gmap[v]] = res.beta[v]
+        sv_pos = (coef_sorted != 0).any(0).nonzero().squeeze(1)
+        support = layout.order[sv_pos]
+        self.support_ = support.cpu().numpy().astype(np.int32)
+        self.support_vectors_ = X[self.support_].astype(_np_dtype(dtype))
+        dual = coef_sorted[:, sv_pos]
+        intercept = -res.rho
+        if not (bool(torch.isfinite(dual).all()) and bool(torch.isfinite(intercept).all())):
+            raise ValueError("The dual coefficients or intercepts are not finite; the input "
+                             "data may contain values too large for the kernel (scale X).")
+        self.n_support_ = np.bincount(y_enc[self.support_], minlength=m).astype(np.int32)
+        self.n_iter_ = res.n_iter.cpu().numpy()
+        self.dual_objective_ = res.objective.cpu().numpy()
+        self.fit_status_ = 0 if res.converged else 1
+        self.shape_fit_ = X.shape
+        self._set_model(dual, intercept, torch.tensor(self.support_vectors_, device=device),
+                        device, dtype, kern)
+        return self
+
+    def _set_model(self, dual: torch.Tensor, intercept: torch.Tensor, sv: torch.Tensor,
+                   device: torch.device, dtype: torch.dtype, kern) -> None:
+        """Store internal (libsvm-signed) tensors and the public attributes."""
+        self._dual_coef = dual.to(device=device, dtype=dtype)
+        self._intercept = intercept.to(device=device, dtype=dtype)
+        self._device = device
+        self._kernel = kern
+        n_sup = torch.as_tensor(self.n_support_, dtype=torch.long, device=device)
+        self._machines = PairwiseMachines(kern, sv.to(device=device, dtype=dtype),
+                                          self._dual_coef, n_sup, self._intercept)
+        dual_np = self._dual_coef.cpu().numpy()
+        icpt_np = self._intercept.cpu().numpy()
+        if len(self.classes_) == 2:  # scikit-learn's binary sign convention
+            dual_np, icpt_np = -dual_np, -icpt_np
+        self.dual_coef_ = dual_np
+        self.intercept_ = icpt_np
+
+    # ----------------------------------------------------------------- predict
+    def _predict_input(self, X: Any) -> torch.Tensor:
+        check_is_fitted(self)
+        X = _validate_data(self, _to_numpy(X), dtype=np.float64, order="C", reset=False)
+        return torch.tensor(X, dtype=self._dual_coef.dtype, device=self._device)
+
+    def decision_function(self, X: Any) -> np.ndarray:
+        """Decision values.
+
+        Parameters
+        ----------
+        X : array-like or Tensor of shape (n_samples, n_features)
+
+        Returns
+        -------
+        ndarray of shape (n_samples,), (n_samples, n_classes) or (n_samples, n_pairs)
+            Two classes: positive means ``classes_[1]``.  Otherwise ``"ovo"``
+            gives one column per machine ``(a, b)``, ``a < b`` (positive means
+            ``a``), and ``"ovr"`` scikit-learn's vote-plus-confidence transform.
+        """
+        Xt = self._predict_input(X)
+        m = len(self.classes_)
+        with torch.inference_mode():
+            dec = self._machines.decision_ovo(Xt)
+            if m == 2:
+                dec = -dec[:, 0]
+            elif self.decision_function_shape == "ovr":
+                dec = ovr_decision(dec, m)
+            return dec.cpu().numpy()
+
+    def predict(self, X: Any) -> np.ndarray:
+        """Predict class labels with the ``multiclass`` rule.
+
+        Parameters
+        ----------
+        X : array-like or Tensor of shape (n_samples, n_features)
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+            Labels from ``classes_``.
+        """
+        Xt = self._predict_input(X)
+        rule = resolve_multiclass(self.multiclass)
+        with torch.inference_mode():
+            idx = rule(self._machines, Xt).cpu().numpy()
+        return self.classes_[idx]
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.input_tags.allow_nan = False
+        tags.input_tags.sparse = False
+        return tags
+
+    # --------------------------------------------------------------- save/load
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the fitted model to one file (atomically).
+
+        The file is a ``torch.save`` dictionary of tensors, strings and
+        numbers (loadable with ``weights_only=True``); it is written to a
+        temporary file in the same folder and renamed over ``path``, so a
+        reader never sees a partial file.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+        """
+        check_is_fitted(self)
+        params = self.get_params()
+        params["dtype"] = str(params["dtype"]).replace("torch.", "")
+        params["device"] = None if params["device"] is None else str(params["device"])
+        classes = self.classes_
+        if classes.dtype.kind not in "biufU":
+            raise ValueError("save() supports integer, float, boolean or string class labels; "
+                             f"got classes_ of dtype {classes.dtype}.")
+        state = {
+            "format": _FORMAT,
+            "version": _FORMAT_VERSION,
+            "params": params,
+            "classes": classes.tolist(),
+            "classes_dtype": classes.dtype.str,
+            "gamma_": float(self.gamma_),
+            "n_features_in_": int(self.n_features_in_),
+            "feature_names_in_": (self.feature_names_in_.tolist()
+                                  if hasattr(self, "feature_names_in_") else None),
+            "support_": torch.from_numpy(self.support_.astype(np.int64)),
+            "support_vectors_": torch.from_numpy(np.ascontiguousarray(self.support_vectors_)),
+            "n_support_": torch.from_numpy(self.n_support_.astype(np.int64)),
+            "dual_coef": self._dual_coef.cpu(),
+            "intercept": self._intercept.cpu(),
+            "n_iter_": torch.from_numpy(np.asarray(self.n_iter_, dtype=np.int64)),
+            "dual_objective_": torch.from_numpy(np.asarray(self.dual_objective_)),
+            "fit_status_": int(self.fit_status_),
+            "shape_fit_": list(self.shape_fit_),
+        }
+        atomic_write(path, lambda tmp: torch.save(state, tmp))
+
+    @classmethod
+    def load(cls, path: str | os.PathLike, *,
+             device: str | torch.device | None = None) -> "KernelSVC":
+        """Load a model written by :meth:`save`.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+        device : str or torch.device, optional
+            Where to put the model; default: the saved ``device`` parameter
+            (CPU when it was None).
+
+        Returns
+        -------
+        KernelSVC
+            A fitted estimator.
+
+        Raises
+        ------
+        FileNotFoundError
+            If ``path`` does not exist.
+        hlaid.errors.InputError
+            (a ``ValueError``) if the file is not a KernelSVC model file; the
+            message starts with the file name.
+        """
+        src = os.fspath(path)
+        if not os.path.exists(src):
+            raise FileNotFoundError(f"{src}: file not found")
+        try:
+            state = torch.load(src, map_location="cpu", weights_only=True)
+        except Exception as exc:
+            raise InputError(f"not a KernelSVC model file (torch.load failed: "
+                             f"{type(exc).__name__})", source=src) from None
+        if not isinstance(state, dict) or state.get("format") != _FORMAT:
+            raise InputError(f"not a KernelSVC model file (expected format {_FORMAT!r})",
+                             source=src)
+        if state.get("version") != _FORMAT_VERSION:
+            raise InputError(f"KernelSVC model format version {state.get('version')!r}; "
+                             f"this version reads {_FORMAT_VERSION}", source=src)
+        try:
+            params = dict(state["params"])
+            params["dtype"] = _resolve_dtype(params["dtype"])
+            if device is not None:
+                params["device"] = device
+            est = cls(**params)
+            dtype = params["dtype"]
+            dev = est._resolve_device(None)
+            est.classes_ = np.asarray(state["classes"], dtype=np.dtype(state["classes_dtype"]))
+            est.gamma_ = state["gamma_"]
+            est.n_features_in_ = state["n_features_in_"]
+            if state["feature_names_in_"] is not None:
+                est.feature_names_in_ = np.asarray(state["feature_names_in_"], dtype=object)
+            est.support_ = state["support_"].numpy().astype(np.int32)
+            est.support_vectors_ = state["support_vectors_"].numpy()
+            est.n_support_ = state["n_support_"].numpy().astype(np.int32)
+            est.n_iter_ = state["n_iter_"].numpy()
+            est.dual_objective_ = state["dual_objective_"].numpy()
+            est.fit_status_ = state["fit_status_"]
+            est.shape_fit_ = tuple(state["shape_fit_"])
+            kern = make_kernel(est.kernel, gamma=est.gamma_, degree=est.degree, coef0=est.coef0)
+            est._set_model(state["dual_coef"], state["intercept"], state["support_vectors_"],
+                           dev, dtype, kern)
+        except (KeyError, TypeError, ValueError, AttributeError, RuntimeError) as exc:
+            raise InputError(f"corrupt KernelSVC model file ({type(exc).__name__}: {exc})",
+                             source=src) from None
+        return est
+
+
+def _np_dtype(dtype: torch.dtype) -> np.dtype:
+    return np.dtype(np.float32) if dtype == torch.float32 else np.dtype(np.float64)
