@@ -212,3 +212,27 @@ def test_shrinking_does_not_change_solution(shrinking):
     sk = SVC(C=10.0).fit(Xtr[:600], ytr[:600])
     me = KernelSVC(C=10.0, shrinking=shrinking).fit(Xtr[:600], ytr[:600])
     np.testing.assert_allclose(me.dual_objective_, sklearn_pair_objectives(sk), rtol=1e-4)
+
+
+@pytest.mark.parametrize("cache_size", [1024.0, 0.3])
+def test_lazy_kernel_cache(monkeypatch, cache_size):
+    """Kernel blocks computed on demand (the path used beyond FULL_PRECOMPUTE_MAX
+    samples); a tiny cache forces float32 storage and repeated flushes."""
+    import torch
+
+    from hlaid.svm import _smo, make_kernel, smo_ovo
+
+    monkeypatch.setattr(_smo, "FULL_PRECOMPUTE_MAX", 0)
+    Xtr, _, ytr, _ = MULTI["synthetic15"]
+    X, y = Xtr[:900], ytr[:900]
+    sk = SVC().fit(X, y)
+    kern = make_kernel("rbf", gamma=sk._gamma)
+    res, _ = smo_ovo(torch.tensor(X), torch.tensor(y), 15, kernel=kern, C=1.0,
+                     cache_size=cache_size)
+    assert res.converged
+    if cache_size < 1:
+        assert res.kernel_storage == torch.float32 and res.n_cache_flushes > 0
+    else:
+        assert res.kernel_storage == torch.float64 and res.n_cache_flushes == 0
+        assert res.n_kernel_blocks < 900 * 15          # only the blocks that were needed
+    np.testing.assert_allclose(res.objective.numpy(), sklearn_pair_objectives(sk), rtol=1e-4)

@@ -19,6 +19,7 @@ COMMANDS = [
     "hlaid.cli.simulate",
     "hlaid.cli.demo",
     "hlaid.cli.hla",
+    "hlaid.cli.identify",
     "hlaid.cli.ida",
 ]
 """Modules that each register one or more subcommands."""

@@ -234,7 +234,7 @@ def hla(measurement: Measurement, config: HLAConfig | None = None) -> HLAResult:
         ke_t = np.full(meas.n_samples, np.nan)
         for (s, e), ke in zip(r.bounds, r.table.ke):
             ke_t[s:e + 1] = ke
-        stories.append(StoryHLA(story=i + 1, force=f_out[:, i], drift=x[:, i], drift_velocity=dx[:, i], k=r.k,
+        stories.append(StoryHLA(story=i + 1, force=f_out[:, i], force_fit=f[:, i], drift=x[:, i], drift_velocity=dx[:, i], k=r.k,
                                 ke=ke_t, k0=r.k0, yielded=r.yielded, half_cycles=r.table))
     return HLAResult(dt=meas.dt, stories=tuple(stories), mass=m, mass_normalised=normalised, damping=damping,
                      pdelta_corrected=pdelta, config=cfg, band_hz=band, source=meas.source)

@@ -1,8 +1,8 @@
 """Configuration of hysteresis loop analysis (YAML schema, validated on load).
 
 Defaults were chosen on simulated Table 1 data with 10 % RMS noise over several real
-records and seeds (``tests/test_hla_accuracy.py``) and checked on the real shake-table data
-(``docs/hla.md``), where each choice is explained.
+records and seeds (``scripts/study_hla_accuracy.py``; ``tests/test_hla.py::test_hla_accuracy_study``)
+and checked on the real shake-table data (``docs/hla.md``), where each choice is explained.
 """
 
 from __future__ import annotations
@@ -78,6 +78,10 @@ class ForceConfig:
             raise InputError(f"damping_ratio = {self.damping_ratio}; expected 0 <= ratio < 1")
         if self.mass_ratios is not None and not all(m > 0 for m in self.mass_ratios):
             raise InputError("mass_ratios must be positive numbers")
+        if not all(m >= 1 for m in self.damping_modes):
+            raise InputError(f"damping_modes = {list(self.damping_modes)}; expected mode numbers >= 1")
+        if self.max_iterations < 1:
+            raise InputError(f"max_iterations = {self.max_iterations}; expected >= 1")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -137,6 +141,12 @@ class StiffnessConfig:
             raise InputError(f"ke_force_fraction = {self.ke_force_fraction}; expected (0, 1]")
         if self.ke_min_samples < 3 or self.k_window < 3:
             raise InputError("ke_min_samples and k_window must be >= 3")
+        if not 0 <= self.k0_min_amplitude < 1:
+            raise InputError(f"k0_min_amplitude = {self.k0_min_amplitude}; expected a fraction in [0, 1)")
+        if not 0 < self.yield_ratio <= 1:
+            raise InputError(f"yield_ratio = {self.yield_ratio}; expected a fraction in (0, 1]")
+        if self.ke_trend_z < 0:
+            raise InputError(f"ke_trend_z = {self.ke_trend_z}; expected >= 0 (0: never fit the trend)")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -77,7 +77,10 @@ class StoryHLA:
     Attributes
     ----------
     story : 1-based story number
-    force : story restoring force ``f`` [N] (per unit total mass [N/t] when mass-normalised)
+    force : story restoring force ``f`` [N] (per unit total mass [N/t] when mass-normalised),
+        low-passed only
+    force_fit : the same force band-passed exactly like the drift, on which every slope
+        (ke, k(t), features) is fitted
     drift : inter-story drift ``x`` [mm]; ``drift_velocity`` ``dx`` [mm/s]
     k : tangent stiffness ``k(t)`` [N/mm], NaN outside half cycles
     ke : elastic stiffness ``ke(t)`` [N/mm], held over each half cycle, NaN outside
@@ -88,6 +91,7 @@ class StoryHLA:
 
     story: int
     force: np.ndarray
+    force_fit: np.ndarray
     drift: np.ndarray
     drift_velocity: np.ndarray
     k: np.ndarray
@@ -165,7 +169,7 @@ class HLAResult:
         """Write ``hla.npz`` (time series and half-cycle tables) and ``hla.json`` (summary)."""
         out = Path(out_dir)
         arrays: dict[str, np.ndarray] = {"dt": np.float64(self.dt), "mass": self.mass}
-        for name in ("force", "drift", "drift_velocity", "k", "ke"):
+        for name in ("force", "force_fit", "drift", "drift_velocity", "k", "ke"):
             arrays[name] = self.stacked(name)
         arrays["k0"] = self.k0
         for s in self.stories:

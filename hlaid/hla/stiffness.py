@@ -16,11 +16,20 @@ def ls_slope(x: np.ndarray, f: np.ndarray, *extra: np.ndarray) -> tuple[float, f
     ill-posed).
     """
     n = x.shape[0]
-    cols = [x, np.ones(n), *extra]
-    A = np.stack(cols, axis=1)
+    if not extra:  # closed form, the common case
+        if n <= 2:
+            return np.nan, np.inf
+        xm = x - x.mean()
+        sxx = float(xm @ xm)
+        if sxx <= 0.0:
+            return np.nan, np.inf
+        k = float(xm @ (f - f.mean())) / sxx
+        r = (f - f.mean()) - k * xm
+        return k, float(r @ r) / (n - 2) / sxx
+    A = np.stack([x, np.ones(n), *extra], axis=1)
     if n <= A.shape[1]:
         return np.nan, np.inf
-    coef, res, rank, _ = np.linalg.lstsq(A, f, rcond=None)
+    coef, _, rank, _ = np.linalg.lstsq(A, f, rcond=None)
     if rank < A.shape[1]:
         return np.nan, np.inf
     r = f - A @ coef
@@ -104,6 +113,15 @@ def sliding_slope(x: np.ndarray, f: np.ndarray, bounds: np.ndarray, window: int)
     return k
 
 
+def segment_index(x: np.ndarray, start: int, end: int, n_segments: int) -> np.ndarray:
+    """Segment (0..n-1) of every sample of a half cycle, by equal drift increments from its
+    reversal; ``(end - start + 1,)``."""
+    xs = x[start:end + 1]
+    d = xs[-1] - xs[0]
+    pos = np.clip((xs - xs[0]) / d, 0.0, 1.0 - 1e-12) if d != 0 else np.zeros_like(xs)
+    return (pos * n_segments).astype(int)
+
+
 def segment_slopes(x: np.ndarray, f: np.ndarray, start: int, end: int, n_segments: int) -> np.ndarray:
     """Slopes of ``f`` on ``x`` over ``n_segments`` equal drift increments of one half cycle.
 
@@ -113,9 +131,7 @@ def segment_slopes(x: np.ndarray, f: np.ndarray, start: int, end: int, n_segment
     Returns ``(n_segments,)``.
     """
     xs, fs = x[start:end + 1], f[start:end + 1]
-    d = xs[-1] - xs[0]
-    pos = np.clip((xs - xs[0]) / d, 0.0, 1.0 - 1e-12) if d != 0 else np.zeros_like(xs)
-    seg = (pos * n_segments).astype(int)
+    seg = segment_index(x, start, end, n_segments)
     # the drift is monotonic in a half cycle up to noise: take each segment's sample span
     first = np.searchsorted(np.maximum.accumulate(seg), np.arange(n_segments), side="left")
     last = np.searchsorted(np.maximum.accumulate(seg), np.arange(n_segments), side="right")
@@ -176,9 +192,14 @@ def degradation_trend(ke: np.ndarray, energy: np.ndarray, weights: np.ndarray,
         k0, r, c = q
         return k0 * (r + (1.0 - r) / (1.0 + c * E))
 
+    def jac(q):
+        k0, r, c = q
+        d = 1.0 / (1.0 + c * E)
+        return w[:, None] * np.stack([r + (1.0 - r) * d, k0 * (1.0 - d), -k0 * (1.0 - r) * E * d * d], axis=1)
+
     iso = isotonic_decreasing(y, weights[ok])
     k_first = max(float(iso[0]), 1e-3)
     q0 = [k_first, min(max(float(iso[-1]) / k_first, 0.0), 1.0), 1.0]
-    sol = least_squares(lambda q: w * (model(q, E) - y), q0, bounds=([1e-3, 0.0, 0.0], [20.0, 1.0, max_rate]),
-                        loss="soft_l1", f_scale=0.05)
+    sol = least_squares(lambda q: w * (model(q, E) - y), q0, jac=jac,
+                        bounds=([1e-3, 0.0, 0.0], [20.0, 1.0, max_rate]), loss="soft_l1", f_scale=0.05)
     return model(sol.x, E_all) * scale, float(sol.x[0] * scale)

@@ -10,8 +10,10 @@ stories). A point is a *collapse* when
 * the IDA curve's secant slope ``dIM/dEDP`` between consecutive points drops below
   ``slope_ratio`` x the elastic slope (the point above the flat segment is on the flatline).
 
-A run that diverges, or that the drift stop catches more than 1.5x past the limit (a jump
-within one sample), is re-run with 4x and then 16x more sub-steps first, so an integration
+Each record is integrated with RK4 steps of at most ``max_step`` (its samples refined by exact
+linear interpolation, one step per refined sample), so peaks and the drift stop are checked at
+every step. A run that diverges, or that the drift stop catches more than 1.5x past the limit
+(a jump within one sample), is re-run with 4x and then 16x more steps first, so an integration
 blow-up is never taken for a collapse.
 
 Stages (each a few batched simulator calls):
@@ -121,18 +123,23 @@ class _Runner:
 
     def __init__(self, building: Building, motions: list[GroundMotion], im0: np.ndarray, drift_limit: float,
                  max_step: float):
-        self.b, self.motions, self.im0 = building, motions, im0
+        self.b, self.im0 = building, im0
         self.h = np.asarray(building.height, dtype=np.float64)
         self.stop = drift_limit * self.h
         self.drift_limit = drift_limit
         dt = np.array([m.dt for m in motions])
         self.substeps = np.maximum(1, np.ceil(dt / max_step - 1e-9)).astype(np.int64)
+        # Each record is run as the same piecewise-linear input sampled `substeps` times denser
+        # (one RK4 step per sample: the same arithmetic as `substeps` sub-steps), so that peaks
+        # and the drift stop are checked at every step, not only at the record's samples.
+        self.motions = [upsampled(m, int(f)) for m, f in zip(motions, self.substeps)]
         self.cols: dict[str, list] = {k: [] for k in ("record", "im", "scale", "stage", "status", "substeps",
                                                       "peak", "residual")}
         self.n_runs = 0
 
     def _sim(self, recs: np.ndarray, scales: np.ndarray, substeps: int):
-        """Product runs of ``recs`` x their rows of ``scales`` ``(len(recs), k)``, one substep count."""
+        """Product runs of ``recs`` x their rows of ``scales`` ``(len(recs), k)``, at ``substeps``
+        RK4 steps per sample of the (already refined) records."""
         r = simulate(self.b, [self.motions[i] for i in recs], scales, substeps=int(substeps), outputs="peaks",
                      stop_drift=self.stop)
         self.n_runs += r.batch_size
@@ -153,7 +160,7 @@ class _Runner:
         sub = np.empty((recs.size, k), dtype=np.int64)
         for s in np.unique(self.substeps[recs]):
             sel = np.flatnonzero(self.substeps[recs] == s)
-            pk, rs, st = self._sim(recs[sel], scales[sel], s)
+            pk, rs, st = self._sim(recs[sel], scales[sel], 1)
             peak[sel], resid[sel], status[sel] = pk.reshape(sel.size, k, n), rs.reshape(sel.size, k, n), \
                 st.reshape(sel.size, k)
             sub[sel] = s
@@ -165,9 +172,10 @@ class _Runner:
             if bad.size == 0:
                 break
             for i, j in bad:
-                s = int(sub[i, j]) * _CONFIRM_FACTOR
-                pk, rs, st = self._sim(recs[i:i + 1], scales[i:i + 1, j:j + 1], s)
-                peak[i, j], resid[i, j], status[i, j], sub[i, j] = pk[0], rs[0], st[0], s
+                f = int(sub[i, j] // self.substeps[recs[i]]) * _CONFIRM_FACTOR
+                pk, rs, st = self._sim(recs[i:i + 1], scales[i:i + 1, j:j + 1], f)
+                peak[i, j], resid[i, j], status[i, j] = pk[0], rs[0], st[0]
+                sub[i, j] = f * self.substeps[recs[i]]
         c = self.cols
         c["record"].append(np.repeat(recs, k))
         c["im"].append(ims.ravel())
@@ -183,6 +191,14 @@ class _Runner:
 
     def edp(self, a: dict) -> np.ndarray:
         return np.max(a["peak"] / self.h, axis=1)
+
+
+def upsampled(gm: GroundMotion, factor: int) -> GroundMotion:
+    """The same piecewise-linear record sampled ``factor`` times denser (exact interpolation)."""
+    if factor <= 1:
+        return gm
+    t = np.arange((gm.npts - 1) * factor + 1) * (gm.dt / factor)
+    return GroundMotion(dt=gm.dt / factor, acc=np.interp(t, gm.time, gm.acc), name=gm.name, source=gm.source)
 
 
 def scan_collapse(im: np.ndarray, edp: np.ndarray, failed: np.ndarray, elastic_slope: float,
@@ -244,7 +260,8 @@ def ida(model: Clone | Building | str | os.PathLike,
         2 and 4 % (those below ``drift_limit``)
     refine : hunt and bisect (fill) each record's collapse intensity
     hunt_factor, max_hunt, tolerance, max_fill : refinement settings (see the module doc)
-    max_step : largest RK4 step [s] (sub-steps per record: ``ceil(dt / max_step)``)
+    max_step : largest RK4 step [s] (sub-steps per record: ``ceil(dt / max_step)``); peaks and
+        the drift stop are checked at every step
     pdelta, heights, gravity_load : see :func:`prepare_building`; ``heights`` [mm] and
         ``gravity_load`` [N per floor] replace the clone's
     period : period [s] of Sa(T1) instead of the clone's first elastic period

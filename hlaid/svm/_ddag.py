@@ -202,20 +202,24 @@ def predict_ddag(machines: PairwiseMachines, X: torch.Tensor) -> torch.Tensor:
     LongTensor of shape (n_samples,)
         Class indices.
     """
-    m, W, b, pidx = machines.m, machines.W, machines.b, machines.pidx
+    m, Ls = machines.m, machines.Ls
+    W = machines.W.reshape(m * m, Ls)              # row c * m + o: class c SVs vs o
+    bias = machines.b.index_select(0, machines.pidx.clamp_min(0).view(-1))   # (m * m,)
     out = torch.empty(X.shape[0], dtype=torch.long, device=X.device)
     for s, Kb in machines.blocks(X):
         B = Kb.shape[0]
-        rows = torch.arange(B, device=X.device)
         lo = torch.zeros(B, dtype=torch.long, device=X.device)
         hi = torch.full((B,), m - 1, dtype=torch.long, device=X.device)
         for _ in range(m - 1):
-            # machine (lo, hi): SVs of class lo and of class hi only
-            d = ((Kb[rows, lo] * W[lo, hi]).sum(1) + (Kb[rows, hi] * W[hi, lo]).sum(1)
-                 + b[pidx[lo, hi]])
-            lo_wins = d > 0
-            hi = hi - lo_wins.long()
-            lo = lo + (~lo_wins).long()
+            # machine (lo, hi) on the SVs of classes lo and hi only
+            k_lo = Kb.gather(1, lo[:, None, None].expand(B, 1, Ls)).squeeze(1)
+            k_hi = Kb.gather(1, hi[:, None, None].expand(B, 1, Ls)).squeeze(1)
+            key = lo * m + hi
+            d = ((k_lo * W.index_select(0, key)).sum(1)
+                 + (k_hi * W.index_select(0, hi * m + lo)).sum(1) + bias.index_select(0, key))
+            lo_wins = (d > 0).long()
+            hi = hi - lo_wins
+            lo = lo + 1 - lo_wins
         out[s:s + B] = lo
     return out
 

@@ -34,10 +34,12 @@ works on a packed *working set* ``S`` of shape ``(n_active_pairs, 5, La)``
 holding ``F``, ``beta``, the ``I_up`` / ``I_low`` penalties (``0`` or
 ``-inf`` / ``+inf``) and the upper bound of the active variables.  Each
 iteration is a fixed number (~60) of tensor operations whatever the number
-of pairs.  Every ``check_every`` iterations the host synchronises once:
-converged pairs leave the working set, and with ``shrinking`` the bounded
-variables that libsvm's rule says cannot be selected are dropped (``La``
-shrinks).  A pair whose shrunk problem converged gets its gradient
+of pairs (run under ``torch.inference_mode``; no boolean-mask indexing and no
+host synchronisation inside the loop when the kernel is precomputed).  Every
+``check_every`` iterations the host synchronises once: converged pairs leave
+the working set (once they are at least 1/8 of it; until then they are
+frozen), and with ``shrinking`` the bounded variables that libsvm's rule says
+cannot be selected are dropped (``La`` shrinks).  A pair whose shrunk problem converged gets its gradient
 reconstructed exactly from its support vectors and is re-tested on all its
 variables before it is declared converged, as libsvm does.
 
@@ -288,6 +290,10 @@ class SMOResult:
         Whether every pair met ``m - M < tol``.
     n_kernel_blocks : int
         Kernel blocks (one sample against one class) computed.
+    n_cache_flushes : int
+        Times the kernel cache was full and emptied.
+    kernel_storage : torch.dtype
+        dtype the kernel blocks were stored in.
     n_loops : int
         Iterations of the batched loop (the largest ``n_iter`` plus the
         iterations spent at synchronisation points).
@@ -300,6 +306,8 @@ class SMOResult:
     gap: torch.Tensor
     converged: bool
     n_kernel_blocks: int
+    n_cache_flushes: int
+    kernel_storage: torch.dtype
     n_loops: int
 
 
@@ -319,6 +327,25 @@ def _kernel_storage(n: int, m: int, Lc: int, dtype: torch.dtype,
     return store, min(n * m, max(2 * m * m, cap))
 
 
+def _compact(keep: torch.Tensor) -> torch.Tensor:
+    """Per row, the column indices with ``keep`` first, then the others (stable).
+
+    Parameters
+    ----------
+    keep : BoolTensor of shape (R, L)
+
+    Returns
+    -------
+    LongTensor of shape (R, L), a permutation of ``0 .. L-1`` on every row.
+    """
+    L = keep.shape[1]
+    ar = torch.arange(L, device=keep.device)
+    ck = keep.long().cumsum(1)
+    cnt = ck[:, -1:]
+    pos = torch.where(keep, ck - 1, cnt + ar - ck)
+    return torch.empty_like(pos).scatter_(1, pos, ar.expand_as(pos))
+
+
 def _reconstruct(F_full: torch.Tensor, beta_full: torch.Tensor, y_pair: torch.Tensor,
                  pidx: torch.Tensor, layout: OvOLayout, cache: KernelBlockCache,
                  block_elements: int = 1 << 23) -> None:
@@ -333,7 +360,7 @@ def _reconstruct(F_full: torch.Tensor, beta_full: torch.Tensor, y_pair: torch.Te
     smax = int(nz.sum(1).max())
     acc = torch.zeros_like(beta)
     if smax > 0:
-        order = torch.argsort((~nz).to(torch.int8), dim=1, stable=True)[:, :smax]
+        order = _compact(nz)[:, :smax]                   # support vectors first
         bsv = beta.gather(1, order)                      # zero beyond the SV count
         gsv = layout.gmap.index_select(0, pidx).gather(1, order)
         cls = layout.pairs.index_select(0, pidx)[:, None, :]     # (R, 1, 2)
@@ -432,8 +459,9 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
 
     sgn = torch.tensor([1.0, -1.0], dtype=dt, device=dev)
     first = torch.tensor([[True, False]], device=dev)
-    # a_ij / 2 = 1 + tau - K_ij >= tau for the RBF kernel (K_ij <= 1); tau is
-    # raised to the dtype's epsilon so that 1 + tau > 1 in float32 too
+    # a_ij / 2 = 1 + tau - K_ij for the RBF kernel (K_ii = 1), floored at tau
+    # (rounding can put K_ij a hair above 1); tau is raised to the dtype's
+    # epsilon so that 1 + tau > 1 in float32 too
     one_tau = 1.0 + max(TAU, torch.finfo(dt).eps)
     arangeL = torch.arange(L, device=dev)
     flat = cache.flat
@@ -442,13 +470,9 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
 
     def pack(pidx: torch.Tensor, keep: torch.Tensor) -> None:
         """Working set of pairs ``pidx`` with variables ``keep`` (full layout)."""
-        # stable compaction: kept variables first (in order), then the others
-        kept = keep.long()
-        ck = kept.cumsum(1)
-        cnt = ck[:, -1]
+        cnt = keep.sum(1)
         La = max(1, int(cnt.max()))
-        pos = torch.where(keep, ck - 1, cnt[:, None] + arangeL - ck)
-        sel = torch.empty_like(pos).scatter_(1, pos, arangeL.expand_as(pos))[:, :La]
+        sel = _compact(keep)[:, :La]               # kept variables first, in order
         wvalid = torch.arange(La, device=dev)[None, :] < cnt[:, None]
         def rows_of(full: torch.Tensor) -> torch.Tensor:
             return full.index_select(0, pidx).gather(1, sel)
@@ -489,7 +513,9 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
         S13 = S[:, 1:4]
         while True:
             loops += 1
-            mval, i = torch.add(F, pu).max(1, keepdim=True)
+            Fu = torch.add(F, pu)
+            i = Fu.argmax(1, keepdim=True)
+            mval = Fu.gather(1, i)
             b = torch.sub(mval, F).sub_(pl)                   # m - F on I_low, else -inf
             gap = b.amax(1, keepdim=True)
             act = gap >= tol
@@ -503,17 +529,17 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
             if convert:
                 Ki = Ki.to(dt)
             if const_diag:
-                a = torch.rsub(Ki, one_tau)                    # a_ij / 2 > 0
+                a = torch.rsub(Ki, one_tau).clamp_min_(TAU)    # a_ij / 2 > 0
             else:
                 kdi = kd.gather(1, i)
                 a = torch.add(kd, Ki, alpha=-2.0).add_(kdi + TAU).clamp_min_(TAU)
-            j = b.clamp_min_(0.0).square_().div_(a).max(1, keepdim=True)[1]
+            j = b.clamp_min_(0.0).square_().div_(a).argmax(1, keepdim=True)
             # ---- analytic two-variable step -------------------------------
             ij = torch.cat([i, j], 1)
             G = S.gather(2, ij[:, None, :].expand(exp5))       # (F, beta, pu, pl, hi) at i, j
             Kij = Ki.gather(1, j)
             if const_diag:
-                aij = torch.rsub(Kij, one_tau).mul_(2.0)
+                aij = torch.rsub(Kij, one_tau).clamp_min_(TAU).mul_(2.0)
             else:
                 aij = (kdi + kd.gather(1, j) - 2.0 * Kij).clamp_min_(TAU)
             bij, hij = G[:, 1], G[:, 4]
@@ -612,4 +638,4 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
     objective = -0.5 * (beta_full * (F_full + y_pair)).sum(1)
     return SMOResult(beta=beta_full, rho=rho, objective=objective, n_iter=niter_all,
                      gap=gap_all, converged=converged, n_kernel_blocks=cache.n_computed,
-                     n_loops=loops)
+                     n_cache_flushes=cache.n_flushes, kernel_storage=store, n_loops=loops)

@@ -1,0 +1,53 @@
+"""``hlaid identify``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .. import _progress
+from ..config import load_config
+from ..errors import InputError
+from ..identify import IdentifyConfig, identify
+from ..io_dispatch import read_measurement_any
+from .main import subcommand
+
+
+def register(sub) -> None:
+    p = subcommand(sub, "identify", help="identify a digital clone (degrading Bouc-Wen per story) from a measurement",
+                   example="hlaid identify meas.npz -o clone.json --tensorboard runs/id1")
+    p.add_argument("measurement", help="measurement file (.npz, .csv, or a format hlaid reads)")
+    p.add_argument("-o", "--out", required=True, help="clone JSON to write")
+    p.add_argument("--config", help="identification config YAML (see configs/identify.yaml)")
+    p.add_argument("--tensorboard", metavar="DIR", help="write TensorBoard logs here")
+    p.add_argument("--cache", metavar="DIR", help="classifier cache folder (default ~/.cache/hlaid/svm)")
+    p.add_argument("--no-cache", action="store_true", help="train every classifier afresh and cache nothing")
+    p.add_argument("--force", action="store_true", help="overwrite an existing clone file")
+    p.set_defaults(func=run_identify)
+
+
+def run_identify(args) -> int:
+    out = Path(args.out)
+    if out.exists() and not args.force:
+        raise InputError("already exists; use --force to overwrite", source=str(out))
+    cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
+    meas = read_measurement_any(args.measurement)
+    cache = "" if args.no_cache else args.cache
+    res = identify(meas, cfg, tensorboard=args.tensorboard, cache_dir=cache)
+    res.clone.save(out, force=args.force)
+    print_summary(res)
+    _progress.info(f"wrote {out}")
+    return 0
+
+
+def print_summary(res) -> None:
+    b = res.clone.building
+    lines = ["story      k0    alpha      p      dy  delta_eta   R(meas)  stiffness err"]
+    for i in range(b.n_stories):
+        d = res.clone.diagnostics["stories"][i]
+        flag = "" if d["identifiable"] else "  (not identifiable: see diagnostics)"
+        lines.append(f"{i + 1:5d} {b.k0[i]:8.5g} {b.alpha[i]:8.3f} {b.p[i]:6.2f} {b.dy[i]:7.3f} {b.delta_eta[i]:10.3f}"
+                     f" {res.replay.r_measured[i]:9.4f} {res.replay.stiffness_error[i]:13.2%}{flag}")
+    lines.append(f"outer iterations {res.iterations}, wall time {res.timings.get('total', np.nan):.1f} s")
+    _progress.info("\n".join(lines))

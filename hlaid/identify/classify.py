@@ -1,0 +1,145 @@
+"""Alpha and p by RBF kernel SVMs on half-cycle features, combined over the half cycles of a
+story by majority vote; class bins as the paper's Tables 2-3."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..svm import KernelSVC
+from .config import SVMConfig
+from .training import TrainingSet
+
+
+@dataclass(frozen=True)
+class Bins:
+    """Contiguous class bins ``[edges[i], edges[i+1])``."""
+
+    edges: np.ndarray
+
+    @classmethod
+    def regular(cls, lo: float, hi: float, width: float) -> "Bins":
+        n = max(1, int(np.ceil((hi - lo) / width - 1e-9)))
+        return cls(lo + width * np.arange(n + 1))
+
+    @property
+    def n(self) -> int:
+        return int(self.edges.shape[0] - 1)
+
+    @property
+    def centers(self) -> np.ndarray:
+        return 0.5 * (self.edges[:-1] + self.edges[1:])
+
+    @property
+    def range(self) -> tuple[float, float]:
+        return float(self.edges[0]), float(self.edges[-1])
+
+    def label(self, values: np.ndarray) -> np.ndarray:
+        """Bin index of each value (values outside are put in the nearest end bin)."""
+        return np.clip(np.searchsorted(self.edges, values, side="right") - 1, 0, self.n - 1)
+
+    def refine(self, index: int, width: float, limits: tuple[float, float]) -> "Bins":
+        """Finer bins over bin ``index`` and its two neighbours (boundary crossing), within ``limits``."""
+        lo = max(self.edges[max(index - 1, 0)], limits[0])
+        hi = min(self.edges[min(index + 2, self.n)], limits[1])
+        return Bins.regular(lo, hi, width)
+
+
+@dataclass(frozen=True)
+class PassResult:
+    """One classifier pass for one parameter of one story.
+
+    Attributes
+    ----------
+    param : ``"alpha"`` or ``"p"``; stage : ``"coarse"`` or ``"fine"``
+    edges : the class bins; votes : (bin,) votes of the measured half cycles
+    predicted : winning bin; value : its centre (the estimate)
+    train_accuracy, test_accuracy : on the simulated half cycles (test: held-out simulations)
+    confusion : (bin, bin) test confusion matrix (rows: true class)
+    n_train, n_test, seconds, cached
+    """
+
+    param: str
+    stage: str
+    edges: np.ndarray
+    votes: np.ndarray
+    predicted: int
+    value: float
+    train_accuracy: float
+    test_accuracy: float
+    confusion: np.ndarray
+    n_train: int
+    n_test: int
+    seconds: float
+    cached: bool = False
+
+    def to_dict(self) -> dict:
+        return {"param": self.param, "stage": self.stage, "edges": self.edges.tolist(), "votes": self.votes.tolist(),
+                "predicted": self.predicted, "value": self.value, "train_accuracy": self.train_accuracy,
+                "test_accuracy": self.test_accuracy, "confusion": self.confusion.tolist(), "n_train": self.n_train,
+                "n_test": self.n_test, "seconds": self.seconds, "cached": self.cached}
+
+
+def make_svc(cfg: SVMConfig) -> KernelSVC:
+    return KernelSVC(C=cfg.C, kernel=cfg.kernel, gamma=cfg.gamma, multiclass=cfg.multiclass)
+
+
+def split(train: TrainingSet, test_fraction: float) -> np.ndarray:
+    """Test mask: every ``1/test_fraction``-th simulation is held out (no half cycle of a
+    held-out response is seen in training)."""
+    every = max(2, int(round(1.0 / test_fraction)))
+    return train.sim % every == 0
+
+
+def fit_machine(train: TrainingSet, param: str, bins: Bins, cfg: SVMConfig, test_fraction: float):
+    """Train one classifier; returns ``(machine, stats)`` with accuracies and confusion."""
+    t0 = time.perf_counter()
+    y = bins.label(getattr(train, param))
+    test = split(train, test_fraction)
+    if len(np.unique(y[~test])) < 2:  # a single class: nothing to learn
+        machine = None
+        acc_tr = acc_te = 1.0
+        conf = np.zeros((bins.n, bins.n))
+    else:
+        machine = make_svc(cfg).fit(train.X[~test], y[~test])
+        acc_tr = float(np.mean(machine.predict(train.X[~test]) == y[~test]))
+        pred = machine.predict(train.X[test]) if test.any() else np.zeros(0, int)
+        acc_te = float(np.mean(pred == y[test])) if test.any() else np.nan
+        conf = np.zeros((bins.n, bins.n))
+        np.add.at(conf, (y[test], pred.astype(int)), 1)
+    stats = {"train_accuracy": acc_tr, "test_accuracy": acc_te, "confusion": conf, "n_train": int((~test).sum()),
+             "n_test": int(test.sum()), "seconds": time.perf_counter() - t0, "single": int(y[0]) if machine is None else -1}
+    return machine, stats
+
+
+def vote(machine: KernelSVC | None, X: np.ndarray, bins: Bins, single: int = -1) -> np.ndarray:
+    """Votes of the measured half cycles ``X`` ``(half_cycle, feature)`` for every bin."""
+    if machine is None:
+        v = np.zeros(bins.n)
+        v[single] = X.shape[0]
+        return v
+    pred = machine.predict(X).astype(int) if X.shape[0] else np.zeros(0, int)
+    return np.bincount(pred, minlength=bins.n).astype(float)
+
+
+AGGREGATES = ("mean", "majority")
+
+
+def pass_result(param: str, stage: str, bins: Bins, votes: np.ndarray, stats: dict, cached: bool,
+                aggregate: str = "mean") -> PassResult:
+    """Combine the votes of the measured half cycles: ``"majority"`` takes the centre of the
+    most voted bin (the paper); ``"mean"`` the vote-weighted mean of the bin centres (less
+    sensitive to a few noisy half cycles); ``predicted`` is the bin holding the value."""
+    if votes.sum() <= 0:
+        value = float(bins.centers[bins.n // 2])
+    elif aggregate == "majority":
+        value = float(bins.centers[int(np.argmax(votes))])
+    else:
+        value = float(np.sum(votes * bins.centers) / votes.sum())
+    win = int(bins.label(np.array([value]))[0])
+    return PassResult(param=param, stage=stage, edges=bins.edges, votes=votes, predicted=win,
+                      value=value, train_accuracy=stats["train_accuracy"],
+                      test_accuracy=stats["test_accuracy"], confusion=np.asarray(stats["confusion"]),
+                      n_train=stats["n_train"], n_test=stats["n_test"], seconds=stats["seconds"], cached=cached)

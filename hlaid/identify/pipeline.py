@@ -1,0 +1,336 @@
+"""Automated identification of a digital clone (paper section 2.2, DESIGN.md section 6).
+
+HLA of the measurement; then, per story, alpha and p from RBF SVMs trained on simulated half
+cycles (a coarse pass over the paper's Table 2-3 bins, a fine pass over the predicted bin and
+its neighbours), delta_eta and dy by the regressions of eq 12-17, and an outer loop that
+repeats with the new values until they settle. Optionally a replay refinement polishes the
+result against the measured accelerations (:mod:`hlaid.identify.refine`).
+"""
+
+from __future__ import annotations
+
+import datetime
+import hashlib
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__, _progress
+from ..clone import Clone
+from ..config import config_to_dict
+from ..errors import NotIdentifiableError
+from ..hla import HLAResult, hla
+from ..hla import preprocess as pp
+from ..hla.features import HalfCycleFeatures, half_cycle_features
+from ..measurement import Measurement
+from ..model import Building, Damping
+from ..motions import GroundMotion
+from .cache import MachineCache, array_digest, cache_key, default_cache_dir
+from .classify import Bins, PassResult, fit_machine, pass_result, vote
+from .config import IdentifyConfig
+from .refine import refine_replay
+from .regression import story_delta_eta, story_yield_displacement
+from .replaycheck import ReplayCheck, replay_check
+from .tb import TBLogger
+from .training import Ranges, simulate_training_sets, strong_motion_window
+
+
+@dataclass(frozen=True, eq=False)
+class IdentificationResult:
+    """Everything an identification produced.
+
+    Attributes
+    ----------
+    clone : the identified clone (write it with ``clone.save``)
+    hla : the hysteresis loop analysis of the measurement
+    paper_estimate : the building after regressions + classifiers (before refinement)
+    passes : per outer iteration, per story, the classifier passes
+    iterations : outer-loop iterations run
+    replay : replay of the clone on the measured ground motion
+    timings : seconds per step
+    """
+
+    clone: Clone
+    hla: HLAResult
+    paper_estimate: Building
+    passes: list
+    iterations: int
+    replay: ReplayCheck
+    timings: dict
+
+
+def estimate_noise_rms(meas: Measurement) -> float:
+    """Sensor noise as a fraction of channel RMS, from the flat spectrum floor above 0.6 x
+    Nyquist (white noise extrapolated over the whole band); the median over channels."""
+    from scipy import signal
+
+    fs = 1.0 / meas.dt
+    chans = np.column_stack([meas.ground_acc, meas.floor_acc])
+    f, p = signal.welch(chans - chans.mean(axis=0), fs=fs, nperseg=min(1024, chans.shape[0]), axis=0)
+    hf = f >= 0.6 * fs / 2
+    if hf.sum() < 3:
+        return 0.0
+    noise_var = p[hf].mean(axis=0) * fs / 2
+    rms2 = np.mean((chans - chans.mean(axis=0)) ** 2, axis=0)
+    return float(np.median(np.sqrt(noise_var / rms2)))
+
+
+def _noise_level(meas: Measurement, cfg: IdentifyConfig) -> float:
+    if cfg.training.noise_rms is not None:
+        return cfg.training.noise_rms
+    if meas.noise_rms is not None:
+        return meas.noise_rms
+    return estimate_noise_rms(meas)
+
+
+def _file_digest(path: str) -> str | None:
+    p = Path(path)
+    if not p.is_file():
+        return None
+    return hashlib.sha256(p.read_bytes()).hexdigest()
+
+
+class _Identifier:
+    """One identification run (state shared by its steps)."""
+
+    def __init__(self, meas: Measurement, cfg: IdentifyConfig, tensorboard: str | None, cache_dir):
+        self.meas, self.cfg = meas, cfg
+        self.tb = TBLogger(tensorboard)
+        self.cache = MachineCache(default_cache_dir() if cache_dir is None else (cache_dir or None))
+        self.timings: dict[str, float] = {}
+        self.passes: list = []
+
+    # ------------------------------------------------------------------ steps
+    def run(self) -> IdentificationResult:
+        cfg, meas = self.cfg, self.meas
+        t_all = time.perf_counter()
+        t = time.perf_counter()
+        _progress.info("[identify] hysteresis loop analysis")
+        res = hla(meas, cfg.hla)
+        self.timings["hla"] = time.perf_counter() - t
+        self.res = res
+        n = res.n_stories
+        nseg = cfg.training.n_segments
+        self.features = [half_cycle_features(s, nseg, yield_ratio=cfg.hla.stiffness.yield_ratio, with_ke=True)
+                         for s in res.stories]
+        self.identifiable = np.array([s.yielded and len(F) >= 3 for s, F in zip(res.stories, self.features)])
+        if not self.identifiable.any():
+            peaks = ", ".join(f"{np.max(np.abs(s.drift)):.3g}" for s in res.stories)
+            raise NotIdentifiableError(f"no story yielded in this record (peak drifts {peaks} mm): a nonlinear clone "
+                                       "cannot be identified from it; use a record that drove the building past "
+                                       "yield", source=meas.source or None)
+        self.k0 = res.k0.copy()
+        ke_min = np.array([np.nanmin(s.half_cycles.ke) / s.k0 for s in res.stories])
+        self.alpha_max = np.clip(ke_min, 0.05, 0.95)
+        self.ground = GroundMotion(dt=meas.dt, acc=pp.bandpass(np.asarray(meas.ground_acc), meas.dt,
+                                                               (0.0, res.band_hz[1])), name="measured")
+        self.noise = _noise_level(meas, cfg)
+        self.training_motion = strong_motion_window(self.ground, cfg.training.arias_fraction, cfg.training.tail_s)
+        alpha = np.where(self.identifiable, 0.5 * self.alpha_max, 0.1)
+        p = np.full(n, 0.5 * sum(cfg.bins.p_range))
+        de, dy, reg = self._regressions(alpha, p)
+        history = []
+        for it in range(cfg.outer.max_iterations):
+            est = self._building(alpha, p, dy, de)
+            t = time.perf_counter()
+            if it == 0:
+                coarse = self._pass(est, "coarse", it, None)
+                centre = (np.array([c["alpha"].value if c else a for c, a in zip(coarse, alpha)]),
+                          np.array([c["p"].value if c else q for c, q in zip(coarse, p)]))
+            else:
+                centre = (alpha, p)
+            fine = self._pass(est, "fine", it, centre)
+            self.timings[f"classifiers_{it + 1}"] = time.perf_counter() - t
+            a_new = np.array([f["alpha"].value if f else a for f, a in zip(fine, alpha)])
+            p_new = np.array([f["p"].value if f else q for f, q in zip(fine, p)])
+            de_new, dy_new, reg = self._regressions(a_new, p_new)
+            change = max(_rel_change(a_new, alpha), _rel_change(p_new, p), _rel_change(de_new, de),
+                         _rel_change(dy_new, dy))
+            history.append({"iteration": it + 1, "alpha": a_new.tolist(), "p": p_new.tolist(),
+                            "delta_eta": de_new.tolist(), "dy": dy_new.tolist(), "change": change})
+            alpha, p, de, dy = a_new, p_new, de_new, dy_new
+            _progress.info(f"[identify] outer iteration {it + 1}: alpha {np.round(alpha, 3)}, p {np.round(p, 2)}, "
+                           f"delta_eta {np.round(de, 3)}, dy {np.round(dy, 3)} (change {change:.3f})")
+            for i in range(n):
+                for name, v in (("alpha", alpha), ("p", p), ("delta_eta", de), ("dy", dy)):
+                    self.tb.scalar(f"estimate/story{i + 1}/{name}", v[i], it + 1)
+            if change < cfg.outer.tol:
+                break
+        paper = self._building(alpha, p, dy, de)
+        final = paper
+        refine_info = None
+        if cfg.refine.method == "replay":
+            _progress.info("[identify] replay refinement against the measured accelerations")
+            rr = refine_replay(paper, meas, parameters=cfg.refine.parameters,
+                               stories=[i for i in range(n) if self.identifiable[i]], damping=cfg.refine.damping,
+                               band_hz=cfg.refine.band_hz, max_iterations=cfg.refine.max_iterations)
+            final = rr.building
+            self.timings["refine"] = rr.seconds
+            refine_info = {"cost_initial": rr.cost_initial, "cost_final": rr.cost_final, "nfev": rr.nfev,
+                           "message": rr.message}
+        t = time.perf_counter()
+        check = replay_check(final, meas, res)
+        self.timings["replay"] = time.perf_counter() - t
+        self.timings["total"] = time.perf_counter() - t_all
+        for i, r in enumerate(check.r_measured):
+            self.tb.scalar(f"replay/story{i + 1}/R_measured", r)
+        self.tb.close()
+        diagnostics = self._diagnostics(paper, final, reg, history, check, refine_info)
+        provenance = {"source": meas.source, "sha256": _file_digest(meas.source) if meas.source else None,
+                      "hlaid_version": __version__, "config": config_to_dict(cfg), "timings": self.timings,
+                      "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+                      "noise_rms_used": self.noise}
+        clone = Clone(building=final, mass_normalised=res.mass_normalised, diagnostics=diagnostics,
+                      provenance=provenance)
+        return IdentificationResult(clone=clone, hla=res, paper_estimate=paper, passes=self.passes,
+                                    iterations=len(history), replay=check, timings=self.timings)
+
+    # ------------------------------------------------------------------ helpers
+    def _building(self, alpha, p, dy, de) -> Building:
+        meas = self.meas
+        return Building(mass=self.res.mass, k0=self.k0, alpha=alpha, p=p, dy=dy, delta_eta=de,
+                        height=meas.height, damping=Damping(ratio=self.cfg.damping_ratio),
+                        pdelta=meas.pdelta_active if meas.height is not None else None, name=meas.name)
+
+    def _regressions(self, alpha, p):
+        """delta_eta and dy of every story (fallbacks for stories that did not yield)."""
+        n = self.res.n_stories
+        de, dy, info = np.zeros(n), np.zeros(n), []
+        for i, s in enumerate(self.res.stories):
+            if not self.identifiable[i]:
+                info.append(None)
+                continue
+            fd = story_delta_eta(s, mass=self.res.mass[i], alpha=alpha[i], k0=self.k0[i])
+            fy = story_yield_displacement(s, self.features[i], alpha=alpha[i], p=p[i], k0=self.k0[i])
+            de[i] = max(fd.value, 0.0) if np.isfinite(fd.value) else 0.0
+            dy[i] = fy.value if np.isfinite(fy.value) and fy.value > 0 else np.max(np.abs(s.drift)) / 3.0
+            info.append({"delta_eta": vars(fd), "dy": vars(fy)})
+        ok = self.identifiable
+        for i, s in enumerate(self.res.stories):
+            if not ok[i]:  # an elastic story: borrow from the identified ones, dy above what it reached
+                de[i] = float(np.median(de[ok]))
+                dy[i] = max(1.2 * float(np.max(np.abs(s.drift))), 1e-3)
+        return de, dy, info
+
+    def _ranges(self, stage: str, centre):
+        """Per-story (alpha Bins, p Bins) of a pass: the coarse bins, or fine bins over the
+        coarse bin holding the current value and its two neighbours."""
+        b = self.cfg.bins
+        out = []
+        for i in range(self.res.n_stories):
+            a_bins = Bins.regular(0.0, self.alpha_max[i], b.alpha_coarse)
+            p_bins = Bins.regular(b.p_range[0], b.p_range[1], b.p_coarse)
+            if stage == "fine":
+                a_bins = a_bins.refine(int(a_bins.label(np.array([centre[0][i]]))[0]), b.alpha_fine,
+                                       (0.0, self.alpha_max[i]))
+                p_bins = p_bins.refine(int(p_bins.label(np.array([centre[1][i]]))[0]), b.p_fine, b.p_range)
+            out.append((a_bins, p_bins))
+        return out
+
+    def _pass(self, est: Building, stage: str, it: int, centre):
+        cfg = self.cfg
+        bins = self._ranges(stage, centre)
+        n = self.res.n_stories
+        a_rng = np.array([bb[0].range if self.identifiable[i] else (est.alpha[i],) * 2 for i, bb in enumerate(bins)])
+        p_rng = np.array([bb[1].range if self.identifiable[i] else (est.p[i],) * 2 for i, bb in enumerate(bins)])
+        key = cache_key(stage=stage, estimate=est.to_dict(), alpha=a_rng, p=p_rng, motion=array_digest(self.ground.acc),
+                        dt=self.ground.dt, noise=self.noise, training=config_to_dict(cfg.training),
+                        svm=config_to_dict(cfg.svm), hla=config_to_dict(cfg.hla), identifiable=self.identifiable)
+        hit = self.cache.load(key)
+        machines, stats = {}, {}
+        if hit is not None:
+            machines, meta = hit
+            stats = meta["stats"]
+            _progress.info(f"[identify] {stage} pass {it + 1}: classifiers from the cache")
+        else:
+            t = time.perf_counter()
+            _progress.info(f"[identify] {stage} pass {it + 1}: simulating training half cycles")
+            sets = simulate_training_sets(est, self.training_motion, Ranges(alpha=a_rng, p=p_rng), n_samples=cfg.training.samples,
+                                          noise_rms=self.noise, hla_config=cfg.hla, n_segments=cfg.training.n_segments,
+                                          yield_ratio=cfg.hla.stiffness.yield_ratio, spread=cfg.training.spread,
+                                          max_simulations=cfg.training.max_simulations,
+                                          seed=cfg.training.seed + 1000 * it + (0 if stage == "coarse" else 500),
+                                          n_jobs=cfg.n_jobs,
+                                          progress=lambda k, tot: _progress.debug(f"  {k}/{tot} samples"))
+            self.timings[f"simulate_{stage}_{it + 1}"] = time.perf_counter() - t
+            for i in range(n):
+                if not self.identifiable[i]:
+                    continue
+                for j, param in enumerate(("alpha", "p")):
+                    m, st = fit_machine(sets[i], param, bins[i][j], cfg.svm, cfg.training.test_fraction)
+                    machines[f"story{i + 1}_{param}"] = m
+                    stats[f"story{i + 1}_{param}"] = {k: (v.tolist() if isinstance(v, np.ndarray) else v)
+                                                      for k, v in st.items()}
+                    if it == 0:
+                        self.tb.features(f"{stage}/story{i + 1}/{param}/features", sets[i].X,
+                                         bins[i][j].label(getattr(sets[i], param)), bins[i][j].edges)
+            self.cache.store(key, machines, {"stats": stats})
+        result = []
+        for i in range(n):
+            entry = {}
+            if self.identifiable[i]:
+                for j, param in enumerate(("alpha", "p")):
+                    name = f"story{i + 1}_{param}"
+                    st = stats[name]
+                    v = vote(machines.get(name), self.features[i].values, bins[i][j], st.get("single", -1))
+                    entry[param] = pass_result(param, stage, bins[i][j], v, st, hit is not None, cfg.aggregate)
+                    pr = entry[param]
+                    tag = f"{stage}/story{i + 1}/{param}"
+                    self.tb.scalar(f"{tag}/train_accuracy", pr.train_accuracy, it + 1)
+                    self.tb.scalar(f"{tag}/test_accuracy", pr.test_accuracy, it + 1)
+                    self.tb.confusion(f"{tag}/confusion", pr.confusion, pr.edges, it + 1)
+            result.append(entry)
+        self.passes.append({"iteration": it + 1, "stage": stage,
+                            "stories": [{k: v.to_dict() for k, v in e.items()} for e in result]})
+        return result
+
+    def _diagnostics(self, paper, final, reg, history, check, refine_info) -> dict:
+        stories = []
+        for i, s in enumerate(self.res.stories):
+            d = {"story": i + 1, "identifiable": bool(self.identifiable[i]), "k0_hla": float(s.k0),
+                 "yielded": bool(s.yielded), "n_half_cycles": len(s.half_cycles),
+                 "n_yielding_half_cycles": len(self.features[i]), "alpha_max": float(self.alpha_max[i]),
+                 "peak_drift": float(np.max(np.abs(s.drift))),
+                 "paper_method": {k: float(getattr(paper, k)[i]) for k in ("k0", "alpha", "p", "dy", "delta_eta")},
+                 "regressions": reg[i], "R_measured": float(check.r_measured[i]),
+                 "R_true": None if check.r_true is None else float(check.r_true[i]),
+                 "stiffness_error": float(check.stiffness_error[i])}
+            if not self.identifiable[i]:
+                d["reason"] = (f"story stayed elastic (peak drift {d['peak_drift']:.3g} mm, "
+                               f"{len(self.features[i])} yielding half cycles): alpha, p and delta_eta are borrowed "
+                               "from the identified stories and dy is set above the largest drift reached; they "
+                               "are assumptions, not identified")
+            stories.append(d)
+        return {"stories": stories, "outer_iterations": history, "passes": self.passes, "refine": refine_info,
+                "hla": {"band_hz": list(self.res.band_hz), "damping": self.res.damping,
+                        "mass_normalised": self.res.mass_normalised},
+                "replay": check.to_dict()}
+
+
+def _rel_change(new, old) -> float:
+    new, old = np.asarray(new, float), np.asarray(old, float)
+    return float(np.max(np.abs(new - old) / np.maximum(np.abs(old), 1e-9)))
+
+
+def identify(measurement: Measurement, config: IdentifyConfig | None = None, *, tensorboard: str | None = None,
+             cache_dir: str | None = None) -> IdentificationResult:
+    """Identify a digital clone from a measurement, with no expert input.
+
+    Parameters
+    ----------
+    measurement : ground and floor accelerations (masses optional: mass-normalised clone)
+    config : settings (defaults: :class:`IdentifyConfig`)
+    tensorboard : folder for TensorBoard logs (classifier accuracies, confusion matrices,
+        example features, estimates per outer iteration)
+    cache_dir : where trained classifiers are cached (default ``~/.cache/hlaid/svm``,
+        ``HLAID_CACHE`` overrides; ``""`` disables the cache)
+
+    Returns
+    -------
+    IdentificationResult
+    """
+    cfg = config or IdentifyConfig()
+    cache = cache_dir if cache_dir is not None else cfg.cache_dir
+    return _Identifier(measurement, cfg, tensorboard, cache).run()

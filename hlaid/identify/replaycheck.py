@@ -1,0 +1,68 @@
+"""Checking a clone against the measurement it came from: replayed displacement and stiffness."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..hla import HLAResult
+from ..hla import preprocess as pp
+from ..measurement import Measurement
+from ..model import Building
+from ..motions import GroundMotion
+from ..simulate import simulate
+
+
+@dataclass(frozen=True)
+class ReplayCheck:
+    """Replay of a clone on the measured ground motion.
+
+    Attributes
+    ----------
+    r_measured : (story,) correlation coefficient between the measured (integrated,
+        band-passed) and the replayed floor displacement relative to the ground
+    r_true : (story,) the same against the true displacement (simulated data only)
+    stiffness_error : (story,) mean relative difference between the clone's ke(t) and the
+        HLA's ke(t) over the half cycles
+    disp : (time, floor) replayed floor displacements [mm]; ke : (time, story) clone ke(t)
+    """
+
+    r_measured: np.ndarray
+    r_true: np.ndarray | None
+    stiffness_error: np.ndarray
+    disp: np.ndarray
+    ke: np.ndarray
+
+    def to_dict(self) -> dict:
+        return {"r_measured": self.r_measured.tolist(),
+                "r_true": None if self.r_true is None else self.r_true.tolist(),
+                "stiffness_error": self.stiffness_error.tolist()}
+
+
+def corrcoef(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Column-wise Pearson correlation of two ``(time, k)`` arrays."""
+    a = a - a.mean(axis=0)
+    b = b - b.mean(axis=0)
+    return np.sum(a * b, axis=0) / np.sqrt(np.sum(a * a, axis=0) * np.sum(b * b, axis=0))
+
+
+def replay_check(building: Building, measurement: Measurement, hla_result: HLAResult) -> ReplayCheck:
+    """Replay ``building`` under the measured ground motion and compare with HLA and data."""
+    from ..hla.analysis import floor_motion
+
+    dt = measurement.dt
+    band = hla_result.band_hz
+    ground = GroundMotion(dt=dt, acc=pp.bandpass(np.asarray(measurement.ground_acc), dt, (0.0, band[1])),
+                          name="measured")
+    r = simulate(building, ground)
+    disp = r.disp[0]
+    _, _, _, meas_disp = floor_motion(measurement, hla_result.config)
+    r_meas = corrcoef(pp.bandpass(disp, dt, band), meas_disp)
+    r_true = None if measurement.truth is None else corrcoef(disp, measurement.truth.disp)
+    ke = building.elastic_stiffness(r.eta[0])
+    err = []
+    for i, s in enumerate(hla_result.stories):
+        hc = s.half_cycles
+        err.append(float(np.mean(np.abs(ke[hc.start, i] / hc.ke - 1.0))) if len(hc) else np.nan)
+    return ReplayCheck(r_measured=r_meas, r_true=r_true, stiffness_error=np.asarray(err), disp=disp, ke=ke)

@@ -1,0 +1,150 @@
+"""Automated identification: regressions exact for the forward model, classifier passes,
+replay refinement, the pipeline end to end on a short case, its cache and its CLI.
+
+The accuracy studies (5 records x 3 seeds, 30 random structures) are scripts
+(``scripts/study_identification.py``), not tests.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from conftest import paper_record, window
+
+from hlaid.cli.main import main
+from hlaid.clone import Clone
+from hlaid.errors import NotIdentifiableError
+from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig, identify, refine_replay
+from hlaid.identify.classify import Bins, pass_result
+from hlaid.identify.regression import (fit_delta_eta, fit_yield_displacement, hysteretic_displacement,
+                                       hysteretic_work)
+from hlaid.synthetic import simulate_measurement
+
+
+@pytest.fixture(scope="module")
+def record():
+    return window(paper_record("kocaeli-1999-dzc180"), 14.0, before_peak=4.0)
+
+
+def test_regressions_exact_for_the_forward_model(table1):
+    """eq 12-17 on noise-free simulated data with the true alpha and p return the true
+    delta_eta and dy within 0.5 %."""
+    meas = simulate_measurement(table1, paper_record("elcentro-1940-ns"), noise_rms=0.0)
+    tr = meas.truth
+    for i in range(3):
+        a, k0, p = table1.alpha[i], table1.k0[i], table1.p[i]
+        x, f = tr.drift[:, i], tr.force[:, i]
+        z = hysteretic_displacement(f, x, a, k0)
+        assert np.allclose(z, tr.z[:, i], atol=1e-9)
+        u = hysteretic_work(z, x)
+        ke = table1.elastic_stiffness(tr.eta)[:, i]
+        de = fit_delta_eta(ke, u, k0=k0, alpha=a, mass=table1.mass[i])
+        assert de.value == pytest.approx(table1.delta_eta[i], rel=0.005)
+        dx, dz = np.gradient(x), np.gradient(z)
+        load = (dx * z > 0) & (np.abs(dx) > 1e-3)
+        load &= np.roll(load, 1) & np.roll(load, -1)  # away from the kink at reversals
+        k = a * k0 + (1 - a) * k0 * dz[load] / dx[load]
+        dy = fit_yield_displacement(ke[load], k, np.abs(z[load]), k0=k0, alpha=a, p=p)
+        assert dy.value == pytest.approx(table1.dy[i], rel=0.005)
+
+
+def test_paper_denominator_would_be_wrong(table1):
+    """The paper's eq 13 with ke in the denominator is not what the model gives."""
+    meas = simulate_measurement(table1, paper_record("elcentro-1940-ns"), noise_rms=0.0)
+    tr, i = meas.truth, 0
+    a, k0, m = table1.alpha[i], table1.k0[i], table1.mass[i]
+    ke = table1.elastic_stiffness(tr.eta)[:, i]
+    u = hysteretic_work(tr.z[:, i], tr.drift[:, i]) * 1e-6
+    y_paper = m * (k0 - ke) / ((1 - a) * ke * (ke - a * k0))
+    sel = u > 0
+    de_paper = np.sum(u[sel] * y_paper[sel]) / np.sum(u[sel] ** 2)
+    assert abs(de_paper / table1.delta_eta[i] - 1) > 0.05
+
+
+def test_bins_and_votes():
+    b = Bins.regular(0.0, 0.6, 0.05)
+    assert b.n == 12 and np.allclose(b.centers[:2], [0.025, 0.075])
+    assert list(b.label(np.array([0.0, 0.049, 0.05, 0.61]))) == [0, 0, 1, 11]
+    fine = b.refine(4, 0.01, (0.0, 0.6))  # the paper: bin [0.20, 0.25] -> [0.15, 0.30] by 0.01
+    assert fine.range == pytest.approx((0.15, 0.30)) and fine.n == 15
+    edge = b.refine(0, 0.01, (0.0, 0.6))
+    assert edge.range == pytest.approx((0.0, 0.10))
+    stats = {"train_accuracy": 1.0, "test_accuracy": 0.5, "confusion": np.zeros((12, 12)), "n_train": 1,
+             "n_test": 1, "seconds": 0.0}
+    votes = np.zeros(12)
+    votes[[3, 4]] = [1, 3]
+    assert pass_result("alpha", "coarse", b, votes, stats, False, "majority").value == pytest.approx(0.225)
+    assert pass_result("alpha", "coarse", b, votes, stats, False, "mean").value == pytest.approx(0.2125)
+
+
+def test_refine_recovers_perturbed_parameters(table1, record):
+    meas = simulate_measurement(table1, record, noise_rms=0.0)
+    rng = np.random.default_rng(0)
+    start = table1.replace(k0=table1.k0 * rng.uniform(0.95, 1.05, 3), alpha=table1.alpha + 0.03,
+                           p=table1.p * rng.uniform(0.85, 1.15, 3), dy=table1.dy * rng.uniform(0.9, 1.1, 3),
+                           delta_eta=table1.delta_eta * rng.uniform(0.85, 1.15, 3))
+    r = refine_replay(start, meas)
+    assert r.cost_final < 1e-3 * r.cost_initial
+    for name in ("k0", "alpha", "p", "dy", "delta_eta"):
+        assert np.allclose(getattr(r.building, name), getattr(table1, name), rtol=0.01), name
+
+
+def _small_config(**kw) -> IdentifyConfig:
+    return IdentifyConfig(training=TrainingConfig(samples=60, max_simulations=24, n_segments=8),
+                          outer=OuterConfig(max_iterations=1), **kw)
+
+
+def test_identify_end_to_end_cached_and_logged(table1, record, tmp_path):
+    meas = simulate_measurement(table1, record, noise_rms=0.05, seed=1)
+    cfg = _small_config()
+    res = identify(meas, cfg, tensorboard=str(tmp_path / "tb"), cache_dir=str(tmp_path / "cache"))
+    b = res.clone.building
+    for name in ("k0", "alpha", "dy", "delta_eta"):
+        err = np.abs(getattr(b, name) / getattr(table1, name) - 1)
+        assert err.max() < 0.15, (name, err)
+    assert np.all(res.replay.r_true > 0.98) and np.all(res.replay.r_measured > 0.95)
+    d = res.clone.to_dict()
+    assert d["format"] == "hlaid-clone" and len(d["stories"]) == 3
+    assert d["provenance"]["hlaid_version"] and "timings" in d["provenance"]
+    assert {"outer_iterations", "passes", "stories", "replay"} <= set(d["diagnostics"])
+    assert any(p.name.startswith("events.out.tfevents") for p in (tmp_path / "tb").iterdir())
+    again = identify(meas, cfg, cache_dir=str(tmp_path / "cache"))
+    assert all(s["alpha"]["cached"] for p in again.passes for s in p["stories"] if s)
+    assert np.allclose(again.clone.building.alpha, b.alpha)
+    assert again.timings["total"] < res.timings["total"]
+
+
+def test_no_yield_is_not_identifiable(table1, record):
+    meas = simulate_measurement(table1, record.scaled(0.03 / 0.62), noise_rms=0.02)
+    with pytest.raises(NotIdentifiableError, match="no story yielded"):
+        identify(meas, _small_config(refine=RefineConfig(method="none")), cache_dir="")
+
+
+def test_elastic_story_marked_not_identifiable(table1, record):
+    strong_top = table1.replace(dy=np.array([7.0, 6.0, 60.0]))  # the top story cannot yield
+    meas = simulate_measurement(strong_top, record, noise_rms=0.02, seed=2)
+    res = identify(meas, _small_config(refine=RefineConfig(method="none")), cache_dir="")
+    top = res.clone.diagnostics["stories"][2]
+    assert not top["identifiable"] and "elastic" in top["reason"]
+    assert res.clone.building.dy[2] >= np.max(np.abs(meas.truth.drift[:, 2]))
+
+
+def test_cli_identify(table1, record, tmp_path, capsys):
+    meas = simulate_measurement(table1, record, noise_rms=0.05, seed=3).save(tmp_path / "m.npz")
+    cfg = tmp_path / "id.yaml"
+    cfg.write_text("training: {samples: 60, max_simulations: 24, n_segments: 8}\nouter: {max_iterations: 1}\n"
+                   "refine: {method: none}\n")
+    out = tmp_path / "clone.json"
+    assert main(["identify", str(meas), "-o", str(out), "--config", str(cfg), "--no-cache", "-q"]) == 0
+    clone = Clone.load(out)
+    assert clone.building.n_stories == 3
+    assert main(["identify", str(meas), "-o", str(out), "--config", str(cfg), "--no-cache", "-q"]) == 2
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("training: {samplez: 3}\n")
+    assert main(["identify", str(meas), "-o", str(tmp_path / "c2.json"), "--config", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "samplez" in err and "bad.yaml:1" in err and "Traceback" not in err
+    assert not (tmp_path / "c2.json").exists()
+    json.loads(out.read_text())
