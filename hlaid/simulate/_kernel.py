@@ -75,7 +75,8 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
     ag : (motion, time) ground accelerations [mm/s^2], zero-padded
     dt : (motion,) sample intervals; nt : (motion,) samples to integrate
     mi, bi : (batch,) motion and building index of each element; sc : (batch,) scale factor
-    nsub : RK4 sub-steps per sample
+    nsub : RK4 sub-steps per sample; a sample whose step lets |z| overshoot dy (or the
+        state blow up) is redone with 2x, 4x, ... up to 16x the sub-steps
     m, k0, al, p, dy, de, kg : (building, story) parameters; C : (building, story, story)
     y0 : (batch, 4*story) initial states
     stop_drift : (batch, story) |drift| [mm] at which an element stops (inf: never)
@@ -92,6 +93,7 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
         w = bi[b]
         mb, k0b, alb, pb, dyb, deb, kgb, Cb = m[w], k0[w], al[w], p[w], dy[w], de[w], kg[w], C[w]
         y = y0[b].copy()
+        y_prev = np.empty(S)
         yt = np.empty(S)
         k1 = np.empty(S)
         k2 = np.empty(S)
@@ -99,7 +101,6 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
         k4 = np.empty(S)
         f = np.empty(n)
         acc = np.empty(n)
-        h = dt[mi[b]] / nsub
         T = nt[mi[b]]
         if save:
             states[b, 0, :] = y
@@ -112,22 +113,39 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
         while k < T - 1:
             lo = g[k] * s_b
             da = g[k + 1] * s_b - lo
-            for s in range(nsub):
-                g0 = lo + da * (s / nsub)
-                gm = lo + da * ((s + 0.5) / nsub)
-                g1 = lo + da * ((s + 1.0) / nsub)
-                _rhs(y, g0, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k1)
+            for j in range(S):
+                y_prev[j] = y[j]
+            ns = nsub
+            while True:
+                hs = dt[mi[b]] / ns
+                for s in range(ns):
+                    g0 = lo + da * (s / ns)
+                    gm = lo + da * ((s + 0.5) / ns)
+                    g1 = lo + da * ((s + 1.0) / ns)
+                    _rhs(y, g0, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k1)
+                    for j in range(S):
+                        yt[j] = y[j] + 0.5 * hs * k1[j]
+                    _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k2)
+                    for j in range(S):
+                        yt[j] = y[j] + 0.5 * hs * k2[j]
+                    _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k3)
+                    for j in range(S):
+                        yt[j] = y[j] + hs * k3[j]
+                    _rhs(yt, g1, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k4)
+                    for j in range(S):
+                        y[j] = y[j] + hs / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+                # the step was too long if z overshot the yield surface or the state blew up:
+                # redo this sample with twice the sub-steps (up to 16x)
+                bad = False
+                for i in range(n):
+                    zi = y[2 * n + i]
+                    if not (abs(zi) <= dyb[i] * (1.0 + 1e-5)):
+                        bad = True
+                if not bad or ns >= 16 * nsub:
+                    break
                 for j in range(S):
-                    yt[j] = y[j] + 0.5 * h * k1[j]
-                _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k2)
-                for j in range(S):
-                    yt[j] = y[j] + 0.5 * h * k2[j]
-                _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k3)
-                for j in range(S):
-                    yt[j] = y[j] + h * k3[j]
-                _rhs(yt, g1, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k4)
-                for j in range(S):
-                    y[j] = y[j] + h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+                    y[j] = y_prev[j]
+                ns *= 2
             k += 1
             if save:
                 states[b, k, :] = y

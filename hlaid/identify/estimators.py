@@ -1,0 +1,104 @@
+"""Identifiers behind one scikit-learn style interface, for comparison studies.
+
+``Identifier(**settings).fit(measurement)`` returns the identifier with ``clone_`` (a
+:class:`~hlaid.clone.Clone`) and ``fit_seconds_``; ``predict(motion)`` replays the clone.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..clone import Clone
+from ..measurement import Measurement
+from ..motions import GroundMotion
+from ..simulate import SimulationResult, simulate
+
+
+class NotFittedError(ValueError, AttributeError):
+    """The identifier has not been fitted yet (scikit-learn's NotFittedError contract)."""
+
+
+class BaseIdentifier:
+    """Base class: ``__init__`` stores settings only; ``fit(measurement)`` sets ``clone_``."""
+
+    def get_params(self, deep: bool = True) -> dict:
+        import inspect
+        names = [p for p in inspect.signature(type(self).__init__).parameters if p != "self"]
+        return {n: getattr(self, n) for n in names}
+
+    def set_params(self, **params) -> "BaseIdentifier":
+        for k, v in params.items():
+            if k not in self.get_params():
+                raise ValueError(f"{type(self).__name__} has no parameter {k!r}; expected one of {list(self.get_params())}")
+            setattr(self, k, v)
+        return self
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
+        return f"{type(self).__name__}({args})"
+
+    def __sklearn_is_fitted__(self) -> bool:
+        return hasattr(self, "clone_")
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "clone_"):
+            raise NotFittedError(f"this {type(self).__name__} is not fitted yet; call fit(measurement) first")
+
+    def fit(self, measurement: Measurement) -> "BaseIdentifier":  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def predict(self, motion: GroundMotion, *, scale: float = 1.0, substeps: int = 4) -> SimulationResult:
+        """Replay the identified clone under ``motion`` (batch simulator)."""
+        self._check_fitted()
+        return simulate(self.clone_.building, motion, scale, substeps=substeps)
+
+    def score(self, measurement: Measurement) -> float:
+        """Mean correlation coefficient between the replayed and the measured floor
+        accelerations (band 0.1-20 Hz)."""
+        from .refine import _filt
+        self._check_fitted()
+        hi = min(20.0, 0.45 / measurement.dt)
+        g = GroundMotion(dt=measurement.dt, acc=_filt(np.asarray(measurement.ground_acc), measurement.dt, (0.0, hi), 0))
+        acc = _filt(self.predict(g).acc[0], measurement.dt, (0.1, hi), 0)
+        meas = _filt(np.asarray(measurement.floor_acc), measurement.dt, (0.1, hi), 0)
+        from .replaycheck import corrcoef
+        return float(np.mean(corrcoef(acc, meas)))
+
+
+class HLASVMIdentifier(BaseIdentifier):
+    """The paper's method (:func:`hlaid.identify.identify`): HLA, eq 12-17 regressions, RBF SVMs
+    coarse to fine, outer loop; with ``refine="replay"`` the replay refinement after it.
+
+    Parameters
+    ----------
+    config : :class:`~hlaid.identify.IdentifyConfig` or None for the defaults
+    refine : ``"replay"`` or ``"none"`` (overrides ``config.refine.method``)
+    cache_dir : classifier cache (None: the default cache; ``""``: none)
+    tensorboard : TensorBoard folder or None
+
+    Attributes
+    ----------
+    clone_ : the identified clone; result_ : the full IdentificationResult; fit_seconds_
+    """
+
+    def __init__(self, *, config=None, refine: str = "replay", cache_dir: str | None = None,
+                 tensorboard: str | None = None):
+        self.config = config
+        self.refine = refine
+        self.cache_dir = cache_dir
+        self.tensorboard = tensorboard
+
+    def fit(self, measurement: Measurement) -> "HLASVMIdentifier":
+        import dataclasses
+
+        from .config import IdentifyConfig
+        from .pipeline import identify
+        cfg = self.config or IdentifyConfig()
+        cfg = dataclasses.replace(cfg, refine=dataclasses.replace(cfg.refine, method=self.refine))
+        t0 = time.perf_counter()
+        self.result_ = identify(measurement, cfg, tensorboard=self.tensorboard, cache_dir=self.cache_dir)
+        self.clone_: Clone = self.result_.clone
+        self.fit_seconds_ = time.perf_counter() - t0
+        return self
