@@ -23,18 +23,19 @@ from ..config import config_to_dict
 from ..errors import NotIdentifiableError
 from ..hla import HLAResult, hla
 from ..hla import preprocess as pp
-from ..hla.features import HalfCycleFeatures, half_cycle_features
+from ..hla.features import half_cycle_features
 from ..measurement import Measurement
 from ..model import Building, Damping
 from ..motions import GroundMotion
-from .cache import MachineCache, array_digest, cache_key, default_cache_dir
-from .classify import Bins, PassResult, fit_machine, pass_result, vote
+from .cache import MachineCache, default_cache_dir
+from .classify import Bins, pass_result, vote
 from .config import IdentifyConfig
 from .refine import refine_replay
 from .regression import story_delta_eta, story_yield_displacement
 from .replaycheck import ReplayCheck, replay_check
 from .tb import TBLogger
-from .training import Ranges, simulate_training_sets, strong_motion_window
+from .passes import PARAMS, train_pass
+from .training import strong_motion_window
 
 
 @dataclass(frozen=True, eq=False)
@@ -232,55 +233,20 @@ class _Identifier:
     def _pass(self, est: Building, stage: str, it: int, centre):
         cfg = self.cfg
         bins = self._ranges(stage, centre)
-        n = self.res.n_stories
-        a_rng = np.array([bb[0].range if self.identifiable[i] else (est.alpha[i],) * 2 for i, bb in enumerate(bins)])
-        p_rng = np.array([bb[1].range if self.identifiable[i] else (est.p[i],) * 2 for i, bb in enumerate(bins)])
-        key = cache_key(stage=stage, estimate=est.to_dict(), alpha=a_rng, p=p_rng, motion=array_digest(self.ground.acc),
-                        dt=self.ground.dt, noise=self.noise, training=config_to_dict(cfg.training),
-                        svm=config_to_dict(cfg.svm), hla=config_to_dict(cfg.hla), identifiable=self.identifiable)
-        hit = self.cache.load(key)
-        machines, stats = {}, {}
-        if hit is not None:
-            machines, meta = hit
-            stats = meta["stats"]
-            _progress.info(f"[identify] {stage} pass {it + 1}: classifiers from the cache")
-        else:
-            t = time.perf_counter()
-            _progress.info(f"[identify] {stage} pass {it + 1}: simulating training half cycles")
-            sets = simulate_training_sets(est, self.training_motion, Ranges(alpha=a_rng, p=p_rng), n_samples=cfg.training.samples,
-                                          noise_rms=self.noise, hla_config=cfg.hla, n_segments=cfg.training.n_segments,
-                                          yield_ratio=cfg.hla.stiffness.yield_ratio, spread=cfg.training.spread,
-                                          max_simulations=cfg.training.max_simulations,
-                                          seed=cfg.training.seed + 1000 * it + (0 if stage == "coarse" else 500),
-                                          n_jobs=cfg.n_jobs,
-                                          progress=lambda k, tot: _progress.debug(f"  {k}/{tot} samples"))
-            self.timings[f"simulate_{stage}_{it + 1}"] = time.perf_counter() - t
-            for i in range(n):
-                if not self.identifiable[i]:
-                    continue
-                for j, param in enumerate(("alpha", "p")):
-                    m, st = fit_machine(sets[i], param, bins[i][j], cfg.svm, cfg.training.test_fraction)
-                    machines[f"story{i + 1}_{param}"] = m
-                    stats[f"story{i + 1}_{param}"] = {k: (v.tolist() if isinstance(v, np.ndarray) else v)
-                                                      for k, v in st.items()}
-                    if it == 0:
-                        self.tb.features(f"{stage}/story{i + 1}/{param}/features", sets[i].X,
-                                         bins[i][j].label(getattr(sets[i], param)), bins[i][j].edges)
-            self.cache.store(key, machines, {"stats": stats})
+        tp = train_pass(est, self.training_motion, bins, self.identifiable, noise=self.noise, cfg=cfg, stage=stage,
+                        seed=cfg.training.seed + 1000 * it + (0 if stage == "coarse" else 500), cache=self.cache,
+                        tb=self.tb, step=it + 1)
+        if not tp.cached:
+            self.timings[f"simulate_{stage}_{it + 1}"] = tp.seconds_simulate
         result = []
-        for i in range(n):
+        for i in range(self.res.n_stories):
             entry = {}
             if self.identifiable[i]:
-                for j, param in enumerate(("alpha", "p")):
+                for j, param in enumerate(PARAMS):
                     name = f"story{i + 1}_{param}"
-                    st = stats[name]
-                    v = vote(machines.get(name), self.features[i].values, bins[i][j], st.get("single", -1))
-                    entry[param] = pass_result(param, stage, bins[i][j], v, st, hit is not None, cfg.aggregate)
-                    pr = entry[param]
-                    tag = f"{stage}/story{i + 1}/{param}"
-                    self.tb.scalar(f"{tag}/train_accuracy", pr.train_accuracy, it + 1)
-                    self.tb.scalar(f"{tag}/test_accuracy", pr.test_accuracy, it + 1)
-                    self.tb.confusion(f"{tag}/confusion", pr.confusion, pr.edges, it + 1)
+                    st = tp.stats[name]
+                    v = vote(tp.machines.get(name), self.features[i].values, bins[i][j], st.get("single", -1))
+                    entry[param] = pass_result(param, stage, bins[i][j], v, st, tp.cached, cfg.aggregate)
             result.append(entry)
         self.passes.append({"iteration": it + 1, "stage": stage,
                             "stories": [{k: v.to_dict() for k, v in e.items()} for e in result]})

@@ -1,0 +1,97 @@
+"""One classifier pass: simulate training half cycles, train the alpha and p machines of
+every story (or take them from the cache). Used by :func:`hlaid.identify.identify` and by
+``scripts/train_svm.py``."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import _progress
+from ..config import config_to_dict
+from ..model import Building
+from ..motions import GroundMotion
+from .cache import MachineCache, array_digest, cache_key
+from .classify import Bins, fit_machine
+from .config import IdentifyConfig
+from .tb import TBLogger
+from .training import Ranges, TrainingSet, simulate_training_sets
+
+PARAMS = ("alpha", "p")
+
+
+@dataclass(frozen=True)
+class TrainedPass:
+    """Machines and statistics of a pass.
+
+    Attributes
+    ----------
+    machines : ``{"story<i>_<param>": KernelSVC | None}`` (None: a single class, nothing to learn)
+    stats : per machine: accuracies, confusion, sample counts, seconds
+    cached : taken from the cache
+    seconds_simulate : time spent simulating training half cycles
+    sets : the training sets (None when cached)
+    """
+
+    machines: dict
+    stats: dict
+    cached: bool
+    seconds_simulate: float
+    sets: list[TrainingSet] | None
+
+
+def train_pass(estimate: Building, motion: GroundMotion, bins: list[tuple[Bins, Bins]], identifiable: np.ndarray, *,
+               noise: float, cfg: IdentifyConfig, stage: str, seed: int, cache: MachineCache,
+               tb: TBLogger | None = None, step: int = 0) -> TrainedPass:
+    """Train (or load) the alpha and p classifiers of every identifiable story.
+
+    Parameters
+    ----------
+    estimate : current building estimate (the non-classified parameters of the simulations)
+    motion : the excitation of the simulations (the measured ground motion)
+    bins : per story ``(alpha bins, p bins)``
+    identifiable : (story,) stories to train for; the others keep their estimate's alpha, p
+    noise : noise level added to the simulated channels
+    stage : a label (``"coarse"``, ``"fine"``) for logs and the cache key
+    """
+    a_rng = np.array([bb[0].range if identifiable[i] else (estimate.alpha[i],) * 2 for i, bb in enumerate(bins)])
+    p_rng = np.array([bb[1].range if identifiable[i] else (estimate.p[i],) * 2 for i, bb in enumerate(bins)])
+    key = cache_key(stage=stage, seed=seed, estimate=estimate.to_dict(), alpha=a_rng, p=p_rng,
+                    edges=[[bb[0].edges, bb[1].edges] for bb in bins], motion=array_digest(motion.acc), dt=motion.dt,
+                    noise=noise, training=config_to_dict(cfg.training), svm=config_to_dict(cfg.svm),
+                    hla=config_to_dict(cfg.hla), identifiable=np.asarray(identifiable, bool))
+    hit = cache.load(key)
+    if hit is not None:
+        machines, meta = hit
+        _progress.info(f"[identify] {stage} pass: classifiers from the cache")
+        return TrainedPass(machines, meta["stats"], True, 0.0, None)
+    t = time.perf_counter()
+    _progress.info(f"[identify] {stage} pass: simulating training half cycles")
+    sets = simulate_training_sets(estimate, motion, Ranges(alpha=a_rng, p=p_rng), n_samples=cfg.training.samples,
+                                  noise_rms=noise, hla_config=cfg.hla, n_segments=cfg.training.n_segments,
+                                  yield_ratio=cfg.hla.stiffness.yield_ratio, spread=cfg.training.spread,
+                                  max_simulations=cfg.training.max_simulations, seed=seed, n_jobs=cfg.n_jobs,
+                                  progress=lambda k, tot: _progress.debug(f"  {k}/{tot} samples"))
+    t_sim = time.perf_counter() - t
+    machines, stats = {}, {}
+    _progress.info(f"[identify] {stage} pass: training {2 * int(np.sum(identifiable))} kernel machines")
+    for i, (bb, S) in enumerate(zip(bins, sets)):
+        if not identifiable[i]:
+            continue
+        for param, b in zip(PARAMS, bb):
+            name = f"story{i + 1}_{param}"
+            machines[name], st = fit_machine(S, param, b, cfg.svm, cfg.training.test_fraction)
+            stats[name] = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in st.items()}
+            if tb is not None:
+                tag = f"{stage}/story{i + 1}/{param}"
+                tb.scalar(f"{tag}/train_accuracy", st["train_accuracy"], step)
+                tb.scalar(f"{tag}/test_accuracy", st["test_accuracy"], step)
+                tb.scalar(f"{tag}/fit_seconds", st["seconds"], step)
+                tb.confusion(f"{tag}/confusion", st["confusion"], b.edges, step)
+                tb.features(f"{tag}/features", S.X, b.label(getattr(S, param)), b.edges, step)
+    if tb is not None:
+        tb.scalar(f"{stage}/simulate_seconds", t_sim, step)
+    cache.store(key, machines, {"stats": stats})
+    return TrainedPass(machines, stats, False, t_sim, sets)

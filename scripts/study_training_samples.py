@@ -1,0 +1,120 @@
+"""The paper's Fig. 2: classifier test accuracy for alpha and p against the number of
+training samples (100 ... 2000), on half cycles simulated around the Table 1 structure.
+
+    python scripts/study_training_samples.py --config configs/svm.yaml --out runs/fig2 [--noise 0.1]
+
+Two accuracies are reported per size: per half cycle (what a machine scores on one held-out
+simulated half cycle) and per response (the vote over all yielding half cycles of one
+held-out simulated response, which is how identification uses the machines), plus the
+share within one bin of the truth. Writes ``fig2.png``, ``fig2.json`` and TensorBoard scalars.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from hlaid.config import load_config
+from hlaid.hla import preprocess as pp
+from hlaid.identify.classify import make_svc
+from hlaid.identify.svmtrain import TrainSVMConfig, pass_bins
+from hlaid.identify.tb import TBLogger
+from hlaid.identify.training import Ranges, simulate_training_sets, strong_motion_window
+from hlaid.motions import GroundMotion
+from hlaid.plots import plt, save_figure
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--config", default="configs/svm.yaml")
+    ap.add_argument("--out", default="runs/fig2")
+    ap.add_argument("--sizes", type=int, nargs="+", default=[100, 300, 500, 700, 1000, 1500, 2000])
+    ap.add_argument("--noise", type=float, default=None, help="override the config's noise_rms")
+    ap.add_argument("--spread", type=float, default=None, help="override training.spread")
+    ap.add_argument("--story", type=int, default=None, help="only this story (1-based)")
+    args = ap.parse_args(argv)
+    cfg = load_config(args.config, TrainSVMConfig)
+    noise = cfg.noise_rms if args.noise is None else args.noise
+    tcfg = cfg.identify.training
+    if args.spread is not None:
+        tcfg = dataclasses.replace(tcfg, spread=args.spread)
+    b = cfg.building.build()
+    gm = cfg.motion.load(Path(args.config).parent).resampled(200.0)
+    ground = strong_motion_window(GroundMotion(dt=gm.dt, acc=pp.bandpass(gm.acc, gm.dt, (0.0, 20.0))),
+                                  tcfg.arias_fraction, tcfg.tail_s)
+    bins = pass_bins(b, cfg.alpha_max, cfg.identify, "coarse")
+    need = int(max(args.sizes) / (1 - tcfg.test_fraction)) + 1
+    t0 = time.perf_counter()
+    sets = simulate_training_sets(b, ground, Ranges(alpha=np.array([bb[0].range for bb in bins]),
+                                                    p=np.array([bb[1].range for bb in bins])),
+                                  n_samples=need, noise_rms=noise, hla_config=cfg.identify.hla,
+                                  n_segments=tcfg.n_segments, spread=tcfg.spread, max_simulations=4000,
+                                  seed=tcfg.seed, n_jobs=cfg.identify.n_jobs)
+    print(f"simulated {[len(s) for s in sets]} half cycles in {time.perf_counter() - t0:.0f} s "
+          f"(noise {noise:.0%}, spread {tcfg.spread:.0%})")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    tb = TBLogger(str(out / "tensorboard"))
+    every = max(2, int(round(1 / tcfg.test_fraction)))
+    rng = np.random.default_rng(0)
+    rows = []
+    stories = [args.story - 1] if args.story else range(b.n_stories)
+    for s in stories:
+        S = sets[s]
+        test = S.sim % every == 0
+        train_idx = rng.permutation(np.flatnonzero(~test))
+        for param, bb in zip(("alpha", "p"), bins[s]):
+            y = bb.label(getattr(S, param))
+            for n in args.sizes:
+                idx = train_idx[:n]
+                if len(idx) < n or len(np.unique(y[idx])) < 2:
+                    continue
+                t = time.perf_counter()
+                m = make_svc(cfg.identify.svm).fit(S.X[idx], y[idx])
+                fit_s = time.perf_counter() - t
+                pred = m.predict(S.X[test])
+                yt = y[test]
+                resp, near = [], []
+                for sim in np.unique(S.sim[test]):
+                    sel = S.sim[test] == sim
+                    v = np.bincount(pred[sel], minlength=bb.n).argmax()
+                    resp.append(v == yt[sel][0])
+                    near.append(abs(v - yt[sel][0]) <= 1)
+                row = {"story": s + 1, "param": param, "n": n, "classes": bb.n, "acc_half_cycle": float(np.mean(pred == yt)),
+                       "within_one_bin": float(np.mean(np.abs(pred - yt) <= 1)), "acc_response": float(np.mean(resp)),
+                       "response_within_one_bin": float(np.mean(near)), "fit_seconds": fit_s}
+                rows.append(row)
+                tb.scalar(f"fig2/story{s + 1}/{param}/acc_half_cycle", row["acc_half_cycle"], n)
+                tb.scalar(f"fig2/story{s + 1}/{param}/acc_response", row["acc_response"], n)
+                print(f"story {s + 1} {param:5s} n={n:5d} half cycle {row['acc_half_cycle']:.3f} "
+                      f"(+-1 bin {row['within_one_bin']:.3f})  response {row['acc_response']:.3f} "
+                      f"(+-1 bin {row['response_within_one_bin']:.3f})  fit {fit_s:.2f} s", flush=True)
+    tb.close()
+    (out / "fig2.json").write_text(json.dumps({"noise_rms": noise, "spread": tcfg.spread, "rows": rows}, indent=1))
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
+    for ax, param in zip(axes, ("alpha", "p")):
+        for s in stories:
+            r = [x for x in rows if x["story"] == s + 1 and x["param"] == param]
+            ax.plot([x["n"] for x in r], [x["acc_half_cycle"] for x in r], "o-", label=f"story {s + 1} per half cycle")
+            ax.plot([x["n"] for x in r], [x["response_within_one_bin"] for x in r], "s--",
+                    label=f"story {s + 1} per response, +-1 bin")
+        ax.axhline(0.94, color="k", lw=0.8, ls=":", label="paper: 94 %")
+        ax.set_title(f"{param} (coarse bins)")
+        ax.set_xlabel("training samples")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("test accuracy")
+    axes[1].legend(fontsize=7)
+    fig.suptitle(f"Classifier accuracy vs training samples (noise {noise:.0%}, spread {tcfg.spread:.0%})")
+    save_figure(fig, out / "fig2.png")
+    print(f"wrote {out}/fig2.png, fig2.json, tensorboard/")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
