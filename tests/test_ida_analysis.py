@@ -7,6 +7,7 @@ of the drift limit with ``simulate``; the collapse rules against hand-made curve
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 
@@ -103,16 +104,28 @@ def test_scan_collapse_rules():
     assert scan_collapse(im[p], edp[p], ok, 10.0, 0.2) == (None, "none")
 
 
-def test_integration_blow_up_is_rerun_not_taken_for_collapse(table1):
-    """At 1 sub-step per 0.02 s sample the Landers record at PGA 4 g makes RK4 blow up (caught
-    by the drift stop far past the limit); the IDA re-runs it with 4 sub-steps."""
+@pytest.mark.parametrize("kind", ["jump", "diverged"])
+def test_integration_blow_up_is_rerun_not_taken_for_collapse(table1, monkeypatch, kind):
+    """A run that comes back from the simulator diverged, or stopped far past the drift limit
+    (a jump within one step), is re-run with 4x the steps; only the re-run counts."""
+    import hlaid.ida.analysis as A
+    real = A.simulate
+    calls = []
+
+    def flaky(*args, substeps=1, **kw):
+        r = real(*args, substeps=substeps, **kw)
+        calls.append(substeps)
+        if substeps == 1:  # the first attempt "blows up"
+            bad = np.full_like(r.peak_drift, 1e6 if kind == "jump" else np.nan)
+            return dataclasses.replace(r, peak_drift=bad, status=np.full_like(r.status, 1 if kind == "jump" else 2))
+        return r
+    monkeypatch.setattr(A, "simulate", flaky)
     gm = load_builtin("landers-1992-yer270")
-    b = table1.replace(height=HEIGHTS, pdelta=True)
-    raw = simulate(b, gm.scaled_to_pga(4.0), substeps=1, outputs="peaks", stop_drift=300.0)
-    assert raw.status[0] == 1 and raw.peak_drift.max() > 1000.0  # the blow-up
-    res = ida(b, gm, im="pga", levels=[4.0], refine=False, max_step=0.02)
+    res = ida(table1, gm, im="pga", levels=[0.5], refine=False, heights=HEIGHTS, max_step=0.02)
     k = np.flatnonzero(res.point_stage == "grid")[0]
-    assert res.point_substeps[k] == 4 and res.peak_drift[k].max() < 1.5 * 300.0
+    assert calls == [1, 4, 1, 4]  # probe and grid point, each re-run once
+    assert res.point_substeps[k] == 4 and res.point_status[k] == 0 and res.peak_drift[k].max() < 100.0
+    assert np.isnan(res.collapse_im[0])  # not a collapse
 
 
 def test_pdelta_and_heights_rules(table1, tmp_path, capsys):

@@ -7,9 +7,10 @@ from .main import subcommand
 
 
 def register(sub) -> None:
-    p = subcommand(sub, "demo", help="run the whole pipeline on the embedded Table 1 case",
+    p = subcommand(sub, "demo", help="the whole pipeline on the embedded Table 1 case: simulate, HLA, identify, "
+                                     "replay, IDA, report.html",
                    example="hlaid demo --out hlaid-demo")
     p.add_argument("--out", default="hlaid-demo", help="output folder (default ./hlaid-demo)")
-    p.add_argument("--seed", type=int, default=0, help="noise seed")
+    p.add_argument("--cache", metavar="DIR", help="classifier cache folder (default ~/.cache/hlaid/svm)")
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
-    p.set_defaults(func=lambda a: run_demo(a.out, force=a.force, seed=a.seed) and 0)
+    p.set_defaults(func=lambda a: run_demo(a.out, force=a.force, cache_dir=a.cache) and 0)

@@ -20,6 +20,7 @@ COMMANDS = [
     "hlaid.cli.demo",
     "hlaid.cli.hla",
     "hlaid.cli.identify",
+    "hlaid.cli.run",
     "hlaid.cli.ida",
 ]
 """Modules that each register one or more subcommands."""

@@ -168,6 +168,7 @@ class HLAResult:
     def save(self, out_dir: str | os.PathLike, *, force: bool = True) -> dict[str, Path]:
         """Write ``hla.npz`` (time series and half-cycle tables) and ``hla.json`` (summary)."""
         out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
         arrays: dict[str, np.ndarray] = {"dt": np.float64(self.dt), "mass": self.mass}
         for name in ("force", "force_fit", "drift", "drift_velocity", "k", "ke"):
             arrays[name] = self.stacked(name)

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import NotIdentifiableError
 from ..svm import KernelSVC
 from .config import SVMConfig
 from .training import TrainingSet
@@ -96,6 +97,9 @@ def split(train: TrainingSet, test_fraction: float) -> np.ndarray:
 def fit_machine(train: TrainingSet, param: str, bins: Bins, cfg: SVMConfig, test_fraction: float):
     """Train one classifier; returns ``(machine, stats)`` with accuracies and confusion."""
     t0 = time.perf_counter()
+    if len(train) == 0:
+        raise NotIdentifiableError(f"no simulated half cycle of this story yielded, so the {param} classifier has "
+                                   "nothing to learn from; the record is too weakly nonlinear for the classifiers")
     y = bins.label(getattr(train, param))
     test = split(train, test_fraction)
     if len(np.unique(y[~test])) < 2:  # a single class: nothing to learn

@@ -70,10 +70,11 @@ def draw_buildings(estimate: Building, ranges: Ranges, n: int, spread: float, rn
 
 def _features_of(args):
     """Worker: noisy measurement of one simulation -> per-story features."""
-    floor_acc, ground_acc, dt, mass, noise_rms, seed, hla_cfg, n_segments, yield_ratio, with_ke = args
+    floor_acc, ground_acc, dt, mass, noise_rms, seed, hla_cfg, n_segments, yield_ratio, with_ke, disp = args
     rng = np.random.default_rng(seed)
     meas = Measurement(dt=dt, ground_acc=add_noise(ground_acc[:, None], noise_rms, rng)[:, 0],
-                       floor_acc=add_noise(floor_acc, noise_rms, rng), mass=mass)
+                       floor_acc=add_noise(floor_acc, noise_rms, rng), mass=mass,
+                       floor_disp=None if disp is None else add_noise(disp, noise_rms, rng))
     try:
         res = hla(meas, hla_cfg)
     except ValueError:  # a simulation too weak to analyse: no samples
@@ -126,8 +127,10 @@ def simulate_training_sets(estimate: Building, motion: GroundMotion, ranges: Ran
             r = simulate(buildings, motion, substeps=4)
             ok = r.status == 0
             seeds = rng.integers(0, 2**63 - 1, size=nb)
+            # HLA told to use measured floor displacements gets the simulated ones (same code path)
+            with_disp = hla_config.preprocess.displacement == "measured"
             jobs = [(r.acc[b], motion.acc, motion.dt, estimate.mass, noise_rms, int(seeds[b]), hla_config, n_segments,
-                     yield_ratio, with_ke) for b in range(nb) if ok[b]]
+                     yield_ratio, with_ke, r.disp[b] if with_disp else None) for b in range(nb) if ok[b]]
             idx = np.flatnonzero(ok)
             results = pool.map(_features_of, jobs) if pool else list(map(_features_of, jobs))
             for b, per_story in zip(idx, results):

@@ -1,0 +1,22 @@
+"""``hlaid run`` and ``hlaid report``."""
+
+from __future__ import annotations
+
+from ..report import build_report
+from ..runner import run_from_file
+from .main import subcommand
+
+
+def register(sub) -> None:
+    p = subcommand(sub, "run", help="the whole pipeline on your data: HLA, identification, replay, IDA, report",
+                   example="hlaid run configs/run_example.yaml -o runs/my-building")
+    p.add_argument("config", help="run config YAML (measurement, identify, ida)")
+    p.add_argument("-o", "--out", required=True, help="output folder")
+    p.add_argument("--cache", metavar="DIR", help="classifier cache folder (default ~/.cache/hlaid/svm)")
+    p.add_argument("--force", action="store_true", help="replace an existing output folder")
+    p.set_defaults(func=lambda a: run_from_file(a.config, a.out, force=a.force, cache_dir=a.cache) and 0)
+
+    r = subcommand(sub, "report", help="rebuild report.html of a run folder from its saved results",
+                   example="hlaid report hlaid-demo")
+    r.add_argument("run_dir", help="a folder written by hlaid run or hlaid demo")
+    r.set_defaults(func=lambda a: build_report(a.run_dir) and 0)

@@ -1,0 +1,490 @@
+"""Real-structure validation: identify a clone from one recorded event, predict the others.
+
+The protocol of issue 7 (``docs/validation.md``, ``scripts/validate_real.py``). For every
+structure of a :class:`ValidationConfig` and every identification event:
+
+1. read the event (a reader of :data:`hlaid.io.MEASUREMENT_READERS`); no masses are given,
+   so HLA and the clone are mass-normalised with the structure's ``mass_ratios``;
+2. identify a clone with :func:`hlaid.identify.identify` (HLA, regressions, SVMs, replay
+   refinement). When no story yielded (:class:`~hlaid.errors.NotIdentifiableError`) a
+   nonlinear clone cannot be identified, and the protocol falls back, *labelled as such*, to
+   a linear clone: HLA's k0 refined by :func:`hlaid.identify.refine_replay` on ``k0`` (and
+   the Rayleigh damping ratio) with ``alpha = 1``;
+3. save the clone JSON, load it back (:meth:`hlaid.clone.Clone.load`), and replay it under the
+   ground motion of every prediction event (and of its own event, the self-replay);
+4. compare per floor the predicted and measured displacement relative to the ground (measured
+   displacements when the data hold them, else integrated accelerations; both band-passed
+   alike): correlation ``R``, peak inter-story drift error, and the clone's elastic
+   stiffness ke(t) against HLA's ke of that event (mean relative error over half cycles, the
+   paper's 2.1 % metric).
+
+Every number is in the package units, per unit of the (relative) masses when mass-normalised.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from . import _progress
+from .clone import Clone
+from .config import config_from_dict, config_to_dict, load_config
+from .errors import InputError, NotIdentifiableError
+from .hla import HLAConfig, HLAResult, hla
+from .hla import preprocess as pp
+from .hla.analysis import floor_motion, resolved_band
+from .identify import IdentifyConfig, identify, refine_replay
+from .identify.replaycheck import corrcoef
+from .io import MEASUREMENT_READERS, read_any
+from .measurement import Measurement
+from .model import Building, Damping
+from .motions import GroundMotion
+from .simulate import simulate
+
+KINDS = ("nonlinear", "linear")
+"""Clone kinds: the paper's identification, or the labelled linear fallback."""
+
+
+# ---------------------------------------------------------------------------- config schema
+@dataclass(frozen=True, kw_only=True)
+class EventSpec:
+    """One recorded event of a structure.
+
+    Attributes
+    ----------
+    name : label used in ``identify_from`` / ``predict`` and in the tables
+    path : data file or folder, relative to ``data_dir``
+    options : reader options of this event (e.g. ``{event: 13}`` for the hotel)
+    """
+
+    name: str
+    path: str
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, kw_only=True)
+class StructureSpec:
+    """A structure, its events, and how its clones are identified and compared.
+
+    Attributes
+    ----------
+    name : short label (file names, tables); ``title`` a longer one
+    reader : a :data:`hlaid.io.MEASUREMENT_READERS` name (null: detected from the file)
+    options : reader options shared by every event
+    events : the recorded events
+    identify_from : events a clone is identified from
+    predict : events every clone predicts (null: every event but its own); the clone's own
+        event is always replayed too (self-replay, reported apart)
+    identify_config : identification YAML (:class:`~hlaid.identify.IdentifyConfig`), relative
+        to the validation config (null: the defaults)
+    overrides : nested settings merged into it (e.g. ``{hla: {preprocess: {band_hz: [0.3, 2.5]}}}``)
+    mass_ratios : relative floor masses (masses are unknown; null: equal)
+    fallback : ``"linear"``: a labelled linear clone when no story yielded; ``"none"``: skip
+    fallback_damping : the linear fallback also fits the Rayleigh damping ratio
+    compare_band_hz : band [Hz] of the compared displacements and of the HLA of the predicted
+        events (null: the HLA band that the identification config gives for each event)
+    input_lowpass_hz : low-pass [Hz] of the ground motion the clone is driven by (null: the
+        upper corner of the compared band)
+    levels : names of the measured levels, bottom to top (null: floor 1, 2, ...)
+    notes : what the data allow, printed with the tables
+    """
+
+    name: str
+    title: str = ""
+    reader: str | None = None
+    options: dict[str, Any] = field(default_factory=dict)
+    events: list[EventSpec]
+    identify_from: list[str]
+    predict: list[str] | None = None
+    identify_config: str | None = None
+    overrides: dict[str, Any] = field(default_factory=dict)
+    mass_ratios: list[float] | None = None
+    fallback: Literal["linear", "none"] = "linear"
+    fallback_damping: bool = True
+    compare_band_hz: tuple[float, float] | None = None
+    input_lowpass_hz: float | None = None
+    levels: list[str] | None = None
+    notes: str = ""
+
+    def __post_init__(self):
+        names = [e.name for e in self.events]
+        if len(set(names)) != len(names):
+            raise InputError(f"structure {self.name!r}: event names must be unique, got {names}")
+        for what, lst in (("identify_from", self.identify_from), ("predict", self.predict or [])):
+            bad = [n for n in lst if n not in names]
+            if bad:
+                raise InputError(f"structure {self.name!r}: {what} names unknown events {bad}; expected some of {names}")
+        if not self.identify_from:
+            raise InputError(f"structure {self.name!r}: identify_from is empty")
+        if self.reader is not None and self.reader not in MEASUREMENT_READERS:
+            raise InputError(f"structure {self.name!r}: reader {self.reader!r} unknown; expected one of "
+                             f"{', '.join(sorted(MEASUREMENT_READERS))}")
+        if self.compare_band_hz is not None and not 0 <= self.compare_band_hz[0] < self.compare_band_hz[1]:
+            raise InputError(f"structure {self.name!r}: compare_band_hz = {list(self.compare_band_hz)}; expected "
+                             "[low, high] with 0 <= low < high")
+
+    def event(self, name: str) -> EventSpec:
+        return next(e for e in self.events if e.name == name)
+
+    def targets_of(self, source: str) -> list[str]:
+        return [e.name for e in self.events if e.name != source] if self.predict is None else \
+            [n for n in self.predict if n != source]
+
+
+@dataclass(frozen=True, kw_only=True)
+class PaperTargets:
+    """The paper's real-building results (E-Defense 3-story): replayed displacement
+    ``R_corrcoef`` per floor and mean, and the stiffness-evolution error."""
+
+    r_per_floor: list[float] = field(default_factory=lambda: [0.94, 0.92, 0.89])
+    r_mean: float = 0.92
+    stiffness_error: float = 0.021
+
+
+@dataclass(frozen=True, kw_only=True)
+class ValidationConfig:
+    """``configs/validate_real.yaml``.
+
+    Attributes
+    ----------
+    data_dir : folder of the datasets, relative to the config file
+    cache_dir : classifier cache (null: ``~/.cache/hlaid/svm``; ``""``: none)
+    structures : the structures
+    targets : the paper's numbers the results are held against
+    """
+
+    data_dir: str = "."
+    cache_dir: str | None = None
+    structures: list[StructureSpec]
+    targets: PaperTargets = field(default_factory=PaperTargets)
+    source: str = ""
+
+    def __post_init__(self):
+        names = [s.name for s in self.structures]
+        if len(set(names)) != len(names):
+            raise InputError(f"structure names must be unique, got {names}")
+
+
+def load_validation_config(path) -> ValidationConfig:
+    """Load ``path`` (validated; FILE:LINE in every error) and resolve its relative paths
+    against the config's folder."""
+    cfg = load_config(path, ValidationConfig)
+    base = Path(path).resolve().parent
+    structures = [dataclasses.replace(s, identify_config=None if s.identify_config is None else
+                                      str(base / s.identify_config)) for s in cfg.structures]
+    return dataclasses.replace(cfg, data_dir=str(base / cfg.data_dir), structures=structures, source=str(path))
+
+
+def _merge(base: dict, over: dict) -> dict:
+    out = dict(base)
+    for k, v in over.items():
+        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def identify_config_of(spec: StructureSpec, *, source: str = "<validation>") -> IdentifyConfig:
+    """The structure's :class:`IdentifyConfig`: its file, the overrides, the mass ratios."""
+    base = load_config(spec.identify_config, IdentifyConfig) if spec.identify_config else IdentifyConfig()
+    d = _merge(config_to_dict(base), spec.overrides)
+    if spec.mass_ratios is not None:
+        d = _merge(d, {"hla": {"force": {"mass_ratios": list(spec.mass_ratios)}}})
+    return config_from_dict(IdentifyConfig, d, source=f"{source}: structure {spec.name!r} (identify config)")
+
+
+def read_event(spec: StructureSpec, event: str, data_dir: str) -> Measurement:
+    """The measurement of ``event`` (reader options: the structure's, then the event's)."""
+    ev = spec.event(event)
+    return read_any(Path(data_dir) / ev.path, spec.reader, **{**spec.options, **ev.options})
+
+
+# ---------------------------------------------------------------------------- identification
+@dataclass(frozen=True, eq=False)
+class IdentifiedClone:
+    """A clone identified from one event.
+
+    Attributes
+    ----------
+    structure, event : where it came from
+    clone : the clone as loaded back from its JSON file
+    kind : ``"nonlinear"`` (paper's method) or ``"linear"`` (fallback: no story yielded)
+    reason : why the fallback was taken ("" for nonlinear clones)
+    path : the clone JSON written
+    seconds : wall time of the identification
+    """
+
+    structure: str
+    event: str
+    clone: Clone
+    kind: str
+    reason: str
+    path: str
+    seconds: float
+
+    def summary(self) -> dict:
+        b = self.clone.building
+        return {"structure": self.structure, "event": self.event, "kind": self.kind, "reason": self.reason,
+                "mass_normalised": self.clone.mass_normalised, "mass": b.mass.tolist(),
+                **{k: getattr(b, k).tolist() for k in ("k0", "alpha", "p", "dy", "delta_eta")},
+                "damping_ratio": b.damping.ratio, "periods_s": b.periods().tolist(), "path": self.path,
+                "seconds": self.seconds}
+
+
+def linear_clone(meas: Measurement, cfg: IdentifyConfig, *, damping: bool = True, reason: str = "") -> Clone:
+    """A linear (``alpha = 1``) clone: HLA's k0 as the start, refined against the measured
+    accelerations by :func:`refine_replay` on ``k0`` (and the Rayleigh ratio with ``damping``)."""
+    res = hla(meas, cfg.hla)
+    n = res.n_stories
+    peak = np.array([np.max(np.abs(s.drift)) for s in res.stories])
+    b = Building(mass=res.mass, k0=res.k0, alpha=np.ones(n), p=np.full(n, 2.0), dy=np.maximum(1e3 * peak, 1.0),
+                 delta_eta=np.zeros(n), height=meas.height, damping=Damping(ratio=cfg.damping_ratio),
+                 pdelta=meas.pdelta_active if meas.height is not None else None, name=meas.name)
+    rr = refine_replay(b, meas, parameters=("k0",), damping=damping, band_hz=cfg.refine.band_hz,
+                       max_iterations=cfg.refine.max_iterations)
+    diag = {"kind": "linear", "reason": reason, "k0_hla": res.k0.tolist(), "hla_band_hz": list(res.band_hz),
+            "refine": {"parameters": ["k0"] + (["damping"] if damping else []), "cost_initial": rr.cost_initial,
+                       "cost_final": rr.cost_final, "nfev": rr.nfev, "message": rr.message}}
+    prov = {"source": meas.source, "config": config_to_dict(cfg), "method": "linear fallback (refine_replay on k0)"}
+    return Clone(building=rr.building, mass_normalised=res.mass_normalised, diagnostics=diag, provenance=prov)
+
+
+def identify_event(spec: StructureSpec, event: str, meas: Measurement, cfg: IdentifyConfig, out_dir: Path,
+                   cache_dir: str | None = None) -> IdentifiedClone | None:
+    """Identify a clone from ``meas``; the linear fallback when no story yielded (None when
+    the structure's ``fallback`` is ``"none"``). The clone is written to
+    ``out_dir/<structure>_<event>.json`` and read back."""
+    t0 = time.perf_counter()
+    kind, reason = "nonlinear", ""
+    try:
+        clone = identify(meas, cfg, cache_dir=cache_dir).clone
+    except NotIdentifiableError as err:
+        reason = str(err).removeprefix(f"{meas.source}: ")
+        if spec.fallback == "none":
+            _progress.warn(f"{spec.name}/{event}: not identifiable, skipped ({reason})")
+            return None
+        _progress.info(f"[validate] {spec.name}/{event}: not identifiable ({reason}); linear fallback clone")
+        kind = "linear"
+        clone = linear_clone(meas, cfg, damping=spec.fallback_damping, reason=reason)
+    path = out_dir / f"{spec.name}_{event}.json"
+    clone.save(path)
+    loaded = Clone.load(path)
+    return IdentifiedClone(structure=spec.name, event=event, clone=loaded, kind=kind, reason=reason, path=str(path),
+                           seconds=time.perf_counter() - t0)
+
+
+# ---------------------------------------------------------------------------- prediction
+@dataclass(frozen=True, eq=False)
+class Prediction:
+    """A clone replayed under one event, against what was measured.
+
+    Attributes
+    ----------
+    structure, identified_from, event, kind : which clone, which event
+    self_replay : the event the clone was identified from
+    pga_g : peak ground acceleration of the event [g]
+    band_hz : band of the compared displacements [Hz]
+    r : (floor,) correlation of predicted and measured displacement relative to the ground
+    peak_drift_measured, peak_drift_predicted : (story,) peak inter-story drift [mm] (band-passed)
+    peak_drift_error : (story,) ``predicted / measured - 1``
+    stiffness_error : (story,) mean over HLA half cycles of ``|ke_clone / ke_HLA - 1|`` (NaN
+        when HLA of the event failed)
+    status : simulator status (0 ok, 2 diverged)
+    time, disp_measured, disp_predicted : (time,), (time, floor) [s, mm] (not serialised)
+    drift_predicted, force_predicted, ke_clone : (time, story) clone drift, spring force, ke(t)
+    hla : the HLA of the event (None when it failed)
+    """
+
+    structure: str
+    identified_from: str
+    event: str
+    kind: str
+    self_replay: bool
+    pga_g: float
+    band_hz: tuple[float, float]
+    r: np.ndarray
+    peak_drift_measured: np.ndarray
+    peak_drift_predicted: np.ndarray
+    peak_drift_error: np.ndarray
+    stiffness_error: np.ndarray
+    status: int
+    time: np.ndarray = field(repr=False)
+    disp_measured: np.ndarray = field(repr=False)
+    disp_predicted: np.ndarray = field(repr=False)
+    drift_predicted: np.ndarray = field(repr=False)
+    force_predicted: np.ndarray = field(repr=False)
+    ke_clone: np.ndarray = field(repr=False)
+    hla: HLAResult | None = field(default=None, repr=False)
+
+    def summary(self) -> dict:
+        return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in
+                (("structure", self.structure), ("identified_from", self.identified_from), ("event", self.event),
+                 ("kind", self.kind), ("self_replay", self.self_replay), ("pga_g", self.pga_g),
+                 ("band_hz", list(self.band_hz)), ("r", self.r), ("r_mean", float(np.mean(self.r))),
+                 ("peak_drift_measured", self.peak_drift_measured), ("peak_drift_predicted", self.peak_drift_predicted),
+                 ("peak_drift_error", self.peak_drift_error), ("stiffness_error", self.stiffness_error),
+                 ("stiffness_error_mean", _nanmean(self.stiffness_error)), ("status", self.status))}
+
+
+def _nanmean(x) -> float | None:
+    x = np.asarray(x, dtype=float)
+    return float(np.nanmean(x)) if np.isfinite(x).any() else None
+
+
+def _with_band(cfg: HLAConfig, band) -> HLAConfig:
+    return cfg if band is None else dataclasses.replace(
+        cfg, preprocess=dataclasses.replace(cfg.preprocess, band_hz=tuple(band)))
+
+
+def predict_event(clone: Clone, meas: Measurement, hla_config: HLAConfig, *, compare_band_hz=None,
+                  input_lowpass_hz: float | None = None, labels: tuple[str, str, str, str] = ("", "", "", ""),
+                  self_replay: bool = False) -> Prediction:
+    """Replay ``clone`` under ``meas``'s ground motion and compare with what was measured.
+
+    Parameters
+    ----------
+    clone : the clone (its masses must be the ones ``hla_config`` gives ``meas``)
+    meas : the event
+    hla_config : HLA settings of the structure (mass ratios, damping handling, band)
+    compare_band_hz : band of the comparison and of the event's HLA (None: HLA's band)
+    input_lowpass_hz : low-pass of the ground motion (None: the band's upper corner)
+    labels : ``(structure, identified_from, event, kind)``
+    """
+    cfg = _with_band(hla_config, compare_band_hz)
+    dt = meas.dt
+    try:
+        res = hla(meas, cfg)
+        band = tuple(res.band_hz)
+    except InputError as err:  # too weak or too short for HLA: no stiffness comparison
+        _progress.warn(f"{labels[0]}/{labels[2]}: HLA failed ({err}); no stiffness comparison")
+        res, band = None, tuple(resolved_band(meas, cfg))
+        cfg = _with_band(cfg, band)
+    hi_in = min(input_lowpass_hz or band[1], 0.45 / dt)
+    ground = GroundMotion(dt=dt, acc=pp.bandpass(np.asarray(meas.ground_acc), dt, (0.0, hi_in), cfg.preprocess.order),
+                          name=meas.name)
+    sim = simulate(clone.building, ground)
+    disp_pred = np.nan_to_num(sim.disp[0])
+    _, _, _, disp_meas = floor_motion(meas, cfg)
+    dp = pp.bandpass(disp_pred, dt, band, cfg.preprocess.order)
+    r = corrcoef(dp, disp_meas)
+    xm, xp = pp.story_drift(disp_meas), pp.story_drift(dp)
+    pm, pk = np.max(np.abs(xm), axis=0), np.max(np.abs(xp), axis=0)
+    ke = clone.building.elastic_stiffness(np.nan_to_num(sim.eta[0], nan=1.0))
+    err = np.full(clone.building.n_stories, np.nan)
+    if res is not None:
+        for i, s in enumerate(res.stories):
+            hc = s.half_cycles
+            if len(hc):
+                err[i] = float(np.mean(np.abs(ke[hc.start, i] / hc.ke - 1.0)))
+    return Prediction(structure=labels[0], identified_from=labels[1], event=labels[2], kind=labels[3],
+                      self_replay=self_replay, pga_g=float(np.max(np.abs(meas.ground_acc)) / 9806.65), band_hz=band,
+                      r=r, peak_drift_measured=pm, peak_drift_predicted=pk, peak_drift_error=pk / pm - 1.0,
+                      stiffness_error=err, status=int(sim.status[0]), time=meas.time, disp_measured=disp_meas,
+                      disp_predicted=dp, drift_predicted=xp, force_predicted=np.nan_to_num(sim.force[0]), ke_clone=ke,
+                      hla=res)
+
+
+# ---------------------------------------------------------------------------- the protocol
+@dataclass(frozen=True, eq=False)
+class ValidationResult:
+    """Clones and predictions of a validation run.
+
+    Attributes
+    ----------
+    clones : one per (structure, identification event) that gave a clone
+    predictions : self-replays and cross-event predictions
+    targets : the paper's numbers
+    notes : per structure, what the data allow
+    seconds : wall time
+    """
+
+    clones: list[IdentifiedClone]
+    predictions: list[Prediction]
+    targets: PaperTargets
+    notes: dict[str, str]
+    seconds: float
+
+    def structure_summary(self) -> list[dict]:
+        """Per structure: mean and worst R and mean stiffness error over the cross-event
+        predictions (and the self-replays apart)."""
+        out = []
+        for name in dict.fromkeys(p.structure for p in self.predictions):
+            row = {"structure": name}
+            for tag, sel in (("cross", False), ("self", True)):
+                ps = [p for p in self.predictions if p.structure == name and p.self_replay == sel]
+                if not ps:
+                    continue
+                r = np.array([p.r for p in ps])
+                se = np.array([p.stiffness_error for p in ps])
+                pe = np.abs(np.array([p.peak_drift_error for p in ps]))
+                row[tag] = {"n": len(ps), "r_mean": float(r.mean()), "r_worst": float(r.min()),
+                            "r_mean_per_floor": r.mean(axis=0).tolist(),
+                            "peak_drift_error_mean": float(pe.mean()), "peak_drift_error_worst": float(pe.max()),
+                            "stiffness_error_mean": _nanmean(se)}
+            out.append(row)
+        return out
+
+    def to_dict(self) -> dict:
+        return {"format": "hlaid-validation", "version": 1, "seconds": self.seconds,
+                "targets": config_to_dict(self.targets), "notes": self.notes,
+                "clones": [c.summary() for c in self.clones],
+                "predictions": [p.summary() for p in self.predictions],
+                "summary": self.structure_summary()}
+
+
+def run_validation(cfg: ValidationConfig, *, clone_dir: str | None = None, structures: list[str] | None = None,
+                   cache_dir: str | None = None) -> ValidationResult:
+    """Run the protocol over the structures of ``cfg`` (or the named ``structures``).
+
+    Parameters
+    ----------
+    cfg : the validation config (:func:`load_validation_config`)
+    clone_dir : where the clone JSON files are written (default: a temporary folder)
+    structures : names of the structures to run (default all)
+    cache_dir : classifier cache (overrides ``cfg.cache_dir``)
+    """
+    t0 = time.perf_counter()
+    names = [s.name for s in cfg.structures]
+    for n in structures or []:
+        if n not in names:
+            raise InputError(f"unknown structure {n!r}; expected one of {names}", source=cfg.source or None)
+    cache = cache_dir if cache_dir is not None else cfg.cache_dir
+    clones, preds = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(clone_dir) if clone_dir else Path(tmp)
+        out.mkdir(parents=True, exist_ok=True)
+        for spec in cfg.structures:
+            if structures and spec.name not in structures:
+                continue
+            icfg = identify_config_of(spec, source=cfg.source or "<validation>")
+            meas = {}
+
+            def get(ev, spec=spec, meas=meas):
+                if ev not in meas:
+                    meas[ev] = read_event(spec, ev, cfg.data_dir)
+                return meas[ev]
+
+            for src in spec.identify_from:
+                _progress.info(f"[validate] {spec.name}: identifying a clone from {src}")
+                ic = identify_event(spec, src, get(src), icfg, out, cache)
+                if ic is None:
+                    continue
+                clones.append(ic)
+                for ev in [src] + spec.targets_of(src):
+                    preds.append(predict_event(ic.clone, get(ev), icfg.hla, compare_band_hz=spec.compare_band_hz,
+                                               input_lowpass_hz=spec.input_lowpass_hz, self_replay=ev == src,
+                                               labels=(spec.name, src, ev, ic.kind)))
+                    p = preds[-1]
+                    _progress.info(f"[validate] {spec.name}: {src} -> {ev}: R {np.round(p.r, 3)}, "
+                                   f"stiffness error {_fmt_pct(_nanmean(p.stiffness_error))}")
+    return ValidationResult(clones=clones, predictions=preds, targets=cfg.targets,
+                            notes={s.name: s.notes for s in cfg.structures if not structures or s.name in structures},
+                            seconds=time.perf_counter() - t0)
+
+
+def _fmt_pct(x) -> str:
+    return "-" if x is None or not np.isfinite(x) else f"{100 * x:.1f} %"
