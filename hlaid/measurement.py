@@ -31,8 +31,9 @@ from .units import G_MM_S2
 
 TRUTH_FIELDS = ("disp", "drift", "force", "z", "eta")
 MIN_SAMPLES = 16
-PGA_PLAUSIBLE_MM_S2 = (0.5, 5.0 * G_MM_S2)
-"""A ground PGA outside this range [mm/s^2] means the units are almost surely wrong."""
+PGA_PLAUSIBLE_MM_S2 = (10.0, 5.0 * G_MM_S2)
+"""A ground PGA outside this range [mm/s^2] (0.001 g to 5 g) means the units are almost surely wrong:
+a record in g or m/s^2 read as mm/s^2 falls far below it, one in mm/s^2 read as g far above."""
 
 
 @dataclass(frozen=True, eq=False)

@@ -30,8 +30,14 @@ from .errors import InputError
 from .model import Building
 from .motions import GroundMotion
 
-__all__ = ["export_opensees", "opensees_script", "run_opensees", "OpenSeesResult", "OpenSeesUnavailable",
-           "import_opensees"]
+__all__ = [
+    "OpenSeesResult",
+    "OpenSeesUnavailable",
+    "export_opensees",
+    "import_opensees",
+    "opensees_script",
+    "run_opensees",
+]
 
 
 class OpenSeesUnavailable(InputError):
@@ -80,8 +86,8 @@ def opensees_script(model) -> str:
         f"DELTA_ETA = {_list(b.delta_eta)}  # hlaid degradation [s^2/m^2]",
         f"HEIGHT = {_list(b.height) if b.height is not None else None}  # story heights [mm]",
         f"PDELTA_K = {_list(b.geometric_stiffness())}  # P_i/h_i [N/mm], zeros when P-Delta is off",
-        f"RAYLEIGH = ({float(a0)!r}, {float(a1)!r})  # C = a0*M + a1*K0  ({b.damping.kind}, "
-        f"{b.damping.ratio:g} on modes {list(b.damping.modes)})",
+        (f"RAYLEIGH = ({float(a0)!r}, {float(a1)!r})  # C = a0*M + a1*K0  ({b.damping.kind}, "
+         f"{b.damping.ratio:g} on modes {list(b.damping.modes)})"),
     ])
     return head + "\n" + params + "\n" + _BODY
 
@@ -126,7 +132,7 @@ def _namespace(text: str) -> dict:
     key = hashlib.sha1(text.encode()).hexdigest()
     if key not in _NAMESPACES:
         ns = {"__name__": "hlaid_opensees_model"}
-        exec(compile(text, f"<hlaid opensees script {key[:8]}>", "exec"), ns)
+        exec(compile(text, f"<hlaid opensees script {key[:8]}>", "exec"), ns)  # noqa: S102 - our own generated script
         _NAMESPACES[key] = ns
     return _NAMESPACES[key]
 

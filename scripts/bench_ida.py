@@ -34,14 +34,14 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from hlaid import _progress  # noqa: E402
-from hlaid.ida import ida, load_records, prepare_building  # noqa: E402
-from hlaid.ida.analysis import upsampled  # noqa: E402
-from hlaid.model import Building  # noqa: E402
-from hlaid.simulate import simulate  # noqa: E402
+from hlaid import _progress
+from hlaid.ida import ida, load_records, prepare_building
+from hlaid.ida.analysis import upsampled
+from hlaid.model import Building
+from hlaid.simulate import simulate
 
 DEFAULT_RECORDS = REPO.parent / "shared" / "data" / "ground_motions" / "fema_p695_farfield"
-TABLE1 = [dict(weight_kN=w, k0=k, alpha=a, p=p, dy=d, delta_eta=e, height_mm=3000.0) for w, k, a, p, d, e in
+TABLE1 = [{"weight_kN": w, "k0": k, "alpha": a, "p": p, "dy": d, "delta_eta": e, "height_mm": 3000.0} for w, k, a, p, d, e in
           zip((171.85, 171.85, 90.0), (1.94e4, 1.65e4, 1.37e4), (0.23, 0.17, 0.12), (2.5, 1.5, 1.9), (7.0, 6.0, 3.0),
               (0.7, 0.66, 1.54))]
 LEVELS = np.round(np.arange(1, 21) * 0.4, 3)
@@ -65,7 +65,7 @@ def grid(b: Building, motions, scales, rate=None, stop=None):
     one RK4 step per refined sample; or, with ``rate`` [Hz], refined to that rate."""
     fine = []
     for m in motions:
-        f = int(np.ceil(m.dt / MAX_STEP - 1e-9)) if rate is None else int(round(m.dt * rate))
+        f = int(np.ceil(m.dt / MAX_STEP - 1e-9)) if rate is None else round(m.dt * rate)
         fine.append(upsampled(m, f))
     sub = np.array([round(m.dt * 1e9) for m in fine])
     out = np.empty((len(motions), scales.shape[1], b.n_stories))

@@ -34,12 +34,12 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from hlaid.model import Building  # noqa: E402
-from hlaid.motions import GroundMotion, read_motion  # noqa: E402
-from hlaid.simulate import simulate  # noqa: E402
+from hlaid.model import Building
+from hlaid.motions import GroundMotion, read_motion
+from hlaid.simulate import simulate
 
 DEFAULT_RECORDS = REPO.parent / "shared" / "data" / "ground_motions" / "fema_p695_farfield"
-TABLE1 = [dict(weight_kN=w, k0=k, alpha=a, p=p, dy=d, delta_eta=e) for w, k, a, p, d, e in
+TABLE1 = [{"weight_kN": w, "k0": k, "alpha": a, "p": p, "dy": d, "delta_eta": e} for w, k, a, p, d, e in
           zip((171.85, 171.85, 90.0), (1.94e4, 1.65e4, 1.37e4), (0.23, 0.17, 0.12), (2.5, 1.5, 1.9), (7.0, 6.0, 3.0),
               (0.7, 0.66, 1.54))]
 G = 9806.65
@@ -47,7 +47,7 @@ G = 9806.65
 
 def thirty_seconds(gm: GroundMotion, rate=200.0, seconds=30.0) -> GroundMotion:
     g = gm.resampled(rate)
-    n = int(round(seconds * rate)) + 1
+    n = round(seconds * rate) + 1
     acc = np.zeros(n)
     acc[: min(n, g.npts)] = g.acc[:n]
     return GroundMotion(dt=1.0 / rate, acc=acc, name=gm.name, source=gm.source)

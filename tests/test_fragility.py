@@ -16,7 +16,12 @@ import pytest
 from scipy import optimize, stats
 
 from hlaid.errors import InputError
-from hlaid.ida import (fit_capacities, fit_counts, fragility_from_capacities, fragility_from_exceedance)
+from hlaid.ida import (
+    fit_capacities,
+    fit_counts,
+    fragility_from_capacities,
+    fragility_from_exceedance,
+)
 
 MEDIAN, BETA = 1.6, 0.45
 
@@ -24,7 +29,7 @@ MEDIAN, BETA = 1.6, 0.45
 def test_capacity_mle_equals_scipy():
     x = np.random.default_rng(3).lognormal(np.log(MEDIAN), BETA, 37)
     m, b = fit_capacities(x)
-    shape, loc, scale = stats.lognorm.fit(x, floc=0)
+    shape, _, scale = stats.lognorm.fit(x, floc=0)
     assert m == pytest.approx(scale, rel=1e-6) and b == pytest.approx(shape, rel=1e-6)
 
 
@@ -33,7 +38,7 @@ def test_censored_capacity_mle_equals_scipy():
     top = 2.2  # records still standing at the highest IM run
     m, b = fit_capacities(x[x <= top], np.full((x > top).sum(), top))
     data = stats.CensoredData(uncensored=x[x <= top], right=np.full((x > top).sum(), top))
-    shape, loc, scale = stats.lognorm.fit(data, floc=0)
+    shape, _, scale = stats.lognorm.fit(data, floc=0)
     assert (x > top).sum() >= 10
     assert m == pytest.approx(scale, rel=1e-4) and b == pytest.approx(shape, rel=1e-4)
     # ignoring the censored records would bias the median low: the censoring matters

@@ -215,7 +215,7 @@ def test_save_is_atomic_and_complete(result, tmp_path, monkeypatch):
     with pytest.raises(InputError, match="not empty; use --force"):
         result.save(out)
 
-    import hlaid.ida.plots as plots
+    from hlaid.ida import plots
 
     def boom(*a, **k):
         raise KeyboardInterrupt

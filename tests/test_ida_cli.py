@@ -87,11 +87,11 @@ def test_export_opensees_command(clone_file, tmp_path, capsys):
     text = out.read_text()
     compile(text, str(out), "exec")
     ns: dict = {"__name__": "x"}
-    exec(compile(text, str(out), "exec"), ns)
+    exec(compile(text, str(out), "exec"), ns)  # noqa: S102 - the script under test
     assert np.allclose(ns["PDELTA_K"], Clone.load(clone_file).building.replace(pdelta=True).geometric_stiffness())
     assert main(["export-opensees", str(clone_file), "-o", str(out), "--no-pdelta", "--force", "-q"]) == 0
     ns = {"__name__": "x"}
-    exec(compile(out.read_text(), str(out), "exec"), ns)
+    exec(compile(out.read_text(), str(out), "exec"), ns)  # noqa: S102 - the script under test
     assert ns["PDELTA_K"] == [0.0, 0.0, 0.0]
     assert main(["export-opensees", str(clone_file), "-o", str(out)]) == 2
     assert "already exists" in _err_line(capsys)

@@ -23,8 +23,8 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 import pytest
-
 from conftest import GROUND_MOTIONS, requires_data
+
 from hlaid.ida import ida, intensity
 from hlaid.model import Building
 from hlaid.motions import read_motion

@@ -23,12 +23,12 @@ G = 9806.65
 
 
 def _still(seconds: float, dt: float = 0.002) -> GroundMotion:
-    return GroundMotion(dt=dt, acc=np.zeros(int(round(seconds / dt)) + 1), name="still")
+    return GroundMotion(dt=dt, acc=np.zeros(round(seconds / dt) + 1), name="still")
 
 
 def _sdof(**kw) -> Building:
-    d = dict(mass=[2.0], k0=[800.0], alpha=[1.0], p=[2.0], dy=[50.0], delta_eta=[0.0], height=[3000.0],
-             gravity_load=[2.0 * G * 60.0], damping=Damping(kind="none"), pdelta=True)
+    d = {"mass": [2.0], "k0": [800.0], "alpha": [1.0], "p": [2.0], "dy": [50.0], "delta_eta": [0.0],
+         "height": [3000.0], "gravity_load": [2.0 * G * 60.0], "damping": Damping(kind="none"), "pdelta": True}
     d.update(kw)
     return Building(**d)
 

@@ -72,6 +72,9 @@ def run_ida(args) -> int:
     out = Path(args.out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())) and not args.force:
         raise InputError("output folder exists and is not empty; use --force to replace it", source=str(out))
+    parent = out.parent if str(out.parent) else Path(".")
+    if not parent.is_dir():  # fail before the analysis, not after it
+        raise InputError("parent folder does not exist", source=str(parent))
     cfg = load_ida_config(args.config) if args.config else IDAConfig()
     levels = _numbers(" ".join(args.levels), "--levels") if args.levels else None
     cfg = cfg.replace(im=args.im, levels=levels, n_levels=args.n_levels, drift_limit=args.drift_limit,
@@ -101,7 +104,7 @@ def run_export(args) -> int:
     from ..ida import prepare_building
     from ..opensees import export_opensees
 
-    b, notes = prepare_building(args.clone, pdelta=args.pdelta, require_heights=False,
+    b, _ = prepare_building(args.clone, pdelta=args.pdelta, require_heights=False,
                                 heights=_numbers(args.heights, "--heights") if args.heights else None,
                                 gravity_load=[v * 1000.0 for v in _numbers(args.gravity_kN, "--gravity-kN")]
                                 if args.gravity_kN else None)

@@ -9,13 +9,40 @@ exceedance. Method and verification: ``docs/ida.md``.
 
 from .analysis import ida, ida_from_config, prepare_building, scan_collapse
 from .config import IDAConfig, load_ida_config
-from .fragility import LognormalFragility, fit_capacities, fit_counts, fragility_from_capacities, \
-    fragility_from_exceedance
-from .intensity import INTENSITY_MEASURES, IntensityMeasure, get_intensity_measure, intensity, response_spectrum
+from .fragility import (
+           LognormalFragility,
+           fit_capacities,
+           fit_counts,
+           fragility_from_capacities,
+           fragility_from_exceedance,
+)
+from .intensity import (
+           INTENSITY_MEASURES,
+           IntensityMeasure,
+           get_intensity_measure,
+           intensity,
+           response_spectrum,
+)
 from .records import load_records
 from .results import IDAResult
 
-__all__ = ["ida", "ida_from_config", "prepare_building", "scan_collapse", "IDAResult", "IDAConfig",
-           "load_ida_config", "LognormalFragility", "fit_capacities", "fit_counts", "fragility_from_capacities",
-           "fragility_from_exceedance", "INTENSITY_MEASURES", "IntensityMeasure", "get_intensity_measure",
-           "intensity", "response_spectrum", "load_records"]
+__all__ = [
+           "INTENSITY_MEASURES",
+           "IDAConfig",
+           "IDAResult",
+           "IntensityMeasure",
+           "LognormalFragility",
+           "fit_capacities",
+           "fit_counts",
+           "fragility_from_capacities",
+           "fragility_from_exceedance",
+           "get_intensity_measure",
+           "ida",
+           "ida_from_config",
+           "intensity",
+           "load_ida_config",
+           "load_records",
+           "prepare_building",
+           "response_spectrum",
+           "scan_collapse",
+]

@@ -81,8 +81,7 @@ def _peak_displacements(acc, npts, coef, nsub, out):
                     un = c[0, 0] * u + c[0, 1] * v + c[0, 2] * a0 + c[0, 3] * a1
                     v = c[1, 0] * u + c[1, 1] * v + c[1, 2] * a0 + c[1, 3] * a1
                     u = un
-                    if abs(u) > peak:
-                        peak = abs(u)
+                    peak = max(peak, abs(u))
             out[r, j] = peak
 
 

@@ -86,7 +86,7 @@ class IDAConfig:
         for d in self.exceedance_limits or ():
             _positive("exceedance_limits", d, upper=self.drift_limit)
 
-    def replace(self, **changes) -> "IDAConfig":
+    def replace(self, **changes) -> IDAConfig:
         """A copy with the given fields changed (None values are ignored)."""
         return dataclasses.replace(self, **{k: v for k, v in changes.items() if v is not None})
 

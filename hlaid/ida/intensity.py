@@ -24,7 +24,7 @@ from ..motions import GroundMotion
 from ..units import G_MM_S2
 from ._spectrum import response_spectrum
 
-__all__ = ["IntensityMeasure", "INTENSITY_MEASURES", "get_intensity_measure", "intensity", "response_spectrum"]
+__all__ = ["INTENSITY_MEASURES", "IntensityMeasure", "get_intensity_measure", "intensity", "response_spectrum"]
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ def plot_ida_curves(res: IDAResult, *, title: str | None = None):
     xmax = 100 * res.drift_limit * 1.15
     for r in range(res.n_records):
         im, edp = res.curve(r)
-        line, = ax.plot(100 * edp, im, color="0.6", lw=0.7, marker=".", ms=2.5)
+        ax.plot(100 * edp, im, color="0.6", lw=0.7, marker=".", ms=2.5)
         if np.isfinite(res.collapse_im[r]):
             ax.plot([100 * edp[-1], xmax], [res.collapse_im[r]] * 2, color="0.6", lw=0.7, ls="--")
     x = np.linspace(0.0, float(np.nanmax(res.point_im)), 200)[1:]

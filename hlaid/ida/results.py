@@ -20,7 +20,11 @@ import numpy as np
 from .._fileio import atomic_directory, write_json, write_npz
 from ..model import Building
 from ..units import UNITS_JSON
-from .fragility import LognormalFragility, fragility_from_capacities, fragility_from_exceedance
+from .fragility import (
+    LognormalFragility,
+    fragility_from_capacities,
+    fragility_from_exceedance,
+)
 
 FORMAT, VERSION = "hlaid-ida", 1
 FRACTILES = (16, 50, 84)
@@ -276,8 +280,8 @@ class IDAResult:
             write_json(tmp / "summary.json", summary)
             write_npz(tmp / "ida.npz", self.arrays())
             if plots:
-                from .plots import plot_exceedance, plot_fragility, plot_ida_curves
                 from ..plots import save_figure
+                from .plots import plot_exceedance, plot_fragility, plot_ida_curves
                 save_figure(plot_ida_curves(self), tmp / "ida_curves.png")
                 save_figure(plot_fragility(self, n_boot=n_boot, ci=ci, seed=seed), tmp / "fragility.png")
                 save_figure(plot_exceedance(self, n_boot=0), tmp / "exceedance.png")

@@ -71,10 +71,10 @@ class KnownPart:
         """Batched, differentiable module parameters of ``(batch, story)`` story values; the
         Rayleigh damping follows ``k0`` as in :meth:`Building.damping_matrix`."""
         k0 = values["k0"]
-        mass = torch.as_tensor(self.mass, dtype=k0.dtype).expand_as(k0)
+        mass = torch.tensor(self.mass, dtype=k0.dtype).expand_as(k0)
         d = self.damping
         a0, a1 = S.rayleigh_coefficients(k0, mass, d.kind, d.ratio, d.modes)
-        kg = torch.as_tensor(self.kg, dtype=k0.dtype).expand_as(k0)
+        kg = torch.tensor(self.kg, dtype=k0.dtype).expand_as(k0)
         return BuildingTensors(mass=mass, k0=k0, alpha=values["alpha"], p=values["p"], dy=values["dy"],
                                delta_eta=values["delta_eta"], kg=kg, damping=S.damping_matrix(k0, mass, a0, a1))
 
