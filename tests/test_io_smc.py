@@ -116,13 +116,13 @@ def test_channels_on_different_time_axes_are_refused(tmp_path):
 
 
 def test_free_field_and_unknown_levels(tmp_path):
-    (tmp_path / "b.smc").write_text(smc_text(np.zeros(16) + 0.5, label="Basement"))
-    (tmp_path / "r.smc").write_text(smc_text(np.zeros(16) + 0.7, az=270))
-    (tmp_path / "f.smc").write_text(smc_text(np.zeros(16) + 9.0, label="Free field, north"))
+    (tmp_path / "b.smc").write_text(smc_text(np.zeros(16) + 50.0, label="Basement"))
+    (tmp_path / "r.smc").write_text(smc_text(np.zeros(16) + 70.0, az=270))
+    (tmp_path / "f.smc").write_text(smc_text(np.zeros(16) + 900.0, label="Free field, north"))
     m = smc_measurement(tmp_path)
     assert m.extra["levels"] == ["roof"] and m.extra["azimuth"] == 270.0
-    np.testing.assert_allclose(m.ground_acc, -5.0)       # basement at 90 deg is negated
-    (tmp_path / "x.smc").write_text(smc_text(np.zeros(16) + 0.7, label="Parking structure"))
+    np.testing.assert_allclose(m.ground_acc, -500.0)     # basement at 90 deg is negated (cm/s^2 -> mm/s^2)
+    (tmp_path / "x.smc").write_text(smc_text(np.zeros(16) + 70.0, label="Parking structure"))
     with pytest.raises(InputError, match="cannot tell the level"):
         smc_measurement(tmp_path)
 
