@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,7 +26,7 @@ from .identify import IdentifyConfig, identify
 from .identify.replaycheck import corrcoef
 from .io_dispatch import read_measurement_any
 from .measurement import Measurement
-from .model import STORY_FIELDS, Building
+from .model import Building
 from .plots import plot_time_histories, save_figure
 from .synthetic import SimulationConfig, measurement_from_config
 
@@ -148,8 +149,9 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
             _progress.info("[4/4] incremental dynamic analysis of the clone")
             from .ida import ida_from_config
             ir = ida_from_config(res.clone, cfg.ida, base_dir=base_dir)
-            ir.save(tmp / "ida", plots=True)
-            ida_summary = ir.summary()
+            boot = {"n_boot": cfg.ida.bootstrap, "ci": cfg.ida.ci, "seed": cfg.ida.seed}
+            ir.save(tmp / "ida", plots=True, **boot)
+            ida_summary = json.loads((tmp / "ida" / "summary.json").read_text())
             timings["ida"] = time.perf_counter() - t
         timings["total"] = time.perf_counter() - t_all
         summary = {"format": "hlaid-run", "version": 1, "name": cfg.name, "hlaid_version": __version__,
@@ -185,5 +187,4 @@ def run_from_file(path: str | Path, out: str | Path, *, force: bool = False, cac
     return run_pipeline(cfg, out, base_dir=Path(path).parent, force=force, cache_dir=cache_dir)
 
 
-__all__ = ["RunConfig", "MeasurementSource", "load_run_config", "run_pipeline", "run_from_file", "parameter_table",
-           "STORY_FIELDS"]
+__all__ = ["RunConfig", "MeasurementSource", "load_run_config", "run_pipeline", "run_from_file", "parameter_table"]

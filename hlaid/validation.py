@@ -50,6 +50,9 @@ from .simulate import simulate
 KINDS = ("nonlinear", "linear")
 """Clone kinds: the paper's identification, or the labelled linear fallback."""
 
+FALLBACK_FITS = ("k0+damping", "k0", "damping", "none")
+"""What the replay refinement fits of a linear clone (see :func:`linear_clone`)."""
+
 
 # ---------------------------------------------------------------------------- config schema
 @dataclass(frozen=True, kw_only=True)
@@ -89,12 +92,15 @@ class StructureSpec:
         ``"linear"``: the linear clone directly (for data known to be linear, where a yield
         flag of HLA would be an artefact)
     fallback : ``"linear"``: a labelled linear clone when no story yielded; ``"none"``: skip
-    fallback_damping : the linear fallback also fits the Rayleigh damping ratio
+    fallback_fit : what :func:`refine_replay` fits of the linear clone, starting from HLA's k0
+        and the config's damping ratio: ``"k0+damping"``, ``"k0"``, ``"damping"``, or ``"none"``
+        (HLA's k0 as they are)
     compare_band_hz : band [Hz] of the compared displacements and of the HLA of the predicted
         events (null: the HLA band that the identification config gives for each event)
     input_lowpass_hz : low-pass [Hz] of the ground motion the clone is driven by (null: the
         upper corner of the compared band)
     levels : names of the measured levels, bottom to top (null: floor 1, 2, ...)
+    optional : run only when named (``structures=`` / ``--structures``), e.g. a sensitivity variant
     notes : what the data allow, printed with the tables
     """
 
@@ -110,7 +116,8 @@ class StructureSpec:
     mass_ratios: list[float] | None = None
     clone: Literal["auto", "linear"] = "auto"
     fallback: Literal["linear", "none"] = "linear"
-    fallback_damping: bool = True
+    fallback_fit: Literal["k0+damping", "k0", "damping", "none"] = "damping"
+    optional: bool = False
     compare_band_hz: tuple[float, float] | None = None
     input_lowpass_hz: float | None = None
     levels: list[str] | None = None
@@ -218,7 +225,7 @@ class IdentifiedClone:
     clone : the clone as loaded back from its JSON file
     kind : ``"nonlinear"`` (paper's method) or ``"linear"`` (fallback: no story yielded)
     reason : why the fallback was taken ("" for nonlinear clones)
-    path : the clone JSON written
+    path : file name of the clone JSON written
     seconds : wall time of the identification
     """
 
@@ -230,31 +237,53 @@ class IdentifiedClone:
     path: str
     seconds: float
 
+    def identification(self) -> dict:
+        """Per story: identifiable or not, and the SVM test accuracies of the last pass
+        (nonlinear clones only)."""
+        d = self.clone.diagnostics
+        if self.kind != "nonlinear" or "stories" not in d:
+            return {}
+        last = {}
+        for pas in d.get("passes", []):
+            for i, st in enumerate(pas.get("stories", [])):
+                if st:
+                    last[i] = {k: v.get("test_accuracy") for k, v in st.items()}
+        return {"identifiable": [s["identifiable"] for s in d["stories"]],
+                "svm_test_accuracy": [last.get(i) for i in range(len(d["stories"]))],
+                "refine": d.get("refine")}
+
     def summary(self) -> dict:
         b = self.clone.building
         return {"structure": self.structure, "event": self.event, "kind": self.kind, "reason": self.reason,
+                "identification": self.identification(),
                 "mass_normalised": self.clone.mass_normalised, "mass": b.mass.tolist(),
                 **{k: getattr(b, k).tolist() for k in ("k0", "alpha", "p", "dy", "delta_eta")},
                 "damping_ratio": b.damping.ratio, "periods_s": b.periods().tolist(), "path": self.path,
                 "seconds": self.seconds}
 
 
-def linear_clone(meas: Measurement, cfg: IdentifyConfig, *, damping: bool = True, reason: str = "") -> Clone:
-    """A linear (``alpha = 1``) clone: HLA's k0 as the start, refined against the measured
-    accelerations by :func:`refine_replay` on ``k0`` (and the Rayleigh ratio with ``damping``)."""
+def linear_clone(meas: Measurement, cfg: IdentifyConfig, *, fit: str = "k0+damping", reason: str = "") -> Clone:
+    """A linear (``alpha = 1``) clone: HLA's k0 and the config's damping ratio, then fitted to
+    the measured accelerations by :func:`refine_replay` (``fit``: ``"k0+damping"``, ``"k0"``,
+    ``"damping"`` or ``"none"``)."""
     res = hla(meas, cfg.hla)
     n = res.n_stories
     peak = np.array([np.max(np.abs(s.drift)) for s in res.stories])
     b = Building(mass=res.mass, k0=res.k0, alpha=np.ones(n), p=np.full(n, 2.0), dy=np.maximum(1e3 * peak, 1.0),
                  delta_eta=np.zeros(n), height=meas.height, damping=Damping(ratio=cfg.damping_ratio),
                  pdelta=meas.pdelta_active if meas.height is not None else None, name=meas.name)
-    rr = refine_replay(b, meas, parameters=("k0",), damping=damping, band_hz=cfg.refine.band_hz,
-                       max_iterations=cfg.refine.max_iterations)
+    if fit not in FALLBACK_FITS:
+        raise InputError(f"linear clone fit {fit!r}; expected one of {', '.join(FALLBACK_FITS)}")
     diag = {"kind": "linear", "reason": reason, "k0_hla": res.k0.tolist(), "hla_band_hz": list(res.band_hz),
-            "refine": {"parameters": ["k0"] + (["damping"] if damping else []), "cost_initial": rr.cost_initial,
-                       "cost_final": rr.cost_final, "nfev": rr.nfev, "message": rr.message}}
-    prov = {"source": meas.source, "config": config_to_dict(cfg), "method": "linear fallback (refine_replay on k0)"}
-    return Clone(building=rr.building, mass_normalised=res.mass_normalised, diagnostics=diag, provenance=prov)
+            "fit": fit, "refine": None}
+    if fit != "none":
+        rr = refine_replay(b, meas, parameters=("k0",) if fit.startswith("k0") else (), damping="damping" in fit,
+                           band_hz=cfg.refine.band_hz, max_iterations=cfg.refine.max_iterations)
+        b = rr.building
+        diag["refine"] = {"cost_initial": rr.cost_initial, "cost_final": rr.cost_final, "nfev": rr.nfev,
+                          "message": rr.message}
+    prov = {"source": meas.source, "config": config_to_dict(cfg), "method": f"linear clone (HLA k0; fitted: {fit})"}
+    return Clone(building=b, mass_normalised=res.mass_normalised, diagnostics=diag, provenance=prov)
 
 
 def identify_event(spec: StructureSpec, event: str, meas: Measurement, cfg: IdentifyConfig, out_dir: Path,
@@ -275,11 +304,11 @@ def identify_event(spec: StructureSpec, event: str, meas: Measurement, cfg: Iden
             return None
         _progress.info(f"[validate] {spec.name}/{event}: linear clone ({reason})")
         kind = "linear"
-        clone = linear_clone(meas, cfg, damping=spec.fallback_damping, reason=reason)
+        clone = linear_clone(meas, cfg, fit=spec.fallback_fit, reason=reason)
     path = out_dir / f"{spec.name}_{event}.json"
     clone.save(path)
     loaded = Clone.load(path)
-    return IdentifiedClone(structure=spec.name, event=event, clone=loaded, kind=kind, reason=reason, path=str(path),
+    return IdentifiedClone(structure=spec.name, event=event, clone=loaded, kind=kind, reason=reason, path=path.name,
                            seconds=time.perf_counter() - t0)
 
 
@@ -472,7 +501,7 @@ def run_validation(cfg: ValidationConfig, *, clone_dir: str | None = None, struc
         out = Path(clone_dir) if clone_dir else Path(tmp)
         out.mkdir(parents=True, exist_ok=True)
         for spec in cfg.structures:
-            if structures and spec.name not in structures:
+            if (structures and spec.name not in structures) or (not structures and spec.optional):
                 continue
             icfg = identify_config_of(spec, source=cfg.source or "<validation>")
             meas = {}
@@ -496,9 +525,91 @@ def run_validation(cfg: ValidationConfig, *, clone_dir: str | None = None, struc
                     _progress.info(f"[validate] {spec.name}: {src} -> {ev}: R {np.round(p.r, 3)}, "
                                    f"stiffness error {_fmt_pct(_nanmean(p.stiffness_error))}")
     return ValidationResult(clones=clones, predictions=preds, targets=cfg.targets,
-                            notes={s.name: s.notes for s in cfg.structures if not structures or s.name in structures},
+                            notes={s.name: s.notes for s in cfg.structures
+                                   if (s.name in structures if structures else not s.optional)},
                             seconds=time.perf_counter() - t0)
 
 
 def _fmt_pct(x) -> str:
     return "-" if x is None or not np.isfinite(x) else f"{100 * x:.1f} %"
+
+
+# ---------------------------------------------------------------------------- tables
+def _f(x, fmt="{:.3f}") -> str:
+    return "-" if x is None or not np.isfinite(x) else fmt.format(x)
+
+
+def _pct(x) -> str:
+    return "-" if x is None or not np.isfinite(x) else f"{100 * x:+.0f}"
+
+
+def _met(ok: bool | None) -> str:
+    return "-" if ok is None else ("yes" if ok else "**no**")
+
+
+def format_tables(result: ValidationResult) -> str:
+    """Markdown tables of a validation run: clones, predictions per structure, summary (every
+    number, each held against the paper's targets)."""
+    tg = result.targets
+    out = ["### Clones", "",
+           "| structure | identified from | clone | k0 per story [N/mm per unit mass] | alpha | p | dy [mm] | "
+           "delta_eta | damping | f1 [Hz] | time [s] |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for c in result.clones:
+        b = c.clone.building
+        lin = c.kind == "linear"
+
+        def col(name, fmt):
+            return "-" if lin else " / ".join(fmt.format(v) for v in getattr(b, name))
+        out.append(f"| {c.structure} | {c.event} | {'linear (fallback)' if lin else 'nonlinear'} | "
+                   f"{' / '.join(f'{v:.4g}' for v in b.k0)} | {col('alpha', '{:.2f}')} | {col('p', '{:.2f}')} | "
+                   f"{col('dy', '{:.1f}')} | {col('delta_eta', '{:.2f}')} | {b.damping.ratio:.3f} | "
+                   f"{1.0 / b.periods()[0]:.2f} | {c.seconds:.0f} |")
+    reasons = {f"{c.structure}/{c.event}": c.reason for c in result.clones if c.reason}
+    if reasons:
+        out += ["", "Linear clones, why: " + "; ".join(f"{k}: {v}" for k, v in reasons.items()) + "."]
+    for name in dict.fromkeys(p.structure for p in result.predictions):
+        ps = [p for p in result.predictions if p.structure == name]
+        n = ps[0].r.shape[0]
+        rt = tg.r_per_floor if n == len(tg.r_per_floor) else None
+        head = " | ".join(f"R {i + 1}" for i in range(n))
+        out += ["", f"### {name}", "", f"Band {ps[0].band_hz[0]:.3g}-{ps[0].band_hz[1]:.3g} Hz. R per floor"
+                + (f" against the paper's {' / '.join(map(str, rt))}" if rt else "") +
+                f", mean against {tg.r_mean}; stiffness error against {100 * tg.stiffness_error:.1f} %. "
+                "Peak-drift and stiffness errors in % per story.", "",
+                f"| clone from | event | PGA [g] | {head} | R mean | floors met | mean met | R broadband | "
+                "peak drift error | stiffness error | mean | met |",
+                "|---|---|---|" + "---|" * n + "---|---|---|---|---|---|---|---|"]
+        for p in ps:
+            floors = "-" if rt is None else f"{sum(r >= t for r, t in zip(p.r, rt))}/{n}"
+            se = _nanmean(p.stiffness_error)
+            ev = f"{p.event} (self)" if p.self_replay else p.event
+            out.append(f"| {p.identified_from} ({p.kind}) | {ev} | {p.pga_g:.3f} | "
+                       + " | ".join(_f(r) for r in p.r) + f" | {_f(float(np.mean(p.r)))} | {floors} | "
+                       f"{_met(float(np.mean(p.r)) >= tg.r_mean)} | {_f(float(np.mean(p.r_broadband)))} | "
+                       f"{' / '.join(_pct(e) for e in p.peak_drift_error)} | "
+                       f"{' / '.join(_f(100 * e, '{:.1f}') for e in p.stiffness_error)} | {_f(None if se is None else 100 * se, '{:.1f}')} | "
+                       f"{_met(None if se is None else se <= tg.stiffness_error)} |")
+    out += ["", "### Summary (cross-event predictions; self-replays apart)", "",
+            "| structure | clone from | predictions | mean R | worst R | mean R >= " + f"{tg.r_mean} | "
+            "mean R broadband | mean abs peak-drift error | mean stiffness error | <= " +
+            f"{100 * tg.stiffness_error:.1f} % | self-replay R |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for name in dict.fromkeys(p.structure for p in result.predictions):
+        groups = [(src, [p for p in result.predictions if p.structure == name and p.identified_from == src])
+                  for src in dict.fromkeys(p.identified_from for p in result.predictions if p.structure == name)]
+        allc = [p for _, g in groups for p in g if not p.self_replay]
+        rows = groups + ([("all", allc + [p for _, g in groups for p in g if p.self_replay])] if len(groups) > 1 else [])
+        for src, g in rows:
+            cross = [p for p in g if not p.self_replay]
+            own = [p for p in g if p.self_replay]
+            r_self = _f(float(np.mean([np.mean(p.r) for p in own]))) if own else "-"
+            if not cross:
+                out.append(f"| {name} | {src} | 0 | - | - | - | - | - | - | - | {r_self} |")
+                continue
+            r = np.array([p.r for p in cross])
+            se = _nanmean(np.array([p.stiffness_error for p in cross]))
+            pe = float(np.mean(np.abs([p.peak_drift_error for p in cross])))
+            out.append(f"| {name} | {src} | {len(cross)} | {r.mean():.3f} | {r.min():.3f} | "
+                       f"{_met(r.mean() >= tg.r_mean)} | {np.mean([p.r_broadband for p in cross]):.3f} | "
+                       f"{100 * pe:.0f} % | {_f(None if se is None else 100 * se, '{:.1f}')} % | "
+                       f"{_met(None if se is None else se <= tg.stiffness_error)} | {r_self} |")
+    return "\n".join(out) + "\n"

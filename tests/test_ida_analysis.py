@@ -108,7 +108,7 @@ def test_scan_collapse_rules():
 def test_integration_blow_up_is_rerun_not_taken_for_collapse(table1, monkeypatch, kind):
     """A run that comes back from the simulator diverged, or stopped far past the drift limit
     (a jump within one step), is re-run with 4x the steps; only the re-run counts."""
-    import hlaid.ida.analysis as A
+    from hlaid.ida import analysis as A
     real = A.simulate
     calls = []
 

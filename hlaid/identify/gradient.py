@@ -214,12 +214,12 @@ class OutputErrorProblem:
 
 
 def levenberg_marquardt(problem: OutputErrorProblem, theta0: torch.Tensor, k0_ref, dy_ref, *, iterations: int,
-                        tol: float = 1e-9, tb: TBLogger | None = None):
+                        tol: float = 1e-3, tb: TBLogger | None = None):
     """Levenberg-Marquardt (Marquardt's diagonal scaling) on every start of ``theta0``
     ``(start, 5, story)`` at once.
 
-    A start is done when its loss falls by less than ``tol`` (relative) in two accepted steps,
-    or its damping saturates; done starts leave the batch, and the run stops once the best
+    A start is done when three iterations in a row lower its loss by less than ``tol``
+    (relative; a rejected step lowers it by nothing), or its damping saturates; done starts leave the batch, and the run stops once the best
     start is done. Returns the coordinates, the ``(iteration, start)`` loss history and the
     number of Jacobian passes.
     """
@@ -233,7 +233,7 @@ def levenberg_marquardt(problem: OutputErrorProblem, theta0: torch.Tensor, k0_re
     quiet = torch.zeros(B, dtype=torch.long)
     hist, passes = [loss.numpy().copy()], 1
     for it in range(iterations):
-        active = torch.isfinite(loss) & (quiet < 2) & (lam < 1e8)
+        active = torch.isfinite(loss) & (quiet < 3) & (lam < 1e8)
         best = int(torch.argmin(loss))
         if not active[best] or not active.any():
             break
@@ -249,7 +249,7 @@ def levenberg_marquardt(problem: OutputErrorProblem, theta0: torch.Tensor, k0_re
         loss2 = torch.where(torch.as_tensor(ok2), r2.pow(2).mean(dim=1), torch.inf)
         better = loss2 < loss[a]
         change = (loss[a] - loss2) / loss[a].clamp_min(1e-300)
-        quiet[a] = torch.where(better, torch.where(change > tol, 0, quiet[a] + 1), quiet[a])
+        quiet[a] = torch.where(better & (change > tol), 0, quiet[a] + 1)
         acc = a[better]
         theta[acc], r[acc], J[acc], loss[acc] = trial[better], r2[better], J2[better], loss2[better]
         lam[a] = torch.where(better, lam[a] / 3.0, lam[a] * 4.0).clamp(1e-9, 1e9)
@@ -294,7 +294,7 @@ class GradientIdentifier(BaseIdentifier):
     def __init__(self, *, n_candidates: int = 256, n_starts: int = 4, init: str = "hla", max_iterations: int = 30,
                  segment_s: float = 1.0, substeps: int = 1, arias=(0.01, 0.95), band_hz=(0.1, 20.0),
                  damping_ratio: float = 0.05, alpha_range=(0.02, 0.5), p_range=(1.0, 3.0), dy_range=(0.1, 0.6),
-                 delta_eta_range=(0.0, 2.0), k0_spread: float = 0.2, k0_range=(1e3, 1e5), tol: float = 1e-9,
+                 delta_eta_range=(0.0, 2.0), k0_spread: float = 0.2, k0_range=(1e3, 1e5), tol: float = 1e-3,
                  random_state: int = 0, tensorboard: str | None = None):
         self.n_candidates = n_candidates
         self.n_starts = n_starts

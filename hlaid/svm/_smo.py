@@ -27,34 +27,43 @@ problem at once:
 
 Layout
 ------
-All pair problems live in one padded tensor: a pair ``(a, b)`` has
-``L = 2 * Lc`` slots (``Lc`` = largest class size), the first ``Lc`` for the
-samples of class ``a``, the last ``Lc`` for those of class ``b``.  The loop
-works on a packed *working set* ``S`` of shape ``(n_active_pairs, 5, La)``
+Pair problems are padded to ``L = 2 * Lc`` slots (:class:`OvOLayout`).  The
+loop works on a packed *working set* ``S`` of shape ``(n_active_pairs, 5, La)``
 holding ``F``, ``beta``, the ``I_up`` / ``I_low`` penalties (``0`` or
 ``-inf`` / ``+inf``) and the upper bound of the active variables.  Each
-iteration is a fixed number (~60) of tensor operations whatever the number
-of pairs (run under ``torch.inference_mode``; no boolean-mask indexing and no
-host synchronisation inside the loop when the kernel is precomputed).  Every
-``check_every`` iterations the host synchronises once: converged pairs leave
-the working set (once they are at least 1/8 of it; until then they are
-frozen), and with ``shrinking`` the bounded variables that libsvm's rule says
-cannot be selected are dropped (``La`` shrinks).  A pair whose shrunk problem converged gets its gradient
-reconstructed exactly from its support vectors and is re-tested on all its
-variables before it is declared converged, as libsvm does.
+iteration is a fixed number (~40) of small tensor operations whatever the
+number of pairs (run under ``torch.inference_mode``, on one CPU thread; no
+boolean-mask indexing and no host synchronisation inside the loop when the
+kernel is precomputed).  When ``n_active_pairs * La**2`` is small the kernel
+among the working set's variables is materialised, so a kernel row is one
+``gather``.  Every ``check_every`` iterations the host synchronises once:
+converged pairs leave the working set (once they are at least 1/8 of it;
+until then they are frozen), and with ``shrinking`` the bounded variables
+that libsvm's rule says cannot be selected are dropped (``La`` shrinks).  A
+pair whose shrunk problem converged gets its gradient reconstructed exactly
+from its support vectors and is re-tested on all its variables before it is
+declared converged, as libsvm does.
+
+Active-set refinement
+---------------------
+SMO needs thousands of steps on hard problems (heavily overlapping classes,
+large ``C``), most of them spent on the last digits once the free support
+vectors are known.  At a synchronisation point, a pair whose gap is below
+:data:`REFINE_GAP` after at least :data:`REFINE_MIN_STEPS` steps (and an
+eighth of its variable count) is handed to :func:`hlaid.svm._active_set.refine`,
+a batched primal-dual active-set solve (a few Cholesky factorisations of the
+free variables' kernel) that usually lands on the optimum.  A solved pair
+gets its gradient reconstructed and is re-tested on all variables with
+libsvm's rule like any other; a pair the refinement could not solve keeps
+its SMO state and tries again after doubling its step count.
 
 Kernel blocks
 -------------
-Kernel values are cached as blocks ``k(x_r, class c)`` of length ``Lc``
-(one sample against all samples of one class, padded).  The row of sample
-``r`` in pair ``(a, b)`` is the two blocks ``(r, a)`` and ``(r, b)``, so a
-batch of kernel rows for all pairs is a single ``index_select``.  Blocks are
-computed on first use, one GEMM per class for all blocks missing in an
-iteration; up to :data:`FULL_PRECOMPUTE_MAX` samples the whole kernel is
-computed before the loop instead.  The cache holds ``cache_size`` MB; when
-the whole ``n x n`` kernel does not fit at float64 the blocks are stored in
-float32 (gradients stay in the working dtype), and when the cache is full it
-is emptied and refilled on demand.
+See :class:`KernelBlockCache`: blocks ``k(x_r, class c)`` computed on first
+use, or all before the loop up to :data:`FULL_PRECOMPUTE_MAX` samples; when
+the whole ``n x n`` kernel does not fit in ``cache_size`` MB at float64 the
+blocks are stored in float32 (gradients stay in the working dtype), and when
+the cache is full it is emptied and refilled on demand.
 """
 
 from __future__ import annotations
@@ -67,207 +76,25 @@ from types import SimpleNamespace
 import torch
 from sklearn.exceptions import ConvergenceWarning
 
+from ._active_set import refine
 from ._kernels import Kernel
+from ._layout import KernelBlockCache, OvOLayout, compact, kernel_storage
 
-__all__ = ["OvOLayout", "SMOResult", "KernelBlockCache", "smo_ovo"]
+__all__ = ["OvOLayout", "SMOResult", "KernelBlockCache", "one_thread", "smo_ovo"]
 
 #: libsvm's floor for the curvature ``a_ij`` of non-positive-definite pairs.
 TAU = 1e-12
 #: Up to this many samples the whole kernel is computed before the loop.
 FULL_PRECOMPUTE_MAX = 5000
-
-
-@dataclass
-class OvOLayout:
-    """Index bookkeeping for the padded one-vs-one layout.
-
-    Attributes
-    ----------
-    n_classes : int
-    order : LongTensor of shape (n_samples,)
-        Stable sort of the samples by class: sorted position -> original index.
-    counts, starts : LongTensor of shape (n_classes,)
-        Class sizes and first sorted position of each class.
-    Lc : int
-        Largest class size; a pair problem has ``L = 2 * Lc`` slots.
-    pairs : LongTensor of shape (n_pairs, 2)
-        ``(a, b)``, ``a < b``, in libsvm order (0,1), (0,2), ..., (1,2), ...
-    gmap : LongTensor of shape (n_pairs, L)
-        Sorted position of the sample in each slot (0 for padding).
-    valid : BoolTensor of shape (n_pairs, L)
-        False on padding slots.
-    """
-
-    n_classes: int
-    order: torch.Tensor
-    counts: torch.Tensor
-    starts: torch.Tensor
-    Lc: int
-    pairs: torch.Tensor
-    gmap: torch.Tensor
-    valid: torch.Tensor
-
-    @classmethod
-    def build(cls, y: torch.Tensor, n_classes: int) -> "OvOLayout":
-        """Layout for encoded labels ``y`` (values ``0 .. n_classes-1``).
-
-        Parameters
-        ----------
-        y : LongTensor of shape (n_samples,)
-        n_classes : int
-
-        Returns
-        -------
-        OvOLayout
-        """
-        dev = y.device
-        order = torch.argsort(y, stable=True)
-        counts = torch.bincount(y, minlength=n_classes)
-        starts = torch.cumsum(counts, 0) - counts
-        Lc = int(counts.max())
-        pairs = torch.combinations(torch.arange(n_classes, device=dev), 2)
-        pa, pb = pairs[:, 0], pairs[:, 1]
-        k = torch.arange(Lc, device=dev)
-        va = k[None, :] < counts[pa][:, None]
-        vb = k[None, :] < counts[pb][:, None]
-        zero = torch.zeros((), dtype=torch.long, device=dev)
-        ga = torch.where(va, starts[pa][:, None] + k[None, :], zero)
-        gb = torch.where(vb, starts[pb][:, None] + k[None, :], zero)
-        return cls(n_classes=n_classes, order=order, counts=counts, starts=starts, Lc=Lc,
-                   pairs=pairs, gmap=torch.cat([ga, gb], 1), valid=torch.cat([va, vb], 1))
-
-    @property
-    def n_pairs(self) -> int:
-        return self.pairs.shape[0]
-
-    def padded_rows(self, Xs: torch.Tensor) -> torch.Tensor:
-        """Sorted samples scattered into class-padded order.
-
-        Parameters
-        ----------
-        Xs : Tensor of shape (n_samples, n_features)
-            Samples in sorted (by class) order.
-
-        Returns
-        -------
-        Tensor of shape (n_classes * Lc, n_features)
-            Row ``c * Lc + k`` is the ``k``-th sample of class ``c``; padding
-            rows are zero.
-        """
-        m, Lc = self.n_classes, self.Lc
-        out = Xs.new_zeros(m * Lc, Xs.shape[1])
-        cls_of = torch.repeat_interleave(torch.arange(m, device=Xs.device), self.counts)
-        pos = torch.arange(Xs.shape[0], device=Xs.device) - self.starts[cls_of]
-        out[cls_of * Lc + pos] = Xs
-        return out
-
-
-class KernelBlockCache:
-    """Cache of kernel blocks ``k(x_r, samples of class c)`` (length ``Lc``).
-
-    Parameters
-    ----------
-    kernel : Kernel
-    Xs : Tensor of shape (n_samples, n_features)
-        Training samples sorted by class.
-    layout : OvOLayout
-    storage_dtype : torch.dtype
-        dtype of the stored blocks.
-    capacity : int
-        Number of block slots (at most ``n_samples * n_classes``).
-    precompute : bool
-        Compute every block at construction (needs full capacity); block
-        ``(r, c)`` then lives in slot ``r * n_classes + c``.
-
-    Attributes
-    ----------
-    flat : Tensor of shape (capacity, Lc)
-        Block storage.
-    n_computed : int
-        Blocks computed so far (misses, refills included).
-    """
-
-    def __init__(self, kernel: Kernel, Xs: torch.Tensor, layout: OvOLayout,
-                 storage_dtype: torch.dtype, capacity: int, precompute: bool = False) -> None:
-        n = Xs.shape[0]
-        m, Lc = layout.n_classes, layout.Lc
-        self.m, self.Lc, self.n = m, Lc, n
-        self.kernel = kernel
-        dev = Xs.device
-        Xc = Xs.to(storage_dtype)
-        self._left = kernel.prepare_left(Xc)
-        self._right = kernel.prepare(layout.padded_rows(Xc))    # (m * Lc, d')
-        self.capacity = max(1, min(int(capacity), n * m))
-        self.n_computed = 0
-        self.n_flushes = 0
-        self.identity = bool(precompute)
-        if precompute:
-            if self.capacity < n * m:
-                raise ValueError("precompute needs capacity >= n_samples * n_classes")
-            rows = torch.empty(n, m * Lc, dtype=storage_dtype, device=dev)
-            step = max(1, (1 << 22) // (m * Lc))
-            for s in range(0, n, step):
-                kernel(self._left[s:s + step], self._right, prepared=True,
-                       out=rows[s:s + step])
-            self.flat = rows.view(n * m, Lc)
-            self.n_computed = n * m
-            self.used = n * m
-        else:
-            self.flat = torch.empty(self.capacity, Lc, dtype=storage_dtype, device=dev)
-            self.slot_of = torch.full((n * m,), -1, dtype=torch.long, device=dev)
-            self.used = 0
-
-    def index(self, r: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
-        """Slots of blocks ``(r, c)``, computing the missing ones.
-
-        Parameters
-        ----------
-        r : LongTensor
-            Sorted sample positions.
-        c : LongTensor
-            Classes, broadcastable with ``r``.
-
-        Returns
-        -------
-        LongTensor of the broadcast shape
-            Row indices into :attr:`flat`.
-        """
-        key = torch.add(c, r, alpha=self.m)
-        if self.identity:
-            return key
-        s = self.slot_of[key]
-        miss = s < 0
-        if bool(miss.any()):
-            need = torch.unique(key[miss])
-            if self.used + need.shape[0] > self.capacity:
-                # full: empty the cache, then compute everything needed now
-                self.slot_of.fill_(-1)
-                self.used = 0
-                self.n_flushes += 1
-                need = torch.unique(key)
-                if need.shape[0] > self.capacity:
-                    raise MemoryError("cache_size too small for one iteration's kernel rows")
-            self._compute(need)
-            s = self.slot_of[key]
-        return s
-
-    def _compute(self, keys: torch.Tensor) -> None:
-        """Compute distinct missing blocks ``keys = r * m + c`` into fresh slots."""
-        m, Lc = self.m, self.Lc
-        cls = keys % m
-        order = torch.argsort(cls, stable=True)
-        keys, cls = keys[order], cls[order]
-        present, counts = torch.unique_consecutive(cls, return_counts=True)
-        s0 = 0
-        for c, k in zip(present.tolist(), counts.tolist()):
-            kk = keys[s0:s0 + k]
-            out = self.flat[self.used:self.used + k]
-            self.kernel(self._left[kk // m], self._right[c * Lc:(c + 1) * Lc],
-                        prepared=True, out=out)
-            self.slot_of[kk] = torch.arange(self.used, self.used + k, device=keys.device)
-            self.used += k
-            s0 += k
-        self.n_computed += keys.shape[0]
+#: The working set's kernel ``(n_active_pairs, La, La)`` is materialised up
+#: to this many values.
+WS_KERNEL_MAX = 1 << 21
+#: Active-set refinement: gap below which a pair is tried ...
+REFINE_GAP = 0.5
+#: ... after at least this many SMO steps (and ``n_variables / 8``).
+REFINE_MIN_STEPS = 64
+#: Kernel values per refinement batch (pairs beyond wait for the next sync).
+REFINE_MAX_ELEMENTS = 1 << 23
 
 
 @dataclass
@@ -283,7 +110,7 @@ class SMOResult:
     objective : Tensor of shape (n_pairs,)
         Dual objective ``1/2 beta^T K beta - y^T beta`` (libsvm's ``obj``).
     n_iter : LongTensor of shape (n_pairs,)
-        SMO steps taken per pair.
+        SMO steps plus active-set iterations taken per pair.
     gap : Tensor of shape (n_pairs,)
         Final maximal violation ``m - M`` on all variables.
     converged : bool
@@ -297,6 +124,9 @@ class SMOResult:
     n_loops : int
         Iterations of the batched loop (the largest ``n_iter`` plus the
         iterations spent at synchronisation points).
+    n_refined : int
+        Pair problems finished by the active-set refinement (see
+        :mod:`hlaid.svm._active_set`).
     """
 
     beta: torch.Tensor
@@ -309,41 +139,7 @@ class SMOResult:
     n_cache_flushes: int
     kernel_storage: torch.dtype
     n_loops: int
-
-
-def _kernel_storage(n: int, m: int, Lc: int, dtype: torch.dtype,
-                    cache_size_mb: float) -> tuple[torch.dtype, int]:
-    """Storage dtype and block capacity for the cache (see module docstring).
-
-    The capacity is at least ``2 m^2`` blocks (two rows for every pair), whatever
-    ``cache_size``.
-    """
-    budget = float(cache_size_mb) * 2**20
-    store = dtype
-    if dtype == torch.float64 and n * m * Lc * 8 > budget:
-        store = torch.float32
-    itemsize = torch.empty((), dtype=store).element_size()
-    cap = int(budget // max(1, Lc * itemsize))
-    return store, min(n * m, max(2 * m * m, cap))
-
-
-def _compact(keep: torch.Tensor) -> torch.Tensor:
-    """Per row, the column indices with ``keep`` first, then the others (stable).
-
-    Parameters
-    ----------
-    keep : BoolTensor of shape (R, L)
-
-    Returns
-    -------
-    LongTensor of shape (R, L), a permutation of ``0 .. L-1`` on every row.
-    """
-    L = keep.shape[1]
-    ar = torch.arange(L, device=keep.device)
-    ck = keep.long().cumsum(1)
-    cnt = ck[:, -1:]
-    pos = torch.where(keep, ck - 1, cnt + ar - ck)
-    return torch.empty_like(pos).scatter_(1, pos, ar.expand_as(pos))
+    n_refined: int = 0
 
 
 def _reconstruct(F_full: torch.Tensor, beta_full: torch.Tensor, y_pair: torch.Tensor,
@@ -360,7 +156,7 @@ def _reconstruct(F_full: torch.Tensor, beta_full: torch.Tensor, y_pair: torch.Te
     smax = int(nz.sum(1).max())
     acc = torch.zeros_like(beta)
     if smax > 0:
-        order = _compact(nz)[:, :smax]                   # support vectors first
+        order = compact(nz)[:, :smax]                   # support vectors first
         bsv = beta.gather(1, order)                      # zero beyond the SV count
         gsv = layout.gmap.index_select(0, pidx).gather(1, order)
         cls = layout.pairs.index_select(0, pidx)[:, None, :]     # (R, 1, 2)
@@ -373,10 +169,13 @@ def _reconstruct(F_full: torch.Tensor, beta_full: torch.Tensor, y_pair: torch.Te
     F_full.index_copy_(0, pidx, y_pair.index_select(0, pidx) - acc)
 
 
+
+
 def smo_ovo(X: torch.Tensor, y: torch.Tensor, n_classes: int, *, kernel: Kernel,
             C: float, tol: float = 1e-3, max_iter: int = -1, shrinking: bool = True,
             cache_size: float = 1024.0, check_every: int = 16,
-            layout: OvOLayout | None = None) -> tuple[SMOResult, OvOLayout]:
+            layout: OvOLayout | None = None, refine_active_set: bool = True,
+            ) -> tuple[SMOResult, OvOLayout]:
     """Train all ``n_classes (n_classes - 1) / 2`` one-vs-one C-SVCs together.
 
     Parameters
@@ -403,41 +202,117 @@ def smo_ovo(X: torch.Tensor, y: torch.Tensor, n_classes: int, *, kernel: Kernel,
         Memory for kernel blocks, in MB.
     check_every : int
         Iterations between host synchronisations (stop test, dropping
-        converged pairs, shrinking).
+        converged pairs, shrinking, active-set refinement).
     layout : OvOLayout, optional
         Precomputed layout for ``y``.
+    refine_active_set : bool
+        Hand pairs close to their optimum to the active-set refinement (see
+        the module docstring); False gives plain SMO.
 
     Returns
     -------
     result : SMOResult
     layout : OvOLayout
+
+    Notes
+    -----
+    On the CPU the solve runs on one torch thread (see :class:`one_thread`);
+    torch's setting is restored on return.
     """
     if layout is None:
         layout = OvOLayout.build(y, n_classes)
     with torch.inference_mode():
         res = _solve(X, layout, kernel=kernel, C=float(C), tol=float(tol), max_iter=max_iter,
                      shrinking=bool(shrinking), cache_size=float(cache_size),
-                     check_every=max(1, int(check_every)))
+                     check_every=max(1, int(check_every)), refine_on=bool(refine_active_set))
+    if not res.converged:
+        cap_iter = max(10_000_000, 200 * layout.Lc) if max_iter is None or max_iter < 0 \
+            else int(max_iter)
+        warnings.warn(
+            f"SMO stopped on the iteration cap ({cap_iter}) before reaching "
+            f"tol={tol} on {int((res.gap >= tol).sum())} of {layout.n_pairs} pair problems; "
+            "consider a larger max_iter, a larger tol or scaling the data.",
+            ConvergenceWarning, stacklevel=4)     # smo_ovo <- KernelSVC._fit <- fit <- caller
     # plain tensors (not inference tensors) for the caller
     for name in ("beta", "rho", "objective", "n_iter", "gap"):
         setattr(res, name, getattr(res, name).clone())
     return res, layout
 
 
+class _Among:
+    """Kernel among given samples, computed directly (one batched GEMM).
+
+    Parameters
+    ----------
+    kernel : Kernel
+    Xs : Tensor of shape (n_samples, n_features)
+        Samples sorted by class, in the working dtype.
+    """
+
+    def __init__(self, kernel: Kernel, Xs: torch.Tensor) -> None:
+        self.kernel = kernel
+        self.left = kernel.prepare_left(Xs)
+        self.right = kernel.prepare(Xs)
+
+    def __call__(self, g: torch.Tensor) -> torch.Tensor:
+        """Kernel blocks ``K[r, s, t] = k(x_g[r, s], x_g[r, t])``: (R, k) -> (R, k, k)."""
+        return self.kernel._finish(torch.bmm(self.left[g], self.right[g].transpose(1, 2)))
+
+
+class one_thread:
+    """Context manager: one torch thread on the CPU, restored on exit.
+
+    The solver is a long chain of small operations: a second OpenMP thread
+    only adds synchronisation, and on a busy machine every parallel region
+    can stall on a descheduled thread (measured: 10-20x slower fits with two
+    threads on a loaded 2-core machine, see ``docs/svm.md``).
+
+    Parameters
+    ----------
+    device : torch.device
+        Only the CPU is affected.
+    """
+
+    def __init__(self, device: torch.device) -> None:
+        self.active = device.type == "cpu"
+        self.saved = torch.get_num_threads()
+
+    def __enter__(self) -> None:
+        if self.active and self.saved != 1:
+            torch.set_num_threads(1)
+
+    def __exit__(self, *exc) -> None:
+        if self.active and torch.get_num_threads() != self.saved:
+            torch.set_num_threads(self.saved)
+
+
 def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol: float,
            max_iter: int | None, shrinking: bool, cache_size: float,
-           check_every: int) -> SMOResult:
+           check_every: int, refine_on: bool) -> SMOResult:
     dev, dt = X.device, X.dtype
     n = X.shape[0]
     m, Lc, P = layout.n_classes, layout.Lc, layout.n_pairs
     L = 2 * Lc
     Xs = X[layout.order]
-    store, cap = _kernel_storage(n, m, Lc, dt, cache_size)
-    cache = KernelBlockCache(kernel, Xs, layout, store, cap,
-                             precompute=(cap >= n * m and n <= FULL_PRECOMPUTE_MAX))
+    store, cap = kernel_storage(n, m, Lc, dt, cache_size)
+    with one_thread(dev):
+        cache = KernelBlockCache(kernel, Xs, layout, store, cap,
+                                 precompute=(cap >= n * m and n <= FULL_PRECOMPUTE_MAX))
+        return _loop(layout, cache, kernel=kernel, Xs=Xs, C=C, tol=tol, max_iter=max_iter,
+                     shrinking=shrinking, check_every=check_every, refine_on=refine_on)
+
+
+def _loop(layout: OvOLayout, cache: KernelBlockCache, *, kernel: Kernel, Xs: torch.Tensor,
+          C: float, tol: float, max_iter: int | None, shrinking: bool, check_every: int,
+          refine_on: bool) -> SMOResult:
+    dev, dt = Xs.device, Xs.dtype
+    m, Lc, P = layout.n_classes, layout.Lc, layout.n_pairs
+    L = 2 * Lc
+    store = cache.flat.dtype
     convert = store != dt
     const_diag = kernel.constant_diag
     kd_full = None if const_diag else kernel.diag(Xs).to(dt)[layout.gmap]
+    among = _Among(kernel, Xs)
 
     inf = math.inf
     valid = layout.valid
@@ -456,6 +331,8 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
     niter_all = torch.zeros(P, dtype=torch.long, device=dev)
     gap_all = torch.full((P,), inf, dtype=dt, device=dev)
     cap_iter = max(10_000_000, 100 * L) if max_iter is None or max_iter < 0 else int(max_iter)
+    refine_at = torch.clamp_min(nvalid // 8, REFINE_MIN_STEPS)
+    n_refined = 0
 
     sgn = torch.tensor([1.0, -1.0], dtype=dt, device=dev)
     first = torch.tensor([[True, False]], device=dev)
@@ -472,8 +349,9 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
         """Working set of pairs ``pidx`` with variables ``keep`` (full layout)."""
         cnt = keep.sum(1)
         La = max(1, int(cnt.max()))
-        sel = _compact(keep)[:, :La]               # kept variables first, in order
+        sel = compact(keep)[:, :La]                # kept variables first, in order
         wvalid = torch.arange(La, device=dev)[None, :] < cnt[:, None]
+
         def rows_of(full: torch.Tensor) -> torch.Tensor:
             return full.index_select(0, pidx).gather(1, sel)
 
@@ -486,7 +364,10 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
         w.gA = rows_of(layout.gmap)
         w.cls = layout.pairs.index_select(0, pidx)
         w.Pa, w.La = pidx.shape[0], La
-        w.ident = La == L and bool((sel == arangeL).all())
+        w.prefix = bool((sel == arangeL[:La]).all())       # columns 0 .. La-1: no gather
+        w.K = None
+        if w.Pa * La * La <= WS_KERNEL_MAX:        # kernel among the working set's variables
+            w.K = among(w.gA)
 
     def writeback(gap: torch.Tensor) -> None:
         # Padding columns of the working set hold distinct, never-selected
@@ -497,6 +378,47 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
         niter_all.index_copy_(0, w.idx, niter.squeeze(1))
         gap_all.index_copy_(0, w.idx, gap.squeeze(1))
 
+    def refine_ripe(act: torch.Tensor, gap: torch.Tensor, mval: torch.Tensor) -> torch.Tensor:
+        """Active-set refinement of the ripe pairs; returns the solved ones (Pa,)."""
+        solved = torch.zeros(w.Pa, dtype=torch.bool, device=dev)
+        ripe = act.squeeze(1) & (gap.squeeze(1) < REFINE_GAP) & (
+            niter.squeeze(1) >= refine_at.index_select(0, w.idx))
+        if not bool(ripe.any()):
+            return solved
+        rl = ripe.nonzero().squeeze(1)
+        Sr = w.S.index_select(0, rl)
+        Fr, br, pur, plr, hr = Sr.unbind(1)
+        # candidates: the variables libsvm's shrinking would keep (free, or
+        # bounded inside [M, m]); the others stay fixed on their bound
+        mv, gp = mval.index_select(0, rl), gap.index_select(0, rl)
+        cand = w.wvalid.index_select(0, rl) & ~(((pur == -inf) & (Fr > mv))
+                                                 | ((plr == inf) & (Fr < mv - gp)))
+        nc = cand.sum(1)
+        R = max(1, min(rl.shape[0], REFINE_MAX_ELEMENTS // max(1, int(nc.max()) ** 2)))
+        rl, cand, nc, Sr = rl[:R], cand[:R], nc[:R], Sr[:R]
+        Nc = max(1, int(nc.max()))
+        cord = compact(cand)[:, :Nc]
+        cv = torch.arange(Nc, device=dev)[None, :] < nc[:, None]
+        if w.K is not None:
+            Kr = w.K.index_select(0, rl).gather(1, cord[:, :, None].expand(R, Nc, w.La)).gather(
+                2, cord[:, None, :].expand(R, Nc, Nc))
+        else:
+            Kr = among(w.gA.index_select(0, rl).gather(1, cord))
+        Fc, bc, hc = (Sr[:, k].gather(1, cord) for k in (0, 1, 4))
+        Fn, bn, ok, its = refine(Fc, bc, hc, hc - C, cv, Kr, tol=tol)
+        Sr[:, 0].scatter_(1, cord, Fn)      # F elsewhere: reconstructed before any use
+        Sr[:, 1].scatter_(1, cord, bn)
+        Sr[:, 2].scatter_(1, cord, torch.where(cv & (bn < hc), zero_t, ninf_t))
+        Sr[:, 3].scatter_(1, cord, torch.where(cv & (bn > hc - C), zero_t, pinf_t))
+        w.S.index_copy_(0, rl, Sr)
+        niter.index_add_(0, rl, its[:, None])
+        # a failed pair tries again once it has doubled its step count
+        pf = w.idx.index_select(0, rl)
+        refine_at.index_copy_(0, pf, torch.where(ok, refine_at.index_select(0, pf),
+                                                 2 * niter.index_select(0, rl).squeeze(1)))
+        solved[rl] = ok
+        return solved
+
     pack(torch.arange(P, device=dev), valid)
     niter = niter_all.clone()[:, None]
     it = 0
@@ -504,18 +426,27 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
     next_sync = 0
     while True:
         # ---- (re)bind the working set -------------------------------------
-        S, Pa, loc, gA, cls, kd = w.S, w.Pa, w.loc, w.gA, w.cls, w.kd
+        S, Pa, La, loc, gA, cls, kd, Kw = w.S, w.Pa, w.La, w.loc, w.gA, w.cls, w.kd, w.K
         F, pu, pl = S[:, 0], S[:, 2], S[:, 3]
-        gather_cols = not w.ident
+        prefix = w.prefix
         index = cache.index
         exp5 = (Pa, 5, 2)
         exp3 = (Pa, 3, 2)
+        expK = (Pa, 1, La)
         S13 = S[:, 1:4]
+
+        def row(c: torch.Tensor) -> torch.Tensor:
+            """Kernel rows (Pa, La) of the working-set columns ``c`` (Pa, 1)."""
+            if Kw is not None:
+                return Kw.gather(1, c[:, :, None].expand(expK)).view(Pa, La)
+            r = flat.index_select(0, index(gA.gather(1, c), cls).view(-1)).view(Pa, L)
+            r = r[:, :La] if prefix else r.gather(1, loc)
+            return r.to(dt) if convert else r
+
         while True:
             loops += 1
             Fu = torch.add(F, pu)
-            i = Fu.argmax(1, keepdim=True)
-            mval = Fu.gather(1, i)
+            mval, i = Fu.max(1, keepdim=True)
             b = torch.sub(mval, F).sub_(pl)                   # m - F on I_low, else -inf
             gap = b.amax(1, keepdim=True)
             act = gap >= tol
@@ -523,17 +454,13 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
                 break                                         # host synchronisation below
             niter += act
             # ---- working-set selection (second order) ---------------------
-            Ki = flat.index_select(0, index(gA.gather(1, i), cls).view(-1)).view(Pa, L)
-            if gather_cols:
-                Ki = Ki.gather(1, loc)
-            if convert:
-                Ki = Ki.to(dt)
+            Ki = row(i)
             if const_diag:
                 a = torch.rsub(Ki, one_tau).clamp_min_(TAU)    # a_ij / 2 > 0
             else:
                 kdi = kd.gather(1, i)
                 a = torch.add(kd, Ki, alpha=-2.0).add_(kdi + TAU).clamp_min_(TAU)
-            j = b.clamp_min_(0.0).square_().div_(a).argmax(1, keepdim=True)
+            j = b.clamp_min_(0.0).square_().div_(a).max(1, keepdim=True)[1]
             # ---- analytic two-variable step -------------------------------
             ij = torch.cat([i, j], 1)
             G = S.gather(2, ij[:, None, :].expand(exp5))       # (F, beta, pu, pl, hi) at i, j
@@ -553,19 +480,24 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
             S13.scatter_(2, ij[:, None, :].expand(exp3),
                          torch.stack([newb, torch.where(newb < hij, zero_t, ninf_t),
                                       torch.where(newb > lij, zero_t, pinf_t)], 1))
-            Kj = flat.index_select(0, index(gA.gather(1, j), cls).view(-1)).view(Pa, L)
-            if gather_cols:
-                Kj = Kj.gather(1, loc)
-            F.addcmul_(Ki, d[:, :1], value=-1.0).addcmul_(Kj.to(dt) if convert else Kj,
-                                                           d[:, 1:], value=-1.0)
+            F.addcmul_(Ki, d[:, :1], value=-1.0).addcmul_(row(j), d[:, 1:], value=-1.0)
             it += 1
 
         # ---- host synchronisation: stop test, converged pairs, shrinking ---
         stop = it >= cap_iter
+        refined = refine_ripe(act, gap, mval) if refine_on and not stop else None
+        if refined is not None:
+            act = act & ~refined[:, None]
+            n_ref = int(refined.sum())
+            n_refined += n_ref
+        else:
+            n_ref = 0
         conv = ~act.squeeze(1)
         full = w.cnt == nvalid.index_select(0, w.idx)
         done = conv & full
-        recon = conv & ~full
+        if n_ref:
+            done &= ~refined                       # refined pairs are re-checked exactly
+        recon = conv & ~done
         n_done, n_recon = int(done.sum()), int(recon.sum())
         keep_w = w.wvalid
         shrink_gain = False
@@ -577,7 +509,7 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
         next_sync = it + check_every
         # converged pairs stay frozen in the working set until enough of them
         # (1/8 of the active pairs) are there to make a repack worth its cost
-        if not (stop or n_done == Pa or n_done + n_recon > Pa // 8 or shrink_gain):
+        if not (stop or n_done == Pa or n_done + n_recon > Pa // 8 or shrink_gain or n_ref):
             continue                                # same working set, go on stepping
         writeback(gap)
         if stop or n_done == Pa:
@@ -618,12 +550,6 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
     gap_all = (torch.where(up, F_full, ninf_t).amax(1)
                - torch.where(low, F_full, pinf_t).amin(1))
     converged = bool((gap_all < tol).all())
-    if not converged:
-        warnings.warn(
-            f"SMO stopped on the iteration cap ({cap_iter}) before reaching "
-            f"tol={tol} on {int((gap_all >= tol).sum())} of {P} pair problems; "
-            "consider a larger max_iter, a larger tol or scaling the data.",
-            ConvergenceWarning, stacklevel=4)
 
     # ---- intercept (libsvm calculate_rho) and objective -----------------
     at_hi = valid & (beta_full >= hi_full)
@@ -638,4 +564,5 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
     objective = -0.5 * (beta_full * (F_full + y_pair)).sum(1)
     return SMOResult(beta=beta_full, rho=rho, objective=objective, n_iter=niter_all,
                      gap=gap_all, converged=converged, n_kernel_blocks=cache.n_computed,
-                     n_cache_flushes=cache.n_flushes, kernel_storage=store, n_loops=loops)
+                     n_cache_flushes=cache.n_flushes, kernel_storage=store, n_loops=loops,
+                     n_refined=n_refined)

@@ -16,7 +16,7 @@ from .._fileio import atomic_write
 from ..errors import InputError
 from ._ddag import PairwiseMachines, ovr_decision, resolve_multiclass
 from ._kernels import KERNELS, make_kernel, resolve_gamma
-from ._smo import smo_ovo
+from ._smo import one_thread, smo_ovo
 
 try:  # scikit-learn >= 1.6
     from sklearn.utils.validation import validate_data as _validate_data
@@ -199,6 +199,10 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         self._check_params()
         dtype = _resolve_dtype(self.dtype)
         device = self._resolve_device(X)
+        with one_thread(device):
+            return self._fit(X, y, dtype, device)
+
+    def _fit(self, X: Any, y: Any, dtype: torch.dtype, device: torch.device) -> "KernelSVC":
         X, y = _validate_data(self, _to_numpy(X), _to_numpy(y), dtype=np.float64,
                               order="C", y_numeric=False)
         y = column_or_1d(y, warn=True)
