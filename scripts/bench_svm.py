@@ -1,17 +1,24 @@
 #!/usr/bin/env python
 """Benchmark :class:`hlaid.svm.KernelSVC` against :class:`sklearn.svm.SVC`.
 
-Synthetic problem: ``make_classification`` with 15 classes and 20 features
+Default (issue 4): ``make_classification`` with 15 classes and 20 features
 (15 informative, 2 redundant, one cluster per class, ``class_sep=2.0``,
 ``random_state=0``); the first ``n`` samples train, the next ``--n-test``
 (default 2000) are the held-out set.  Both libraries get the same ``C`` and
 ``gamma="scale"``, float64.  Times are the best of ``--repeat`` runs, after
 one warm-up fit; both libraries run in the same process, one after the other.
 
+``--pipeline``: problems like the identification pipeline's training sets:
+11 features in ``[-0.2, 1.2]``, 12 classes whose centres lie along a smooth
+curve, Gaussian noise (``--noise``, default 0.2) so that the classes overlap
+heavily (held-out accuracy about 40 %), ``C = 10``, ``gamma="scale"``; one
+table row per size and seed, then the mean and worst fit ratio.
+
 Usage::
 
     python scripts/bench_svm.py                       # 1500, 5000, 15000 samples
     python scripts/bench_svm.py --sizes 1500 --repeat 5
+    python scripts/bench_svm.py --pipeline            # 1500 and 3000 samples, seeds 0 1 2
     python scripts/bench_svm.py --parity              # parity table (tests' datasets)
 """
 
@@ -19,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from functools import partial
 
 import numpy as np
 import torch
@@ -45,6 +53,51 @@ def make_problem(n_train: int, n_test: int, n_classes: int, n_features: int, see
     return X[:n_train], y[:n_train], X[n_train:], y[n_train:]
 
 
+def pipeline_problem(n_train: int, n_test: int, seed: int, noise: float = 0.2,
+                     n_classes: int = 12, n_features: int = 11):
+    """Heavily overlapping classes like the pipeline's: centres along a curve plus noise."""
+    rng = np.random.default_rng(seed)
+    s = np.linspace(0.0, 1.0, n_classes)
+    phase = rng.uniform(0.0, 2.0 * np.pi, n_features)
+    freq = rng.uniform(0.5, 1.5, n_features)
+    centres = 0.5 + 0.35 * np.sin(np.pi * freq[None] * s[:, None] + phase[None])
+    y = rng.integers(0, n_classes, n_train + n_test)
+    X = np.clip(centres[y] + noise * rng.standard_normal((y.size, n_features)), -0.2, 1.2)
+    return X[:n_train], y[:n_train], X[n_train:], y[n_train:]
+
+
+def pipeline(args) -> None:
+    """Fit/predict times on pipeline-like problems, several seeds."""
+    dev = args.device
+    Xw, yw, _, _ = pipeline_problem(300, 10, 0, args.noise)
+    KernelSVC(C=10.0, device=dev).fit(Xw, yw)
+    SVC(C=10.0).fit(Xw, yw)
+    print(f"# pipeline-like: 12 classes, 11 features, noise {args.noise}, C=10, gamma='scale', "
+          f"held-out set {args.n_test} samples, best of {args.repeat}; torch {torch.__version__} "
+          f"({torch.get_num_threads()} threads, device {dev or 'cpu'})")
+    head = ("| n | seed | fit hlaid [s] | fit sklearn [s] | fit ratio | predict hlaid ddag [s] | "
+            "predict sklearn [s] | acc hlaid ddag | acc sklearn | ovo = sklearn | n_SV hlaid / sklearn |")
+    print(head)
+    print("|" + "---|" * (head.count("|") - 1))
+    ratios = {}
+    for n in args.sizes:
+        for seed in args.seeds:
+            Xtr, ytr, Xte, yte = pipeline_problem(n, args.n_test, seed, args.noise)
+            t_fit, me = best_time(partial(KernelSVC(C=10.0, device=dev).fit, Xtr, ytr), args.repeat)
+            t_sk, sk = best_time(partial(SVC(C=10.0).fit, Xtr, ytr), args.repeat)
+            t_dd, p_dd = best_time(partial(me.predict, Xte), args.repeat)
+            t_psk, p_sk = best_time(partial(sk.predict, Xte), args.repeat)
+            p_ovo = me.set_params(multiclass="ovo").predict(Xte)
+            ratios.setdefault(n, []).append(t_fit / t_sk)
+            print(f"| {n} | {seed} | {t_fit:.3f} | {t_sk:.3f} | {t_fit / t_sk:.2f} | {t_dd:.4f} | "
+                  f"{t_psk:.4f} | {np.mean(p_dd == yte):.4f} | {np.mean(p_sk == yte):.4f} | "
+                  f"{np.mean(p_ovo == p_sk):.4f} | {me.support_.size} / {sk.support_.size} |",
+                  flush=True)
+    for n, r in ratios.items():
+        print(f"# n={n}: fit ratio mean {np.mean(r):.2f}, worst {np.max(r):.2f} "
+              f"over seeds {list(args.seeds)}")
+
+
 def bench(args) -> None:
     dev = args.device
     # warm-up (first torch calls, allocator)
@@ -61,13 +114,13 @@ def bench(args) -> None:
     print("|" + "---|" * (head.count("|") - 1))
     for n in args.sizes:
         Xtr, ytr, Xte, yte = make_problem(n, args.n_test, args.classes, args.features)
-        t_fit, me = best_time(lambda: KernelSVC(C=args.C, device=dev).fit(Xtr, ytr), args.repeat)
-        t_sk, sk = best_time(lambda: SVC(C=args.C).fit(Xtr, ytr), args.repeat)
+        t_fit, me = best_time(partial(KernelSVC(C=args.C, device=dev).fit, Xtr, ytr), args.repeat)
+        t_sk, sk = best_time(partial(SVC(C=args.C).fit, Xtr, ytr), args.repeat)
         me.set_params(multiclass="ddag")
-        t_dd, p_dd = best_time(lambda: me.predict(Xte), args.repeat)
+        t_dd, p_dd = best_time(partial(me.predict, Xte), args.repeat)
         me.set_params(multiclass="ovo")
-        t_ovo, p_ovo = best_time(lambda: me.predict(Xte), args.repeat)
-        t_psk, p_sk = best_time(lambda: sk.predict(Xte), args.repeat)
+        t_ovo, p_ovo = best_time(partial(me.predict, Xte), args.repeat)
+        t_psk, p_sk = best_time(partial(sk.predict, Xte), args.repeat)
         acc = [np.mean(p == yte) for p in (p_dd, p_ovo, p_sk)]
         print(f"| {n} | {t_fit:.3f} | {t_sk:.3f} | {t_fit / t_sk:.2f} | {t_dd:.4f} | "
               f"{t_ovo:.4f} | {t_psk:.4f} | {t_dd / t_psk:.2f} | {acc[0]:.4f} | {acc[1]:.4f} | "
@@ -76,8 +129,13 @@ def bench(args) -> None:
 
 def parity(args) -> None:
     """Parity figures on the datasets of tests/test_svm_parity.py."""
-    from sklearn.datasets import (load_breast_cancer, load_digits, load_iris, load_wine,
-                                  make_moons)
+    from sklearn.datasets import (
+        load_breast_cancer,
+        load_digits,
+        load_iris,
+        load_wine,
+        make_moons,
+    )
     from sklearn.metrics.pairwise import rbf_kernel
     from sklearn.model_selection import train_test_split
     from sklearn.preprocessing import StandardScaler
@@ -147,8 +205,14 @@ def parity(args) -> None:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--sizes", type=int, nargs="+", default=[1500, 5000, 15000],
-                    help="training set sizes (default: 1500 5000 15000)")
+    ap.add_argument("--sizes", type=int, nargs="+", default=None,
+                    help="training set sizes (default: 1500 5000 15000; --pipeline: 1500 3000)")
+    ap.add_argument("--pipeline", action="store_true",
+                    help="pipeline-like problems (overlapping classes, C=10) instead")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2],
+                    help="--pipeline: problem seeds (default 0 1 2)")
+    ap.add_argument("--noise", type=float, default=0.2,
+                    help="--pipeline: noise around the class centres (default 0.2)")
     ap.add_argument("--repeat", type=int, default=3, help="runs per timing, best kept")
     ap.add_argument("--n-test", type=int, default=2000, help="held-out samples (default 2000)")
     ap.add_argument("--classes", type=int, default=15)
@@ -162,8 +226,12 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     if args.threads:
         torch.set_num_threads(args.threads)
+    if args.sizes is None:
+        args.sizes = [1500, 3000] if args.pipeline else [1500, 5000, 15000]
     if args.parity:
         parity(args)
+    elif args.pipeline:
+        pipeline(args)
     else:
         bench(args)
 

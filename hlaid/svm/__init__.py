@@ -2,7 +2,8 @@
 
 :class:`KernelSVC` is a multi-class C-SVC whose one-vs-one binary machines
 are trained together by a batched SMO solver (second-order working-set
-selection, as libsvm) and combined by a Decision Directed Acyclic Graph
+selection, as libsvm; nearly solved machines are finished by a batched
+active-set solve, under libsvm's stopping rule) and combined by a Decision Directed Acyclic Graph
 (``multiclass="ddag"``) or by one-vs-one voting (``multiclass="ovo"``).
 
 Registries

@@ -118,7 +118,9 @@ class Kernel:
         A : Tensor of shape (n_a, n_features)
         B : Tensor of shape (n_b, n_features)
             Or the outputs of :meth:`prepare_left` / :meth:`prepare` when
-            ``prepared`` is true.
+            ``prepared`` is true; prepared operands may carry a leading batch
+            dimension, ``(batch, n_a, .)`` and ``(batch, n_b, .)``, giving
+            ``(batch, n_a, n_b)``.
         prepared : bool
             Whether ``A`` and ``B`` were already passed through ``prepare*``.
         out : Tensor of shape (n_a, n_b), optional
@@ -131,7 +133,7 @@ class Kernel:
         if not prepared:
             A, B = self.prepare_left(A), self.prepare(B)
         if out is None:
-            G = A @ B.T
+            G = torch.matmul(A, B.transpose(-1, -2))
         else:
             G = torch.mm(A, B.T, out=out)
         return self._finish(G)

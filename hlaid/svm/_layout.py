@@ -20,7 +20,7 @@ import torch
 
 from ._kernels import Kernel
 
-__all__ = ["KernelBlockCache", "OvOLayout", "compact", "kernel_storage"]
+__all__ = ["KernelAmong", "KernelBlockCache", "OvOLayout", "compact", "kernel_storage"]
 
 
 @dataclass
@@ -54,7 +54,7 @@ class OvOLayout:
     valid: torch.Tensor
 
     @classmethod
-    def build(cls, y: torch.Tensor, n_classes: int) -> "OvOLayout":
+    def build(cls, y: torch.Tensor, n_classes: int) -> OvOLayout:
         """Layout for encoded labels ``y`` (values ``0 .. n_classes-1``).
 
         Parameters
@@ -216,6 +216,26 @@ class KernelBlockCache:
         self.n_computed += keys.shape[0]
 
 
+
+
+class KernelAmong:
+    """Kernel among given samples, computed directly (one batched GEMM).
+
+    Parameters
+    ----------
+    kernel : Kernel
+    Xs : Tensor of shape (n_samples, n_features)
+        Samples sorted by class, in the working dtype.
+    """
+
+    def __init__(self, kernel: Kernel, Xs: torch.Tensor) -> None:
+        self.kernel = kernel
+        self.left = kernel.prepare_left(Xs)
+        self.right = kernel.prepare(Xs)
+
+    def __call__(self, g: torch.Tensor) -> torch.Tensor:
+        """Kernel blocks ``K[r, s, t] = k(x_g[r, s], x_g[r, t])``: (R, k) -> (R, k, k)."""
+        return self.kernel(self.left[g], self.right[g], prepared=True)
 
 
 def kernel_storage(n: int, m: int, Lc: int, dtype: torch.dtype,

@@ -78,22 +78,25 @@ from sklearn.exceptions import ConvergenceWarning
 
 from ._active_set import refine
 from ._kernels import Kernel
-from ._layout import KernelBlockCache, OvOLayout, compact, kernel_storage
+from ._layout import KernelAmong, KernelBlockCache, OvOLayout, compact, kernel_storage
 
-__all__ = ["OvOLayout", "SMOResult", "KernelBlockCache", "one_thread", "smo_ovo"]
+__all__ = ["KernelBlockCache", "OvOLayout", "SMOResult", "one_thread", "smo_ovo"]
 
 #: libsvm's floor for the curvature ``a_ij`` of non-positive-definite pairs.
 TAU = 1e-12
 #: Up to this many samples the whole kernel is computed before the loop.
 FULL_PRECOMPUTE_MAX = 5000
-#: The working set's kernel ``(n_active_pairs, La, La)`` is materialised up
-#: to this many values.
-WS_KERNEL_MAX = 1 << 21
 #: Active-set refinement: gap below which a pair is tried ...
 REFINE_GAP = 0.5
-#: ... after at least this many SMO steps (and ``n_variables / 8``).
+#: ... after at least this many SMO steps and ``n_variables / 8``
+#: (``n_variables / 2`` when the kernel is computed on demand).
 REFINE_MIN_STEPS = 64
-#: Kernel values per refinement batch (pairs beyond wait for the next sync).
+#: Active-set iterations per attempt (counted in ``n_iter``; never beyond
+#: ``max_iter``).
+REFINE_ITER = 30
+#: Largest refined problem (variables kept by the shrinking rule) ...
+REFINE_MAX_VARS = 1024
+#: ... and kernel values per refinement batch (pairs beyond wait).
 REFINE_MAX_ELEMENTS = 1 << 23
 
 
@@ -169,8 +172,6 @@ def _reconstruct(F_full: torch.Tensor, beta_full: torch.Tensor, y_pair: torch.Te
     F_full.index_copy_(0, pidx, y_pair.index_select(0, pidx) - acc)
 
 
-
-
 def smo_ovo(X: torch.Tensor, y: torch.Tensor, n_classes: int, *, kernel: Kernel,
             C: float, tol: float = 1e-3, max_iter: int = -1, shrinking: bool = True,
             cache_size: float = 1024.0, check_every: int = 16,
@@ -239,26 +240,6 @@ def smo_ovo(X: torch.Tensor, y: torch.Tensor, n_classes: int, *, kernel: Kernel,
     return res, layout
 
 
-class _Among:
-    """Kernel among given samples, computed directly (one batched GEMM).
-
-    Parameters
-    ----------
-    kernel : Kernel
-    Xs : Tensor of shape (n_samples, n_features)
-        Samples sorted by class, in the working dtype.
-    """
-
-    def __init__(self, kernel: Kernel, Xs: torch.Tensor) -> None:
-        self.kernel = kernel
-        self.left = kernel.prepare_left(Xs)
-        self.right = kernel.prepare(Xs)
-
-    def __call__(self, g: torch.Tensor) -> torch.Tensor:
-        """Kernel blocks ``K[r, s, t] = k(x_g[r, s], x_g[r, t])``: (R, k) -> (R, k, k)."""
-        return self.kernel._finish(torch.bmm(self.left[g], self.right[g].transpose(1, 2)))
-
-
 class one_thread:
     """Context manager: one torch thread on the CPU, restored on exit.
 
@@ -291,8 +272,7 @@ def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol:
            check_every: int, refine_on: bool) -> SMOResult:
     dev, dt = X.device, X.dtype
     n = X.shape[0]
-    m, Lc, P = layout.n_classes, layout.Lc, layout.n_pairs
-    L = 2 * Lc
+    m, Lc = layout.n_classes, layout.Lc
     Xs = X[layout.order]
     store, cap = kernel_storage(n, m, Lc, dt, cache_size)
     with one_thread(dev):
@@ -306,13 +286,13 @@ def _loop(layout: OvOLayout, cache: KernelBlockCache, *, kernel: Kernel, Xs: tor
           C: float, tol: float, max_iter: int | None, shrinking: bool, check_every: int,
           refine_on: bool) -> SMOResult:
     dev, dt = Xs.device, Xs.dtype
-    m, Lc, P = layout.n_classes, layout.Lc, layout.n_pairs
+    Lc, P = layout.Lc, layout.n_pairs
     L = 2 * Lc
     store = cache.flat.dtype
     convert = store != dt
     const_diag = kernel.constant_diag
     kd_full = None if const_diag else kernel.diag(Xs).to(dt)[layout.gmap]
-    among = _Among(kernel, Xs)
+    among = KernelAmong(kernel, Xs)
 
     inf = math.inf
     valid = layout.valid
@@ -331,7 +311,9 @@ def _loop(layout: OvOLayout, cache: KernelBlockCache, *, kernel: Kernel, Xs: tor
     niter_all = torch.zeros(P, dtype=torch.long, device=dev)
     gap_all = torch.full((P,), inf, dtype=dt, device=dev)
     cap_iter = max(10_000_000, 100 * L) if max_iter is None or max_iter < 0 else int(max_iter)
-    refine_at = torch.clamp_min(nvalid // 8, REFINE_MIN_STEPS)
+    # kernel blocks computed on demand: the refinement (and the gradient
+    # reconstruction after it) needs rows SMO never touched, so only hard pairs
+    refine_at = torch.clamp_min(nvalid // (8 if cache.identity else 2), REFINE_MIN_STEPS)
     n_refined = 0
 
     sgn = torch.tensor([1.0, -1.0], dtype=dt, device=dev)
@@ -365,9 +347,6 @@ def _loop(layout: OvOLayout, cache: KernelBlockCache, *, kernel: Kernel, Xs: tor
         w.cls = layout.pairs.index_select(0, pidx)
         w.Pa, w.La = pidx.shape[0], La
         w.prefix = bool((sel == arangeL[:La]).all())       # columns 0 .. La-1: no gather
-        w.K = None
-        if w.Pa * La * La <= WS_KERNEL_MAX:        # kernel among the working set's variables
-            w.K = among(w.gA)
 
     def writeback(gap: torch.Tensor) -> None:
         # Padding columns of the working set hold distinct, never-selected
@@ -381,31 +360,31 @@ def _loop(layout: OvOLayout, cache: KernelBlockCache, *, kernel: Kernel, Xs: tor
     def refine_ripe(act: torch.Tensor, gap: torch.Tensor, mval: torch.Tensor) -> torch.Tensor:
         """Active-set refinement of the ripe pairs; returns the solved ones (Pa,)."""
         solved = torch.zeros(w.Pa, dtype=torch.bool, device=dev)
+        nit = niter.squeeze(1)
         ripe = act.squeeze(1) & (gap.squeeze(1) < REFINE_GAP) & (
-            niter.squeeze(1) >= refine_at.index_select(0, w.idx))
+            nit >= refine_at.index_select(0, w.idx)) & (nit + REFINE_ITER <= cap_iter)
         if not bool(ripe.any()):
             return solved
         rl = ripe.nonzero().squeeze(1)
         Sr = w.S.index_select(0, rl)
-        Fr, br, pur, plr, hr = Sr.unbind(1)
+        Fr, pur, plr = Sr[:, 0], Sr[:, 2], Sr[:, 3]
         # candidates: the variables libsvm's shrinking would keep (free, or
         # bounded inside [M, m]); the others stay fixed on their bound
         mv, gp = mval.index_select(0, rl), gap.index_select(0, rl)
         cand = w.wvalid.index_select(0, rl) & ~(((pur == -inf) & (Fr > mv))
                                                  | ((plr == inf) & (Fr < mv - gp)))
         nc = cand.sum(1)
-        R = max(1, min(rl.shape[0], REFINE_MAX_ELEMENTS // max(1, int(nc.max()) ** 2)))
-        rl, cand, nc, Sr = rl[:R], cand[:R], nc[:R], Sr[:R]
+        small = (nc <= REFINE_MAX_VARS).nonzero().squeeze(1)       # Cholesky cost ~ nc^3
+        if small.numel() == 0:
+            return solved
+        small = small[:max(1, REFINE_MAX_ELEMENTS // max(1, int(nc[small].max()) ** 2))]
+        rl, cand, nc, Sr = (t.index_select(0, small) for t in (rl, cand, nc, Sr))
         Nc = max(1, int(nc.max()))
         cord = compact(cand)[:, :Nc]
         cv = torch.arange(Nc, device=dev)[None, :] < nc[:, None]
-        if w.K is not None:
-            Kr = w.K.index_select(0, rl).gather(1, cord[:, :, None].expand(R, Nc, w.La)).gather(
-                2, cord[:, None, :].expand(R, Nc, Nc))
-        else:
-            Kr = among(w.gA.index_select(0, rl).gather(1, cord))
+        Kr = among(w.gA.index_select(0, rl).gather(1, cord))
         Fc, bc, hc = (Sr[:, k].gather(1, cord) for k in (0, 1, 4))
-        Fn, bn, ok, its = refine(Fc, bc, hc, hc - C, cv, Kr, tol=tol)
+        Fn, bn, ok, its = refine(Fc, bc, hc, hc - C, cv, Kr, tol=tol, max_iter=REFINE_ITER)
         Sr[:, 0].scatter_(1, cord, Fn)      # F elsewhere: reconstructed before any use
         Sr[:, 1].scatter_(1, cord, bn)
         Sr[:, 2].scatter_(1, cord, torch.where(cv & (bn < hc), zero_t, ninf_t))
@@ -426,20 +405,17 @@ def _loop(layout: OvOLayout, cache: KernelBlockCache, *, kernel: Kernel, Xs: tor
     next_sync = 0
     while True:
         # ---- (re)bind the working set -------------------------------------
-        S, Pa, La, loc, gA, cls, kd, Kw = w.S, w.Pa, w.La, w.loc, w.gA, w.cls, w.kd, w.K
+        S, Pa, La, loc, gA, cls, kd = w.S, w.Pa, w.La, w.loc, w.gA, w.cls, w.kd
         F, pu, pl = S[:, 0], S[:, 2], S[:, 3]
         prefix = w.prefix
-        index = cache.index
         exp5 = (Pa, 5, 2)
         exp3 = (Pa, 3, 2)
-        expK = (Pa, 1, La)
         S13 = S[:, 1:4]
 
-        def row(c: torch.Tensor) -> torch.Tensor:
+        def row(c: torch.Tensor, gA=gA, cls=cls, Pa=Pa, La=La, prefix=prefix,
+                loc=loc) -> torch.Tensor:
             """Kernel rows (Pa, La) of the working-set columns ``c`` (Pa, 1)."""
-            if Kw is not None:
-                return Kw.gather(1, c[:, :, None].expand(expK)).view(Pa, La)
-            r = flat.index_select(0, index(gA.gather(1, c), cls).view(-1)).view(Pa, L)
+            r = flat.index_select(0, cache.index(gA.gather(1, c), cls).view(-1)).view(Pa, L)
             r = r[:, :La] if prefix else r.gather(1, loc)
             return r.to(dt) if convert else r
 
@@ -464,11 +440,9 @@ def _loop(layout: OvOLayout, cache: KernelBlockCache, *, kernel: Kernel, Xs: tor
             # ---- analytic two-variable step -------------------------------
             ij = torch.cat([i, j], 1)
             G = S.gather(2, ij[:, None, :].expand(exp5))       # (F, beta, pu, pl, hi) at i, j
-            Kij = Ki.gather(1, j)
+            aij = a.gather(1, j)
             if const_diag:
-                aij = torch.rsub(Kij, one_tau).clamp_min_(TAU).mul_(2.0)
-            else:
-                aij = (kdi + kd.gather(1, j) - 2.0 * Kij).clamp_min_(TAU)
+                aij = aij.mul_(2.0)
             bij, hij = G[:, 1], G[:, 4]
             lij = hij - C
             bnd = torch.where(first, hij, lij)                # i moves up, j moves down

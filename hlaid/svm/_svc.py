@@ -51,8 +51,9 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
 
     All ``n_classes (n_classes - 1) / 2`` one-vs-one binary machines are
     trained together as one batched SMO problem (second-order working-set
-    selection of Fan, Chen & Lin 2005, libsvm's stopping rule and intercept),
-    and combined by a Decision Directed Acyclic Graph (Platt et al. 2000) or
+    selection of Fan, Chen & Lin 2005, libsvm's stopping rule and intercept;
+    problems that SMO has brought near their optimum are finished by a
+    batched active-set solve, checked with the same stopping rule), and combined by a Decision Directed Acyclic Graph (Platt et al. 2000) or
     by libsvm's one-vs-one voting.  Fitted attributes follow the layout of
     :class:`sklearn.svm.SVC`, so the two can be compared directly.
 
@@ -74,7 +75,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         SMO stops when the maximal violating pair gap ``m(alpha) - M(alpha)``
         is below ``tol`` (per binary problem).
     max_iter : int, default=-1
-        Cap on SMO steps per binary problem; ``-1`` (or None) means libsvm's
+        Cap on ``n_iter_`` per binary problem; ``-1`` (or None) means libsvm's
         safety cap ``max(1e7, 100 * n)``.  Stopping on the cap issues a
         :class:`~sklearn.exceptions.ConvergenceWarning`.
     shrinking : bool, default=True
@@ -113,12 +114,21 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
     gamma_ : float
         The resolved kernel coefficient.
     n_iter_ : ndarray of shape (n_classes * (n_classes - 1) / 2,)
-        SMO steps per binary problem.
+        Iterations per binary problem: SMO steps plus the iterations of the
+        active-set refinement that finishes hard problems (see
+        :mod:`hlaid.svm._active_set`).
     dual_objective_ : ndarray of shape (n_classes * (n_classes - 1) / 2,)
         Final dual objective ``1/2 a^T Q a - e^T a`` per binary problem
         (libsvm's ``obj``).
     fit_status_ : int
         0 when every binary problem converged, 1 otherwise.
+
+    Notes
+    -----
+    On the CPU, :meth:`fit`, :meth:`predict` and :meth:`decision_function`
+    run on one torch thread and restore torch's setting on return: they are
+    long chains of small tensor operations, which extra threads slow down
+    (by 10-25x on a busy 2-core machine; ``docs/svm.md``).
     """
 
     def __init__(self, *, C: float = 1.0, kernel: str = "rbf", degree: int = 3,
@@ -182,7 +192,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
             raise ValueError(f"Invalid device {self.device!r}.") from None
 
     # --------------------------------------------------------------------- fit
-    def fit(self, X: Any, y: Any) -> "KernelSVC":
+    def fit(self, X: Any, y: Any) -> KernelSVC:
         """Train the one-vs-one machines.
 
         Parameters
@@ -202,7 +212,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         with one_thread(device):
             return self._fit(X, y, dtype, device)
 
-    def _fit(self, X: Any, y: Any, dtype: torch.dtype, device: torch.device) -> "KernelSVC":
+    def _fit(self, X: Any, y: Any, dtype: torch.dtype, device: torch.device) -> KernelSVC:
         X, y = _validate_data(self, _to_numpy(X), _to_numpy(y), dtype=np.float64,
                               order="C", y_numeric=False)
         y = column_or_1d(y, warn=True)
@@ -288,7 +298,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         """
         Xt = self._predict_input(X)
         m = len(self.classes_)
-        with torch.inference_mode():
+        with torch.inference_mode(), one_thread(self._device):
             dec = self._machines.decision_ovo(Xt)
             if m == 2:
                 dec = -dec[:, 0]
@@ -310,7 +320,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         """
         Xt = self._predict_input(X)
         rule = resolve_multiclass(self.multiclass)
-        with torch.inference_mode():
+        with torch.inference_mode(), one_thread(self._device):
             idx = rule(self._machines, Xt).cpu().numpy()
         return self.classes_[idx]
 
@@ -365,7 +375,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
 
     @classmethod
     def load(cls, path: str | os.PathLike, *,
-             device: str | torch.device | None = None) -> "KernelSVC":
+             device: str | torch.device | None = None) -> KernelSVC:
         """Load a model written by :meth:`save`.
 
         Parameters
