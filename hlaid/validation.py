@@ -8,8 +8,8 @@ structure of a :class:`ValidationConfig` and every identification event:
 2. identify a clone with :func:`hlaid.identify.identify` (HLA, regressions, SVMs, replay
    refinement). When no story yielded (:class:`~hlaid.errors.NotIdentifiableError`) a
    nonlinear clone cannot be identified, and the protocol falls back, *labelled as such*, to
-   a linear clone: HLA's k0 refined by :func:`hlaid.identify.refine_replay` on ``k0`` (and
-   the Rayleigh damping ratio) with ``alpha = 1``;
+   a linear clone (``alpha = 1``): HLA's k0, fitted to the measured accelerations as the
+   structure's ``fallback_fit`` says (:func:`linear_clone`);
 3. save the clone JSON, load it back (:meth:`hlaid.clone.Clone.load`), and replay it under the
    ground motion of every prediction event (and of its own event, the self-replay);
 4. compare per floor the predicted and measured displacement relative to the ground (measured
@@ -47,10 +47,7 @@ from .model import Building, Damping
 from .motions import GroundMotion
 from .simulate import simulate
 
-KINDS = ("nonlinear", "linear")
-"""Clone kinds: the paper's identification, or the labelled linear fallback."""
-
-FALLBACK_FITS = ("k0+damping", "k0", "damping", "none")
+FALLBACK_FITS = ("scale+damping", "k0+damping", "k0", "damping", "none")
 """What the replay refinement fits of a linear clone (see :func:`linear_clone`)."""
 
 
@@ -92,9 +89,8 @@ class StructureSpec:
         ``"linear"``: the linear clone directly (for data known to be linear, where a yield
         flag of HLA would be an artefact)
     fallback : ``"linear"``: a labelled linear clone when no story yielded; ``"none"``: skip
-    fallback_fit : what :func:`refine_replay` fits of the linear clone, starting from HLA's k0
-        and the config's damping ratio: ``"k0+damping"``, ``"k0"``, ``"damping"``, or ``"none"``
-        (HLA's k0 as they are)
+    fallback_fit : what the replay fits of the linear clone, starting from HLA's k0 and the
+        config's damping ratio (see :func:`linear_clone`)
     compare_band_hz : band [Hz] of the compared displacements and of the HLA of the predicted
         events (null: the HLA band that the identification config gives for each event)
     input_lowpass_hz : low-pass [Hz] of the ground motion the clone is driven by (null: the
@@ -116,7 +112,7 @@ class StructureSpec:
     mass_ratios: list[float] | None = None
     clone: Literal["auto", "linear"] = "auto"
     fallback: Literal["linear", "none"] = "linear"
-    fallback_fit: Literal["k0+damping", "k0", "damping", "none"] = "damping"
+    fallback_fit: Literal["scale+damping", "k0+damping", "k0", "damping", "none"] = "scale+damping"
     optional: bool = False
     compare_band_hz: tuple[float, float] | None = None
     input_lowpass_hz: float | None = None
@@ -168,6 +164,7 @@ class ValidationConfig:
     cache_dir : classifier cache (null: ``~/.cache/hlaid/svm``; ``""``: none)
     structures : the structures
     targets : the paper's numbers the results are held against
+    source : the config file (set by :func:`load_validation_config`)
     """
 
     data_dir: str = "."
@@ -262,10 +259,11 @@ class IdentifiedClone:
                 "seconds": self.seconds}
 
 
-def linear_clone(meas: Measurement, cfg: IdentifyConfig, *, fit: str = "k0+damping", reason: str = "") -> Clone:
+def linear_clone(meas: Measurement, cfg: IdentifyConfig, *, fit: str = "scale+damping", reason: str = "") -> Clone:
     """A linear (``alpha = 1``) clone: HLA's k0 and the config's damping ratio, then fitted to
-    the measured accelerations by :func:`refine_replay` (``fit``: ``"k0+damping"``, ``"k0"``,
-    ``"damping"`` or ``"none"``)."""
+    the measured floor accelerations (``fit``): ``"scale+damping"`` one factor on every k0 and
+    the damping ratio (HLA's stiffness distribution kept); ``"k0+damping"``, ``"k0"``,
+    ``"damping"`` by :func:`refine_replay`; ``"none"``: HLA's k0 as they are."""
     res = hla(meas, cfg.hla)
     n = res.n_stories
     peak = np.array([np.max(np.abs(s.drift)) for s in res.stories])
@@ -276,7 +274,9 @@ def linear_clone(meas: Measurement, cfg: IdentifyConfig, *, fit: str = "k0+dampi
         raise InputError(f"linear clone fit {fit!r}; expected one of {', '.join(FALLBACK_FITS)}")
     diag = {"kind": "linear", "reason": reason, "k0_hla": res.k0.tolist(), "hla_band_hz": list(res.band_hz),
             "fit": fit, "refine": None}
-    if fit != "none":
+    if fit == "scale+damping":
+        b, diag["refine"] = _fit_scale_damping(b, meas, cfg.refine.band_hz, cfg.refine.max_iterations)
+    elif fit != "none":
         rr = refine_replay(b, meas, parameters=("k0",) if fit.startswith("k0") else (), damping="damping" in fit,
                            band_hz=cfg.refine.band_hz, max_iterations=cfg.refine.max_iterations)
         b = rr.building
@@ -284,6 +284,34 @@ def linear_clone(meas: Measurement, cfg: IdentifyConfig, *, fit: str = "k0+dampi
                           "message": rr.message}
     prov = {"source": meas.source, "config": config_to_dict(cfg), "method": f"linear clone (HLA k0; fitted: {fit})"}
     return Clone(building=b, mass_normalised=res.mass_normalised, diagnostics=diag, provenance=prov)
+
+
+def _fit_scale_damping(b: Building, meas: Measurement, band_hz, max_iterations: int) -> tuple[Building, dict]:
+    """Least squares of the replayed against the measured floor accelerations (band-passed, as
+    :func:`refine_replay`) over one common factor on every story's k0 and the damping ratio:
+    HLA's distribution of stiffness over the stories is kept."""
+    from scipy.optimize import least_squares
+
+    dt = meas.dt
+    hi = min(band_hz[1], 0.45 / dt)
+    ground = GroundMotion(dt=dt, acc=pp.bandpass(np.asarray(meas.ground_acc), dt, (0.0, hi)), name=meas.name)
+    target = pp.bandpass(np.asarray(meas.floor_acc), dt, (band_hz[0], hi))
+    rms = np.sqrt(np.mean(target**2, axis=0))
+    d = b.damping
+
+    def make(x):
+        return b.replace(k0=b.k0 * np.exp(x[0]), damping=Damping(kind=d.kind, ratio=float(x[1]), modes=d.modes))
+
+    def fun(x):
+        r = simulate(make(x), ground)
+        if r.status[0] != 0:
+            return np.full(target.size, 1e3)
+        return ((pp.bandpass(np.nan_to_num(r.acc[0]), dt, (band_hz[0], hi)) - target) / rms).ravel()
+
+    sol = least_squares(fun, [0.0, d.ratio], bounds=([-1.0, 0.0], [1.0, 0.5]), x_scale=[0.05, 0.01],
+                        max_nfev=max_iterations)
+    return make(sol.x), {"k0_factor": float(np.exp(sol.x[0])), "cost_final": float(sol.cost),
+                         "nfev": int(sol.nfev), "message": str(sol.message)}
 
 
 def identify_event(spec: StructureSpec, event: str, meas: Measurement, cfg: IdentifyConfig, out_dir: Path,
@@ -407,13 +435,22 @@ def predict_event(clone: Clone, meas: Measurement, hla_config: HLAConfig, *, com
     ground = GroundMotion(dt=dt, acc=pp.bandpass(np.asarray(meas.ground_acc), dt, (0.0, hi_in), cfg.preprocess.order),
                           name=meas.name)
     sim = simulate(clone.building, ground)
-    disp_pred = np.nan_to_num(sim.disp[0])
-    _, _, _, disp_meas = floor_motion(meas, cfg)
-    dp = pp.bandpass(disp_pred, dt, band, cfg.preprocess.order)
+    # the clone's response goes through what the measured one went through: its displacement
+    # band-passed when the data hold displacements, else its accelerations integrated
+    integrated = cfg.preprocess.displacement == "integrate" or (cfg.preprocess.displacement == "auto" and
+                                                               meas.floor_disp is None)
+    twin = dataclasses.replace(meas, ground_acc=ground.acc, floor_acc=np.nan_to_num(sim.acc[0]), floor_disp=None,
+                               truth=None, mass=None)
+
+    def compare(b):
+        c = _with_band(cfg, b)
+        _, _, _, dm = floor_motion(meas, c)
+        dp = floor_motion(twin, c)[3] if integrated else pp.bandpass(np.nan_to_num(sim.disp[0]), dt, b, c.preprocess.order)
+        return dm, dp
+
+    disp_meas, dp = compare(band)
     r = corrcoef(dp, disp_meas)
-    broad = (band[0], max(band[1], min(20.0, 0.45 / dt)))
-    _, _, _, disp_meas_broad = floor_motion(meas, _with_band(cfg, broad))
-    r_broad = corrcoef(pp.bandpass(disp_pred, dt, broad, cfg.preprocess.order), disp_meas_broad)
+    r_broad = corrcoef(*compare((band[0], max(band[1], min(20.0, 0.45 / dt)))))
     xm, xp = pp.story_drift(disp_meas), pp.story_drift(dp)
     pm, pk = np.max(np.abs(xm), axis=0), np.max(np.abs(xp), axis=0)
     ke = clone.building.elastic_stiffness(np.nan_to_num(sim.eta[0], nan=1.0))
@@ -547,69 +584,96 @@ def _met(ok: bool | None) -> str:
     return "-" if ok is None else ("yes" if ok else "**no**")
 
 
+def _row(*cells) -> str:
+    return "| " + " | ".join(str(c) for c in cells) + " |"
+
+
+def _rule(n: int) -> str:
+    return "|" + "---|" * n
+
+
+def _joined(values, fmt: str) -> str:
+    return " / ".join(fmt.format(v) for v in values)
+
+
+def _clone_table(result: ValidationResult) -> list[str]:
+    out = [_row("structure", "identified from", "clone", "k0 per story [N/mm per unit mass]", "alpha", "p", "dy [mm]",
+                "delta_eta", "damping", "f1 [Hz]", "time [s]"), _rule(11)]
+    for c in result.clones:
+        b, lin = c.clone.building, c.kind == "linear"
+        shape = ["-"] * 4 if lin else [_joined(b.alpha, "{:.2f}"), _joined(b.p, "{:.2f}"), _joined(b.dy, "{:.1f}"),
+                                       _joined(b.delta_eta, "{:.2f}")]
+        out.append(_row(c.structure, c.event, "linear (fallback)" if lin else "nonlinear", _joined(b.k0, "{:.4g}"),
+                        *shape, f"{b.damping.ratio:.3f}", f"{1.0 / b.periods()[0]:.2f}", f"{c.seconds:.0f}"))
+    reasons = {f"{c.structure}/{c.event}": c.reason for c in result.clones if c.reason}
+    if reasons:
+        out += ["", "Linear clones, why: " + "; ".join(f"{k}: {v}" for k, v in reasons.items()) + "."]
+    return out
+
+
+def _prediction_table(ps: list[Prediction], tg: PaperTargets) -> list[str]:
+    n = ps[0].r.shape[0]
+    rt = tg.r_per_floor if n == len(tg.r_per_floor) else None
+    against = f" against the paper's {' / '.join(map(str, rt))}" if rt else ""
+    out = [(f"Band {ps[0].band_hz[0]:.3g}-{ps[0].band_hz[1]:.3g} Hz. R per floor{against}, mean against {tg.r_mean}; "
+            f"stiffness error against {100 * tg.stiffness_error:.1f} %. Peak-drift and stiffness errors in % per story."),
+           "", _row("clone from", "event", "PGA [g]", *[f"R {i + 1}" for i in range(n)], "R mean", "floors met",
+                    "mean met", "R broadband", "peak drift error", "stiffness error", "mean", "met"),
+           _rule(n + 11)]
+    for p in ps:
+        r_mean, se = float(np.mean(p.r)), _nanmean(p.stiffness_error)
+        floors = "-" if rt is None else f"{sum(r >= t for r, t in zip(p.r, rt))}/{n}"
+        out.append(_row(f"{p.identified_from} ({p.kind})", f"{p.event} (self)" if p.self_replay else p.event,
+                        f"{p.pga_g:.3f}", *[_f(r) for r in p.r], _f(r_mean), floors, _met(r_mean >= tg.r_mean),
+                        _f(float(np.mean(p.r_broadband))), " / ".join(_pct(e) for e in p.peak_drift_error),
+                        " / ".join(_f(100 * e, "{:.1f}") for e in p.stiffness_error),
+                        _f(None if se is None else 100 * se, "{:.1f}"),
+                        _met(None if se is None else se <= tg.stiffness_error)))
+    return out
+
+
+def _summary_rows(name: str, ps: list[Prediction], tg: PaperTargets) -> list[str]:
+    """One row per clone, and with several clones: all of them, and the predictions of
+    stronger events (PGA above the clone's own event) only."""
+    groups = [(src, [p for p in ps if p.identified_from == src]) for src in dict.fromkeys(p.identified_from for p in ps)]
+    own_pga = {p.identified_from: p.pga_g for p in ps if p.self_replay}
+    cross_all = [p for p in ps if not p.self_replay]
+    stronger = [p for p in cross_all if p.pga_g > own_pga.get(p.identified_from, np.inf)]
+    rows = list(groups)
+    if len(groups) > 1:
+        rows.append(("all", ps))
+        if 0 < len(stronger) < len(cross_all):
+            rows.append(("all, stronger events only", stronger))
+    out = []
+    for src, g in rows:
+        cross = [p for p in g if not p.self_replay]
+        own = [p for p in g if p.self_replay]
+        r_self = _f(float(np.mean([np.mean(p.r) for p in own]))) if own else "-"
+        if not cross:
+            out.append(_row(name, src, 0, *["-"] * 7, r_self))
+            continue
+        r = np.array([p.r for p in cross])
+        se = _nanmean(np.array([p.stiffness_error for p in cross]))
+        pe = float(np.mean(np.abs([p.peak_drift_error for p in cross])))
+        out.append(_row(name, src, len(cross), f"{r.mean():.3f}", f"{r.min():.3f}", _met(r.mean() >= tg.r_mean),
+                        f"{np.mean([p.r_broadband for p in cross]):.3f}", f"{100 * pe:.0f} %",
+                        f"{_f(None if se is None else 100 * se, '{:.1f}')} %",
+                        _met(None if se is None else se <= tg.stiffness_error), r_self))
+    return out
+
+
 def format_tables(result: ValidationResult) -> str:
     """Markdown tables of a validation run: clones, predictions per structure, summary (every
     number, each held against the paper's targets)."""
     tg = result.targets
-    out = ["### Clones", "",
-           "| structure | identified from | clone | k0 per story [N/mm per unit mass] | alpha | p | dy [mm] | "
-           "delta_eta | damping | f1 [Hz] | time [s] |", "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for c in result.clones:
-        b = c.clone.building
-        lin = c.kind == "linear"
-
-        def col(name, fmt):
-            return "-" if lin else " / ".join(fmt.format(v) for v in getattr(b, name))
-        out.append(f"| {c.structure} | {c.event} | {'linear (fallback)' if lin else 'nonlinear'} | "
-                   f"{' / '.join(f'{v:.4g}' for v in b.k0)} | {col('alpha', '{:.2f}')} | {col('p', '{:.2f}')} | "
-                   f"{col('dy', '{:.1f}')} | {col('delta_eta', '{:.2f}')} | {b.damping.ratio:.3f} | "
-                   f"{1.0 / b.periods()[0]:.2f} | {c.seconds:.0f} |")
-    reasons = {f"{c.structure}/{c.event}": c.reason for c in result.clones if c.reason}
-    if reasons:
-        out += ["", "Linear clones, why: " + "; ".join(f"{k}: {v}" for k, v in reasons.items()) + "."]
-    for name in dict.fromkeys(p.structure for p in result.predictions):
-        ps = [p for p in result.predictions if p.structure == name]
-        n = ps[0].r.shape[0]
-        rt = tg.r_per_floor if n == len(tg.r_per_floor) else None
-        head = " | ".join(f"R {i + 1}" for i in range(n))
-        out += ["", f"### {name}", "", f"Band {ps[0].band_hz[0]:.3g}-{ps[0].band_hz[1]:.3g} Hz. R per floor"
-                + (f" against the paper's {' / '.join(map(str, rt))}" if rt else "") +
-                f", mean against {tg.r_mean}; stiffness error against {100 * tg.stiffness_error:.1f} %. "
-                "Peak-drift and stiffness errors in % per story.", "",
-                f"| clone from | event | PGA [g] | {head} | R mean | floors met | mean met | R broadband | "
-                "peak drift error | stiffness error | mean | met |",
-                "|---|---|---|" + "---|" * n + "---|---|---|---|---|---|---|---|"]
-        for p in ps:
-            floors = "-" if rt is None else f"{sum(r >= t for r, t in zip(p.r, rt))}/{n}"
-            se = _nanmean(p.stiffness_error)
-            ev = f"{p.event} (self)" if p.self_replay else p.event
-            out.append(f"| {p.identified_from} ({p.kind}) | {ev} | {p.pga_g:.3f} | "
-                       + " | ".join(_f(r) for r in p.r) + f" | {_f(float(np.mean(p.r)))} | {floors} | "
-                       f"{_met(float(np.mean(p.r)) >= tg.r_mean)} | {_f(float(np.mean(p.r_broadband)))} | "
-                       f"{' / '.join(_pct(e) for e in p.peak_drift_error)} | "
-                       f"{' / '.join(_f(100 * e, '{:.1f}') for e in p.stiffness_error)} | {_f(None if se is None else 100 * se, '{:.1f}')} | "
-                       f"{_met(None if se is None else se <= tg.stiffness_error)} |")
+    out = ["### Clones", "", *_clone_table(result)]
+    names = list(dict.fromkeys(p.structure for p in result.predictions))
+    for name in names:
+        out += ["", f"### {name}", "", *_prediction_table([p for p in result.predictions if p.structure == name], tg)]
     out += ["", "### Summary (cross-event predictions; self-replays apart)", "",
-            "| structure | clone from | predictions | mean R | worst R | mean R >= " + f"{tg.r_mean} | "
-            "mean R broadband | mean abs peak-drift error | mean stiffness error | <= " +
-            f"{100 * tg.stiffness_error:.1f} % | self-replay R |", "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for name in dict.fromkeys(p.structure for p in result.predictions):
-        groups = [(src, [p for p in result.predictions if p.structure == name and p.identified_from == src])
-                  for src in dict.fromkeys(p.identified_from for p in result.predictions if p.structure == name)]
-        allc = [p for _, g in groups for p in g if not p.self_replay]
-        rows = groups + ([("all", allc + [p for _, g in groups for p in g if p.self_replay])] if len(groups) > 1 else [])
-        for src, g in rows:
-            cross = [p for p in g if not p.self_replay]
-            own = [p for p in g if p.self_replay]
-            r_self = _f(float(np.mean([np.mean(p.r) for p in own]))) if own else "-"
-            if not cross:
-                out.append(f"| {name} | {src} | 0 | - | - | - | - | - | - | - | {r_self} |")
-                continue
-            r = np.array([p.r for p in cross])
-            se = _nanmean(np.array([p.stiffness_error for p in cross]))
-            pe = float(np.mean(np.abs([p.peak_drift_error for p in cross])))
-            out.append(f"| {name} | {src} | {len(cross)} | {r.mean():.3f} | {r.min():.3f} | "
-                       f"{_met(r.mean() >= tg.r_mean)} | {np.mean([p.r_broadband for p in cross]):.3f} | "
-                       f"{100 * pe:.0f} % | {_f(None if se is None else 100 * se, '{:.1f}')} % | "
-                       f"{_met(None if se is None else se <= tg.stiffness_error)} | {r_self} |")
+            _row("structure", "clone from", "predictions", "mean R", "worst R", f"mean R >= {tg.r_mean}",
+                 "mean R broadband", "mean abs peak-drift error", "mean stiffness error",
+                 f"<= {100 * tg.stiffness_error:.1f} %", "self-replay R"), _rule(11)]
+    for name in names:
+        out += _summary_rows(name, [p for p in result.predictions if p.structure == name], tg)
     return "\n".join(out) + "\n"

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import sys
 import tempfile
 from pathlib import Path
@@ -37,9 +38,17 @@ from hlaid import _progress  # noqa: E402
 from hlaid._fileio import atomic_directory, atomic_write, write_json  # noqa: E402
 from hlaid.config import config_to_dict  # noqa: E402
 from hlaid.errors import InputError  # noqa: E402
+from hlaid.identify.compare import (  # noqa: E402
+    LABELS,
+    PARAMETERS,
+    build_cases,
+    load_compare_config,
+    make_identifier,
+    run_case,
+    study_record,
+    summarise,
+)
 from hlaid.plots import save_figure  # noqa: E402
-from hlaid.identify.compare import (LABELS, PARAMETERS, build_cases, load_compare_config, make_identifier,  # noqa: E402
-                                    run_case, study_record, summarise)
 
 FIGURES = ("param_error.png", "replay_r.png", "wall_time.png", "failures.png")
 
@@ -51,16 +60,16 @@ def _pct(v, signed=False) -> str:
 
 
 def summary_tables(rows: list[dict]) -> list[str]:
-    """Markdown: one table per noise level, one row per identifier."""
+    """Markdown: one table per noise level, one row per structure kind and identifier."""
     lines = []
-    head = (["identifier", "cases", "failures", "mean error %", "worst error %"] + [f"{p} %" for p in PARAMETERS]
-            + ["R ident mean (min)", "R unseen mean (min)", "unseen drift error % mean (worst)", "wall s mean (max)"])
+    head = (["structure", "identifier", "cases", "failures", "mean error %", "worst error %"]
+            + [f"{p} %" for p in PARAMETERS] + ["R ident mean (min)", "R unseen mean (min)",
+                                                 "unseen drift error % mean (worst)", "wall s mean (max)", "CPU s mean"])
     for noise in sorted({r["noise"] for r in rows}):
         lines += [f"\n### Noise {100 * noise:g} % RMS\n", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for r in (r for r in rows if r["noise"] == noise):
-            ok = "mean_error" in r
-            cells = [LABELS.get(r["identifier"], r["identifier"]), str(r["cases"]), str(r["failures"])]
-            if ok:
+            cells = [r["structure"], LABELS.get(r["identifier"], r["identifier"]), str(r["cases"]), str(r["failures"])]
+            if "mean_error" in r:
                 cells += [_pct(r["mean_error"]), _pct(r["worst_error"])]
                 cells += [_pct(r["param_mean_error"][p]) for p in PARAMETERS]
                 cells += [f"{r['r_ident_mean']:.4f} ({r['r_ident_min']:.4f})",
@@ -68,7 +77,7 @@ def summary_tables(rows: list[dict]) -> list[str]:
                           f"{_pct(r['drift_error_unseen_mean'])} ({_pct(r['drift_error_unseen_worst'])})"]
             else:
                 cells += ["-"] * (2 + len(PARAMETERS) + 3)
-            cells.append(f"{r['wall_mean_s']:.1f} ({r['wall_max_s']:.1f})")
+            cells += [f"{r['wall_mean_s']:.1f} ({r['wall_max_s']:.1f})", f"{r['cpu_mean_s']:.1f}"]
             lines.append("| " + " | ".join(cells) + " |")
         reasons = [(r["identifier"], x) for r in rows if r["noise"] == noise for x in r["reasons"]]
         if reasons:
@@ -113,10 +122,11 @@ def write_csv(path: Path, outcomes) -> None:
     atomic_write(path, w)
 
 
-def figures(rows: list[dict], outcomes, names: list[str]) -> dict:
-    """The four figures of :data:`FIGURES`, by file name."""
+def figures(outcomes, names: list[str]) -> dict:
+    """The four figures of :data:`FIGURES` (every structure together), by file name."""
     from hlaid.plots import plt
 
+    rows = summarise([dataclasses.replace(o, structure="all") for o in outcomes])
     noises = sorted({r["noise"] for r in rows})
     x = np.arange(len(noises))
     width = 0.8 / len(names)
@@ -147,12 +157,16 @@ def figures(rows: list[dict], outcomes, names: list[str]) -> dict:
     made["param_error.png"] = fig
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
+    for r in rows:  # 1 - R on a log scale: R is close to 1 for every useful clone
+        for m in ("r_ident", "r_unseen"):
+            if f"{m}_mean" in r:
+                r[f"{m}_deficit_mean"], r[f"{m}_deficit_worst"] = 1 - r[f"{m}_mean"], 1 - r[f"{m}_min"]
     for ax, (m, title) in zip(axes, (("r_ident", "identification record"), ("r_unseen", "unseen record"))):
-        bars(ax, f"{m}_mean", f"{m}_min", None)
-        ax.set_title(f"replay R of floor displacements, {title}")
-        ax.set_ylim(min(0.9, np.nanmin([r.get(f"{m}_min", 1.0) for r in rows]) - 0.01), 1.0005)
-    axes[0].set_ylabel("R: mean, whisker to the lowest story")
-    axes[0].legend(fontsize=8, loc="lower left")
+        bars(ax, f"{m}_deficit_mean", None, f"{m}_deficit_worst")
+        ax.set_yscale("log")
+        ax.set_title(f"replay of floor displacements, {title}", fontsize=10)
+    axes[0].set_ylabel("1 - R: mean, whisker to the worst story")
+    axes[0].legend(fontsize=8)
     made["replay_r.png"] = fig
 
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -169,7 +183,7 @@ def figures(rows: list[dict], outcomes, names: list[str]) -> dict:
     ax.set_ylabel("failures (cases)")
     ax.legend(fontsize=8)
     made["failures.png"] = fig
-    for name, f in made.items():
+    for f in made.values():
         f.suptitle(f"identifier comparison ({len(outcomes) // max(len(names), 1)} cases)", fontsize=10)
     return made
 
@@ -190,7 +204,7 @@ def tensorboard_log(folder: Path, outcomes, rows, markdown: list[str], figs: dic
             w.add_scalar(f"{o.identifier}/r_unseen_min", min(o.r_unseen), step)
     for r in rows:
         if "mean_error" in r:
-            w.add_scalar(f"summary/{r['identifier']}/mean_error_pct", 100 * r["mean_error"], int(round(100 * r["noise"])))
+            w.add_scalar(f"summary/{r['identifier']}/mean_error_pct", 100 * r["mean_error"], round(100 * r["noise"]))
     w.add_text("summary", "\n".join(markdown))
     w.add_text("cases", "\n".join(f"{i}: {c}" for i, c in enumerate(cases)))
     for name, f in figs.items():
@@ -239,7 +253,7 @@ def main(argv=None) -> int:
                      "were measured in this run, one identifier at a time.")
             md = [title] + summary_tables(rows)
             (tmp / "figures").mkdir()
-            figs = figures(rows, outcomes, cfg.identifiers)
+            figs = figures(outcomes, cfg.identifiers)
             tensorboard_log(tmp / "tensorboard", outcomes, rows, md, figs)
             for name, f in figs.items():
                 save_figure(f, tmp / "figures" / name)

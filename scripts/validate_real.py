@@ -26,7 +26,12 @@ from hlaid._fileio import atomic_directory, write_json
 from hlaid.errors import InputError
 from hlaid.hla.plots import plot_stiffness
 from hlaid.plots import plt, save_figure, story_axes
-from hlaid.validation import ValidationResult, format_tables, load_validation_config, run_validation
+from hlaid.validation import (
+    ValidationResult,
+    format_tables,
+    load_validation_config,
+    run_validation,
+)
 
 
 def _window(p, pad_s: float = 3.0) -> slice:
@@ -43,8 +48,8 @@ def plot_displacement(p, levels=None):
     n = p.r.shape[0]
     fig, axes = story_axes(n, ncols=1, size=(9, 1.9), sharex=True)
     for i, ax in enumerate(axes):
-        ax.plot(p.time[w], p.disp_measured[w, i], color="k", lw=0.9, label="measured")
-        ax.plot(p.time[w], p.disp_predicted[w, i], color="C3", lw=0.9, ls="--", label=f"clone ({p.kind})")
+        ax.plot(p.time[w], p.disp_measured[w, i], color="k", lw=0.7, label="measured")
+        ax.plot(p.time[w], p.disp_predicted[w, i], color="C3", lw=0.7, ls="--", label=f"clone ({p.kind})")
         ax.set_ylabel(f"{levels[i] if levels else f'floor {i + 1}'}\n[mm]", fontsize=8)
         ax.text(0.99, 0.92, f"R = {p.r[i]:.3f}", transform=ax.transAxes, ha="right", va="top", fontsize=8,
                 bbox={"fc": "white", "alpha": 0.8, "lw": 0})
@@ -98,10 +103,10 @@ def plot_r_matrix(res: ValidationResult, structure: str):
 def plot_r_by_pga(res: ValidationResult, structure: str):
     """Mean R against the event's PGA (cross-event predictions)."""
     ps = [p for p in res.predictions if p.structure == structure]
-    fig, ax = plt.subplots(figsize=(5, 3.2))
+    fig, ax = plt.subplots(figsize=(7, 4.2))
     for p in ps:
         ax.plot(p.pga_g, np.mean(p.r), "o" if not p.self_replay else "*", color="C3" if p.self_replay else "C0", ms=6)
-        ax.annotate(p.event, (p.pga_g, np.mean(p.r)), fontsize=6, xytext=(2, 2), textcoords="offset points")
+        ax.annotate(p.event, (p.pga_g, np.mean(p.r)), fontsize=8, xytext=(2, 2), textcoords="offset points")
     ax.axhline(res.targets.r_mean, color="k", ls=":", lw=1, label=f"paper {res.targets.r_mean}")
     ax.set_xscale("log")
     ax.set_xlabel("PGA [g]")
@@ -120,7 +125,7 @@ def figures(res: ValidationResult, cfg, folder: Path, force: bool) -> list[Path]
     out = []
 
     def save(fig, name):
-        out.append(save_figure(fig, _checked(folder / name, force), dpi=90))
+        out.append(save_figure(fig, _checked(folder / name, force), dpi=72))
 
     levels = {s.name: s.levels for s in cfg.structures}
     for name in dict.fromkeys(p.structure for p in res.predictions):
@@ -138,6 +143,9 @@ def figures(res: ValidationResult, cfg, folder: Path, force: bool) -> list[Path]
             if p.kind == "nonlinear" and p.hla is not None:
                 save(plot_loops(p), f"{tag}_loops.png")
                 fig = plot_stiffness(p.hla, clone_ke=p.ke_clone)
+                w = _window(p)
+                for ax in fig.axes:
+                    ax.set_xlim(p.time[w.start], p.time[w.stop - 1])
                 fig.suptitle(f"{name}: stiffness evolution of {p.event}, HLA against the clone from {src}", fontsize=10)
                 save(fig, f"{tag}_stiffness.png")
     return out

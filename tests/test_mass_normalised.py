@@ -19,7 +19,13 @@ from hlaid.clone import Clone
 from hlaid.hla import HLAConfig, hla
 from hlaid.hla.config import ForceConfig
 from hlaid.hla.features import half_cycle_features
-from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig, identify
+from hlaid.identify import (
+    IdentifyConfig,
+    OuterConfig,
+    RefineConfig,
+    TrainingConfig,
+    identify,
+)
 from hlaid.identify.regression import story_delta_eta, story_yield_displacement
 from hlaid.identify.replaycheck import corrcoef
 from hlaid.simulate import simulate

@@ -1,12 +1,14 @@
 """Automated identification of a degrading Bouc-Wen clone from HLA (regressions + RBF SVMs)."""
 
 from .estimators import BaseIdentifier, HLASVMIdentifier, NotFittedError
+from .gradient import GradientIdentifier
+from .ukf import UKFIdentifier
 from .config import BinsConfig, IdentifyConfig, OuterConfig, RefineConfig, SVMConfig, TrainingConfig
 from .pipeline import IdentificationResult, estimate_noise_rms, identify
 from .refine import RefineResult, refine_replay
 from .regression import RegressionFit, fit_delta_eta, fit_yield_displacement
 from .replaycheck import ReplayCheck, replay_check
 
-__all__ = ["BaseIdentifier", "HLASVMIdentifier", "NotFittedError", "identify", "IdentificationResult", "IdentifyConfig", "BinsConfig", "TrainingConfig", "SVMConfig",
+__all__ = ["BaseIdentifier", "HLASVMIdentifier", "GradientIdentifier", "UKFIdentifier", "NotFittedError", "identify", "IdentificationResult", "IdentifyConfig", "BinsConfig", "TrainingConfig", "SVMConfig",
            "OuterConfig", "RefineConfig", "refine_replay", "RefineResult", "fit_delta_eta", "fit_yield_displacement",
            "RegressionFit", "replay_check", "ReplayCheck", "estimate_noise_rms"]

@@ -115,8 +115,8 @@ def to_unconstrained(values: dict[str, np.ndarray], k0_ref: np.ndarray, dy_ref: 
 
 def from_unconstrained(theta: torch.Tensor, k0_ref, dy_ref) -> dict[str, torch.Tensor]:
     """Story values ``(..., story)`` of coordinates ``theta`` ``(..., 5, story)`` (differentiable)."""
-    k0_ref = torch.as_tensor(k0_ref, dtype=theta.dtype)
-    dy_ref = torch.as_tensor(dy_ref, dtype=theta.dtype)
+    k0_ref = torch.tensor(np.asarray(k0_ref), dtype=theta.dtype)
+    dy_ref = torch.tensor(np.asarray(dy_ref), dtype=theta.dtype)
     sp = torch.nn.functional.softplus
     t = theta.unbind(-2)
     return {"k0": k0_ref * torch.exp(t[0]), "alpha": torch.sigmoid(t[1]), "p": 1.0 + sp(t[2]),

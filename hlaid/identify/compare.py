@@ -211,8 +211,8 @@ def study_record(spec: str, cfg: CompareConfig, base_dir=None) -> GroundMotion:
     gm = MotionSpec(file=spec, pga_g=cfg.pga_g).load(base_dir).resampled(cfg.rate_hz)
     if cfg.window_s is None:
         return gm
-    i0 = max(0, int(np.argmax(np.abs(gm.acc))) - int(round(cfg.before_peak_s / gm.dt)))
-    n = int(round(cfg.window_s / gm.dt)) + 1
+    i0 = max(0, int(np.argmax(np.abs(gm.acc))) - round(cfg.before_peak_s / gm.dt))
+    n = round(cfg.window_s / gm.dt) + 1
     return GroundMotion(dt=gm.dt, acc=gm.acc[i0:i0 + n], name=f"{gm.name}[{cfg.window_s:g}s]", source=gm.source)
 
 
@@ -301,8 +301,8 @@ def run_case(case: Case, names: list[str], settings: dict, unseen: GroundMotion,
     truth_unseen = simulate(case.building, unseen)
     out, walls = [], {}
     for name in names:
-        base = dict(case=case.name, identifier=name, structure=case.structure, record=case.motion.name,
-                    noise=case.noise, seed=case.seed)
+        base = {"case": case.name, "identifier": name, "structure": case.structure, "record": case.motion.name,
+                    "noise": case.noise, "seed": case.seed}
         est = make_identifier(name, settings.get(name), base_dir=base_dir, cache_dir=cache_dir)
         t0, c0 = time.perf_counter(), _cpu()
         try:
@@ -349,15 +349,22 @@ def _assess(est, case, meas, unseen, truth_unseen, base, total, wall, cpu, failu
 
 
 # ---------------------------------------------------------------------- summary
+def structure_kind(structure: str) -> str:
+    """``"table1"`` or ``"random"`` (random structures are numbered)."""
+    return "random" if structure.startswith("random") else structure
+
+
 def summarise(outcomes: list[Outcome]) -> list[dict]:
-    """Per identifier and noise level: counts, failures and mean / worst of every metric
-    over the cases that did not fail (fractions, not percent)."""
+    """Per noise level, structure kind (Table 1 / random) and identifier: counts, failures and
+    mean / worst of every metric over the cases that did not fail (fractions, not percent)."""
     rows = []
-    keys = sorted({(o.identifier, o.noise) for o in outcomes}, key=lambda k: (k[1], list(IDENTIFIERS).index(k[0])))
-    for name, noise in keys:
-        sel = [o for o in outcomes if o.identifier == name and o.noise == noise]
+    order = list(IDENTIFIERS)
+    keys = sorted({(o.noise, structure_kind(o.structure), o.identifier) for o in outcomes},
+                  key=lambda k: (k[0], k[1] != "table1", k[1], order.index(k[2]) if k[2] in order else len(order)))
+    for noise, kind, name in keys:
+        sel = [o for o in outcomes if o.identifier == name and o.noise == noise and structure_kind(o.structure) == kind]
         ok = [o for o in sel if not o.failed]
-        row = {"identifier": name, "noise": noise, "cases": len(sel), "failures": len(sel) - len(ok),
+        row = {"identifier": name, "noise": noise, "structure": kind, "cases": len(sel), "failures": len(sel) - len(ok),
                "reasons": sorted({o.reason for o in sel if o.failed}),
                "wall_mean_s": float(np.mean([o.wall_s for o in sel])), "wall_max_s": float(np.max([o.wall_s for o in sel])),
                "cpu_mean_s": float(np.mean([o.cpu_s for o in sel]))}

@@ -90,8 +90,8 @@ def arias_window(acc: np.ndarray, dt: float, arias, tail_s: float = 2.0, lead_s:
     """Sample range ``[i0, i1)`` from ``lead_s`` before the ``arias[0]`` Arias-intensity
     fraction of ``acc`` to ``tail_s`` after the ``arias[1]`` fraction."""
     e = np.cumsum(np.asarray(acc) ** 2)
-    i0 = max(0, int(np.searchsorted(e, arias[0] * e[-1])) - int(round(lead_s / dt)))
-    i1 = min(acc.shape[0], int(np.searchsorted(e, arias[1] * e[-1])) + int(round(tail_s / dt)) + 1)
+    i0 = max(0, int(np.searchsorted(e, arias[0] * e[-1])) - round(lead_s / dt))
+    i1 = min(acc.shape[0], int(np.searchsorted(e, arias[1] * e[-1])) + round(tail_s / dt) + 1)
     return i0, i1
 
 
@@ -114,12 +114,12 @@ class OutputErrorProblem:
         self.i0, self.i1 = window
         n = self.i1 - self.i0
         hi = min(band_hz[1], 0.45 / self.dt)
-        nfft = 1 << int(math.ceil(math.log2(2 * n)))
+        nfft = 1 << math.ceil(math.log2(2 * n))
         self.gain = torch.as_tensor(zero_phase_gain(nfft, self.dt, (band_hz[0], hi)))
         self.target = filtered(torch.as_tensor(np.array(meas.floor_acc[self.i0:self.i1]))[None], self.gain)[0]
         self.scale = self.target.pow(2).mean(dim=0).sqrt().clamp_min(1e-12)
-        self.S = max(2, int(round(segment_s / self.dt)))
-        self.starts = self.i0 + self.S * np.arange(int(math.ceil(n / self.S)))
+        self.S = max(2, round(segment_s / self.dt))
+        self.starts = self.i0 + self.S * np.arange(math.ceil(n / self.S))
 
     @property
     def n_segments(self) -> int:
@@ -216,12 +216,14 @@ class OutputErrorProblem:
 def levenberg_marquardt(problem: OutputErrorProblem, theta0: torch.Tensor, k0_ref, dy_ref, *, iterations: int,
                         tol: float = 1e-3, tb: TBLogger | None = None):
     """Levenberg-Marquardt (Marquardt's diagonal scaling) on every start of ``theta0``
-    ``(start, 5, story)`` at once.
+    ``(start, 5, story)`` at once, one Jacobian pass per iteration.
 
-    A start is done when three iterations in a row lower its loss by less than ``tol``
-    (relative; a rejected step lowers it by nothing), or its damping saturates; done starts leave the batch, and the run stops once the best
-    start is done. Returns the coordinates, the ``(iteration, start)`` loss history and the
-    number of Jacobian passes.
+    After two rejected steps in a row a start's next pass re-evaluates its Jacobian where it
+    stands (the carried sensitivities have moved on by then) instead of trying a step. A start
+    is done when the Gauss-Newton step predicts a relative loss decrease below ``tol``, when
+    two accepted steps in a row lowered it by less than ``tol``, or when its damping
+    saturates; done starts leave the batch and the run stops once the best start is done.
+    Returns the coordinates, the ``(iteration, start)`` loss history and the number of passes.
     """
     theta = theta0.detach().clone()
     B, F, n = theta.shape
@@ -231,32 +233,40 @@ def levenberg_marquardt(problem: OutputErrorProblem, theta0: torch.Tensor, k0_re
     loss = torch.where(torch.as_tensor(ok), r.pow(2).mean(dim=1), torch.inf)
     lam = torch.full((B,), 1e-3, dtype=theta.dtype)
     quiet = torch.zeros(B, dtype=torch.long)
+    rejected = torch.zeros(B, dtype=torch.long)
+    done = ~torch.isfinite(loss)
     hist, passes = [loss.numpy().copy()], 1
     for it in range(iterations):
-        active = torch.isfinite(loss) & (quiet < 3) & (lam < 1e8)
+        A = J.transpose(1, 2) @ J / N
+        g = (J.transpose(1, 2) @ r[..., None] / N)[..., 0]
+        scale = torch.diagonal(A, dim1=1, dim2=2).clamp_min(1e-12)
+        gn = torch.linalg.solve(A + 1e-10 * torch.diag_embed(scale), -g[..., None])[..., 0]
+        predicted = -(g * gn).sum(dim=1) / loss.clamp_min(1e-300)  # Gauss-Newton decrease / loss
+        done |= (predicted < tol) | (quiet >= 2) | (lam >= 1e8)
         best = int(torch.argmin(loss))
-        if not active[best] or not active.any():
+        if done[best]:
             break
-        a = torch.nonzero(active)[:, 0]
-        Ja, ra = J[a], r[a]
-        A = Ja.transpose(1, 2) @ Ja / N
-        g = Ja.transpose(1, 2) @ ra[..., None] / N
-        D = torch.diag_embed(torch.diagonal(A, dim1=1, dim2=2).clamp_min(1e-12))
-        delta = torch.linalg.solve(A + lam[a, None, None] * D, -g)[..., 0].clamp(-1.0, 1.0)
-        trial = theta[a] + delta.reshape(-1, F, n)
+        a = torch.nonzero(~done)[:, 0]
+        delta = torch.linalg.solve(A[a] + lam[a, None, None] * torch.diag_embed(scale[a]), -g[a, :, None])[..., 0]
+        refresh = rejected[a] >= 2
+        delta[refresh] = 0.0
+        trial = theta[a] + delta.clamp(-1.0, 1.0).reshape(-1, F, n)
         r2, J2, ok2, carried[a] = problem.jacobian(trial, k0_ref, dy_ref, carried[a])
         passes += 1
         loss2 = torch.where(torch.as_tensor(ok2), r2.pow(2).mean(dim=1), torch.inf)
-        better = loss2 < loss[a]
+        better = (loss2 < loss[a]) & ~refresh
+        keep = better | (refresh & torch.isfinite(loss2))
         change = (loss[a] - loss2) / loss[a].clamp_min(1e-300)
-        quiet[a] = torch.where(better & (change > tol), 0, quiet[a] + 1)
-        acc = a[better]
-        theta[acc], r[acc], J[acc], loss[acc] = trial[better], r2[better], J2[better], loss2[better]
-        lam[a] = torch.where(better, lam[a] / 3.0, lam[a] * 4.0).clamp(1e-9, 1e9)
+        quiet[a] = torch.where(better, torch.where(change > tol, 0, quiet[a] + 1), quiet[a])
+        rejected[a] = torch.where(better | refresh, 0, rejected[a] + 1)
+        k = a[keep]
+        theta[k], r[k], J[k], loss[k] = trial[keep], r2[keep], J2[keep], loss2[keep]
+        lam[a] = torch.where(better, lam[a] / 3.0, torch.where(refresh, lam[a], lam[a] * 4.0)).clamp(1e-9, 1e9)
         hist.append(loss.numpy().copy())
         if tb is not None and torch.isfinite(loss).any():
             tb.scalar("gradient/best_loss", float(loss.min()), it + 1)
-        _progress.debug(f"[gradient] iteration {it + 1}: losses {np.array2string(loss.numpy(), precision=4)}")
+        _progress.debug(f"[gradient] iteration {it + 1}: losses {np.array2string(loss.numpy(), precision=4)}, "
+                        f"predicted {np.array2string(predicted.numpy(), precision=2)}")
     return theta, np.array(hist), passes
 
 
@@ -292,7 +302,7 @@ class GradientIdentifier(BaseIdentifier):
     """
 
     def __init__(self, *, n_candidates: int = 256, n_starts: int = 4, init: str = "hla", max_iterations: int = 30,
-                 segment_s: float = 1.0, substeps: int = 1, arias=(0.01, 0.95), band_hz=(0.1, 20.0),
+                 segment_s: float = 0.25, substeps: int = 1, arias=(0.01, 0.95), band_hz=(0.1, 20.0),
                  damping_ratio: float = 0.05, alpha_range=(0.02, 0.5), p_range=(1.0, 3.0), dy_range=(0.1, 0.6),
                  delta_eta_range=(0.0, 2.0), k0_spread: float = 0.2, k0_range=(1e3, 1e5), tol: float = 1e-3,
                  random_state: int = 0, tensorboard: str | None = None):
@@ -325,8 +335,8 @@ class GradientIdentifier(BaseIdentifier):
             raise InputError("max_iterations must be >= 0, substeps >= 1 and segment_s > 0 [s]")
 
     def _candidates(self, meas: Measurement, known: sp.KnownPart, rng) -> dict[str, np.ndarray]:
-        kw = dict(rng=rng, alpha_range=self.alpha_range, p_range=self.p_range, dy_range=self.dy_range,
-                  delta_eta_range=self.delta_eta_range)
+        kw = {"rng": rng, "alpha_range": self.alpha_range, "p_range": self.p_range, "dy_range": self.dy_range,
+                  "delta_eta_range": self.delta_eta_range}
         n = int(self.n_candidates)
         if self.init == "hla":
             res = hla(meas)
@@ -338,7 +348,7 @@ class GradientIdentifier(BaseIdentifier):
         v["k0"][0] = np.sqrt(lo * hi)
         return v
 
-    def fit(self, measurement: Measurement) -> "GradientIdentifier":
+    def fit(self, measurement: Measurement) -> GradientIdentifier:
         """Identify the clone from ``measurement`` (ground and floor accelerations)."""
         self._check()
         meas = measurement

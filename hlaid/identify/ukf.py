@@ -162,7 +162,7 @@ class UKFIdentifier(BaseIdentifier):
         return {"k0": k0, "alpha": mid(self.alpha_range), "p": np.maximum(mid(self.p_range), 1.05), "dy": dy,
                 "delta_eta": np.maximum(mid(self.delta_eta_range), 1e-3)}
 
-    def fit(self, measurement: Measurement) -> "UKFIdentifier":
+    def fit(self, measurement: Measurement) -> UKFIdentifier:
         """Filter ``measurement`` (ground and floor accelerations) and keep the final
         parameter mean as the clone."""
         self._check()
@@ -204,7 +204,7 @@ class UKFIdentifier(BaseIdentifier):
                             provenance=provenance)
         return self
 
-    def _noise(self, meas: Measurement, ground: np.ndarray, i1: int):
+    def _noise(self, meas: Measurement, i1: int):
         """Measurement noise variance ``(story,)`` and input-noise std [mm/s^2]."""
         level = self.measurement_noise
         if level is None:
@@ -224,7 +224,7 @@ class UKFIdentifier(BaseIdentifier):
         dt, m = meas.dt, int(self.substeps)
         gamma, Wm, Wc = sigma_weights(L, self.ut_alpha, self.ut_beta, self.ut_kappa)
         i1 = ag.shape[0]
-        R, g_std = self._noise(meas, ag, i1)
+        R, g_std = self._noise(meas, i1)
         y_meas = torch.as_tensor(np.array(meas.floor_acc[:i1]))
         g = torch.as_tensor(np.array(ag))
         x = torch.cat([torch.zeros(ns, dtype=theta.dtype), theta.reshape(-1)])
@@ -272,7 +272,7 @@ class UKFIdentifier(BaseIdentifier):
             x = x + K @ (y_meas[k] - yb)
             P = P - K @ Pyy @ K.T
             P = 0.5 * (P + P.T)
-            if k % int(round(1.0 / dt)) == 0:
+            if k % round(1.0 / dt) == 0:
                 for f, v in sp.values_numpy(sp.from_unconstrained(x[ns:].reshape(theta.shape), k0_ref,
                                                                   dy_ref)).items():
                     for i in range(n):
