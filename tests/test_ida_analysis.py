@@ -135,12 +135,18 @@ def test_pdelta_and_heights_rules(table1, tmp_path, capsys):
     assert b.pdelta_active and any("although the clone says pdelta: false" in n for n in notes)
     b, _ = prepare_building(table1, heights=HEIGHTS, pdelta=False)
     assert not b.pdelta_active
-    norm = Clone(building=table1.replace(height=HEIGHTS), mass_normalised=True)
+    # a mass-normalised clone: masses are ratios, stiffnesses per unit of total mass; gravity as
+    # relative mass x g is per unit mass too, so P-Delta is consistent and on
+    ratios = table1.mass / table1.mass.sum()
+    norm = Clone(building=table1.replace(height=HEIGHTS, mass=ratios, k0=table1.k0 / table1.mass.sum()),
+                 mass_normalised=True)
     b, notes = prepare_building(norm)
-    assert not b.pdelta_active and "mass-normalised" in capsys.readouterr().err
+    assert b.pdelta_active and any("mass-normalised" in n for n in notes)
+    full, _ = prepare_building(table1, heights=HEIGHTS)
+    assert np.allclose(b.geometric_stiffness() * table1.mass.sum(), full.geometric_stiffness())
     with pytest.raises(InputError, match="mass-normalised"):
-        prepare_building(norm, pdelta=True)
-    b, _ = prepare_building(norm, gravity_load=[1e5, 1e5, 5e4])
+        prepare_building(norm, gravity_load=[1e5, 1e5, 5e4])
+    b, _ = prepare_building(table1, heights=HEIGHTS, gravity_load=[1e5, 1e5, 5e4])
     assert b.pdelta_active and np.allclose(b.geometric_stiffness(), [2.5e5 / 3000, 1.5e5 / 3000, 5e4 / 3000])
     path = tmp_path / "clone.json"
     Clone(building=table1.replace(height=HEIGHTS)).save(path)

@@ -66,10 +66,10 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     """The building an IDA runs, with P-Delta resolved, and notes on what was decided.
 
     P-Delta (``pdelta=None``): on when story heights are known, even when a clone file says
-    ``pdelta: false`` (clones identified from P-Delta-free responses store false). A
-    mass-normalised clone has no absolute gravity loads: P-Delta then needs ``gravity_load``
-    (in the clone's force units), otherwise it is off with a warning. Story heights are
-    required (``require_heights``): IDA reports drift ratios.
+    ``pdelta: false`` (clones identified from P-Delta-free responses store false). For a
+    mass-normalised clone the default gravity loads, relative mass x g, are per unit of total
+    mass like its stiffnesses, so P-Delta stays consistent; absolute gravity loads [N] cannot be
+    combined with it. Story heights are required (``require_heights``): IDA reports drift ratios.
     """
     source = None
     if isinstance(model, (str, os.PathLike)):
@@ -93,15 +93,13 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     want = (building.height is not None) if pdelta is None else bool(pdelta)
     if want and building.height is None:
         raise InputError("P-Delta needs story heights; give heights in mm (--heights 3000,3000,...)", source=source)
-    if want and normalised and building.gravity_load is None:
-        if pdelta:
-            raise InputError("P-Delta needs absolute gravity loads but the clone is mass-normalised; give "
-                             "gravity loads (--gravity-kN) or turn P-Delta off", source=source)
-        _progress.warn("the clone is mass-normalised (no absolute gravity loads): P-Delta is off; give gravity "
-                       "loads (--gravity-kN) to include it")
-        notes.append("P-Delta off: mass-normalised clone without gravity loads")
-        want = False
-    elif want and pdelta is None and building.pdelta is False:
+    if normalised and gravity_load is not None:
+        raise InputError("the clone is mass-normalised (forces per unit of total mass): absolute gravity loads "
+                         "cannot be combined with it; leave --gravity-kN out (gravity is taken as relative mass "
+                         "x g, per unit mass like the clone)", source=source)
+    if want and normalised:
+        notes.append("mass-normalised clone: P-Delta from relative mass x g, per unit of total mass")
+    if want and pdelta is None and building.pdelta is False:
         notes.append("P-Delta on (story heights known) although the clone says pdelta: false "
                      "(identification without P-Delta); pass pdelta=False to keep it off")
     elif not want:
