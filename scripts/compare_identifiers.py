@@ -99,12 +99,12 @@ def outcome_table(outcomes) -> list[str]:
 def write_csv(path: Path, outcomes) -> None:
     n = max(len(next(iter(o.errors.values()))) if o.errors else 0 for o in outcomes)
     cols = ["case", "identifier", "structure", "record", "noise", "seed", "failed", "reason", "wall_s", "wall_own_s",
-            "cpu_s", "mean_error", "max_error"]
+            "cpu_s", "cpu_own_s", "mean_error", "max_error"]
     cols += [f"error_{p}_{i + 1}" for p in PARAMETERS for i in range(n)]
     cols += [f"{m}_{i + 1}" for m in ("r_ident", "r_unseen", "drift_error_unseen") for i in range(n)]
 
     def row(o):
-        d = {c: getattr(o, c) for c in cols[:13]}
+        d = {c: getattr(o, c) for c in cols[:14]}
         for p in PARAMETERS:
             for i, v in enumerate((o.errors or {}).get(p, [])):
                 d[f"error_{p}_{i + 1}"] = v

@@ -240,19 +240,19 @@ def hla(measurement: Measurement, config: HLAConfig | None = None) -> HLAResult:
                      pdelta_corrected=pdelta, config=cfg, band_hz=band, source=meas.source)
 
 
-def _yielded(k: np.ndarray, table: HalfCycleTable, cfg: HLAConfig, n_largest: int = 3) -> bool:
+def _yielded(k: np.ndarray, table: HalfCycleTable, cfg: HLAConfig, n_largest: int = 5, n_below: int = 2) -> bool:
     """Whether the story left the elastic range.
 
-    Over the ``n_largest`` half cycles with the largest drift increments (the best signal to
-    noise), the tangent stiffness over the last fifth of each is compared with its elastic
-    stiffness; the story has yielded when the median ratio is below ``yield_ratio``.
+    Of the ``n_largest`` half cycles with the largest drift increments (the best signal to
+    noise), at least ``n_below`` must end (last fifth) with a tangent stiffness below
+    ``yield_ratio`` times their elastic stiffness: one such half cycle can be noise.
     """
     order = np.argsort(table.drift_increment)[::-1][:n_largest]
-    ratios = []
+    below = 0
     for j in order:
         s, e, ke = table.start[j], table.end[j], table.ke_raw[j]
         tail = k[e - max((e - s) // 5, 2): e + 1]
         tail = tail[np.isfinite(tail)]
-        if tail.size and np.isfinite(ke) and ke > 0:
-            ratios.append(np.median(tail) / ke)
-    return bool(ratios) and float(np.median(ratios)) < cfg.stiffness.yield_ratio
+        if tail.size and np.isfinite(ke) and ke > 0 and np.median(tail) < cfg.stiffness.yield_ratio * ke:
+            below += 1
+    return below >= min(n_below, len(order))

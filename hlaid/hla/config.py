@@ -115,8 +115,9 @@ class StiffnessConfig:
     k_window : samples in the sliding least-squares window of the tangent stiffness k(t).
     k0_min_amplitude : half cycles whose drift increment is below this fraction of the
         story's peak-to-peak drift are too noisy to set k0.
-    yield_ratio : a story has yielded when some half cycle's final tangent stiffness falls
-        below this fraction of its ke.
+    yield_ratio : a story has yielded when, of its five largest half cycles, at least two end
+        with a tangent stiffness below this fraction of their ke (elastic stories stay above
+        ~0.75 at 10 % noise; a yielding story with strong hardening, alpha ~0.35, reaches ~0.5).
     ke_smoothing : how single-half-cycle slopes (noisy: several % at 10 % noise) are pooled:
         ``"energy"`` fits ke against the energy dissipated so far
         (``k_inf + (k0 - k_inf)/(1 + c E)``, the form of eq 7-11); ``"monotone"`` a

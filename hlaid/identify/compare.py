@@ -173,8 +173,9 @@ class Outcome:
     case, identifier, structure, record, noise, seed : what ran
     failed : bool; reason : why (empty when it did not fail)
     wall_s, cpu_s : time of ``fit`` (CPU: this process and its finished worker processes);
-        wall_own_s : the identifier's own wall time (differs from ``wall_s`` only for the
-        replay variant with a shared classifier cache)
+        wall_own_s, cpu_own_s : the identifier's own times (they differ from ``wall_s`` and
+        ``cpu_s`` only for the replay variant with a shared classifier cache, whose totals
+        add the paper variant's times on the same case)
     errors : per parameter, (story,) signed relative error of the clone against the truth
     mean_error, max_error : mean and largest |relative error| over every story parameter
     r_ident, r_unseen : (story,) replay R of floor displacements with the truth
@@ -193,6 +194,7 @@ class Outcome:
     wall_s: float
     wall_own_s: float
     cpu_s: float
+    cpu_own_s: float
     errors: dict | None = None
     mean_error: float = float("nan")
     max_error: float = float("nan")
@@ -299,7 +301,7 @@ def run_case(case: Case, names: list[str], settings: dict, unseen: GroundMotion,
     """Every identifier of ``names`` on ``case``; exceptions are recorded as failures."""
     meas = simulate_measurement(case.building, case.motion, rate_hz=None, noise_rms=case.noise, seed=case.seed)
     truth_unseen = simulate(case.building, unseen)
-    out, walls = [], {}
+    out, times = [], {}
     for name in names:
         base = {"case": case.name, "identifier": name, "structure": case.structure, "record": case.motion.name,
                     "noise": case.noise, "seed": case.seed}
@@ -311,20 +313,21 @@ def run_case(case: Case, names: list[str], settings: dict, unseen: GroundMotion,
         except Exception as e:  # noqa: BLE001 - an identifier that raises is a result of the study
             err = f"{type(e).__name__}: {' '.join(str(e).split())}"
         wall, cpu = time.perf_counter() - t0, _cpu() - c0
-        walls[name] = wall
-        total = wall + (walls.get("hlasvm", 0.0) if shared_cache and name == "hlasvm_replay" else 0.0)
+        times[name] = (wall, cpu)
+        before = times.get("hlasvm", (0.0, 0.0)) if shared_cache and name == "hlasvm_replay" else (0.0, 0.0)
+        spent = {"wall_s": wall + before[0], "wall_own_s": wall, "cpu_s": cpu + before[1], "cpu_own_s": cpu}
         if err is not None:
-            out.append(Outcome(**base, failed=True, reason=err, wall_s=total, wall_own_s=wall, cpu_s=cpu))
+            out.append(Outcome(**base, failed=True, reason=err, **spent))
             _progress.info(f"[compare] {case.name}: {name} failed ({err}) in {wall:.1f} s")
             continue
-        out.append(_assess(est, case, meas, unseen, truth_unseen, base, total, wall, cpu, failure_r))
+        out.append(_assess(est, case, meas, unseen, truth_unseen, base, spent, failure_r))
         o = out[-1]
         _progress.info(f"[compare] {case.name}: {name} in {wall:.1f} s, mean |error| {100 * o.mean_error:.2f} %, "
                        f"max {100 * o.max_error:.2f} %" + (f" FAILED: {o.reason}" if o.failed else ""))
     return out
 
 
-def _assess(est, case, meas, unseen, truth_unseen, base, total, wall, cpu, failure_r) -> Outcome:
+def _assess(est, case, meas, unseen, truth_unseen, base, spent, failure_r) -> Outcome:
     b, t = est.clone_.building, case.building
     errors = {k: (np.asarray(getattr(b, k)) / np.asarray(getattr(t, k)) - 1.0).tolist() for k in PARAMETERS}
     flat = np.abs(np.concatenate([np.asarray(v) for v in errors.values()]))
@@ -341,7 +344,7 @@ def _assess(est, case, meas, unseen, truth_unseen, base, total, wall, cpu, failu
             drift_err = (peak / truth_unseen.peak_drift[0] - 1.0).tolist()
             if np.min(r_id) < failure_r:
                 reason = f"replay R {np.min(r_id):.2f} < {failure_r} on the identification record"
-    return Outcome(**base, failed=bool(reason), reason=reason, wall_s=total, wall_own_s=wall, cpu_s=cpu,
+    return Outcome(**base, failed=bool(reason), reason=reason, **spent,
                    errors=errors, mean_error=float(np.mean(flat)), max_error=float(np.max(flat)),
                    r_ident=None if r_id is None else np.asarray(r_id).tolist(),
                    r_unseen=None if r_un is None else np.asarray(r_un).tolist(), drift_error_unseen=drift_err,

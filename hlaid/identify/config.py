@@ -60,7 +60,7 @@ class TrainingConfig:
     spread: float = 0.2
     test_fraction: float = 0.2
     noise_rms: float | None = None
-    max_simulations: int = 600
+    max_simulations: int = 200
     arias_fraction: float = 0.95
     tail_s: float = 5.0
     seed: int = 0

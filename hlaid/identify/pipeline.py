@@ -163,14 +163,7 @@ class _Identifier:
         final = paper
         refine_info = None
         if cfg.refine.method == "replay":
-            _progress.info("[identify] replay refinement against the measured accelerations")
-            rr = refine_replay(paper, meas, parameters=cfg.refine.parameters,
-                               stories=[i for i in range(n) if self.identifiable[i]], damping=cfg.refine.damping,
-                               band_hz=cfg.refine.band_hz, max_iterations=cfg.refine.max_iterations)
-            final = rr.building
-            self.timings["refine"] = rr.seconds
-            refine_info = {"cost_initial": rr.cost_initial, "cost_final": rr.cost_final, "nfev": rr.nfev,
-                           "message": rr.message}
+            final, refine_info = self._refine(paper, alpha, p)
         t = time.perf_counter()
         check = replay_check(final, meas, res)
         self.timings["replay"] = time.perf_counter() - t
@@ -189,6 +182,30 @@ class _Identifier:
                                     iterations=len(history), replay=check, timings=self.timings)
 
     # ------------------------------------------------------------------ helpers
+    def _refine(self, paper: Building, alpha, p):
+        """Replay refinement in two stages: k0 alone first (HLA's k0 is its least certain
+        output and the regressions amplify its error), the regressions again with it, then
+        every parameter of the identifiable stories."""
+        cfg, meas = self.cfg, self.meas
+        _progress.info("[identify] replay refinement against the measured accelerations")
+        t = time.perf_counter()
+        ident = [i for i in range(self.res.n_stories) if self.identifiable[i]]
+        common = {"damping": False, "band_hz": cfg.refine.band_hz, "max_iterations": cfg.refine.max_iterations}
+        info = {}
+        start = paper
+        if "k0" in cfg.refine.parameters:
+            s1 = refine_replay(paper, meas, parameters=("k0",), **common)
+            self.k0 = s1.building.k0.copy()
+            de, dy, _ = self._regressions(alpha, p)
+            start = self._building(alpha, p, dy, de)
+            info["stage1_k0"] = {"cost_initial": s1.cost_initial, "cost_final": s1.cost_final, "nfev": s1.nfev}
+        rr = refine_replay(start, meas, parameters=cfg.refine.parameters, stories=ident, damping=cfg.refine.damping,
+                           band_hz=cfg.refine.band_hz, max_iterations=cfg.refine.max_iterations)
+        self.timings["refine"] = time.perf_counter() - t
+        info.update({"cost_initial": rr.cost_initial, "cost_final": rr.cost_final, "nfev": rr.nfev,
+                     "message": rr.message})
+        return rr.building, info
+
     def _building(self, alpha, p, dy, de) -> Building:
         meas = self.meas
         return Building(mass=self.res.mass, k0=self.k0, alpha=alpha, p=p, dy=dy, delta_eta=de,
