@@ -16,8 +16,8 @@ from .clone import Clone, load_clone
 from .errors import ConfigError, InputError, NotIdentifiableError
 from .hla import HLAConfig, HLAResult, hla
 from .ida import IDAConfig, IDAResult, ida
-from .identify import (BaseIdentifier, HLASVMIdentifier, IdentificationResult, IdentifyConfig, identify,
-                       refine_replay)
+from .identify import (BaseIdentifier, GradientIdentifier, HLASVMIdentifier, IdentificationResult, IdentifyConfig,
+                       NotFittedError, UKFIdentifier, identify, refine_replay)
 from .io import read_any
 from .measurement import Measurement, Truth, read_measurement
 from .model import BoucWenBuilding, Building, BuildingTensors, Damping
@@ -36,7 +36,7 @@ __all__ = [
     "simulate_measurement",
     # analysis and identification
     "hla", "HLAConfig", "HLAResult", "identify", "IdentifyConfig", "IdentificationResult", "refine_replay",
-    "BaseIdentifier", "HLASVMIdentifier", "KernelSVC", "Clone", "load_clone",
+    "BaseIdentifier", "HLASVMIdentifier", "GradientIdentifier", "UKFIdentifier", "NotFittedError", "KernelSVC", "Clone", "load_clone",
     # risk
     "ida", "IDAConfig", "IDAResult",
     # pipeline and errors
