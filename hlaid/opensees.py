@@ -37,6 +37,7 @@ __all__ = [
     "import_opensees",
     "opensees_script",
     "run_opensees",
+    "run_opensees_batch",
 ]
 
 
@@ -157,6 +158,42 @@ def run_opensees(model, motion: GroundMotion, *, scale: float = 1.0, dt_factor: 
                           ok=bool(out["ok"]), time_reached=float(out["time"]),
                           drift=None if out.get("drift") is None else np.asarray(out["drift"]), dt=motion.dt)
 
+
+
+def _opensees_chunk(args):
+    building, jobs, dt_factor = args
+    out = []
+    for gm, s in jobs:
+        r = run_opensees(building, gm, scale=s, dt_factor=dt_factor)
+        out.append(r.peak_drift if r.ok else np.full(len(r.peak_drift), np.nan))
+    return out
+
+
+def run_opensees_batch(model, jobs, *, dt_factor: int = 10, workers: int = 2):
+    """Run ``jobs`` (``(motion, scale)`` pairs) in OpenSees on ``workers`` processes (benchmarks).
+
+    Returns ``(wall [s], CPU of the worker processes [s], peak drifts (job, story))``; NaN rows
+    where OpenSees failed to converge.
+    """
+    import resource
+    import time
+    from concurrent.futures import ProcessPoolExecutor
+
+    def children_cpu():
+        r = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return r.ru_utime + r.ru_stime
+
+    import_opensees()
+    chunks = [jobs[i::workers] for i in range(workers)]
+    t0, c0 = time.perf_counter(), children_cpu()
+    with ProcessPoolExecutor(workers) as ex:
+        parts = list(ex.map(_opensees_chunk, [(model, c, dt_factor) for c in chunks]))
+    wall, cpu = time.perf_counter() - t0, children_cpu() - c0
+    out = [None] * len(jobs)
+    for w, part in enumerate(parts):
+        for k, pk in enumerate(part):
+            out[w + k * workers] = pk
+    return wall, cpu, np.array(out)
 
 _HEADER = '''#!/usr/bin/env python3
 """OpenSeesPy model of the hlaid clone {name!r}: a {n}-story degrading Bouc-Wen shear building.

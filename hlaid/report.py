@@ -10,6 +10,10 @@ import base64
 import html
 import json
 import os
+import re
+import shutil
+import subprocess
+import tempfile
 from pathlib import Path
 
 from ._fileio import atomic_write
@@ -73,11 +77,10 @@ def build_report(run_dir: str | os.PathLike) -> Path:
     errs = [row["error"] for row in s["parameters"] if row["error"] is not None and row["parameter"] != "k0"]
     if errs:
         kpis.append(("parameter error, mean / worst", f"{sum(errs) / len(errs):.1%} / {max(errs):.1%}"))
-    if s.get("ida") and s["ida"].get("collapse_fragility"):
-        cf = s["ida"]["collapse_fragility"]
-        med = cf.get("median")
-        if med is not None:
-            kpis.append((f"median collapse {s['ida'].get('im_label', 'IM')}", f"{med:.3g} g"))
+    cf = _collapse_fit(s.get("ida"))
+    if cf is not None:
+        label = s["ida"].get("intensity_measure", {}).get("label", "IM")
+        kpis.append((f"median collapse {label}", f"{cf['median_g']:.3g} g (beta {cf['beta']:.2f})"))
     parts.append("<div>" + "".join(f"<span class='kpi'>{e(k)}<b>{v}</b></span>" for k, v in kpis) + "</div>")
     parts.append("<h2>Identified parameters</h2>")
     parts.append(_param_table(s))
@@ -117,13 +120,76 @@ def _param_table(s: dict) -> str:
     return "<table>" + head + "".join(body) + "</table>"
 
 
+def _collapse_fit(ida: dict | None) -> dict | None:
+    """The collapse fragility fit (collapse capacities, else counts), or None."""
+    cf = (ida or {}).get("collapse_fragility") or {}
+    return cf.get("capacities") or cf.get("counts")
+
+
 def _ida_block(ida: dict) -> str:
-    cf = ida.get("collapse_fragility") or {}
-    items = []
-    for k in ("im_label", "n_records", "period"):
-        if k in ida:
-            items.append(f"{k.replace('_', ' ')}: {ida[k]}")
-    if cf:
-        items.append("collapse fragility: " + ", ".join(f"{k} {v:.3g}" if isinstance(v, (int, float)) else f"{k} {v}"
-                                                        for k, v in cf.items() if not isinstance(v, (list, dict))))
-    return "<p>" + html.escape("; ".join(items)) + "</p>"
+    e = html.escape
+    im = ida.get("intensity_measure", {})
+    crit = ida.get("collapse_criteria", {})
+    period = f" at T1 = {im['period_s']:.3f} s" if im.get("period_s") else ""
+    head = (f"<p>Intensity measure {e(str(im.get('label', im.get('name', '?'))))}{period}; EDP: {e(str(ida.get('edp')))}; "
+            f"collapse when a story's drift ratio exceeds {crit.get('drift_limit', 0):.0%} or the IDA slope falls "
+            f"below {crit.get('slope_ratio', 0):.0%} of the elastic slope; {ida.get('n_runs', '?')} analyses of "
+            f"{len(ida.get('records', []))} records.</p>")
+    rows = []
+    cf = _collapse_fit(ida)
+    if cf is not None:
+        rows.append(("collapse", cf))
+    for lim, d in sorted((ida.get("drift_limits") or {}).items(), key=lambda kv: float(kv[0])):
+        if d.get("fragility"):
+            rows.append((f"drift ratio > {float(lim):.1%}", d["fragility"]))
+    if not rows:
+        return head
+    tab = ["<table><tr><th class='l'>limit state</th><th>median [g]</th><th>median interval [g]</th><th>beta</th>"
+           "<th>beta interval</th><th>records (censored)</th></tr>"]
+    for name, f in rows:
+        mci, bci = f.get("median_ci_g") or [None, None], f.get("beta_ci") or [None, None]
+        tab.append(f"<tr><td class='l'>{e(name)}</td><td>{_fmt(f['median_g'])}</td>"
+                   f"<td>{_fmt(mci[0])} &ndash; {_fmt(mci[1])}</td><td>{_fmt(f['beta'])}</td>"
+                   f"<td>{_fmt(bci[0])} &ndash; {_fmt(bci[1])}</td><td>{f.get('n_records')} ({f.get('n_censored', 0)})</td></tr>")
+    ci = next((f.get("ci") for _, f in rows if f.get("ci")), None)
+    tab.append("</table>" + (f"<p>Intervals: {ci:.0%} bootstrap.</p>" if ci else ""))
+    notes = "".join(f"<li>{e(n)}</li>" for n in ida.get("notes", []))
+    return head + "".join(tab) + (f"<ul>{notes}</ul>" if notes else "")
+
+
+_BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+
+
+def embedded_figures(report: str | os.PathLike) -> list[tuple[str, int]]:
+    """``(alt, bytes)`` of every PNG embedded in a report; raises if one is not a valid PNG."""
+    text = Path(report).read_text()
+    out = []
+    for alt, data in re.findall(r'<img alt="([^"]*)" src="data:image/png;base64,([^"]+)">', text):
+        raw = base64.b64decode(data)
+        if not raw.startswith(b"\x89PNG\r\n\x1a\n"):
+            raise InputError(f"figure {alt} is not a PNG", source=str(report))
+        out.append((alt, len(raw)))
+    return out
+
+
+def screenshot(report: str | os.PathLike, png: str | os.PathLike, *, browser: str | None = None,
+               width: int = 1200, height: int | None = None, timeout: float = 120.0) -> Path:
+    """Render ``report`` in a headless Chromium and save a full-page screenshot to ``png``.
+
+    ``height`` defaults to 900 px per embedded figure (the page is rendered in one tall window).
+    Raises :class:`InputError` when no browser is found or it fails.
+    """
+    exe = shutil.which(browser) if browser else next((shutil.which(b) for b in _BROWSERS if shutil.which(b)), None)
+    if exe is None:
+        raise InputError("no headless browser found (install Debian's chromium package, or pass browser=)",
+                         source=str(report))
+    report, png = Path(report).resolve(), Path(png).resolve()
+    height = height or 900 * max(len(embedded_figures(report)), 1) + 1200
+    with tempfile.TemporaryDirectory() as profile:
+        cmd = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", f"--user-data-dir={profile}",
+               f"--window-size={width},{height}", f"--screenshot={png}", report.as_uri()]
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    if proc.returncode != 0 or not png.exists():
+        tail = (proc.stderr or "").strip().splitlines()[-1:] or [f"exit status {proc.returncode}"]
+        raise InputError(f"{Path(exe).name} could not render the report: {tail[0]}", source=str(report))
+    return png

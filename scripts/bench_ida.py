@@ -26,7 +26,6 @@ import resource
 import sys
 import time
 import tracemalloc
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +37,7 @@ from hlaid import _progress
 from hlaid.ida import ida, load_records, prepare_building
 from hlaid.ida.analysis import upsampled
 from hlaid.model import Building
+from hlaid.opensees import run_opensees_batch
 from hlaid.simulate import simulate
 
 DEFAULT_RECORDS = REPO.parent / "shared" / "data" / "ground_motions" / "fema_p695_farfield"
@@ -46,11 +46,6 @@ TABLE1 = [{"weight_kN": w, "k0": k, "alpha": a, "p": p, "dy": d, "delta_eta": e,
               (0.7, 0.66, 1.54))]
 LEVELS = np.round(np.arange(1, 21) * 0.4, 3)
 MAX_STEP = 0.0025
-
-
-def children_cpu() -> float:
-    r = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return r.ru_utime + r.ru_stime
 
 
 def timed(fn):
@@ -74,30 +69,6 @@ def grid(b: Building, motions, scales, rate=None, stop=None):
         r = simulate(b, [fine[i] for i in sel], scales[sel], substeps=1, outputs="peaks", stop_drift=stop)
         out[sel] = r.peak_drift.reshape(sel.size, scales.shape[1], -1)
     return out
-
-
-def _opensees_batch(args):
-    building, jobs, dt_factor = args
-    from hlaid.opensees import run_opensees
-    out = []
-    for gm, s in jobs:
-        r = run_opensees(building, gm, scale=s, dt_factor=dt_factor)
-        out.append(r.peak_drift if r.ok else np.full(building.n_stories, np.nan))
-    return out
-
-
-def opensees_runs(building, jobs, dt_factor, workers):
-    """(wall [s], CPU of the workers [s], peak drifts (run, story); NaN where OpenSees failed)."""
-    chunks = [jobs[i::workers] for i in range(workers)]
-    t0, c0 = time.perf_counter(), children_cpu()
-    with ProcessPoolExecutor(workers) as ex:
-        parts = list(ex.map(_opensees_batch, [(building, c, dt_factor) for c in chunks]))
-    wall, cpu = time.perf_counter() - t0, children_cpu() - c0
-    out = [None] * len(jobs)
-    for w, part in enumerate(parts):
-        for k, pk in enumerate(part):
-            out[w + k * workers] = pk
-    return wall, cpu, np.array(out)
 
 
 def errs(x, ref, ok):
@@ -143,7 +114,7 @@ def main(argv=None):
     rows, os_pk = [], {}
     for f in ([1] if a.quick else [1, 10]):
         js = sub_jobs if a.quick else jobs
-        wall, cpu, pk = opensees_runs(b, js, f, threads)
+        wall, cpu, pk = run_opensees_batch(b, js, dt_factor=f, workers=threads)
         pk = pk.reshape(R, -1, b.n_stories)
         os_pk[f] = pk
         e = errs(pk if a.quick else pk[:, every], pk_ref, ok)

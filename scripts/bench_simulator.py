@@ -23,10 +23,8 @@ from __future__ import annotations
 
 import argparse
 import os
-import resource
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +34,7 @@ sys.path.insert(0, str(REPO))
 
 from hlaid.model import Building
 from hlaid.motions import GroundMotion, read_motion
+from hlaid.opensees import run_opensees_batch
 from hlaid.simulate import simulate
 
 DEFAULT_RECORDS = REPO.parent / "shared" / "data" / "ground_motions" / "fema_p695_farfield"
@@ -67,31 +66,6 @@ def best_of(fn, n):
         fn()
         best = min(best, (time.perf_counter() - t0, time.process_time() - c0))
     return best
-
-
-def children_cpu() -> float:
-    r = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return r.ru_utime + r.ru_stime
-
-
-def _opensees_batch(args):
-    building, jobs, dt_factor = args
-    from hlaid.opensees import run_opensees
-    return [run_opensees(building, gm, scale=s, dt_factor=dt_factor).peak_drift for gm, s in jobs]
-
-
-def opensees_runs(building, jobs, dt_factor, workers):
-    """(wall [s], CPU [s] of the worker processes, peak drifts (run, story))."""
-    chunks = [jobs[i::workers] for i in range(workers)]
-    t0, c0 = time.perf_counter(), children_cpu()
-    with ProcessPoolExecutor(workers) as ex:
-        parts = list(ex.map(_opensees_batch, [(building, c, dt_factor) for c in chunks]))
-    wall, cpu = time.perf_counter() - t0, children_cpu() - c0
-    out = [None] * len(jobs)
-    for w, part in enumerate(parts):
-        for k, pk in enumerate(part):
-            out[w + k * workers] = pk
-    return wall, cpu, np.array(out)
 
 
 def rel_errors(x, ref):
@@ -128,12 +102,12 @@ def main(argv=None):
     jobs = [(m, s) for i, m in enumerate(motions) for s in rows[i]]
     results = {}
     for f in ([1] if a.quick else [1, 10]):
-        wall, cpu, pk = opensees_runs(b, jobs, f, threads)
+        wall, cpu, pk = run_opensees_batch(b, jobs, dt_factor=f, workers=threads)
         results[f] = (wall, cpu, rel_errors(pk, ref))
         print(f"OpenSees dt/{f}: {wall:.1f} s (CPU {cpu:.1f} s)", flush=True)
     check = ""
     if not a.quick:  # the reference against OpenSees at dt/100 (two runs: the strongest scale)
-        _, _, pk100 = opensees_runs(b, [jobs[9], jobs[19]], 100, 2)
+        _, _, pk100 = run_opensees_batch(b, [jobs[9], jobs[19]], dt_factor=100, workers=2)
         e = np.abs(pk100 / ref[[9, 19]] - 1).max()
         check = f"reference vs OpenSees at dt/100 (2 runs): max difference {100 * e:.3f} %"
 

@@ -24,6 +24,7 @@ from hlaid.opensees import (
     import_opensees,
     opensees_script,
     run_opensees,
+    run_opensees_batch,
 )
 from hlaid.simulate import simulate
 
@@ -117,3 +118,15 @@ def test_ida_cross_check_full(table1, data_dir):
     res = ida(table1, motions, levels=np.linspace(0.5, 4.0, 8), refine=False, heights=HEIGHTS)
     diffs = _compare(res, motions)
     assert np.median(diffs) < 0.02
+
+
+@needs_opensees
+def test_batch_on_worker_processes_keeps_the_job_order(table1):
+    """run_opensees_batch (the benchmarks' peer) returns each job's peaks in job order."""
+    gm = paper_record("kocaeli-1999-dzc180")
+    jobs = [(gm, 0.3), (gm, 1.0), (gm, 0.6)]
+    wall, cpu, peaks = run_opensees_batch(table1, jobs, dt_factor=1, workers=2)
+    assert peaks.shape == (3, 3) and wall > 0 and cpu > 0
+    for (m, s), pk in zip(jobs, peaks):
+        np.testing.assert_allclose(pk, run_opensees(table1, m, scale=s, dt_factor=1).peak_drift, rtol=1e-12)
+    assert peaks[0, 0] < peaks[2, 0] < peaks[1, 0]
