@@ -36,7 +36,8 @@ __all__ = [
     "simulate_measurement",
     # analysis and identification
     "hla", "HLAConfig", "HLAResult", "identify", "IdentifyConfig", "IdentificationResult", "refine_replay",
-    "BaseIdentifier", "HLASVMIdentifier", "GradientIdentifier", "UKFIdentifier", "NotFittedError", "KernelSVC", "Clone", "load_clone",
+    "BaseIdentifier", "HLASVMIdentifier", "GradientIdentifier", "UKFIdentifier", "NotFittedError", "KernelSVC",
+    "Clone", "load_clone",
     # risk
     "ida", "IDAConfig", "IDAResult",
     # pipeline and errors

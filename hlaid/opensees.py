@@ -159,7 +159,6 @@ def run_opensees(model, motion: GroundMotion, *, scale: float = 1.0, dt_factor: 
                           drift=None if out.get("drift") is None else np.asarray(out["drift"]), dt=motion.dt)
 
 
-
 def _opensees_chunk(args):
     building, jobs, dt_factor = args
     out = []
@@ -194,6 +193,7 @@ def run_opensees_batch(model, jobs, *, dt_factor: int = 10, workers: int = 2):
         for k, pk in enumerate(part):
             out[w + k * workers] = pk
     return wall, cpu, np.array(out)
+
 
 _HEADER = '''#!/usr/bin/env python3
 """OpenSeesPy model of the hlaid clone {name!r}: a {n}-story degrading Bouc-Wen shear building.

@@ -78,9 +78,10 @@ def build_report(run_dir: str | os.PathLike) -> Path:
     if errs:
         kpis.append(("parameter error, mean / worst", f"{sum(errs) / len(errs):.1%} / {max(errs):.1%}"))
     cf = _collapse_fit(s.get("ida"))
-    if cf is not None:
+    if cf is not None and cf.get("median_g") is not None:
         label = s["ida"].get("intensity_measure", {}).get("label", "IM")
-        kpis.append((f"median collapse {label}", f"{cf['median_g']:.3g} g (beta {cf['beta']:.2f})"))
+        beta = f" (beta {cf['beta']:.2f})" if cf.get("beta") is not None else ""
+        kpis.append((f"median collapse {label}", f"{cf['median_g']:.3g} g{beta}"))
     parts.append("<div>" + "".join(f"<span class='kpi'>{e(k)}<b>{v}</b></span>" for k, v in kpis) + "</div>")
     parts.append("<h2>Identified parameters</h2>")
     parts.append(_param_table(s))
@@ -131,7 +132,8 @@ def _ida_block(ida: dict) -> str:
     im = ida.get("intensity_measure", {})
     crit = ida.get("collapse_criteria", {})
     period = f" at T1 = {im['period_s']:.3f} s" if im.get("period_s") else ""
-    head = (f"<p>Intensity measure {e(str(im.get('label', im.get('name', '?'))))}{period}; EDP: {e(str(ida.get('edp')))}; "
+    label = e(str(im.get("label", im.get("name", "?"))))
+    head = (f"<p>Intensity measure {label}{period}; EDP: {e(str(ida.get('edp')))}; "
             f"collapse when a story's drift ratio exceeds {crit.get('drift_limit', 0):.0%} or the IDA slope falls "
             f"below {crit.get('slope_ratio', 0):.0%} of the elastic slope; {ida.get('n_runs', '?')} analyses of "
             f"{len(ida.get('records', []))} records.</p>")
@@ -148,9 +150,10 @@ def _ida_block(ida: dict) -> str:
            "<th>beta interval</th><th>records (censored)</th></tr>"]
     for name, f in rows:
         mci, bci = f.get("median_ci_g") or [None, None], f.get("beta_ci") or [None, None]
-        tab.append(f"<tr><td class='l'>{e(name)}</td><td>{_fmt(f['median_g'])}</td>"
-                   f"<td>{_fmt(mci[0])} &ndash; {_fmt(mci[1])}</td><td>{_fmt(f['beta'])}</td>"
-                   f"<td>{_fmt(bci[0])} &ndash; {_fmt(bci[1])}</td><td>{f.get('n_records')} ({f.get('n_censored', 0)})</td></tr>")
+        tab.append(f"<tr><td class='l'>{e(name)}</td><td>{_fmt(f.get('median_g'))}</td>"
+                   f"<td>{_fmt(mci[0])} &ndash; {_fmt(mci[1])}</td><td>{_fmt(f.get('beta'))}</td>"
+                   f"<td>{_fmt(bci[0])} &ndash; {_fmt(bci[1])}</td>"
+                   f"<td>{f.get('n_records')} ({f.get('n_censored', 0)})</td></tr>")
     ci = next((f.get("ci") for _, f in rows if f.get("ci")), None)
     tab.append("</table>" + (f"<p>Intervals: {ci:.0%} bootstrap.</p>" if ci else ""))
     notes = "".join(f"<li>{e(n)}</li>" for n in ida.get("notes", []))
