@@ -119,6 +119,24 @@ def test_elastic_story_reported_not_failed(table1, kocaeli):
         assert s.k0 == pytest.approx(k0, rel=0.03)
 
 
+@pytest.mark.parametrize("record", ["builtin:kobe-1995-nis000", "builtin:northridge-1994-mul009"])
+@pytest.mark.parametrize("delta_eta", [0.5, 2.0])
+def test_strongly_hardening_degraded_story_is_yielded(record, delta_eta):
+    """alpha = 0.42 at ductility ~12-20: the half cycles end near the *degraded* ke (which has fallen
+    towards alpha k0), but far below the undegraded one; the yield test must see it. Half as strong
+    (peak drift 0.5 dy), the same building is elastic."""
+    from hlaid import Building, read_motion, simulate
+    b = Building(mass=[20.0, 15.0], k0=[2.0e4, 1.6e4], alpha=[0.42, 0.42], p=[2.0, 2.0], dy=[4.0, 4.0],
+                 delta_eta=[delta_eta, delta_eta])
+    gm = read_motion(record)
+    mu = (simulate(b, gm, 1.0, outputs="peaks").peak_drift[0] / b.dy).max()
+    strong = simulate_measurement(b, gm.scaled(12.0 / mu), noise_rms=0.10, seed=0)
+    assert (np.abs(strong.truth.drift).max(axis=0) > 8 * b.dy).all()
+    assert all(s.yielded for s in hla(strong).stories)
+    weak = simulate_measurement(b, gm.scaled(0.5 / mu), noise_rms=0.10, seed=0)
+    assert not any(s.yielded for s in hla(weak).stories)
+
+
 def test_pdelta_share_added_back(table1, elcentro):
     b = table1.replace(height=[3000.0] * 3, pdelta=True)
     meas = simulate_measurement(b, elcentro, noise_rms=0.0)

@@ -118,12 +118,18 @@ def _story_stiffness(x, f, dx, t, bounds, cfg: HLAConfig, band, regress_damping:
     return table
 
 
-def _smooth(table: HalfCycleTable, ptp: float, yielded: bool, cfg: HLAConfig) -> tuple[HalfCycleTable, float]:
-    """Smoothed ke of every half cycle and k0 (see :class:`StiffnessConfig`)."""
+def _ke_weights(table: HalfCycleTable, ptp: float, cfg: HLAConfig) -> np.ndarray:
+    """Weight of each half cycle's ke in the pooled fits: 1/variance, 0 for small or failed ones."""
     raw = table.ke_raw
     big = table.drift_increment >= cfg.stiffness.k0_min_amplitude * ptp
     w = np.where(big, 1.0 / np.maximum(table.ke_std, 1e-9 * np.abs(raw)) ** 2, 0.0)
-    w = np.where(np.isfinite(raw) & (raw > 0), w, 0.0)
+    return np.where(np.isfinite(raw) & (raw > 0), w, 0.0)
+
+
+def _smooth(table: HalfCycleTable, ptp: float, yielded: bool, cfg: HLAConfig) -> tuple[HalfCycleTable, float]:
+    """Smoothed ke of every half cycle and k0 (see :class:`StiffnessConfig`)."""
+    raw = table.ke_raw
+    w = _ke_weights(table, ptp, cfg)
     if len(table) == 0 or not (w > 0).any():
         return table, np.nan
     if not yielded:  # an elastic story: one stiffness, k0, pooled over every half cycle
@@ -148,7 +154,9 @@ def _analyse(x, f, dx, t, cfg: HLAConfig, band, regress_damping: bool):
     bounds = half_cycle_bounds(x, cfg.half_cycles.min_increment * ptp)
     table = _story_stiffness(x, f, dx, t, bounds, cfg, band, regress_damping)
     k = sliding_slope(x, f, bounds, cfg.stiffness.k_window)
-    yielded = _yielded(k, table, cfg)
+    w = _ke_weights(table, ptp, cfg)
+    k_ref = degradation_trend(table.ke_raw, table.energy_before, w)[1] if (w > 0).any() else np.nan
+    yielded = _yielded(k, table, cfg, k_ref)
     table, k0 = _smooth(table, ptp, yielded, cfg)
     return _StoryFit(bounds, table, k, yielded, k0)
 
@@ -240,17 +248,24 @@ def hla(measurement: Measurement, config: HLAConfig | None = None) -> HLAResult:
                      pdelta_corrected=pdelta, config=cfg, band_hz=band, source=meas.source)
 
 
-def _yielded(k: np.ndarray, table: HalfCycleTable, cfg: HLAConfig, n_largest: int = 5, n_below: int = 2) -> bool:
+def _yielded(k: np.ndarray, table: HalfCycleTable, cfg: HLAConfig, k_ref: float = np.nan, n_largest: int = 5,
+             n_below: int = 2) -> bool:
     """Whether the story left the elastic range.
 
     Of the ``n_largest`` half cycles with the largest drift increments (the best signal to
     noise), at least ``n_below`` must end (last fifth) with a tangent stiffness below
-    ``yield_ratio`` times their elastic stiffness: one such half cycle can be noise.
+    ``yield_ratio`` times their elastic stiffness: one such half cycle can be noise. The
+    elastic stiffness is the larger of the half cycle's own ``ke`` and ``k_ref`` (the story's
+    undegraded stiffness from the energy trend): a strongly hardening story (alpha ~0.4) whose
+    ``ke`` has degraded towards ``alpha k0`` ends its half cycles close to its *current* ``ke``,
+    but far below its initial one.
     """
     order = np.argsort(table.drift_increment)[::-1][:n_largest]
     below = 0
     for j in order:
         s, e, ke = table.start[j], table.end[j], table.ke_raw[j]
+        if np.isfinite(k_ref) and k_ref > 0:
+            ke = max(ke, k_ref) if np.isfinite(ke) else k_ref
         tail = k[e - max((e - s) // 5, 2): e + 1]
         tail = tail[np.isfinite(tail)]
         if tail.size and np.isfinite(ke) and ke > 0 and np.median(tail) < cfg.stiffness.yield_ratio * ke:
