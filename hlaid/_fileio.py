@@ -105,14 +105,9 @@ def _json_default(o):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
-@contextlib.contextmanager
-def atomic_directory(path: str | os.PathLike, *, force: bool = False) -> Iterator[Path]:
-    """Build an output folder in a temporary sibling and move it into place on success.
-
-    With ``force`` an existing folder is replaced only once the new one is complete; without
-    it an existing, non-empty folder is an error. On failure the temporary folder is removed
-    and the existing folder, if any, is untouched.
-    """
+def check_output_folder(path: str | os.PathLike, *, force: bool = False) -> Path:
+    """Refuse an output folder that :func:`atomic_directory` would refuse (a file, a non-empty
+    folder without ``force``, a missing or unwritable parent), so a long job fails before it runs."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise InputError("exists and is not a folder", source=str(path))
@@ -123,6 +118,19 @@ def atomic_directory(path: str | os.PathLike, *, force: bool = False) -> Iterato
         raise InputError("parent folder does not exist", source=str(parent))
     if not os.access(parent, os.W_OK):
         raise InputError("output folder is not writable", source=str(parent))
+    return path
+
+
+@contextlib.contextmanager
+def atomic_directory(path: str | os.PathLike, *, force: bool = False) -> Iterator[Path]:
+    """Build an output folder in a temporary sibling and move it into place on success.
+
+    With ``force`` an existing folder is replaced only once the new one is complete; without
+    it an existing, non-empty folder is an error. On failure the temporary folder is removed
+    and the existing folder, if any, is untouched.
+    """
+    path = check_output_folder(path, force=force)
+    parent = path.parent if str(path.parent) else Path(".")
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=parent))
     try:
         yield tmp

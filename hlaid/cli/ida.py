@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import _progress
+from .._fileio import check_output_folder
 from ..errors import InputError
 from .main import subcommand
 
@@ -69,12 +70,7 @@ def register(sub) -> None:
 def run_ida(args) -> int:
     from ..ida import IDAConfig, ida_from_config, load_ida_config, prepare_building
 
-    out = Path(args.out)
-    if out.exists() and (not out.is_dir() or any(out.iterdir())) and not args.force:
-        raise InputError("output folder exists and is not empty; use --force to replace it", source=str(out))
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():  # fail before the analysis, not after it
-        raise InputError("parent folder does not exist", source=str(parent))
+    out = check_output_folder(args.out, force=args.force)  # fail before the analysis, not after it
     cfg = load_ida_config(args.config) if args.config else IDAConfig()
     levels = _numbers(" ".join(args.levels), "--levels") if args.levels else None
     cfg = cfg.replace(im=args.im, levels=levels, n_levels=args.n_levels, drift_limit=args.drift_limit,

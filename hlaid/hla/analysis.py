@@ -126,16 +126,17 @@ def _ke_weights(table: HalfCycleTable, ptp: float, cfg: HLAConfig) -> np.ndarray
     return np.where(np.isfinite(raw) & (raw > 0), w, 0.0)
 
 
-def _smooth(table: HalfCycleTable, ptp: float, yielded: bool, cfg: HLAConfig) -> tuple[HalfCycleTable, float]:
-    """Smoothed ke of every half cycle and k0 (see :class:`StiffnessConfig`)."""
+def _smooth(table: HalfCycleTable, w: np.ndarray, trend, yielded: bool,
+            cfg: HLAConfig) -> tuple[HalfCycleTable, float]:
+    """Smoothed ke of every half cycle and k0 (see :class:`StiffnessConfig`), from the weights
+    ``w`` (:func:`_ke_weights`) and the energy ``trend`` ``(ke_fit, k0)`` (None without weights)."""
     raw = table.ke_raw
-    w = _ke_weights(table, ptp, cfg)
-    if len(table) == 0 or not (w > 0).any():
+    if len(table) == 0 or trend is None:
         return table, np.nan
     if not yielded:  # an elastic story: one stiffness, k0, pooled over every half cycle
         k0 = float(np.sum(w * np.nan_to_num(raw)) / np.sum(w))
         return table.replace(ke=np.full(len(table), k0)), k0
-    ke_fit, k0 = degradation_trend(raw, table.energy_before, w)
+    ke_fit, k0 = trend
     mode = cfg.stiffness.ke_smoothing
     if mode == "energy":
         ke = ke_fit
@@ -155,9 +156,9 @@ def _analyse(x, f, dx, t, cfg: HLAConfig, band, regress_damping: bool):
     table = _story_stiffness(x, f, dx, t, bounds, cfg, band, regress_damping)
     k = sliding_slope(x, f, bounds, cfg.stiffness.k_window)
     w = _ke_weights(table, ptp, cfg)
-    k_ref = degradation_trend(table.ke_raw, table.energy_before, w)[1] if (w > 0).any() else np.nan
-    yielded = _yielded(k, table, cfg, k_ref)
-    table, k0 = _smooth(table, ptp, yielded, cfg)
+    trend = degradation_trend(table.ke_raw, table.energy_before, w) if (w > 0).any() else None
+    yielded = _yielded(k, table, cfg, np.nan if trend is None else trend[1])
+    table, k0 = _smooth(table, w, trend, yielded, cfg)
     return _StoryFit(bounds, table, k, yielded, k0)
 
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ..hla import HLAConfig
+from ..hla import HLAConfig, hla
 from ..hla.analysis import _masses
 from ..hla.preprocess import bandpass
 from ..measurement import Measurement
@@ -125,6 +125,13 @@ def from_unconstrained(theta: torch.Tensor, k0_ref, dy_ref) -> dict[str, torch.T
 
 def values_numpy(values: dict[str, torch.Tensor]) -> dict[str, np.ndarray]:
     return {k: v.detach().cpu().numpy() for k, v in values.items()}
+
+
+def hla_scales(meas: Measurement) -> tuple[np.ndarray, np.ndarray]:
+    """HLA's ``k0`` and each story's peak |drift| [mm], ``(story,)`` each: the scales that place
+    the starting values of the output-error identifiers (``init="hla"``)."""
+    res = hla(meas)
+    return res.k0, np.array([np.max(np.abs(s.drift)) for s in res.stories])
 
 
 def draw_starts(n: int, *, k0, dy_scale, rng: np.random.Generator, alpha_range=(0.02, 0.5), p_range=(1.0, 3.0),

@@ -66,9 +66,9 @@ import torch.autograd.forward_ad as fwAD
 from scipy import signal
 
 from .. import _progress
+from .._threads import one_thread
 from ..clone import Clone
 from ..errors import InputError, NotIdentifiableError
-from ..hla import hla
 from ..hla.preprocess import _sos
 from ..measurement import Measurement
 from ..model import BoucWenBuilding
@@ -175,16 +175,9 @@ class OutputErrorProblem:
         idx = (torch.as_tensor(self.starts)[:, None] + torch.arange(S + 1)[None]).clamp_max(self.ag.shape[0] - 1)
         g = self.ag[idx].repeat(B, 1)  # (B*n_seg, S+1)
         y = y0.reshape(B * n_seg, -1)
-        h = self.dt / m
         states = [y]
         for k in range(S):
-            lo, da = g[:, k], g[:, k + 1] - g[:, k]
-            for s in range(m):
-                k1 = model.rates(y, lo + da * (s / m))
-                k2 = model.rates(y + 0.5 * h * k1, lo + da * ((s + 0.5) / m))
-                k3 = model.rates(y + 0.5 * h * k2, lo + da * ((s + 0.5) / m))
-                k4 = model.rates(y + h * k3, lo + da * ((s + 1.0) / m))
-                y = y + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            y = model.rk4_sample(y, g[:, k], g[:, k + 1], self.dt, m)
             states.append(y)
         acc = model.responses(torch.stack(states[:S], dim=1))["acc"]  # (B*n_seg, S, story)
         return acc.reshape(B, n_seg * S, -1)[:, : self.i1 - self.i0], y.reshape(B, n_seg, -1)
@@ -352,9 +345,8 @@ class GradientIdentifier(BaseIdentifier):
                   "delta_eta_range": self.delta_eta_range}
         n = int(self.n_candidates)
         if self.init == "hla":
-            res = hla(meas)
-            drift = np.array([np.max(np.abs(s.drift)) for s in res.stories])
-            return sp.draw_starts(n, k0=res.k0, dy_scale=drift, k0_spread=self.k0_spread, **kw)
+            k0, drift = sp.hla_scales(meas)
+            return sp.draw_starts(n, k0=k0, dy_scale=drift, k0_spread=self.k0_spread, **kw)
         lo, hi = self.k0_range
         v = sp.draw_starts(n, k0=np.ones(known.n_stories), dy_scale=np.ones(known.n_stories), **kw)
         v["k0"] = np.exp(rng.uniform(np.log(lo), np.log(hi), size=v["k0"].shape))
@@ -366,9 +358,7 @@ class GradientIdentifier(BaseIdentifier):
         self._check()
         meas = measurement
         t0 = time.perf_counter()
-        threads = torch.get_num_threads()
-        torch.set_num_threads(1)  # tiny tensors: intra-op threads only add contention
-        try:
+        with one_thread():  # tiny tensors: intra-op threads only add contention
             known = sp.known_part(meas, self.damping_ratio)
             cand = self._candidates(meas, known, np.random.default_rng(self.random_state))
             window = arias_window(sp.measured_ground(meas, self.band_hz).acc, meas.dt, self.arias)
@@ -386,8 +376,6 @@ class GradientIdentifier(BaseIdentifier):
             theta, hist, passes = levenberg_marquardt(prob, theta0, k0_ref, dy_ref,
                                                       iterations=int(self.max_iterations), tol=self.tol, tb=tb)
             tb.close()
-        finally:
-            torch.set_num_threads(threads)
         final = hist[-1]
         best = int(np.argmin(np.where(np.isfinite(final), final, np.inf)))
         values = sp.values_numpy(sp.from_unconstrained(theta[best:best + 1], k0_ref, dy_ref))

@@ -43,9 +43,9 @@ import numpy as np
 import torch
 
 from .. import _progress
+from .._threads import one_thread
 from ..clone import Clone
 from ..errors import InputError, NotIdentifiableError
-from ..hla import hla
 from ..measurement import Measurement
 from ..model import BoucWenBuilding
 from . import _space as sp
@@ -153,9 +153,8 @@ class UKFIdentifier(BaseIdentifier):
             return np.full(n, 0.5 * (r[0] + r[1]))
 
         if self.init == "hla":
-            res = hla(meas)
-            k0 = res.k0
-            dy = mid(self.dy_range) * np.array([np.max(np.abs(s.drift)) for s in res.stories])
+            k0, drift = sp.hla_scales(meas)
+            dy = mid(self.dy_range) * drift
         else:
             k0 = np.full(n, np.sqrt(self.k0_range[0] * self.k0_range[1]))
             dy = mid(self.dy_range)
@@ -168,9 +167,7 @@ class UKFIdentifier(BaseIdentifier):
         self._check()
         meas = measurement
         t0 = time.perf_counter()
-        threads = torch.get_num_threads()
-        torch.set_num_threads(1)  # tiny tensors: intra-op threads only add contention
-        try:
+        with one_thread():  # tiny tensors: intra-op threads only add contention
             known = sp.known_part(meas, self.damping_ratio)
             prior = self._prior(meas, known)
             k0_ref, dy_ref = prior["k0"], prior["dy"]
@@ -190,8 +187,6 @@ class UKFIdentifier(BaseIdentifier):
                 if k + 1 < int(self.n_passes):
                     Ptheta = Ptheta * float(self.pass_inflation)
             tb.close()
-        finally:
-            torch.set_num_threads(threads)
         values = sp.values_numpy(sp.from_unconstrained(theta, k0_ref, dy_ref))
         building = known.building(values)
         self.param_std_ = torch.diagonal(Ptheta).sqrt().reshape(theta.shape).numpy()
@@ -238,20 +233,13 @@ class UKFIdentifier(BaseIdentifier):
         Q[ns:] = float(self.param_noise) ** 2 * dt
         Q = torch.diag(Q)
         P[:ns, :ns] = Q[:ns, :ns]
-        h = dt / m
         for k in range(i1):
             if k > 0:  # predict: sample k-1 -> k
                 S_ = _sqrt_psd(P).T
                 X = x[None] + gamma * torch.cat([torch.zeros(1, L, dtype=x.dtype), S_, -S_])
                 model = self._model(known, X[:, ns:], k0_ref, dy_ref)
                 y = X[:, :ns]
-                lo, da = g[k - 1].expand(X.shape[0]), (g[k] - g[k - 1]).expand(X.shape[0])
-                for s in range(m):
-                    k1 = model.rates(y, lo + da * (s / m))
-                    k2 = model.rates(y + 0.5 * h * k1, lo + da * ((s + 0.5) / m))
-                    k3 = model.rates(y + 0.5 * h * k2, lo + da * ((s + 0.5) / m))
-                    k4 = model.rates(y + h * k3, lo + da * ((s + 1.0) / m))
-                    y = y + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+                y = model.rk4_sample(y, g[k - 1].expand(X.shape[0]), g[k].expand(X.shape[0]), dt, m)
                 X = torch.cat([y, X[:, ns:]], dim=1)
                 if not torch.isfinite(X).all():
                     raise NotIdentifiableError(f"the unscented Kalman filter diverged at t = {k * dt:.2f} s "

@@ -95,6 +95,20 @@ class BoucWenBuilding(nn.Module):
         acc = _absolute_acceleration(P, x, v, z) - ag[:, None]
         return torch.cat([v, acc, zd, z * xd], dim=-1)
 
+    def rk4_sample(self, y: torch.Tensor, ag0: torch.Tensor, ag1: torch.Tensor, dt, substeps: int) -> torch.Tensor:
+        """Advance ``y`` ``(batch, 4*story)`` over one record sample of length ``dt`` (a number or
+        ``(batch, 1)``) by ``substeps`` classical RK4 steps, the ground acceleration linear from
+        ``ag0`` to ``ag1`` ``(batch,)`` over the sample (the scheme of the compiled simulator)."""
+        h = dt / substeps
+        da = ag1 - ag0
+        for s in range(substeps):
+            k1 = self.rates(y, ag0 + da * (s / substeps))
+            k2 = self.rates(y + 0.5 * h * k1, ag0 + da * ((s + 0.5) / substeps))
+            k3 = self.rates(y + 0.5 * h * k2, ag0 + da * ((s + 0.5) / substeps))
+            k4 = self.rates(y + h * k3, ag0 + da * ((s + 1.0) / substeps))
+            y = y + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        return y
+
     # ------------------------------------------------------------------ responses
     def responses(self, states: torch.Tensor) -> dict[str, torch.Tensor]:
         """Response quantities from a state history.

@@ -150,20 +150,14 @@ def _run_torch(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, save):
     params = BuildingTensors(**{k: torch.as_tensor(v) for k, v in P.items()}).index(bi)
     model = BoucWenBuilding(params)
     g = torch.as_tensor(ag[mi] * sc[:, None])
-    h = torch.as_tensor(dt[mi] / nsub)[:, None]
+    dt_b = torch.as_tensor(dt[mi])[:, None]
     y = torch.as_tensor(y0)
     T = int(nt.max())
     states = torch.empty((bi.size, T, y.shape[1]), dtype=y.dtype)
     states[:, 0] = y
     with torch.no_grad():
         for k in range(T - 1):
-            lo, da = g[:, k], g[:, k + 1] - g[:, k]
-            for s in range(nsub):
-                k1 = model.rates(y, lo + da * (s / nsub))
-                k2 = model.rates(y + 0.5 * h * k1, lo + da * ((s + 0.5) / nsub))
-                k3 = model.rates(y + 0.5 * h * k2, lo + da * ((s + 0.5) / nsub))
-                k4 = model.rates(y + h * k3, lo + da * ((s + 1.0) / nsub))
-                y = y + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            y = model.rk4_sample(y, g[:, k], g[:, k + 1], dt_b, nsub)
             states[:, k + 1] = y
     n_done = nt[mi].astype(np.int64)
     states = states.numpy()

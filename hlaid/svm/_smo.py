@@ -76,11 +76,12 @@ from types import SimpleNamespace
 import torch
 from sklearn.exceptions import ConvergenceWarning
 
+from .._threads import one_thread
 from ._active_set import refine
 from ._kernels import Kernel
 from ._layout import KernelAmong, KernelBlockCache, OvOLayout, compact, kernel_storage
 
-__all__ = ["KernelBlockCache", "OvOLayout", "SMOResult", "one_thread", "smo_ovo"]
+__all__ = ["KernelBlockCache", "OvOLayout", "SMOResult", "smo_ovo"]
 
 #: libsvm's floor for the curvature ``a_ij`` of non-positive-definite pairs.
 TAU = 1e-12
@@ -238,33 +239,6 @@ def smo_ovo(X: torch.Tensor, y: torch.Tensor, n_classes: int, *, kernel: Kernel,
     for name in ("beta", "rho", "objective", "n_iter", "gap"):
         setattr(res, name, getattr(res, name).clone())
     return res, layout
-
-
-class one_thread:
-    """Context manager: one torch thread on the CPU, restored on exit.
-
-    The solver is a long chain of small operations: a second OpenMP thread
-    only adds synchronisation, and on a busy machine every parallel region
-    can stall on a descheduled thread (measured: 10-20x slower fits with two
-    threads on a loaded 2-core machine, see ``docs/svm.md``).
-
-    Parameters
-    ----------
-    device : torch.device
-        Only the CPU is affected.
-    """
-
-    def __init__(self, device: torch.device) -> None:
-        self.active = device.type == "cpu"
-        self.saved = torch.get_num_threads()
-
-    def __enter__(self) -> None:
-        if self.active and self.saved != 1:
-            torch.set_num_threads(1)
-
-    def __exit__(self, *exc) -> None:
-        if self.active and torch.get_num_threads() != self.saved:
-            torch.set_num_threads(self.saved)
 
 
 def _solve(X: torch.Tensor, layout: OvOLayout, *, kernel: Kernel, C: float, tol: float,

@@ -13,10 +13,11 @@ from sklearn.utils.multiclass import check_classification_targets
 from sklearn.utils.validation import check_is_fitted, column_or_1d
 
 from .._fileio import atomic_write
+from .._threads import one_thread
 from ..errors import InputError
 from ._ddag import PairwiseMachines, ovr_decision, resolve_multiclass
 from ._kernels import KERNELS, make_kernel, resolve_gamma
-from ._smo import one_thread, smo_ovo
+from ._smo import smo_ovo
 
 try:  # scikit-learn >= 1.6
     from sklearn.utils.validation import validate_data as _validate_data
