@@ -187,7 +187,7 @@ def screenshot(report: str | os.PathLike, png: str | os.PathLike, *, browser: st
         raise InputError("no headless browser found (install Debian's chromium package, or pass browser=)",
                          source=str(report))
     report, png = Path(report).resolve(), Path(png).resolve()
-    height = height or 900 * max(len(embedded_figures(report)), 1) + 1200
+    height = height or 900 * max(report.read_text().count("<img "), 1) + 1200
     with tempfile.TemporaryDirectory() as profile:
         cmd = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", f"--user-data-dir={profile}",
                f"--window-size={width},{height}", f"--screenshot={png}", report.as_uri()]
