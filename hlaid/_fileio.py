@@ -4,16 +4,21 @@ from __future__ import annotations
 
 import contextlib
 import gzip
+import io
 import json
 import os
+import re
 import shutil
 import tempfile
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
 
+from . import _progress
 from .errors import InputError
+from .limits import check_readable_file, file_limit_text, max_file_bytes
 
 
 def read_text(path: str | os.PathLike) -> str:
@@ -23,10 +28,9 @@ def read_text(path: str | os.PathLike) -> str:
         raise InputError("file not found", source=str(p))
     if p.is_dir():
         raise InputError("is a folder; expected a file", source=str(p))
+    check_readable_file(p)  # a regular file within HLAID_MAX_FILE_MB, before reading a byte
     try:
-        raw = p.read_bytes()
-        if raw[:2] == b"\x1f\x8b":
-            raw = gzip.decompress(raw)
+        raw = _read_capped(p)
     except (OSError, EOFError) as err:
         raise InputError(f"cannot read: {err}", source=str(p)) from None
     if b"\x00" in raw[:4096]:
@@ -35,6 +39,20 @@ def read_text(path: str | os.PathLike) -> str:
         return raw.decode("utf-8")
     except UnicodeDecodeError:
         return raw.decode("latin-1")
+
+
+def _read_capped(p: Path) -> bytes:
+    """The bytes of ``p``, gunzipped when gzip; more than ``HLAID_MAX_FILE_MB`` (a file that grew,
+    or a small ``.gz`` that inflates to gigabytes) is an InputError."""
+    top = max_file_bytes()
+    with open(p, "rb") as fh:
+        raw = fh.read(top + 1)
+    if len(raw) <= top and raw[:2] == b"\x1f\x8b":
+        with gzip.GzipFile(fileobj=io.BytesIO(raw)) as gz:
+            raw = gz.read(top + 1)
+    if len(raw) > top:
+        raise InputError(f"holds more than {file_limit_text()}", source=str(p))
+    return raw
 
 
 def _creation_mode(directory: bool = False) -> int:
@@ -48,14 +66,79 @@ def _creation_mode(directory: bool = False) -> int:
     return (0o777 if directory else 0o666) & ~umask
 
 
-def _check_target(path: Path, force: bool) -> None:
-    if path.exists() and not force:
-        raise InputError("already exists; use --force to overwrite", source=str(path))
+def _check_parent(path: Path) -> Path:
+    """The folder ``path`` will be written in; an InputError unless it is an existing, writable folder."""
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.exists():
-        raise InputError("output folder does not exist", source=str(parent))
-    if not os.access(parent, os.W_OK):
-        raise InputError("output folder is not writable", source=str(parent))
+        raise InputError("folder does not exist; create it first", source=str(parent))
+    if not parent.is_dir():
+        raise InputError("is not a folder; it cannot hold the output", source=str(parent))
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError("folder is not writable", source=str(parent))
+    return parent
+
+
+def check_output_file(path: str | os.PathLike, *, force: bool = False) -> Path:
+    """Refuse an output file that :func:`atomic_write` would refuse (an existing file without
+    ``force``, a folder in its place, a missing or unwritable folder), so a long job fails before it runs."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError("is a folder; expected an output file name", source=str(path))
+    if path.exists() and not force:
+        raise InputError("already exists; use --force to overwrite", source=str(path))
+    _check_parent(path)
+    return path
+
+
+STALE_AFTER_S = 3600.0
+"""A temporary output (``.NAME.PID-*.tmp``) older than this whose process is gone was left by a
+killed run; the next write of ``NAME`` removes it."""
+
+
+def _pid_alive(pid: int) -> bool:
+    if pid == os.getpid() or os.name == "nt":  # os.kill on Windows would terminate the process
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # e.g. another user's process
+        return True
+    return True
+
+
+def remove_stale(parent: Path, name: str) -> list[str]:
+    """Remove what killed runs left while writing ``parent/name``; returns the names removed.
+
+    That is ``.NAME.PID-*.tmp*`` (a temporary file or folder) and, when ``NAME`` itself exists,
+    ``.NAME.old-PID`` (a replaced folder), each only when older than :data:`STALE_AFTER_S` and
+    its process ``PID`` is no longer running.
+    """
+    pat = re.compile(re.escape(f".{name}.") + r"(?:(\d+)-\w+\.tmp.*|old-(\d+))\Z", re.S)
+    try:
+        entries = list(os.scandir(parent))
+    except OSError:
+        return []
+    removed = []
+    now = time.time()
+    for e in entries:
+        m = pat.match(e.name)
+        if not m or (m.group(2) and not (parent / name).exists()):  # an old- folder may be the only copy
+            continue
+        try:
+            young = now - e.stat(follow_symlinks=False).st_mtime < STALE_AFTER_S
+            if young or _pid_alive(int(m.group(1) or m.group(2))):
+                continue
+            if e.is_dir(follow_symlinks=False):
+                shutil.rmtree(e.path)
+            else:
+                os.unlink(e.path)
+        except OSError:
+            continue
+        removed.append(e.name)
+    if removed:
+        _progress.debug(f"removed {len(removed)} stale temporary output(s) in {parent}: {', '.join(removed)}")
+    return removed
 
 
 def atomic_write(path: str | os.PathLike, write: Callable[[Path], None], *, force: bool = True) -> Path:
@@ -64,18 +147,21 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], None], *, forc
     The temporary file lives in the same folder, so the rename is atomic: a reader sees the
     old file or the complete new one, never a partial file; on failure nothing is left.
     """
-    path = Path(path)
-    _check_target(path, force)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp" + "".join(path.suffixes),
-                               dir=path.parent if str(path.parent) else ".")
-    os.close(fd)
-    tmp = Path(tmp)
+    path = check_output_file(path, force=force)
+    parent = path.parent if str(path.parent) else Path(".")
+    remove_stale(parent, path.name)
+    tmp = None
     try:
+        fd, name = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}-", suffix=".tmp" + "".join(path.suffixes),
+                                    dir=parent)
+        os.close(fd)
+        tmp = Path(name)
         write(tmp)
         os.chmod(tmp, _creation_mode())
         os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
+    except BaseException:  # Ctrl-C too: nothing is left behind
+        if tmp is not None:
+            tmp.unlink(missing_ok=True)
         raise
     return path
 
@@ -113,11 +199,7 @@ def check_output_folder(path: str | os.PathLike, *, force: bool = False) -> Path
         raise InputError("exists and is not a folder", source=str(path))
     if path.exists() and any(path.iterdir()) and not force:
         raise InputError("output folder exists and is not empty; use --force to replace it", source=str(path))
-    parent = path.parent if str(path.parent) else Path(".")
-    if not parent.exists():
-        raise InputError("parent folder does not exist", source=str(parent))
-    if not os.access(parent, os.W_OK):
-        raise InputError("output folder is not writable", source=str(parent))
+    _check_parent(path)
     return path
 
 
@@ -131,12 +213,15 @@ def atomic_directory(path: str | os.PathLike, *, force: bool = False) -> Iterato
     """
     path = check_output_folder(path, force=force)
     parent = path.parent if str(path.parent) else Path(".")
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=parent))
+    remove_stale(parent, path.name)
+    tmp = None
     try:
+        tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.{os.getpid()}-", suffix=".tmp", dir=parent))
         yield tmp
         os.chmod(tmp, _creation_mode(directory=True))
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+    except BaseException:  # Ctrl-C too: nothing is left behind
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
         raise
     old = None
     if path.exists():

@@ -26,6 +26,7 @@ import numpy as np
 
 from ._fileio import atomic_write, read_text, write_npz
 from .errors import InputError
+from .limits import check_archive, check_count, check_readable_file
 from .model import Building
 from .units import G_MM_S2
 
@@ -99,6 +100,8 @@ class Measurement:
                              "samples); they must share one time axis", source=src)
         if g.shape[0] < MIN_SAMPLES:
             raise InputError(f"record has {g.shape[0]} samples; expected at least {MIN_SAMPLES}", source=src)
+        check_count(g.shape[0], "SAMPLES", "samples", source=src)
+        check_count(f.shape[1], "STORIES", "floor channels", source=src)
         for name, a in (("ground_acc", g), ("floor_acc", f)):
             bad = ~np.isfinite(a)
             if bad.any():
@@ -216,8 +219,10 @@ def read_measurement(path: str | os.PathLike) -> Measurement:
     p = Path(path)
     if not p.exists():
         raise InputError("file not found", source=str(p))
+    check_readable_file(p)  # size limits before reading (hlaid.limits)
     if p.suffix.lower() == ".csv":
         return _read_csv(p)
+    check_archive(p)
     return _read_npz(p)
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Literal
 
 from .errors import InputError
+from .limits import check_count
 from .model import Building, Damping
 from .model.params import check_story_value
 from .motions import GroundMotion, read_motion
@@ -56,6 +57,7 @@ class BuildingSpec:
     def __post_init__(self):
         if not self.stories:
             raise InputError("stories: at least one story is needed")
+        check_count(len(self.stories), "STORIES", "stories")
 
     def build(self, source: str | None = None) -> Building:
         return Building.from_stories([s.as_dict() for s in self.stories], damping=self.damping, pdelta=self.pdelta,

@@ -10,6 +10,7 @@ import numpy as np
 
 from .config import load_config
 from .errors import InputError
+from .limits import check_count
 from .measurement import Measurement, Truth
 from .model import Building
 from .motions import GroundMotion
@@ -67,6 +68,7 @@ class MeasurementSpec:
     def __post_init__(self):
         if not self.rate_hz > 0:
             raise InputError(f"rate_hz = {self.rate_hz}; expected a positive rate")
+        check_count(self.rate_hz, "RATE_HZ", "rate_hz")
         if not 0 <= self.noise_rms < 10:
             raise InputError(f"noise_rms = {self.noise_rms}; expected a fraction such as 0.10")
         if self.substeps < 1:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .._fileio import check_output_folder
 from ..demo import run_demo
 from .main import subcommand
 
@@ -13,4 +14,10 @@ def register(sub) -> None:
     p.add_argument("--out", default="hlaid-demo", help="output folder (default ./hlaid-demo)")
     p.add_argument("--cache", metavar="DIR", help="classifier cache folder (default ~/.cache/hlaid/svm)")
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
-    p.set_defaults(func=lambda a: run_demo(a.out, force=a.force, cache_dir=a.cache) and 0)
+    p.set_defaults(func=run_demo_command)
+
+
+def run_demo_command(args) -> int:
+    check_output_folder(args.out, force=args.force)  # fail before the pipeline, not after it
+    run_demo(args.out, force=args.force, cache_dir=args.cache)
+    return 0

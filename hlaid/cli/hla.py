@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import _progress
-from .._fileio import atomic_directory
+from .._fileio import atomic_directory, check_output_folder
 from ..config import load_config
 from ..hla import HLAConfig, hla
 from ..hla.plots import plot_loops, plot_stiffness
@@ -26,6 +26,7 @@ def register(sub) -> None:
 
 
 def run_hla(args) -> int:
+    check_output_folder(args.out, force=args.force)  # fail before the analysis, not after it
     cfg = load_config(args.config, HLAConfig) if args.config else HLAConfig()
     meas = read_measurement_any(args.measurement)
     _progress.info(f"HLA of {meas.n_floors} stories, {meas.n_samples} samples at {1 / meas.dt:g} Hz")

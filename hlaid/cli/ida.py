@@ -5,8 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import _progress
-from .._fileio import check_output_folder
+from .._fileio import check_output_file, check_output_folder
 from ..errors import InputError
+from ..limits import check_count
 from .main import subcommand
 
 
@@ -19,8 +20,11 @@ def _numbers(text: str, what: str) -> list[float]:
             a, b, s = (float(v) for v in text.split(":"))
             if not s > 0:
                 raise ValueError
+            check_count((b - a) / s + 1, "IDA_LEVELS", f"{what} {text}: number of values")
             return [float(f"{v:.10g}") for v in np.arange(a, b + 0.5 * s, s)]
         return [float(v) for v in text.replace(",", " ").split()]
+    except InputError:
+        raise
     except ValueError:
         raise InputError(f"{what} must be numbers such as 0.2,0.4,0.6 or start:stop:step, got {text!r}") from None
 
@@ -100,6 +104,7 @@ def run_export(args) -> int:
     from ..ida import prepare_building
     from ..opensees import export_opensees
 
+    check_output_file(args.out, force=args.force)
     b, _ = prepare_building(args.clone, pdelta=args.pdelta, require_heights=False,
                                 heights=_numbers(args.heights, "--heights") if args.heights else None,
                                 gravity_load=[v * 1000.0 for v in _numbers(args.gravity_kN, "--gravity-kN")]

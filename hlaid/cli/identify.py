@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from .. import _progress
+from .._fileio import check_output_file
 from ..config import load_config
-from ..errors import InputError
 from ..identify import IdentifyConfig, identify
 from ..io_dispatch import read_measurement_any
 from .main import subcommand
@@ -28,9 +26,7 @@ def register(sub) -> None:
 
 
 def run_identify(args) -> int:
-    out = Path(args.out)
-    if out.exists() and not args.force:
-        raise InputError("already exists; use --force to overwrite", source=str(out))
+    out = check_output_file(args.out, force=args.force)  # fail before the identification, not after it
     cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
     meas = read_measurement_any(args.measurement)
     cache = "" if args.no_cache else args.cache

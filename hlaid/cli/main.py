@@ -64,15 +64,16 @@ def build_parser() -> Parser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    verbose, quiet = getattr(args, "verbose", False), getattr(args, "quiet", False)
-    _progress.set_verbosity(2 if verbose else 0 if quiet else 1)
-    if not getattr(args, "func", None):
-        parser.print_help()
-        return 2
-    prog = f"hlaid {args.command}"
-    try:
+    prog, verbose = "hlaid", False
+    try:  # Ctrl-C while the subcommands are imported is an interruption too
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        verbose, quiet = getattr(args, "verbose", False), getattr(args, "quiet", False)
+        _progress.set_verbosity(2 if verbose else 0 if quiet else 1)
+        if not getattr(args, "func", None):
+            parser.print_help()
+            return 2
+        prog = f"hlaid {args.command}"
         return int(args.func(args) or 0)
     except InputError as err:
         print(f"{prog}: error: {err}", file=sys.stderr)
@@ -80,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into e.g. `head`
         sys.stderr.close()
         return 0
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # workers ignore SIGINT (hlaid._workers); outputs in progress are removed
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
     except Exception as err:  # noqa: BLE001 - the one place internal errors are reported

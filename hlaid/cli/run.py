@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .._fileio import check_output_folder
 from ..report import build_report
 from ..runner import run_from_file
 from .main import subcommand
@@ -14,9 +15,15 @@ def register(sub) -> None:
     p.add_argument("-o", "--out", required=True, help="output folder")
     p.add_argument("--cache", metavar="DIR", help="classifier cache folder (default ~/.cache/hlaid/svm)")
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
-    p.set_defaults(func=lambda a: run_from_file(a.config, a.out, force=a.force, cache_dir=a.cache) and 0)
+    p.set_defaults(func=run_run)
 
     r = subcommand(sub, "report", help="rebuild report.html of a run folder from its saved results",
                    example="hlaid report hlaid-demo")
     r.add_argument("run_dir", help="a folder written by hlaid run or hlaid demo")
     r.set_defaults(func=lambda a: build_report(a.run_dir) and 0)
+
+
+def run_run(args) -> int:
+    check_output_folder(args.out, force=args.force)  # fail before the pipeline, not after it
+    run_from_file(args.config, args.out, force=args.force, cache_dir=args.cache)
+    return 0

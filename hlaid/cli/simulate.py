@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import _progress
+from .._fileio import check_output_file
 from ..motions import builtin_records, load_builtin
 from ..synthetic import load_simulation_config, measurement_from_config
 from .main import subcommand
@@ -25,10 +26,7 @@ def register(sub) -> None:
 
 
 def run_simulate(args) -> int:
-    out = Path(args.out)
-    if out.exists() and not args.force:
-        from ..errors import InputError
-        raise InputError("already exists; use --force to overwrite", source=str(out))
+    out = check_output_file(args.out, force=args.force)  # fail before the simulation, not after it
     cfg = load_simulation_config(args.config)
     _progress.info(f"simulating {cfg.building.name or 'building'} under {cfg.motion.file}")
     meas = measurement_from_config(cfg, base_dir=Path(args.config).parent, seed=args.seed, source=args.config)

@@ -40,6 +40,7 @@ import numpy as np
 from .. import _progress
 from ..clone import Clone
 from ..errors import InputError
+from ..limits import check_count
 from ..model import Building
 from ..motions import GroundMotion
 from ..simulate import simulate
@@ -82,6 +83,7 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     else:
         raise InputError(f"expected a Clone, a Building or a clone file, got {type(model).__name__}")
     source = source or building.source
+    check_count(building.n_stories, "STORIES", "stories", source=source)
     notes: list[str] = []
     if heights is not None:
         building = building.replace(height=heights)

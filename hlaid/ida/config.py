@@ -10,6 +10,7 @@ from typing import Literal
 
 from ..config import load_config
 from ..errors import InputError
+from ..limits import check_count
 
 DEFAULT_EXCEEDANCE = (0.005, 0.01, 0.02, 0.04)
 """Drift-ratio limits whose probability of exceedance is reported (0.5, 1, 2, 4 %)."""
@@ -81,7 +82,11 @@ class IDAConfig:
             if getattr(self, name) < 0 or (name == "n_levels" and self.n_levels < 2):
                 raise InputError(f"{name} = {getattr(self, name)}; expected a non-negative integer"
                                  + (" >= 2" if name == "n_levels" else ""))
+        for name in ("n_levels", "max_hunt", "max_fill"):
+            check_count(getattr(self, name), "IDA_LEVELS", name)
+        check_count(self.bootstrap, "BOOTSTRAP", "bootstrap")
         if self.levels is not None:
+            check_count(len(self.levels), "IDA_LEVELS", "number of levels")
             check_levels(self.levels)
         for d in self.exceedance_limits or ():
             _positive("exceedance_limits", d, upper=self.drift_limit)

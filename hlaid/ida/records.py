@@ -12,6 +12,7 @@ from pathlib import Path
 
 from .. import _progress
 from ..errors import InputError
+from ..limits import check_count
 from ..motions import SUITE, GroundMotion, builtin_suite, read_motion
 
 RECORD_SUFFIXES = (".at2", ".txt", ".dat", ".acc", ".csv")
@@ -65,8 +66,9 @@ def load_records(records: RecordSpec | Sequence[RecordSpec], *, units: str | Non
         raise InputError("no records given")
     motions: list[GroundMotion] = []
     skipped: list[str] = []
-    for spec in specs:
-        items, _ = _expand(spec)
+    expanded = [_expand(spec)[0] for spec in specs]
+    check_count(sum(len(items) for items in expanded), "IDA_RECORDS", "records")  # before reading any
+    for items in expanded:
         for item in items:
             if isinstance(item, GroundMotion):
                 motions.append(item)

@@ -2,7 +2,8 @@
 
 The key hashes the identification settings, the excitation, the noise level, the current
 estimate and the class bins: the same identification run again finds its machines here and
-skips the simulations and the training.
+skips the simulations and the training. Every entry carries SHA-256 checksums that are
+verified on load (see :class:`MachineCache`).
 """
 
 from __future__ import annotations
@@ -14,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
-from .._fileio import write_json
+from .. import __version__, _progress
+from .._fileio import _json_default, write_json
 from ..svm import KernelSVC
 
 
@@ -49,23 +50,81 @@ def array_digest(a: np.ndarray) -> str:
     return hashlib.sha256(np.ascontiguousarray(a, dtype=np.float64).tobytes()).hexdigest()[:16]
 
 
+def _sha256_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _sha256_json(obj) -> str:
+    return hashlib.sha256(json.dumps(obj, sort_keys=True).encode()).hexdigest()
+
+
+class _Untrusted(Exception):
+    """A cache entry that is there but must not be used (the message says why)."""
+
+
 class MachineCache:
-    """A folder of ``<key>/`` entries: ``<name>.svm`` machines and ``meta.json``."""
+    """A folder of ``<key>/`` entries: ``<name>.svm`` machines and ``meta.json``.
+
+    ``meta.json`` is written last and holds an ``integrity`` record: the entry's key and the
+    SHA-256 of every machine file and of the metadata itself. :meth:`load` verifies all of it;
+    an entry that fails (damaged, truncated, swapped with another key's, written by an older
+    hlaid without checksums) is reported with a warning and treated as absent, so the caller
+    retrains and :meth:`store` replaces it.
+    """
 
     def __init__(self, root: str | os.PathLike | None):
         self.root = Path(root) if root else None
 
     def load(self, key: str):
-        """``(machines, meta)`` or None when absent or unreadable."""
+        """``(machines, meta)``, or None when absent or when the entry fails its integrity check
+        (with a warning)."""
         if self.root is None:
             return None
         d = self.root / key
+        if not (d / "meta.json").exists():
+            return None
+        try:
+            return self._verified(d, key)
+        except _Untrusted as why:
+            _progress.warn(f"classifier cache entry {key} failed its integrity check ({why}); retraining")
+            return None
+
+    @staticmethod
+    def _verified(d: Path, key: str):
         try:
             meta = json.loads((d / "meta.json").read_text())
-            machines = {name: (KernelSVC.load(d / f"{name}.svm") if (d / f"{name}.svm").exists() else None)
-                        for name in meta["machines"]}
-        except (OSError, ValueError, KeyError):
-            return None
+        except (OSError, ValueError) as err:
+            raise _Untrusted(f"meta.json is unreadable: {type(err).__name__}") from None
+        if not isinstance(meta, dict) or not isinstance(meta.get("integrity"), dict):
+            raise _Untrusted("no checksums (an entry of an older hlaid, or not an hlaid cache entry)")
+        seal = meta.pop("integrity")
+        if seal.get("key") != key:
+            raise _Untrusted(f"it holds the entry of key {str(seal.get('key'))[:40]!r}")
+        if seal.get("meta_sha256") != _sha256_json(meta):
+            raise _Untrusted("meta.json does not match its checksum")
+        files = seal.get("files")
+        if not isinstance(files, dict) or not isinstance(meta.get("machines"), list):
+            raise _Untrusted("meta.json lists no machines")
+        machines = {}
+        for name in meta["machines"]:
+            if name not in files:  # stored as None (nothing trained)
+                machines[name] = None
+                continue
+            path = d / f"{name}.svm"
+            try:
+                ok = _sha256_file(path) == files[name]
+            except OSError:
+                raise _Untrusted(f"{path.name} is missing or unreadable") from None
+            if not ok:
+                raise _Untrusted(f"{path.name} does not match its checksum")
+            try:
+                machines[name] = KernelSVC.load(path)
+            except (OSError, ValueError) as err:
+                raise _Untrusted(f"{path.name}: {' '.join(str(err).split())[:120]}") from None
         return machines, meta
 
     def store(self, key: str, machines: dict, meta: dict) -> None:
@@ -74,9 +133,14 @@ class MachineCache:
         d = self.root / key
         try:
             d.mkdir(parents=True, exist_ok=True)
+            (d / "meta.json").unlink(missing_ok=True)  # an entry half rewritten is a plain miss, not a stale one
+            files = {}
             for name, m in machines.items():
                 if m is not None:
                     m.save(d / f"{name}.svm")
-            write_json(d / "meta.json", {**meta, "machines": list(machines)})
+                    files[name] = _sha256_file(d / f"{name}.svm")
+            body = json.loads(json.dumps({**meta, "machines": list(machines)}, default=_json_default))
+            seal = {"key": key, "meta_sha256": _sha256_json(body), "files": files}
+            write_json(d / "meta.json", {**body, "integrity": seal})
         except OSError:  # a read-only cache is not an error
             pass

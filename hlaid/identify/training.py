@@ -9,12 +9,12 @@ the measured data. One simulation therefore gives samples for every story at onc
 
 from __future__ import annotations
 
-import multiprocessing as mp
 import os
 from dataclasses import dataclass
 
 import numpy as np
 
+from .._workers import process_pool
 from ..hla import HLAConfig, hla
 from ..hla.features import half_cycle_features
 from ..measurement import Measurement
@@ -83,10 +83,7 @@ def _features_of(args):
 
 
 def _pool(n_jobs: int):
-    if n_jobs <= 1:
-        return None
-    ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else mp.get_context()
-    return ctx.Pool(n_jobs)
+    return process_pool(n_jobs) if n_jobs > 1 else None  # workers ignore Ctrl-C (hlaid._workers)
 
 
 def simulate_training_sets(estimate: Building, motion: GroundMotion, ranges: Ranges, *, n_samples: int,
@@ -145,6 +142,10 @@ def simulate_training_sets(estimate: Building, motion: GroundMotion, ranges: Ran
             n_sim += nb
             if progress:
                 progress(int(counts.min()), n_samples)
+    except BaseException:  # Ctrl-C or an error: stop the workers now rather than wait for their tasks
+        if pool:
+            pool.terminate()
+        raise
     finally:
         if pool:
             pool.close()

@@ -26,6 +26,7 @@ from pathlib import Path
 
 from .._fileio import read_text
 from ..errors import InputError
+from ..limits import check_readable_file
 from ..measurement import Measurement, read_measurement
 from .columns import ChannelSpec, ColumnsConfig, load_columns_config, read_columns
 from .csmip import CsmipChannel, csmip_measurement, read_csmip, read_csmip_channels
@@ -72,6 +73,7 @@ def detect_format(path: str | os.PathLike) -> str:
         if any(q.suffix.lower() == ".smc" for q in p.iterdir()):
             return "smc"
         raise InputError("folder holds no .smc files; give a file or format=", source=src)
+    check_readable_file(p)  # a regular file within the size limit (hlaid.limits) before sniffing it
     name = p.name.lower()
     bare = name.removesuffix(".gz")
     if bare.endswith((".yaml", ".yml")):

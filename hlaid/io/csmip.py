@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..limits import check_readable_file
 from ..measurement import Measurement
 from ..motions import GroundMotion
 from ..units import acceleration_factor
@@ -156,6 +157,7 @@ def read_csmip_channels(path: str | os.PathLike) -> list[CsmipChannel]:
     p = Path(src)
     if not p.is_file():
         raise InputError("file not found" if not p.exists() else "is not a file", source=src)
+    check_readable_file(p)
     data = p.read_bytes()
     if data[:4] == b"PK\x03\x04" or p.suffix.lower() == ".zip":
         members = _walk_zip(data, "", src)

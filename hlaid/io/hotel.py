@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..limits import check_readable_file
 from ..measurement import Measurement
 from ..units import length_factor
 from ._common import spectral_second_derivative
@@ -47,6 +48,7 @@ def _load(path: str | os.PathLike) -> dict:
     src = str(path)
     if not Path(src).is_file():
         raise InputError("file not found", source=src)
+    check_readable_file(src)
     raw = Path(src).read_bytes()
     if is_mat5(raw):
         check_mat5(raw, src)         # scipy's reader can crash on a damaged level-5 file

@@ -9,6 +9,7 @@ import numpy as np
 from scipy import signal
 
 from ..errors import InputError
+from ..limits import check_count
 from ..units import G_MM_S2
 
 MIN_SAMPLES = 8
@@ -44,6 +45,7 @@ class GroundMotion:
             raise InputError(f"acceleration must be one channel (time,), got shape {acc.shape}", source=src)
         if acc.shape[0] < MIN_SAMPLES:
             raise InputError(f"record has {acc.shape[0]} samples; expected at least {MIN_SAMPLES}", source=src)
+        check_count(acc.shape[0], "SAMPLES", "samples", source=src)
         bad = ~np.isfinite(acc)
         if bad.any():
             i = int(np.argmax(bad))
@@ -101,6 +103,7 @@ class GroundMotion:
         if not rate_hz > 0:
             raise InputError(f"rate = {rate_hz} Hz; expected a positive rate", source=self.source or None)
         ratio = Fraction(self.dt * rate_hz).limit_denominator(1000)
+        check_count(int(self.npts * ratio), "SAMPLES", f"samples at {rate_hz:g} Hz", source=self.source or None)
         if ratio == 1:
             return replace(self, dt=1.0 / rate_hz)
         up, down = ratio.numerator, ratio.denominator

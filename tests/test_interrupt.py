@@ -1,0 +1,134 @@
+"""Ctrl-C (SIGINT to the whole process group, as a terminal sends it) during long commands.
+
+Each command must stop within seconds with exit status 130 and one line on stderr, leave no
+worker process behind and nothing at (or next to) its destination.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from hlaid.clone import Clone
+
+pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="process groups and /proc are Linux-specific here")
+
+HEIGHTS = [3000.0, 3000.0, 3000.0]
+
+
+def _children(pid: int) -> list[int]:
+    """PIDs whose parent is ``pid`` (from /proc)."""
+    out = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                stat = (d / "stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                out.append(int(d.name))
+    return out
+
+
+def _group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def _interrupt(args: list[str], cwd: Path, *, after: str, workers: int = 0, delay: float = 0.5,
+               timeout: float = 180.0) -> tuple[int, float, list[str]]:
+    """Run ``hlaid ARGS`` in a new session, send SIGINT to its group once stderr shows ``after``
+    (and ``workers`` child processes exist), and return (status, seconds to exit, stderr lines)."""
+    env = {**os.environ, "HLAID_CACHE": str(cwd / "cache"), "PYTHONUNBUFFERED": "1"}
+    p = subprocess.Popen([sys.executable, "-m", "hlaid", *args], cwd=cwd, env=env, start_new_session=True,
+                         stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    lines: list[str] = []
+    seen = threading.Event()
+
+    def read():
+        for ln in p.stderr:
+            lines.append(ln.rstrip("\n"))
+            if after in ln:
+                seen.set()
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        t0 = time.monotonic()
+        while not (seen.is_set() and len(_children(p.pid)) >= workers):
+            assert p.poll() is None, f"finished before it could be interrupted: {lines[-5:]}"
+            assert time.monotonic() - t0 < timeout, f"never got to {after!r}: {lines[-5:]}"
+            time.sleep(0.1)
+        time.sleep(delay)
+        os.killpg(p.pid, signal.SIGINT)
+        t1 = time.monotonic()
+        try:
+            rc = p.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"still running 20 s after Ctrl-C; stderr ends {lines[-5:]}")
+        elapsed = time.monotonic() - t1
+        reader.join(5)
+        t2 = time.monotonic()
+        while _group_alive(p.pid) and time.monotonic() - t2 < 5:
+            time.sleep(0.1)
+        assert not _group_alive(p.pid), "processes of the command are left running"
+        return rc, elapsed, lines
+    finally:
+        if _group_alive(p.pid):
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
+
+
+def _assert_interrupted(rc: int, elapsed: float, lines: list[str], command: str) -> None:
+    assert rc == 130
+    assert elapsed < 10
+    assert lines[-1] == f"hlaid {command}: interrupted"
+    assert not any("Traceback" in ln or "KeyboardInterrupt" in ln for ln in lines), lines
+
+
+def _leftovers(folder: Path, name: str) -> list[str]:
+    return [p.name for p in folder.iterdir() if p.name == name or p.name.startswith(f".{name}.")]
+
+
+@pytest.fixture(scope="module")
+def measurement(tmp_path_factory) -> Path:
+    from hlaid.synthetic import load_simulation_config, measurement_from_config
+    repo = Path(__file__).resolve().parents[1]
+    cfg = load_simulation_config(repo / "configs" / "poc_3story.yaml")
+    path = tmp_path_factory.mktemp("meas") / "meas.npz"
+    measurement_from_config(cfg, base_dir=repo / "configs").save(path)
+    return path
+
+
+def test_ctrl_c_during_identify_training(measurement, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    rc, elapsed, lines = _interrupt(["identify", str(measurement), "-o", "out/c.json", "--no-cache"], tmp_path,
+                                    after="simulating training half cycles", workers=2)
+    _assert_interrupted(rc, elapsed, lines, "identify")
+    assert _leftovers(out, "c.json") == []
+
+
+def test_ctrl_c_during_ida(table1, tmp_path):
+    Clone(building=table1.replace(height=HEIGHTS), provenance={"test": True}).save(tmp_path / "clone.json")
+    rc, elapsed, lines = _interrupt(["ida", "clone.json", "--records", "builtin-suite", "--levels", "0.1:20:0.1",
+                                     "--no-plots", "-o", "ida-out"], tmp_path, after="IDA of", delay=1.0)
+    _assert_interrupted(rc, elapsed, lines, "ida")
+    assert _leftovers(tmp_path, "ida-out") == []
+
+
+def test_ctrl_c_during_demo(tmp_path):
+    rc, elapsed, lines = _interrupt(["demo", "--out", "demo-out", "--cache", "cache"], tmp_path,
+                                    after="simulating training half cycles", workers=2)
+    _assert_interrupted(rc, elapsed, lines, "demo")
+    assert _leftovers(tmp_path, "demo-out") == []
