@@ -13,6 +13,10 @@ Layout::
 
 With ``mass_normalised`` true the masses are relative (ratios) and every stiffness is per
 unit of that relative mass; responses (drifts, accelerations) are unaffected.
+
+Reading is strict: an unknown field (top level, story or damping), a ``units`` block other than
+the one above (it may be left out), or a field of the wrong type (``"pdelta": "yes"``) is an
+:class:`~hlaid.errors.InputError` naming the file and the field.
 """
 
 from __future__ import annotations
@@ -62,7 +66,7 @@ class Clone:
             if b.gravity_load is not None:
                 s["gravity_load"] = float(b.gravity_load[i])
             stories.append(s)
-        return {"format": FORMAT, "version": VERSION, "units": UNITS_JSON, "name": b.name, "stories": stories,
+        return {"format": FORMAT, "version": VERSION, "units": dict(UNITS_JSON), "name": b.name, "stories": stories,
                 "damping": b.damping.to_dict(), "pdelta": b.pdelta, "mass_normalised": self.mass_normalised,
                 "diagnostics": _jsonable(self.diagnostics), "provenance": _jsonable(self.provenance)}
 
@@ -72,11 +76,15 @@ class Clone:
 
     @classmethod
     def from_dict(cls, d: dict, *, source: str | None = None) -> "Clone":
+        """Validate a clone mapping strictly: unknown fields, a ``units`` block other than hlaid's,
+        and fields of the wrong type (``pdelta: "yes"``) are each an :class:`InputError` naming the field."""
         if not isinstance(d, dict) or d.get("format") != FORMAT:
             raise InputError(f"not an hlaid clone (field 'format' should be {FORMAT!r})", source=source)
         if d.get("version") != VERSION:
-            raise InputError(f"clone version {d.get('version')!r} is not supported; this hlaid reads version {VERSION}",
-                             source=source)
+            raise InputError(f"clone version {_show(d.get('version'))} is not supported; this hlaid reads version "
+                             f"{VERSION}", source=source)
+        _no_unknown(d, _TOP_KEYS, "", source)
+        _check_units(d.get("units"), source)
         stories = d.get("stories")
         if not isinstance(stories, list) or not stories:
             raise InputError("field 'stories' must be a non-empty list", source=source)
@@ -85,24 +93,40 @@ class Clone:
         for i, s in enumerate(stories):
             if not isinstance(s, dict):
                 raise InputError(f"stories[{i}] must be a mapping", source=source)
+            _no_unknown(s, _STORY_KEYS + _STORY_OPTIONAL, f"stories[{i}].", source)
             for k in _STORY_KEYS:
-                v = s.get(k)
-                if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                    raise InputError(f"stories[{i}].{k} must be a finite number, got {v!r}", source=source)
-                cols[k].append(float(v))
-            heights.append(s.get("height"))
-            gravity.append(s.get("gravity_load"))
+                if k not in s:
+                    raise InputError(f"stories[{i}].{k} is missing", source=source)
+                cols[k].append(_number(s[k], f"stories[{i}].{k}", source))
+            heights.append(None if s.get("height") is None else _number(s["height"], f"stories[{i}].height", source))
+            gravity.append(None if s.get("gravity_load") is None
+                           else _number(s["gravity_load"], f"stories[{i}].gravity_load", source))
+        damping = d.get("damping", {})
+        if not isinstance(damping, dict):
+            raise InputError(f"field 'damping' must be a mapping, got {_kind(damping)}", source=source)
+        _no_unknown(damping, ("kind", "ratio", "modes"), "damping.", source)
+        if "kind" in damping and not isinstance(damping["kind"], str):
+            raise InputError(f"damping.kind must be a string, got {_kind(damping['kind'])}", source=source)
+        if "ratio" in damping:
+            _number(damping["ratio"], "damping.ratio", source)
+        modes = damping.get("modes", [1, 2])
+        if not (isinstance(modes, list) and all(isinstance(m, int) and not isinstance(m, bool) for m in modes)):
+            raise InputError("damping.modes must be a list of two mode numbers such as [1, 2]", source=source)
+        for key, kinds, what in (("pdelta", (bool, type(None)), "true, false or null"),
+                                 ("mass_normalised", (bool,), "true or false"),
+                                 ("name", (str, type(None)), "a string"),
+                                 ("diagnostics", (dict, type(None)), "a mapping"),
+                                 ("provenance", (dict, type(None)), "a mapping")):
+            if key in d and not isinstance(d[key], kinds):
+                raise InputError(f"field '{key}' must be {what}, got {_kind(d[key])}", source=source)
         try:
-            damping = Damping(**d.get("damping", {}))
             b = Building(**cols, height=None if None in heights else heights,
-                         gravity_load=None if None in gravity else gravity, damping=damping,
-                         pdelta=d.get("pdelta"), name=str(d.get("name", "")), source=source)
-        except TypeError as err:
-            raise InputError(f"invalid field in 'damping': {err}", source=source) from None
+                         gravity_load=None if None in gravity else gravity, damping=Damping(**damping),
+                         pdelta=d.get("pdelta"), name=d.get("name") or "", source=source)
         except InputError as err:
             raise InputError(str(err).removeprefix(f"{source}: "), source=source) from None
-        return cls(building=b, mass_normalised=bool(d.get("mass_normalised", False)),
-                   diagnostics=d.get("diagnostics", {}) or {}, provenance=d.get("provenance", {}) or {})
+        return cls(building=b, mass_normalised=d.get("mass_normalised", False),
+                   diagnostics=d.get("diagnostics") or {}, provenance=d.get("provenance") or {})
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Clone":
@@ -113,6 +137,59 @@ class Clone:
         except json.JSONDecodeError as err:
             raise InputError(f"not valid JSON (line {err.lineno}: {err.msg})", source=src) from None
         return cls.from_dict(d, source=src)
+
+
+_TOP_KEYS = ("format", "version", "units", "name", "stories", "damping", "pdelta", "mass_normalised",
+             "diagnostics", "provenance")
+_STORY_OPTIONAL = ("height", "gravity_load")
+
+
+def _kind(v) -> str:
+    """What a JSON value is (never the value: it may be long or not ours to echo)."""
+    if v is None:
+        return "null"
+    if isinstance(v, bool):
+        return "true or false"
+    if isinstance(v, (int, float)):
+        return "a number"
+    return {str: "a string", list: "a list", dict: "a mapping"}.get(type(v), type(v).__name__)
+
+
+def _show(v) -> str:
+    """A short JSON scalar as written, anything else by its kind."""
+    if isinstance(v, (bool, int, float)) or v is None or (isinstance(v, str) and len(v) <= 20 and v.isprintable()):
+        return repr(v)
+    return _kind(v)
+
+
+def _number(v, field: str, source: str | None) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise InputError(f"{field} must be a finite number, got {_show(v)}", source=source)
+    return float(v)
+
+
+def _no_unknown(d: dict, allowed, prefix: str, source: str | None) -> None:
+    unknown = [k for k in d if k not in allowed]
+    if unknown:
+        k = unknown[0]
+        name = repr(prefix + k) if len(k) <= 40 and k.isprintable() else f"{prefix}<{len(k)} characters>"
+        raise InputError(f"unknown field {name} (a typo, or a file of another program?); expected "
+                         f"{', '.join(allowed)}", source=source)
+
+
+def _check_units(units, source: str | None) -> None:
+    """A clone's ``units`` block, when present, must be hlaid's (N, mm, t, s): values in other units
+    would be taken as hlaid's silently."""
+    if units is None:
+        return
+    if not isinstance(units, dict):
+        raise InputError(f"field 'units' must be a mapping, got {_kind(units)}", source=source)
+    for key, want in UNITS_JSON.items():
+        if units.get(key) != want:
+            got = "missing" if key not in units else _show(units[key])
+            raise InputError(f"units.{key} is {got}; hlaid clones are in {want!r} (N, mm, t, s): convert the "
+                             "values and the units block", source=source)
+    _no_unknown(units, tuple(UNITS_JSON), "units.", source)
 
 
 def load_clone(path: str | os.PathLike) -> Clone:

@@ -3,13 +3,16 @@
 A schema is a frozen dataclass whose fields carry type annotations (numbers, strings,
 booleans, ``Literal`` choices, ``X | None``, ``list[X]``/``tuple[X, ...]``, ``dict[str, X]``
 and nested schemas). :func:`load_config` rejects unknown keys, wrong types and values a
-schema's ``__post_init__`` refuses, each with ``FILE:LINE: key: what is wrong``.
+schema's ``__post_init__`` refuses, each with ``FILE:LINE: key: what is wrong`` (LINE: the line
+of the offending value, also inside nested blocks). Every config is read by one safe loader that
+refuses YAML aliases (``*name``), so a tiny file cannot expand into a huge one.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import os
+import re
 import types
 import typing
 from pathlib import Path
@@ -47,17 +50,57 @@ def _convert(node: yaml.Node, source: str) -> _Node:
     return _Node(yaml.SafeLoader("").construct_object(node, deep=True), line)
 
 
-def parse_yaml(text: str, source: str = "<string>") -> _Node:
-    """Parse YAML into line-annotated nodes; syntax errors name the file and line."""
+class _NoAliasLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that refuses aliases (``*name``, also in ``<<: *name`` merges).
+
+    An alias repeats a node by reference, so a few hundred bytes of nested aliases ("billion
+    laughs") expand into gigabytes, and an alias inside its own anchor is a cycle. hlaid
+    configs are small: every value is written out. Anchors alone (``&name``) are harmless.
+    """
+
+    source = "<string>"
+
+    def compose_node(self, parent, index):
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise ConfigError(f"{self.source}:{event.start_mark.line + 1}: YAML aliases (*name) are not allowed in "
+                              "hlaid configs; write the value out in full")
+        return super().compose_node(parent, index)
+
+
+def compose_yaml(text: str, source: str = "<string>") -> yaml.Node | None:
+    """The YAML node tree of ``text`` (None when empty), composed by the one loader every hlaid
+    config goes through: safe tags only, aliases refused (:class:`_NoAliasLoader`), one document."""
+    loader = _NoAliasLoader(text)
+    loader.source = source
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        return loader.get_single_node()
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         where = f"{source}:{mark.line + 1}" if mark else source
-        raise ConfigError(f"{where}: invalid YAML: {getattr(err, 'problem', err)}") from None
+        problem = " ".join(str(getattr(err, "problem", None) or "syntax error").split())
+        raise ConfigError(f"{where}: invalid YAML: {problem}") from None
+    except RecursionError:  # nesting thousands of levels deep
+        raise ConfigError(f"{source}: invalid YAML: nested too deeply") from None
+    finally:
+        loader.dispose()
+
+
+def parse_yaml(text: str, source: str = "<string>") -> _Node:
+    """Parse YAML into line-annotated nodes; syntax errors name the file and line, and aliases
+    (``*name``) are refused (see :class:`_NoAliasLoader`)."""
+    root = compose_yaml(text, source)
     if root is None:
         return _Node({}, 1)
-    return _convert(root, source)
+    try:
+        return _convert(root, source)
+    except yaml.YAMLError as err:  # e.g. a tag no safe constructor knows (!!python/object)
+        mark = getattr(err, "problem_mark", None)
+        where = f"{source}:{mark.line + 1}" if mark else source
+        problem = " ".join(str(getattr(err, "problem", None) or "cannot read a value").split())
+        raise ConfigError(f"{where}: invalid YAML: {problem}") from None
+    except RecursionError:
+        raise ConfigError(f"{source}: invalid YAML: nested too deeply") from None
 
 
 def _type_name(tp) -> str:
@@ -160,16 +203,38 @@ def _plain(node: _Node):
 
 
 def _show(v) -> str:
+    """A value for an error message: short scalars as written, anything else by its kind (a
+    long string may be a line of some unrelated file given by mistake: it is not echoed)."""
     if isinstance(v, dict):
         return "a mapping"
     if isinstance(v, list):
         return "a list"
+    if isinstance(v, str) and (len(v) > 40 or not v.isprintable()):
+        return f"a string of {len(v)} characters"
     return repr(v)
+
+
+def _kind(v) -> str:
+    """What a value is, never the value itself."""
+    if isinstance(v, dict):
+        return "a mapping"
+    if isinstance(v, list):
+        return "a list"
+    if v is None:
+        return "an empty document"
+    if isinstance(v, bool):
+        return "true or false"
+    if isinstance(v, (int, float)):
+        return "a number"
+    return "text" if isinstance(v, str) else type(v).__name__
 
 
 def _build_dataclass(cls, node: _Node, where: str, source: str):
     if not isinstance(node.value, dict):
-        raise ConfigError(f"{source}:{node.line}: {where or 'top level'}: expected a mapping, got {_show(node.value)}")
+        if not where:  # the whole file: perhaps not a config at all, so quote none of it
+            raise ConfigError(f"{source}:{node.line}: top level: expected a mapping, got {_kind(node.value)} "
+                              "(settings are 'key: value' lines); is this an hlaid YAML config?")
+        raise ConfigError(f"{source}:{node.line}: {where}: expected a mapping, got {_show(node.value)}")
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
     keys = node.keys
@@ -187,20 +252,52 @@ def _build_dataclass(cls, node: _Node, where: str, source: str):
     try:
         return cls(**kwargs)
     except InputError as e:
-        raise ConfigError(f"{source}:{node.line}: {where or 'top level'}: {e}") from None
+        key = _key_named_in(str(e), node.value)
+        line = node.value[key].line if key is not None else node.line
+        raise ConfigError(f"{source}:{line}: {where or 'top level'}: {e}") from None
+
+
+def _key_named_in(message: str, values: dict) -> str | None:
+    """The key of ``values`` that ``message`` (a schema's ``__post_init__`` error such as
+    ``"n_levels = 1; expected ..."``) names first, so the error points at that value's line."""
+    best = None
+    for key in values:
+        m = re.search(rf"(?<![\w-]){re.escape(str(key))}(?![\w-])", message)
+        if m and (best is None or m.start() < best[0]):
+            best = (m.start(), key)
+    return None if best is None else best[1]
+
+
+class _NoAliasDumper(yaml.SafeDumper):
+    """Writes a value used twice in full (the loader refuses aliases)."""
+
+    def ignore_aliases(self, data):
+        return True
 
 
 def config_from_dict(cls: type[T], data: dict, source: str = "<dict>") -> T:
     """Validate a plain mapping against schema ``cls`` (as :func:`load_config` does a file)."""
-    return _build_dataclass(cls, parse_yaml(yaml.safe_dump(data, sort_keys=False), source), "", source)
+    text = yaml.dump(data, Dumper=_NoAliasDumper, sort_keys=False)
+    return _build_dataclass(cls, parse_yaml(text, source), "", source)
+
+
+def load_yaml(path: str | os.PathLike) -> _Node:
+    """The line-annotated YAML tree of a config file (see :func:`parse_yaml`)."""
+    source = str(path)
+    if not Path(source).is_file():
+        raise ConfigError("config file not found", source=source)
+    return parse_yaml(read_text(source), source)
+
+
+def config_from_node(cls: type[T], node: _Node, source: str, where: str = "") -> T:
+    """Validate a node of :func:`load_yaml` (``where``: its dotted key, e.g. ``"ida"``) against
+    schema ``cls``; errors give the line of the offending value in ``source``."""
+    return _build_dataclass(cls, node, where, source)
 
 
 def load_config(path: str | os.PathLike, cls: type[T]) -> T:
     """Load and validate a YAML file against the dataclass schema ``cls``."""
-    source = str(path)
-    if not Path(source).is_file():
-        raise ConfigError("config file not found", source=source)
-    return _build_dataclass(cls, parse_yaml(read_text(source), source), "", source)
+    return _build_dataclass(cls, load_yaml(path), "", str(path))
 
 
 def config_to_dict(cfg) -> dict:

@@ -8,6 +8,8 @@ it into a single line on stderr and exit status 2; anything else is an internal 
 
 from __future__ import annotations
 
+import re
+
 
 class InputError(ValueError):
     """Bad user input. ``str(err)`` is one line naming the file or field and what is wrong."""
@@ -24,3 +26,27 @@ class ConfigError(InputError):
 
 class NotIdentifiableError(InputError):
     """The record does not hold enough information to identify what was asked."""
+
+
+_LABEL = re.compile(r"[A-Za-z0-9_ .()\[\]/^*%+-]{1,32}")
+
+
+def quotable(text) -> bool:
+    """Whether ``text`` read from a file (a column or channel name) may be quoted in an error.
+
+    Messages say what is wrong and where (line, column, field) but do not echo file contents: the
+    file may be some unrelated one given by mistake (a line of a password file must not end up
+    in a terminal or a log). A short, plain label such as ``acc (g)`` is still quoted.
+    """
+    return isinstance(text, str) and _LABEL.fullmatch(text) is not None
+
+
+def column_label(names, j: int) -> str:
+    """``column 3 ('acc (g)')``, or ``column 3`` when the name is not :func:`quotable`."""
+    name = names[j] if 0 <= j < len(names) else None
+    return f"column {j + 1} ({name!r})" if quotable(name) else f"column {j + 1}"
+
+
+def columns_text(names) -> str:
+    """The column names of a file for an error message (unquotable ones by number)."""
+    return ", ".join(n if quotable(n) else f"column {j + 1}" for j, n in enumerate(names))

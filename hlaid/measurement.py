@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ._fileio import atomic_write, read_text, write_npz
-from .errors import InputError
+from .errors import InputError, column_label
 from .limits import check_archive, check_count, check_readable_file
 from .model import Building
 from .units import G_MM_S2
@@ -35,6 +35,14 @@ MIN_SAMPLES = 16
 PGA_PLAUSIBLE_MM_S2 = (10.0, 5.0 * G_MM_S2)
 """A ground PGA outside this range [mm/s^2] (0.001 g to 5 g) means the units are almost surely wrong:
 a record in g or m/s^2 read as mm/s^2 falls far below it, one in mm/s^2 read as g far above."""
+RATE_LIMITS_HZ = (5.0, 100_000.0)
+"""Hard limits of a measurement's sample rate ``1/dt`` [Hz]. Outside them ``dt`` is surely wrong
+(milliseconds read as seconds, a time column in samples or in ms) and the measurement is refused:
+below 5 Hz the modes of a building (0.1-10 Hz) cannot be resolved, above 100 kHz no accelerometer
+network records (and ``k0`` identified at a wrong rate is wrong by the rate ratio squared)."""
+RATE_USUAL_HZ = (20.0, 2_000.0)
+"""Sample rates of structural monitoring and shake-table records (50-1000 Hz typically). A rate
+inside :data:`RATE_LIMITS_HZ` but outside this range is read with a warning: check ``dt``."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,6 +94,10 @@ class Measurement:
         src = self.source or None
         if not (np.isfinite(self.dt) and self.dt > 0):
             raise InputError(f"dt = {self.dt}; expected a positive sample interval in seconds", source=src)
+        lo, hi = RATE_LIMITS_HZ
+        if not lo <= 1.0 / self.dt <= hi:
+            raise InputError(f"dt = {self.dt:g} s is a sample rate of {1.0 / self.dt:.3g} Hz, outside the {lo:g} Hz "
+                             f"to {hi:g} Hz of structural records; check dt (seconds per sample)", source=src)
         g = np.asarray(self.ground_acc, dtype=np.float64)
         f = np.asarray(self.floor_acc, dtype=np.float64)
         if g.ndim != 1:
@@ -213,6 +225,30 @@ class Measurement:
         return "\n".join(head) + "\n" + ",".join(names) + "\n" + body + "\n"
 
 
+def warn_unusual_rate(meas: Measurement) -> None:
+    """Warn (loudly: always shown) when the sample rate is legal but outside :data:`RATE_USUAL_HZ`."""
+    rate = 1.0 / meas.dt
+    lo, hi = RATE_USUAL_HZ
+    if not lo <= rate <= hi:
+        from . import _progress
+        _progress.warn(f"{meas.source or 'measurement'}: dt = {meas.dt:g} s is a sample rate of {rate:.6g} Hz, unusual "
+                       f"for structural records ({lo:g} to {hi:g} Hz); check dt: identified stiffnesses scale with "
+                       "the rate squared")
+
+
+def check_band(meas: Measurement, band_hz, field: str) -> None:
+    """Refuse band-pass corners ``band_hz`` (the setting ``field``, e.g. ``"hla.preprocess.band_hz"``)
+    whose low corner is not below 0.45 x the sample rate of ``meas`` (the high corner is capped
+    there), before a filter design fails on it."""
+    if band_hz is None:
+        return
+    top = 0.45 / meas.dt
+    if not float(band_hz[0]) < top:
+        raise InputError(f"{field}: low corner {float(band_hz[0]):g} Hz is not below {top:.4g} Hz (0.9 x the "
+                         f"Nyquist frequency of this {1.0 / meas.dt:.4g} Hz measurement); lower it",
+                         source=meas.source or None)
+
+
 # ---------------------------------------------------------------------- reading
 def read_measurement(path: str | os.PathLike) -> Measurement:
     """Read a measurement from NPZ or CSV (see the module docstring for the layouts)."""
@@ -228,6 +264,10 @@ def read_measurement(path: str | os.PathLike) -> Measurement:
 
 def _read_npz(p: Path) -> Measurement:
     src = str(p)
+    if not zipfile.is_zipfile(p):  # np.load would read a .npy array, or try to unpickle the file
+        raise InputError("not a readable NPZ measurement file (not a zip archive of named arrays); give a .npz "
+                         "written by hlaid or numpy.savez, a .csv measurement, or format= for another layout",
+                         source=src)
     try:
         with np.load(p, allow_pickle=False) as z:
             d = {k: z[k] for k in z.files}
@@ -246,7 +286,8 @@ def _read_npz(p: Path) -> Measurement:
     try:
         dt = float(d["dt"])
     except (TypeError, ValueError):
-        raise InputError(f"dt must be a number, got {d['dt']!r}", source=src) from None
+        raise InputError(f"dt must be one number, got an array of shape {np.shape(d['dt'])} and type "
+                         f"{np.asarray(d['dt']).dtype.kind!r}", source=src) from None
     extra = {k: v for k, v in d.items() if k not in {"dt", "ground_acc", "floor_acc", "mass", "height", "noise_rms",
                                                       "pdelta", "floor_disp", "true_params"} and not k.startswith("true_")}
     return Measurement(dt=dt, ground_acc=d["ground_acc"], floor_acc=d["floor_acc"], mass=d.get("mass"),
@@ -256,14 +297,21 @@ def _read_npz(p: Path) -> Measurement:
                        name=p.stem, extra=extra)
 
 
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def _header_numbers(value: str, key: str, src: str) -> np.ndarray:
     try:
         out = np.array([float(x) for x in value.replace(";", ",").split(",") if x.strip()])
     except ValueError:
         out = np.empty(0)
     if out.size == 0:
-        raise InputError(f"header '{key}' must be a comma-separated list of numbers, got {value.strip()[:40]!r}",
-                         source=src)
+        raise InputError(f"header '{key}' must be a comma-separated list of numbers", source=src)
     return out
 
 
@@ -272,7 +320,8 @@ def _read_csv(p: Path) -> Measurement:
     text = read_text(p)
     meta: dict[str, str] = {}
     rows: list[str] = []
-    for ln in text.splitlines():
+    linenos: list[int] = []  # file line of each row, for messages
+    for k, ln in enumerate(text.splitlines()):
         s = ln.strip()
         if not s:
             continue
@@ -282,18 +331,21 @@ def _read_csv(p: Path) -> Measurement:
                 meta[m.group(1)] = m.group(2)
         else:
             rows.append(s)
+            linenos.append(k + 1)
     if len(rows) < 2:
         raise InputError("holds no data rows", source=src)
     names = [c.strip() for c in rows[0].split(",")]
     fields = [r.split(",") for r in rows[1:]]
     for i, r in enumerate(fields):
         if len(r) != len(names):
-            raise InputError(f"data row {i + 1} has {len(r)} values but the header names {len(names)} columns",
-                             source=src)
+            raise InputError(f"data row {i + 1} has {len(r)} values but the header names {len(names)} columns "
+                             f"(line {linenos[i + 1]})", source=src)
     try:
         data = np.array([[float(x) for x in r] for r in fields])
     except ValueError:
-        raise InputError("has a non-numeric value in the data rows", source=src) from None
+        i, j = next((i, j) for i, r in enumerate(fields) for j, x in enumerate(r) if not _is_float(x))
+        raise InputError(f"has a non-numeric value in data row {i + 1} (line {linenos[i + 1]}), "
+                         f"{column_label(names, j)}", source=src) from None
     col = {n: i for i, n in enumerate(names)}
     floors = sorted((n for n in names if re.fullmatch(r"floor_acc_\d+", n)), key=lambda n: int(n.rsplit("_", 1)[1]))
     if "ground_acc" not in col or not floors:

@@ -5,7 +5,9 @@
 applied with ``-doRayleigh 1``, the parameter mapping of DESIGN.md section 3) and, run as a
 program, analyses a record given on the command line and writes the peak drifts.
 :func:`run_opensees` executes *the same generated code* in-process (tests and benchmarks
-therefore check exactly what users get).
+therefore check exactly what users get). Strings (the clone's name, which ``hlaid identify``
+takes from a file name, the damping kind, the version) enter the script only as ``repr()``
+literals on data lines, never in its docstring or comments, so no name can add code.
 
 P-Delta (a shear model has no columns to carry a P-Delta transformation): each story gets
 a parallel ``zeroLength`` with ``uniaxialMaterial Elastic`` of stiffness ``-P_i/h_i``, the
@@ -75,10 +77,13 @@ def opensees_script(model) -> str:
     from . import __version__
     b = _building(model)
     a0, a1 = b.rayleigh()
-    head = _HEADER.format(name=b.name or "clone", n=b.n_stories, version=__version__,
-                          pdelta="on" if b.pdelta_active else "off")
+    # Strings enter the script only as repr() literals on data lines (NAME, HLAID_VERSION,
+    # DAMPING): never inside the docstring or a comment, where a name holding quotes, a
+    # newline or '"""' would end them and become code.
+    head = _HEADER.format(n=int(b.n_stories), pdelta="on" if b.pdelta_active else "off")
     params = "\n".join([
-        f"NAME = {b.name or 'clone'!r}",
+        f"NAME = {str(b.name or 'clone')!r}  # the clone's name",
+        f"HLAID_VERSION = {str(__version__)!r}  # hlaid version that exported this script",
         f"MASS = {_list(b.mass)}  # floor masses [t]",
         f"K0 = {_list(b.k0)}  # initial story stiffness [N/mm]",
         f"ALPHA = {_list(b.alpha)}  # post-yield stiffness ratio",
@@ -87,8 +92,9 @@ def opensees_script(model) -> str:
         f"DELTA_ETA = {_list(b.delta_eta)}  # hlaid degradation [s^2/m^2]",
         f"HEIGHT = {_list(b.height) if b.height is not None else None}  # story heights [mm]",
         f"PDELTA_K = {_list(b.geometric_stiffness())}  # P_i/h_i [N/mm], zeros when P-Delta is off",
-        (f"RAYLEIGH = ({float(a0)!r}, {float(a1)!r})  # C = a0*M + a1*K0  ({b.damping.kind}, "
-         f"{b.damping.ratio:g} on modes {list(b.damping.modes)})"),
+        f"RAYLEIGH = ({float(a0)!r}, {float(a1)!r})  # C = a0*M + a1*K0",
+        (f"DAMPING = {{'kind': {str(b.damping.kind)!r}, 'ratio': {float(b.damping.ratio)!r}, "
+         f"'modes': {[int(m) for m in b.damping.modes]!r}}}  # what RAYLEIGH was computed from"),
     ])
     return head + "\n" + params + "\n" + _BODY
 
@@ -99,7 +105,7 @@ def export_opensees(model, path: str | os.PathLike, *, force: bool = False) -> P
     text = opensees_script(model)
 
     def write(tmp: Path):
-        tmp.write_text(text)
+        tmp.write_text(text, encoding="utf-8")
         tmp.chmod(0o755)
     return atomic_write(path, write, force=force)
 
@@ -196,9 +202,9 @@ def run_opensees_batch(model, jobs, *, dt_factor: int = 10, workers: int = 2):
 
 
 _HEADER = '''#!/usr/bin/env python3
-"""OpenSeesPy model of the hlaid clone {name!r}: a {n}-story degrading Bouc-Wen shear building.
+"""OpenSeesPy model of an hlaid clone (NAME below): a {n}-story degrading Bouc-Wen shear building.
 
-Exported by hlaid {version}. Standalone: needs only openseespy and numpy. P-Delta: {pdelta}.
+Exported by hlaid (HLAID_VERSION below). Standalone: needs only openseespy and numpy. P-Delta: {pdelta}.
 Units: N, mm, t (tonne), s (1 t * 1 mm/s^2 = 1 N); accelerations in mm/s^2 inside.
 
 Model (hlaid docs/DESIGN section 3):

@@ -1,7 +1,9 @@
 """``report.html``: a self-contained page (images embedded) built from a run folder.
 
 ``hlaid report RUN_DIR`` rebuilds it from the saved results: ``summary.json``,
-``figures/*.png``, ``ida/*.png`` and ``ida/summary.json``.
+``figures/*.png``, ``ida/*.png`` and ``ida/summary.json``. The fields it reads are checked
+first (:data:`_SUMMARY`), and a figure the run wrote must still be there: a tampered summary or a
+missing figure is an :class:`~hlaid.errors.InputError` naming the field or file.
 """
 
 from __future__ import annotations
@@ -41,9 +43,121 @@ _FIGURES = [
 ]
 
 
-def _img(path: Path) -> str:
-    data = base64.b64encode(path.read_bytes()).decode()
+_PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def _img(path: Path, source: str) -> str:
+    try:
+        raw = path.read_bytes()
+    except OSError as err:
+        raise InputError(f"cannot read figure {path.relative_to(source)} ({err.strerror})", source=source) from None
+    if not raw.startswith(_PNG_MAGIC):
+        raise InputError(f"figure {path.relative_to(source)} is not a PNG image", source=source)
+    data = base64.b64encode(raw).decode()
     return f'<img alt="{html.escape(path.name)}" src="data:image/png;base64,{data}">'
+
+
+class _Null:
+    """Schema wrapper: the value may also be null."""
+
+    def __init__(self, spec):
+        self.spec = spec
+
+
+class _Pair:
+    """Schema wrapper: a list of exactly two items."""
+
+    def __init__(self, spec):
+        self.spec = spec
+
+
+_NAMES = {"num": "a number", "int": "an integer", "str": "a string", "bool": "true or false"}
+_FRAG = _Null({"median_g?": _Null("num"), "beta?": _Null("num"), "median_ci_g?": _Null(_Pair(_Null("num"))),
+               "beta_ci?": _Null(_Pair(_Null("num"))), "ci?": _Null("num")})
+_IDA = {"intensity_measure?": {"label?": "any", "name?": "any", "period_s?": _Null("num")},
+        "collapse_criteria?": {"drift_limit?": "num", "slope_ratio?": "num"},
+        "records?": ["any"], "notes?": ["str"],
+        "collapse_fragility?": _Null({"capacities?": _FRAG, "counts?": _FRAG}),
+        "drift_limits?": _Null({"*num": {"fragility?": _FRAG}})}
+_SUMMARY = {"format": "str", "name": "str", "hlaid_version": "str", "n_stories": "int",
+            "mass_normalised?": _Null("bool"), "noise_rms?": _Null("num"),
+            "replay": {"r_measured": ["num"], "r_true?": _Null(["num"]), "stiffness_error": ["num"]},
+            "parameters": [{"parameter": "str", "story": "int", "identified": "num", "true": _Null("num"),
+                            "error": _Null("num")}],
+            "paper_method?": _Null([{"parameter": "str", "story": "int", "identified?": _Null("num"),
+                                     "error?": _Null("num")}]),
+            "outer_iterations": "int", "timings": {"*": "num"}, "ida?": _Null(_IDA)}
+"""What :func:`build_report` reads from ``summary.json``: keys ending in ``?`` may be absent, a
+``*`` key stands for every key (``*num``: keys that read as numbers); other keys are ignored."""
+
+
+def _kind(v) -> str:
+    if v is None:
+        return "null"
+    if isinstance(v, bool):
+        return "true or false"
+    if isinstance(v, (int, float)):
+        return "a number"
+    return {str: "a string", list: "a list", dict: "a mapping"}.get(type(v), type(v).__name__)
+
+
+def _validate(v, spec, path: str, source: str) -> None:
+    """Check a value of summary.json against :data:`_SUMMARY` (an InputError naming the field, never
+    quoting its value)."""
+    def bad(what):
+        raise InputError(f"summary.json: field {path or 'top level'} must be {what}, got {_kind(v)}", source=source)
+
+    if isinstance(spec, _Null):
+        if v is not None:
+            _validate(v, spec.spec, path, source)
+        return
+    if isinstance(spec, _Pair):
+        if not isinstance(v, list) or len(v) != 2:
+            bad("a list of two values")
+        for i, x in enumerate(v):
+            _validate(x, spec.spec, f"{path}[{i}]", source)
+        return
+    if isinstance(spec, list):
+        if not isinstance(v, list):
+            bad("a list")
+        for i, x in enumerate(v):
+            _validate(x, spec[0], f"{path}[{i}]", source)
+        return
+    if isinstance(spec, dict):
+        if not isinstance(v, dict):
+            bad("a mapping")
+        for key, sub in spec.items():
+            if key.startswith("*"):
+                for k, x in v.items():
+                    if key == "*num":
+                        try:
+                            float(k)
+                        except ValueError:
+                            raise InputError(f"summary.json: field {path} has a key that is not a number",
+                                             source=source) from None
+                    _validate(x, sub, f"{path}.{k}" if path else k, source)
+                continue
+            name = key.rstrip("?")
+            if name not in v:
+                if not key.endswith("?"):
+                    raise InputError(f"summary.json: field {path + '.' if path else ''}{name} is missing",
+                                     source=source)
+                continue
+            _validate(v[name], sub, f"{path}.{name}" if path else name, source)
+        return
+    if spec == "any":
+        return
+    ok = {"num": isinstance(v, (int, float)) and not isinstance(v, bool),
+          "int": isinstance(v, int) and not isinstance(v, bool),
+          "str": isinstance(v, str), "bool": isinstance(v, bool)}[spec]
+    if not ok:
+        bad(_NAMES[spec])
+
+
+def required_figures(summary: dict) -> list[str]:
+    """Figures (relative paths) a run folder must hold: those of :data:`_FIGURES` under
+    ``figures/``, and those under ``ida/`` when the run made an IDA."""
+    return [rel for rel, _ in _FIGURES if rel.startswith("figures/") or summary.get("ida")]
 
 
 def _fmt(v, pct=False):
@@ -55,12 +169,28 @@ def _fmt(v, pct=False):
 def build_report(run_dir: str | os.PathLike) -> Path:
     """Write ``run_dir/report.html`` from the results saved there; returns its path."""
     d = Path(run_dir)
+    src = str(d)
+    if not d.is_dir():
+        raise InputError("not found or not a folder; expected a run folder written by hlaid run or hlaid demo"
+                         if not d.exists() else "is not a folder; expected a run folder", source=src)
     try:
         s = json.loads((d / "summary.json").read_text())
-    except (OSError, json.JSONDecodeError) as err:
-        raise InputError(f"not an hlaid run folder (summary.json: {err})", source=str(d)) from None
-    if s.get("format") != "hlaid-run":
-        raise InputError("summary.json is not an hlaid run summary", source=str(d))
+    except FileNotFoundError:
+        raise InputError("not an hlaid run folder (no summary.json)", source=src) from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise InputError(f"not an hlaid run folder (summary.json cannot be read: {type(err).__name__})",
+                         source=src) from None
+    except json.JSONDecodeError as err:
+        raise InputError(f"not an hlaid run folder (summary.json is not valid JSON: line {err.lineno}: {err.msg})",
+                         source=src) from None
+    if not isinstance(s, dict) or s.get("format") != "hlaid-run":
+        raise InputError("summary.json is not an hlaid run summary", source=src)
+    _validate(s, _SUMMARY, "", src)
+    if not s["replay"]["r_measured"]:
+        raise InputError("summary.json: field replay.r_measured is empty", source=src)
+    for rel in required_figures(s):
+        if not (d / rel).is_file():
+            raise InputError(f"figure {rel} is missing; rerun hlaid run to recreate the folder", source=src)
     e = html.escape
     parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>{e(s['name'])}</title>"
              f"<style>{_CSS}</style></head><body>",
@@ -90,7 +220,7 @@ def build_report(run_dir: str | os.PathLike) -> Path:
     for rel, cap in _FIGURES:
         p = d / rel
         if p.exists():
-            parts.append(f"<figure>{_img(p)}<figcaption>{e(cap)}</figcaption></figure>")
+            parts.append(f"<figure>{_img(p, src)}<figcaption>{e(cap)}</figcaption></figure>")
     if s.get("ida"):
         parts.append("<h2>Incremental dynamic analysis</h2>" + _ida_block(s["ida"]))
     t = s["timings"]
@@ -102,7 +232,7 @@ def build_report(run_dir: str | os.PathLike) -> Path:
 
 def _param_table(s: dict) -> str:
     rows = s["parameters"]
-    paper = {(r["parameter"], r["story"]): r for r in s.get("paper_method", [])}
+    paper = {(r["parameter"], r["story"]): r for r in s.get("paper_method") or []}
     has_truth = any(r["true"] is not None for r in rows)
     head = "<tr><th class='l'>parameter</th><th>story</th><th>identified</th>"
     head += "<th>true</th><th>error</th>" if has_truth else ""
@@ -110,7 +240,8 @@ def _param_table(s: dict) -> str:
     body = []
     for r in rows:
         pr = paper.get((r["parameter"], r["story"]), {})
-        cells = [f"<td class='l'>{r['parameter']}</td><td>{r['story']}</td><td>{_fmt(r['identified'])}</td>"]
+        cells = [f"<td class='l'>{html.escape(r['parameter'])}</td><td>{r['story']}</td>"
+                 f"<td>{_fmt(r['identified'])}</td>"]
         if has_truth:
             cls = "ok" if r["error"] is not None and r["error"] <= 0.03 else "bad"
             cells.append(f"<td>{_fmt(r['true'])}</td><td class='{cls}'>{_fmt(r['error'], True)}</td>")

@@ -20,12 +20,12 @@ import numpy as np
 
 from . import __version__, _progress
 from ._fileio import atomic_directory, write_json
-from .config import config_to_dict, load_config
+from .config import config_from_node, config_to_dict, load_yaml
 from .errors import InputError
 from .identify import IdentifyConfig, identify
 from .identify.replaycheck import corrcoef
 from .io_dispatch import read_measurement_any
-from .measurement import Measurement
+from .measurement import Measurement, check_band
 from .model import Building
 from .plots import plot_time_histories, save_figure
 from .synthetic import SimulationConfig, measurement_from_config
@@ -62,14 +62,14 @@ class RunConfig:
 
 
 def load_run_config(path) -> RunConfig:
-    """Load a run config; its ``ida`` block is validated against :class:`hlaid.ida.IDAConfig`."""
-    from .config import config_from_dict
+    """Load a run config; its ``ida`` block is validated against :class:`hlaid.ida.IDAConfig`
+    (errors there give the line of the offending value in the run config, like any other)."""
     from .ida import IDAConfig
-    cfg = load_config(path, RunConfig)
+    source = str(path)
+    root = load_yaml(source)
+    cfg = config_from_node(RunConfig, root, source)
     if cfg.ida is not None:
-        if not isinstance(cfg.ida, dict):
-            raise InputError("ida: expected a mapping", source=str(path))
-        ida = config_from_dict(IDAConfig, cfg.ida, source=f"{path} (ida)")
+        ida = config_from_node(IDAConfig, root.value["ida"], source, where="ida")
         cfg = RunConfig(measurement=cfg.measurement, identify=cfg.identify, ida=ida, name=cfg.name)
     return cfg
 
@@ -125,6 +125,8 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
         t = time.perf_counter()
         _progress.info("[1/4] measurement")
         meas = load_measurement(cfg.measurement, Path(base_dir) if base_dir else None)
+        check_band(meas, cfg.identify.hla.preprocess.band_hz, "identify.hla.preprocess.band_hz")
+        check_band(meas, cfg.identify.refine.band_hz, "identify.refine.band_hz")
         meas.save(tmp / "measurement.npz")
         timings["measurement"] = time.perf_counter() - t
         t = time.perf_counter()

@@ -163,7 +163,7 @@ def test_ida_config_counts_over_the_limit(clone_file, tmp_path, capsys):
     cfg.write_text("records: builtin:elcentro-1940-ns\nmax_hunt: 100000000\n")
     out = tmp_path / "ida"
     _refused(capsys, ["ida", str(clone_file), "--config", str(cfg), "-o", str(out)],
-             expect=f"{cfg}:1: top level: max_hunt = 100000000 exceeds the limit", dest=out)
+             expect=f"{cfg}:2: top level: max_hunt = 100000000 exceeds the limit", dest=out)
 
 
 def test_ida_too_many_records(clone_file, tmp_path, capsys, monkeypatch):

@@ -9,6 +9,7 @@ from .._fileio import check_output_file
 from ..config import load_config
 from ..identify import IdentifyConfig, identify
 from ..io_dispatch import read_measurement_any
+from ..measurement import check_band
 from .main import subcommand
 
 
@@ -29,12 +30,20 @@ def run_identify(args) -> int:
     out = check_output_file(args.out, force=args.force)  # fail before the identification, not after it
     cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
     meas = read_measurement_any(args.measurement)
+    check_identify_bands(meas, cfg, args.config)
     cache = "" if args.no_cache else args.cache
     res = identify(meas, cfg, tensorboard=args.tensorboard, cache_dir=cache)
     res.clone.save(out, force=args.force)
     print_summary(res)
     _progress.info(f"wrote {out}")
     return 0
+
+
+def check_identify_bands(meas, cfg: IdentifyConfig, config: str | None) -> None:
+    """The band-pass corners of an identification config must suit the measurement's sample rate."""
+    where = f" (in {config})" if config else " (default)"
+    check_band(meas, cfg.hla.preprocess.band_hz, "hla.preprocess.band_hz" + where)
+    check_band(meas, cfg.refine.band_hz, "refine.band_hz" + where)
 
 
 def print_summary(res) -> None:

@@ -249,6 +249,24 @@ def hla(measurement: Measurement, config: HLAConfig | None = None) -> HLAResult:
                      pdelta_corrected=pdelta, config=cfg, band_hz=band, source=meas.source)
 
 
+def reanalyse_story(story: StoryHLA, drift: np.ndarray, force: np.ndarray, dt: float, config: HLAConfig,
+                    band_hz) -> StoryHLA:
+    """HLA of one story again along another drift path (e.g. a reconstructed one, see
+    :mod:`hlaid.identify.drift`) and a force consistent with it: half cycles, ``ke``,
+    ``k(t)``, ``k0`` and the yield test, as :func:`hla` does them. The damping and P-Delta
+    shares already in ``force`` are kept; the drift velocity is the path's derivative."""
+    t = np.arange(drift.shape[0]) * dt
+    dx = np.gradient(drift, dt)
+    r = _analyse(drift, force, dx, t, config, band_hz, False)
+    if len(r.table) == 0:
+        return dataclasses.replace(story, drift=drift, drift_velocity=dx, force_fit=force)
+    ke_t = np.full(drift.shape[0], np.nan)
+    for (s, e), ke in zip(r.bounds, r.table.ke):
+        ke_t[s:e + 1] = ke
+    return dataclasses.replace(story, drift=drift, drift_velocity=dx, force_fit=force, k=r.k, ke=ke_t, k0=r.k0,
+                               yielded=r.yielded, half_cycles=r.table)
+
+
 def _yielded(k: np.ndarray, table: HalfCycleTable, cfg: HLAConfig, k_ref: float = np.nan, n_largest: int = 5,
              n_below: int = 2) -> bool:
     """Whether the story left the elastic range.

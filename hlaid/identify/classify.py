@@ -1,5 +1,5 @@
-"""Alpha and p by RBF kernel SVMs on half-cycle features, combined over the half cycles of a
-story by majority vote; class bins as the paper's Tables 2-3."""
+"""Alpha and p by RBF kernel SVMs on half-cycle features (standardised, C cross-validated),
+combined over a story's samples by vote; class bins as the paper's Tables 2-3."""
 
 from __future__ import annotations
 
@@ -83,8 +83,8 @@ class PassResult:
                 "n_test": self.n_test, "seconds": self.seconds, "cached": self.cached}
 
 
-def make_svc(cfg: SVMConfig) -> KernelSVC:
-    return KernelSVC(C=cfg.C, kernel=cfg.kernel, gamma=cfg.gamma, multiclass=cfg.multiclass)
+def make_svc(cfg: SVMConfig, C: float | None = None) -> KernelSVC:
+    return KernelSVC(C=cfg.C if C is None else C, kernel=cfg.kernel, gamma=cfg.gamma, multiclass=cfg.multiclass)
 
 
 def split(train: TrainingSet, test_fraction: float) -> np.ndarray:
@@ -94,37 +94,76 @@ def split(train: TrainingSet, test_fraction: float) -> np.ndarray:
     return train.sim % every == 0
 
 
+def scaler_of(X: np.ndarray) -> dict:
+    """Mean and scale of the training features (constant features get scale 1)."""
+    sd = X.std(axis=0)
+    return {"mean": X.mean(axis=0).tolist(), "scale": np.where(sd > 0, sd, 1.0).tolist()}
+
+
+def apply_scaler(X: np.ndarray, scaler: dict | None) -> np.ndarray:
+    if not scaler:
+        return X
+    return (X - np.asarray(scaler["mean"])) / np.asarray(scaler["scale"])
+
+
+def choose_C(X: np.ndarray, y: np.ndarray, cfg: SVMConfig) -> tuple[float, dict]:
+    """C from ``cfg.C_grid`` by ``cfg.cv_folds``-fold cross-validated accuracy (the smallest
+    of the best on ties); returns the choice and the accuracy of every value."""
+    if cfg.C_grid is None:
+        return cfg.C, {}
+    folds = np.arange(len(y)) % cfg.cv_folds
+    scores = {}
+    for C in cfg.C_grid:
+        acc = []
+        for k in range(cfg.cv_folds):
+            tr, te = folds != k, folds == k
+            if len(np.unique(y[tr])) < 2 or not te.any():
+                continue
+            acc.append(float(np.mean(make_svc(cfg, C).fit(X[tr], y[tr]).predict(X[te]) == y[te])))
+        scores[float(C)] = float(np.mean(acc)) if acc else 0.0
+    best = max(scores.values())
+    return min(c for c, v in scores.items() if v >= best - 1e-12), scores
+
+
 def fit_machine(train: TrainingSet, param: str, bins: Bins, cfg: SVMConfig, test_fraction: float):
-    """Train one classifier; returns ``(machine, stats)`` with accuracies and confusion."""
+    """Train one classifier; returns ``(machine, stats)`` with accuracies and confusion
+    (and the feature scaler and the cross-validated C when configured)."""
     t0 = time.perf_counter()
     if len(train) == 0:
         raise NotIdentifiableError(f"no simulated half cycle of this story yielded, so the {param} classifier has "
                                    "nothing to learn from; the record is too weakly nonlinear for the classifiers")
     y = bins.label(getattr(train, param))
     test = split(train, test_fraction)
+    scaler = scaler_of(train.X[~test]) if cfg.standardize else None
+    X = apply_scaler(train.X, scaler)
+    extra: dict = {"scaler": scaler}
     if len(np.unique(y[~test])) < 2:  # a single class: nothing to learn
         machine = None
         acc_tr = acc_te = 1.0
         conf = np.zeros((bins.n, bins.n))
     else:
-        machine = make_svc(cfg).fit(train.X[~test], y[~test])
-        acc_tr = float(np.mean(machine.predict(train.X[~test]) == y[~test]))
-        pred = machine.predict(train.X[test]) if test.any() else np.zeros(0, int)
+        C, scores = choose_C(X[~test], y[~test], cfg)
+        extra.update({"C": C, "cv_accuracy": scores})
+        machine = make_svc(cfg, C).fit(X[~test], y[~test])
+        acc_tr = float(np.mean(machine.predict(X[~test]) == y[~test]))
+        pred = machine.predict(X[test]) if test.any() else np.zeros(0, int)
         acc_te = float(np.mean(pred == y[test])) if test.any() else np.nan
         conf = np.zeros((bins.n, bins.n))
         np.add.at(conf, (y[test], pred.astype(int)), 1)
     stats = {"train_accuracy": acc_tr, "test_accuracy": acc_te, "confusion": conf, "n_train": int((~test).sum()),
-             "n_test": int(test.sum()), "seconds": time.perf_counter() - t0, "single": int(y[0]) if machine is None else -1}
+             "n_test": int(test.sum()), "seconds": time.perf_counter() - t0,
+             "single": int(y[0]) if machine is None else -1, **extra}
     return machine, stats
 
 
-def vote(machine: KernelSVC | None, X: np.ndarray, bins: Bins, single: int = -1) -> np.ndarray:
-    """Votes of the measured half cycles ``X`` ``(half_cycle, feature)`` for every bin."""
+def vote(machine: KernelSVC | None, X: np.ndarray, bins: Bins, single: int = -1,
+         scaler: dict | None = None) -> np.ndarray:
+    """Votes of the measured samples ``X`` ``(sample, feature)`` for every bin."""
     if machine is None:
         v = np.zeros(bins.n)
         v[single] = X.shape[0]
         return v
-    pred = machine.predict(X).astype(int) if X.shape[0] else np.zeros(0, int)
+    pred = machine.predict(apply_scaler(X, scaler)).astype(int) if X.shape[0] else np.zeros(0, int)
     return np.bincount(pred, minlength=bins.n).astype(float)
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -42,7 +43,18 @@ class TrainingConfig:
 
     Attributes
     ----------
-    samples : half-cycle samples per story and pass (the paper: 1500)
+    mode : ``"path"`` (default): the story law is driven along the story's own drift path
+        (:mod:`hlaid.identify.pathtrain`), one feature vector per story and sample (every
+        yielding half cycle's segment slopes); ``"simulate"``: dynamic simulations of the
+        whole building, HLA of each, one sample per simulated half cycle (the first
+        version, kept for comparison)
+    path : drift path of ``mode: path``: ``"replay"`` (HLA's drift above ``crossover_hz``,
+        the current estimate's replayed drift below, :mod:`hlaid.identify.drift`) or ``"hla"``
+    crossover_hz : the corner of the complementary filters of ``path: replay`` [Hz]
+    substeps : RK4 sub-steps per sample of the path-driven story law
+    reanalyse : along a reconstructed path, HLA's half cycles, ke and k0 are analysed again
+        (against the low-passed force) before the regressions and the features
+    samples : samples per story and pass (the paper: 1500; with ``mode: simulate`` half cycles)
     n_segments : segments per half cycle (eq 18)
     spread : k0, dy and delta_eta of the simulations are drawn within +-spread (relative) of
         the current estimates
@@ -55,6 +67,11 @@ class TrainingConfig:
     seed : seed of the simulations (identification is reproducible)
     """
 
+    mode: Literal["path", "simulate"] = "path"
+    path: Literal["replay", "hla"] = "replay"
+    crossover_hz: float = 1.0
+    reanalyse: bool = True
+    substeps: int = 2
     samples: int = 1200
     n_segments: int = 10
     spread: float = 0.2
@@ -70,24 +87,80 @@ class TrainingConfig:
             raise InputError("training.samples must be >= 20 and training.n_segments >= 3")
         if not 0 <= self.spread < 1 or not 0 < self.test_fraction < 1:
             raise InputError("training.spread must be in [0, 1) and training.test_fraction in (0, 1)")
+        if self.max_simulations < 1:
+            raise InputError(f"max_simulations = {self.max_simulations}; expected an integer >= 1")
+        if not 0 < self.arias_fraction <= 1:
+            raise InputError(f"arias_fraction = {self.arias_fraction}; expected a fraction in (0, 1]")
+        if not 0 <= self.tail_s < math.inf:
+            raise InputError(f"tail_s = {self.tail_s}; expected a duration >= 0 [s]")
+        if self.noise_rms is not None and not 0 <= self.noise_rms < 10:
+            raise InputError(f"noise_rms = {self.noise_rms}; expected a fraction such as 0.10, or null")
+        if self.seed < 0:
+            raise InputError(f"seed = {self.seed}; expected an integer >= 0")
+        if not 1 <= self.substeps <= 64:
+            raise InputError(f"training.substeps = {self.substeps}; expected 1..64")
+        if not self.crossover_hz > 0:
+            raise InputError(f"training.crossover_hz = {self.crossover_hz}; expected a positive frequency [Hz]")
 
 
 @dataclass(frozen=True, kw_only=True)
 class SVMConfig:
-    """The kernel machines (:class:`hlaid.svm.KernelSVC`)."""
+    """The kernel machines (:class:`hlaid.svm.KernelSVC`).
+
+    Attributes
+    ----------
+    C, gamma, kernel, multiclass : of every machine (``multiclass: ddag`` is the paper's)
+    standardize : features centred and scaled by their training mean and std (stored with
+        the machine, applied to the measured features)
+    C_grid : when set, C is chosen from these values by ``cv_folds``-fold cross-validation
+        on the training samples (per machine; cached with it); ``C`` is then unused
+    cv_folds : folds of that cross-validation
+    """
 
     C: float = 10.0
     gamma: float | Literal["scale", "auto"] = "scale"
     kernel: str = "rbf"
     multiclass: Literal["ddag", "ovo"] = "ddag"
+    standardize: bool = True
+    C_grid: tuple[float, ...] | None = (10.0, 100.0, 1000.0)
+    cv_folds: int = 2
+
+    def __post_init__(self):
+        from ..svm import KERNELS
+        if not 0 < self.C < math.inf:
+            raise InputError(f"C = {self.C}; expected a positive number")
+        if not isinstance(self.gamma, str) and not 0 < self.gamma < math.inf:
+            raise InputError(f"gamma = {self.gamma}; expected a positive number, 'scale' or 'auto'")
+        if self.kernel not in KERNELS:
+            raise InputError(f"kernel = {self.kernel!r} is unknown; expected one of {', '.join(sorted(KERNELS))}")
+        if self.C_grid is not None and (len(self.C_grid) == 0 or not all(c > 0 for c in self.C_grid)):
+            raise InputError(f"svm.C_grid = {list(self.C_grid)}; expected positive values (or null)")
+        if not 2 <= self.cv_folds <= 10:
+            raise InputError(f"svm.cv_folds = {self.cv_folds}; expected 2..10")
 
 
 @dataclass(frozen=True, kw_only=True)
 class OuterConfig:
-    """The outer loop: classifiers, then regressions, until the parameters settle."""
+    """The outer loop: classifiers, then regressions, until the parameters settle.
+
+    Attributes
+    ----------
+    max_iterations, tol : at most this many iterations; stop when the largest relative
+        change of a parameter is below ``tol``
+    k0 : along a reconstructed drift path, k0 from HLA again (``"hla"``) or, then, by least
+        squares of the story law's force along the path against the measured force with the
+        other parameters held (``"loop"``, :mod:`hlaid.identify.loopfit`)
+    """
 
     max_iterations: int = 3
     tol: float = 0.02
+    k0: Literal["hla", "loop"] = "loop"
+
+    def __post_init__(self):
+        if self.max_iterations < 1:
+            raise InputError(f"max_iterations = {self.max_iterations}; expected an integer >= 1")
+        if not 0 < self.tol < math.inf:
+            raise InputError(f"tol = {self.tol}; expected a positive relative change such as 0.02")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -99,6 +172,8 @@ class RefineConfig:
     method : ``"replay"``: least squares of the replayed against the measured floor
         accelerations over the story parameters, started from the identified values;
         ``"none"``: keep the regression/SVM result.
+    upper_factor : upper bound of k0, dy and delta_eta in the replay search, as a factor of
+        their start (null: open above)
     parameters : which story parameters are refined.
     damping : also refine the Rayleigh damping ratio.
     band_hz : band of the compared accelerations [Hz].
@@ -110,11 +185,19 @@ class RefineConfig:
     damping: bool = False
     band_hz: tuple[float, float] = (0.1, 20.0)
     max_iterations: int = 40
+    upper_factor: float | None = 4.0
 
     def __post_init__(self):
+        if self.upper_factor is not None and not self.upper_factor > 1:
+            raise InputError(f"refine.upper_factor = {self.upper_factor}; expected a factor > 1 (or null)")
         bad = set(self.parameters) - {"k0", "alpha", "p", "dy", "delta_eta"}
         if bad:
             raise InputError(f"refine.parameters: unknown {sorted(bad)}; expected k0, alpha, p, dy, delta_eta")
+        lo, hi = self.band_hz
+        if not (0 <= lo < hi < math.inf):
+            raise InputError(f"band_hz = {list(self.band_hz)}; expected [low, high] with 0 <= low < high")
+        if self.max_iterations < 1:
+            raise InputError(f"max_iterations = {self.max_iterations}; expected an integer >= 1")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -141,3 +224,9 @@ class IdentifyConfig:
     damping_ratio: float = 0.05
     cache_dir: str | None = None
     n_jobs: int = 2
+
+    def __post_init__(self):
+        if not 0 <= self.damping_ratio < 1:
+            raise InputError(f"damping_ratio = {self.damping_ratio}; expected a ratio in [0, 1) such as 0.05")
+        if self.n_jobs < 1:
+            raise InputError(f"n_jobs = {self.n_jobs}; expected an integer >= 1")

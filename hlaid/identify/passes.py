@@ -1,9 +1,10 @@
-"""One classifier pass: simulate training half cycles, train the alpha and p machines of
-every story (or take them from the cache). Used by :func:`hlaid.identify.identify` and by
+"""One classifier pass: training samples (path-driven, or dynamic simulations), the alpha and
+p machines of every story (or taken from the cache). Used by :func:`hlaid.identify.identify` and by
 ``scripts/train_svm.py``."""
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 
@@ -17,6 +18,7 @@ from .cache import MachineCache, array_digest, cache_key
 from .classify import Bins, fit_machine
 from .config import IdentifyConfig
 from .tb import TBLogger
+from .pathtrain import path_training_set
 from .training import Ranges, TrainingSet, simulate_training_sets
 
 PARAMS = ("alpha", "p")
@@ -83,15 +85,81 @@ def train_pass(estimate: Building, motion: GroundMotion, bins: list[tuple[Bins, 
         for param, b in zip(PARAMS, bb):
             name = f"story{i + 1}_{param}"
             machines[name], st = fit_machine(S, param, b, cfg.svm, cfg.training.test_fraction)
-            stats[name] = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in st.items()}
-            if tb is not None:
-                tag = f"{stage}/story{i + 1}/{param}"
-                tb.scalar(f"{tag}/train_accuracy", st["train_accuracy"], step)
-                tb.scalar(f"{tag}/test_accuracy", st["test_accuracy"], step)
-                tb.scalar(f"{tag}/fit_seconds", st["seconds"], step)
-                tb.confusion(f"{tag}/confusion", st["confusion"], b.edges, step)
-                tb.features(f"{tag}/features", S.X, b.label(getattr(S, param)), b.edges, step)
+            stats[name] = _jsonable(st)
+            _log_machine(tb, stage, i, param, st, S, b, step)
     if tb is not None:
         tb.scalar(f"{stage}/simulate_seconds", t_sim, step)
     cache.store(key, machines, {"stats": stats})
     return TrainedPass(machines, stats, False, t_sim, sets)
+
+
+def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], identifiable: np.ndarray, *,
+              cfg: IdentifyConfig, stage: str, seed: int, cache: MachineCache, tb: TBLogger | None = None,
+              step: int = 0, chosen_C: dict | None = None) -> TrainedPass:
+    """Train (or load) the alpha and p classifiers of every identifiable story on path-driven
+    training sets (:mod:`hlaid.identify.pathtrain`): one feature vector per sample.
+
+    Parameters
+    ----------
+    paths : per story a :class:`~hlaid.identify.pathtrain.StoryPath` (None where not identifiable)
+    estimate : current building estimate (k0, dy, delta_eta the draws are centred on)
+    bins : per story ``(alpha bins, p bins)``
+    chosen_C : ``{machine name: C}`` cross-validated in an earlier pass of the same run: reused
+        instead of a new cross-validation (updated with this pass's choices)
+    """
+    tc = cfg.training
+    chosen_C = {} if chosen_C is None else chosen_C
+    key = cache_key(stage=stage, seed=seed, estimate=estimate.to_dict(), mode="path",
+                    edges=[[bb[0].edges, bb[1].edges] for bb in bins], training=config_to_dict(tc),
+                    svm=config_to_dict(cfg.svm), identifiable=np.asarray(identifiable, bool),
+                    paths=[None if sp is None else [array_digest(sp.drift[: sp.end]), array_digest(sp.force[: sp.end]),
+                                                    np.asarray(sp.bounds).tolist(), sp.k0, sp.noise_std, sp.dt,
+                                                    sp.cutoff_hz] for sp in paths])
+    hit = cache.load(key)
+    if hit is not None:
+        machines, meta = hit
+        _progress.info(f"[identify] {stage} pass: classifiers from the cache")
+        return TrainedPass(machines, meta["stats"], True, 0.0, None)
+    _progress.info(f"[identify] {stage} pass: path-driven training sets and {2 * int(np.sum(identifiable))} "
+                   "kernel machines")
+    machines, stats, sets = {}, {}, []
+    t_sim = 0.0
+    for i, sp in enumerate(paths):
+        if not identifiable[i] or sp is None:
+            sets.append(None)
+            continue
+        t = time.perf_counter()
+        S = path_training_set(sp, k0=float(estimate.k0[i]), dy=float(estimate.dy[i]),
+                              delta_eta=float(estimate.delta_eta[i]), alpha_range=bins[i][0].range,
+                              p_range=bins[i][1].range, n_samples=tc.samples, spread=tc.spread,
+                              seed=seed + 7919 * i, substeps=tc.substeps)
+        t_sim += time.perf_counter() - t
+        sets.append(S)
+        for param, b in zip(PARAMS, bins[i]):
+            name = f"story{i + 1}_{param}"
+            svm = cfg.svm if name not in chosen_C else dataclasses.replace(cfg.svm, C=chosen_C[name], C_grid=None)
+            machines[name], st = fit_machine(S, param, b, svm, tc.test_fraction)
+            if "C" in st:
+                chosen_C[name] = st["C"]
+            stats[name] = _jsonable(st)
+            _log_machine(tb, stage, i, param, st, S, b, step)
+            _progress.debug(f"  story {i + 1} {param}: test accuracy {st['test_accuracy']:.3f} (C {st.get('C')})")
+    if tb is not None:
+        tb.scalar(f"{stage}/simulate_seconds", t_sim, step)
+    cache.store(key, machines, {"stats": stats})
+    return TrainedPass(machines, stats, False, t_sim, sets)
+
+
+def _jsonable(st: dict) -> dict:
+    return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in st.items()}
+
+
+def _log_machine(tb, stage, i, param, st, S, b, step):
+    if tb is None:
+        return
+    tag = f"{stage}/story{i + 1}/{param}"
+    tb.scalar(f"{tag}/train_accuracy", st["train_accuracy"], step)
+    tb.scalar(f"{tag}/test_accuracy", st["test_accuracy"], step)
+    tb.scalar(f"{tag}/fit_seconds", st["seconds"], step)
+    tb.confusion(f"{tag}/confusion", st["confusion"], b.edges, step)
+    tb.features(f"{tag}/features", S.X, b.label(getattr(S, param)), b.edges, step)

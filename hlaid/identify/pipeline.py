@@ -9,6 +9,7 @@ result against the measured accelerations (:mod:`hlaid.identify.refine`).
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import hashlib
 import time
@@ -21,7 +22,7 @@ from .. import __version__, _progress
 from ..clone import Clone
 from ..config import config_to_dict
 from ..errors import NotIdentifiableError
-from ..hla import HLAResult, hla
+from ..hla import HLAResult, hla, reanalyse_story
 from ..hla import preprocess as pp
 from ..hla.features import half_cycle_features
 from ..measurement import Measurement
@@ -34,7 +35,10 @@ from .refine import refine_replay
 from .regression import story_delta_eta, story_yield_displacement
 from .replaycheck import ReplayCheck, replay_check
 from .tb import TBLogger
-from .passes import PARAMS, train_pass
+from .drift import hla_drift, reconstruct_drift
+from .loopfit import fit_story_loop
+from .passes import PARAMS, path_pass, train_pass
+from .pathtrain import StoryPath
 from .training import strong_motion_window
 
 
@@ -116,6 +120,9 @@ class _Identifier:
         nseg = cfg.training.n_segments
         self.features = [half_cycle_features(s, nseg, yield_ratio=cfg.hla.stiffness.yield_ratio, with_ke=True)
                          for s in res.stories]
+        self.path_mode = cfg.training.mode == "path"
+        self.paths = hla_drift(res)
+        self.stories = list(res.stories)  # the stories the regressions see (drift = the path)
         self.identifiable = np.array([s.yielded and len(F) >= 3 for s, F in zip(res.stories, self.features)])
         if not self.identifiable.any():
             peaks = ", ".join(f"{np.max(np.abs(s.drift)):.3g}" for s in res.stories)
@@ -136,6 +143,13 @@ class _Identifier:
         for it in range(cfg.outer.max_iterations):
             est = self._building(alpha, p, dy, de)
             t = time.perf_counter()
+            if self.path_mode and it > 0 and cfg.training.path == "replay":
+                self._set_paths(reconstruct_drift(res, self.ground, est, crossover_hz=cfg.training.crossover_hz))
+                de, dy, reg = self._regressions(alpha, p)
+                if cfg.outer.k0 == "loop":
+                    self._fit_k0(alpha, p, dy, de)
+                    de, dy, reg = self._regressions(alpha, p)
+                est = self._building(alpha, p, dy, de)
             if it == 0:
                 coarse = self._pass(est, "coarse", it, None)
                 centre = (np.array([c["alpha"].value if c else a for c, a in zip(coarse, alpha)]),
@@ -162,7 +176,7 @@ class _Identifier:
         paper = self._building(alpha, p, dy, de)
         final = paper
         refine_info = None
-        if cfg.refine.method == "replay":
+        if cfg.refine.method != "none":
             final, refine_info = self._refine(paper, alpha, p)
         t = time.perf_counter()
         check = replay_check(final, meas, res)
@@ -190,7 +204,8 @@ class _Identifier:
         _progress.info("[identify] replay refinement against the measured accelerations")
         t = time.perf_counter()
         ident = [i for i in range(self.res.n_stories) if self.identifiable[i]]
-        common = {"damping": False, "band_hz": cfg.refine.band_hz, "max_iterations": cfg.refine.max_iterations}
+        common = {"damping": False, "band_hz": cfg.refine.band_hz, "max_iterations": cfg.refine.max_iterations,
+                  "upper_factor": cfg.refine.upper_factor}
         info = {}
         start = paper
         if "k0" in cfg.refine.parameters:
@@ -200,10 +215,11 @@ class _Identifier:
             start = self._building(alpha, p, dy, de)
             info["stage1_k0"] = {"cost_initial": s1.cost_initial, "cost_final": s1.cost_final, "nfev": s1.nfev}
         rr = refine_replay(start, meas, parameters=cfg.refine.parameters, stories=ident, damping=cfg.refine.damping,
-                           band_hz=cfg.refine.band_hz, max_iterations=cfg.refine.max_iterations)
-        self.timings["refine"] = time.perf_counter() - t
+                           band_hz=cfg.refine.band_hz, max_iterations=cfg.refine.max_iterations,
+                           upper_factor=cfg.refine.upper_factor)
         info.update({"cost_initial": rr.cost_initial, "cost_final": rr.cost_final, "nfev": rr.nfev,
                      "message": rr.message})
+        self.timings["refine"] = time.perf_counter() - t
         return rr.building, info
 
     def _building(self, alpha, p, dy, de) -> Building:
@@ -216,12 +232,12 @@ class _Identifier:
         """delta_eta and dy of every story (fallbacks for stories that did not yield)."""
         n = self.res.n_stories
         de, dy, info = np.zeros(n), np.zeros(n), []
-        for i, s in enumerate(self.res.stories):
+        for i, s in enumerate(self.stories):
             if not self.identifiable[i]:
                 info.append(None)
                 continue
             fd = story_delta_eta(s, mass=self.res.mass[i], alpha=alpha[i], k0=self.k0[i])
-            fy = story_yield_displacement(s, self.features[i], alpha=alpha[i], p=p[i], k0=self.k0[i])
+            fy = story_yield_displacement(s, self._features(i), alpha=alpha[i], p=p[i], k0=self.k0[i])
             de[i] = max(fd.value, 0.0) if np.isfinite(fd.value) else 0.0
             dy[i] = fy.value if np.isfinite(fy.value) and fy.value > 0 else np.max(np.abs(s.drift)) / 3.0
             info.append({"delta_eta": vars(fd), "dy": vars(fy)})
@@ -231,6 +247,63 @@ class _Identifier:
                 de[i] = float(np.median(de[ok]))
                 dy[i] = max(1.2 * float(np.max(np.abs(s.drift))), 1e-3)
         return de, dy, info
+
+    def _set_paths(self, paths: np.ndarray) -> None:
+        """Use ``paths`` ``(time, story)`` as the stories' drift in the regressions and features."""
+        self.paths = paths
+        res, cfg = self.res, self.cfg
+        if cfg.training.reanalyse:  # HLA again along the path: half cycles, ke and k0
+            self.stories = [reanalyse_story(s, paths[:, i], s.force, res.dt, cfg.hla, res.band_hz)
+                            for i, s in enumerate(res.stories)]
+            k0 = np.array([s.k0 for s in self.stories])
+            ok = self.identifiable & np.isfinite(k0) & (k0 > 0)
+            self.k0 = np.where(ok, k0, self.k0)
+        else:
+            self.stories = [dataclasses.replace(s, drift=paths[:, i]) for i, s in enumerate(res.stories)]
+        self._path_features = {}
+
+    def _fit_k0(self, alpha, p, dy, de) -> None:
+        """k0 of every identifiable story by least squares of the story law along its path
+        against the measured force, the other parameters held (:mod:`hlaid.identify.loopfit`)."""
+        for i, s in enumerate(self.stories):
+            if not self.identifiable[i]:
+                continue
+            end = int(np.max(s.half_cycles.end)) + 1 if len(s.half_cycles) else s.drift.shape[0]
+            fit = fit_story_loop(s.drift, s.force, self.res.dt, float(self.res.mass[i]),
+                                 {"k0": self.k0[i], "alpha": alpha[i], "p": p[i], "dy": dy[i], "delta_eta": de[i]},
+                                 free=("k0",), window=slice(0, end))
+            self.k0[i] = fit.params["k0"]
+
+    def _features(self, i: int):
+        """Yielding half cycles and their segment slopes along story ``i``'s current path."""
+        if not self.path_mode:
+            return self.features[i]
+        cache = self.__dict__.setdefault("_path_features", {})
+        if i not in cache:
+            cache[i] = half_cycle_features(self.stories[i], self.cfg.training.n_segments,
+                                           yield_ratio=self.cfg.hla.stiffness.yield_ratio)
+            if len(cache[i]) < 3:  # the path lost the yielding half cycles: HLA's selection
+                cache[i] = self.features[i]
+        return cache[i]
+
+    def _story_paths(self) -> list:
+        """Per story the :class:`StoryPath` of the path-driven training (None if not identifiable)."""
+        meas, res = self.meas, self.res
+        acc = np.asarray(meas.floor_acc)
+        rms = np.sqrt(np.mean((acc - acc.mean(axis=0)) ** 2, axis=0))
+        out = []
+        for i, s in enumerate(self.stories):
+            if not self.identifiable[i]:
+                out.append(None)
+                continue
+            noise_std = self.noise * float(np.sqrt(np.sum((res.mass[i:] * rms[i:]) ** 2)))
+            hc = s.half_cycles
+            idx = self._features(i).index
+            bounds = np.stack([hc.start[idx], hc.end[idx]], axis=1)
+            out.append(StoryPath(drift=s.drift, force=s.force, bounds=bounds, k0=float(self.k0[i]),
+                                 mass=float(res.mass[i]), noise_std=noise_std, dt=res.dt, cutoff_hz=res.band_hz[1],
+                                 n_segments=self.cfg.training.n_segments))
+        return out
 
     def _ranges(self, stage: str, centre):
         """Per-story (alpha Bins, p Bins) of a pass: the coarse bins, or fine bins over the
@@ -250,9 +323,16 @@ class _Identifier:
     def _pass(self, est: Building, stage: str, it: int, centre):
         cfg = self.cfg
         bins = self._ranges(stage, centre)
-        tp = train_pass(est, self.training_motion, bins, self.identifiable, noise=self.noise, cfg=cfg, stage=stage,
-                        seed=cfg.training.seed + 1000 * it + (0 if stage == "coarse" else 500), cache=self.cache,
-                        tb=self.tb, step=it + 1)
+        seed = cfg.training.seed + 1000 * it + (0 if stage == "coarse" else 500)
+        if self.path_mode:
+            paths = self._story_paths()
+            measured = [None if sp is None else sp.measured_features()[None, :] for sp in paths]
+            tp = path_pass(paths, est, bins, self.identifiable, cfg=cfg, stage=stage, seed=seed, cache=self.cache,
+                           tb=self.tb, step=it + 1, chosen_C=self.__dict__.setdefault("chosen_C", {}))
+        else:
+            measured = [F.values for F in self.features]
+            tp = train_pass(est, self.training_motion, bins, self.identifiable, noise=self.noise, cfg=cfg,
+                            stage=stage, seed=seed, cache=self.cache, tb=self.tb, step=it + 1)
         if not tp.cached:
             self.timings[f"simulate_{stage}_{it + 1}"] = tp.seconds_simulate
         result = []
@@ -262,7 +342,7 @@ class _Identifier:
                 for j, param in enumerate(PARAMS):
                     name = f"story{i + 1}_{param}"
                     st = tp.stats[name]
-                    v = vote(tp.machines.get(name), self.features[i].values, bins[i][j], st.get("single", -1))
+                    v = vote(tp.machines.get(name), measured[i], bins[i][j], st.get("single", -1), st.get("scaler"))
                     entry[param] = pass_result(param, stage, bins[i][j], v, st, tp.cached, cfg.aggregate)
             result.append(entry)
         self.passes.append({"iteration": it + 1, "stage": stage,

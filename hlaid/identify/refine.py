@@ -51,7 +51,7 @@ def _filt(x: np.ndarray, dt: float, band, axis: int) -> np.ndarray:
 
 def refine_replay(building: Building, measurement: Measurement, *, parameters=("k0", "alpha", "p", "dy", "delta_eta"),
                   stories=None, damping: bool = False, band_hz=(0.1, 20.0), max_iterations: int = 40,
-                  substeps: int = 4) -> RefineResult:
+                  substeps: int = 4, upper_factor: float | None = 4.0) -> RefineResult:
     """Refine ``building`` so that its replay matches ``measurement``'s floor accelerations.
 
     Parameters
@@ -62,6 +62,9 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
     stories : 0-based stories whose parameters are adjusted (default all); for the others
         only ``k0`` is adjusted
     damping : also adjust the Rayleigh damping ratio
+    upper_factor : k0, dy and delta_eta are bounded above by this factor times their start
+        (delta_eta's start taken as at least 0.5 s^2/m^2), so that a parameter the data
+        hardly constrain cannot run away; None: open above
     """
     t0 = time.perf_counter()
     dt = measurement.dt
@@ -78,6 +81,10 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         x0 = np.append(x0, building.damping.ratio)
     lo = np.array([_LIMITS[n][0] if n != "damping" else 0.0 for n, _ in slots])
     hi_b = np.array([_LIMITS[n][1] if n != "damping" else 0.5 for n, _ in slots])
+    if upper_factor is not None:
+        for j, (n, _) in enumerate(slots):
+            if n in ("k0", "dy", "delta_eta"):
+                hi_b[j] = upper_factor * (max(x0[j], 0.5) if n == "delta_eta" else x0[j])
     pad = 1e-6 * np.maximum(np.abs(x0), 1e-6)
     x0 = np.minimum(np.maximum(x0, lo + pad), np.where(np.isfinite(hi_b), hi_b - pad, np.inf))
     xs = np.maximum(np.abs(x0), 1e-3)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal
 
-from ..errors import InputError
+from ..errors import InputError, column_label, columns_text
 
 _NUM = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?(?:nan|inf)", re.I)
 
@@ -44,7 +44,7 @@ class Table:
         low = [n.lower() for n in self.names]
         if key.lower() in low:
             return low.index(key.lower())
-        raise InputError(f"no column {key!r}; columns are {', '.join(self.names)}", source=source)
+        raise InputError(f"no column {key!r}; columns are {columns_text(self.names)}", source=source)
 
 
 def split_row(line: str, delimiter: str | None) -> list[str]:
@@ -73,8 +73,8 @@ def parse_table(text: str, source: str, *, delimiter: str | None, comment: str =
     if header:
         names = split_row(lines[0], delimiter)
         if all(_NUM.fullmatch(n) for n in names if n):
-            raise InputError(f"the first line should name the columns, got numbers {lines[0].strip()[:60]!r}",
-                             source=source)
+            raise InputError("the first data line should name the columns but holds numbers (give header: false "
+                             "when the file has no header row)", source=source)
         body = lines[1:]
         first = 2
     else:
@@ -94,13 +94,13 @@ def parse_table(text: str, source: str, *, delimiter: str | None, comment: str =
         for i, r in enumerate(rows):
             for j, v in enumerate(r):
                 if not _NUM.fullmatch(v.strip()):
-                    raise InputError(f"non-numeric value {v.strip()[:30]!r} in data row {i + first}, "
-                                     f"column {names[j]!r}", source=source) from None
+                    raise InputError(f"non-numeric value in data row {i + first}, {column_label(names, j)}",
+                                     source=source) from None
         raise InputError("has a value that is not a number", source=source) from None
     bad = ~np.isfinite(data)
     if bad.any():
         i, j = np.argwhere(bad)[0]
-        raise InputError(f"NaN or inf in data row {i + first}, column {names[j]!r}", source=source)
+        raise InputError(f"NaN or inf in data row {i + first}, {column_label(names, j)}", source=source)
     return Table(names=names, data=data)
 
 

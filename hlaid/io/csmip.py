@@ -75,8 +75,8 @@ def parse_v2(text: str, *, key: str, source: str) -> list[CsmipChannel]:
     """All channels of one V2 text (see the module docstring)."""
     lines = text.splitlines()
     if not lines or "CORRECTED ACCELEROGRAM" not in lines[0].upper():
-        raise InputError(f"{key}: line 1 should read 'CORRECTED ACCELEROGRAM ...' (a CSMIP V2 file), got "
-                         f"{(lines[0].strip() if lines else '')[:40]!r}", source=source)
+        raise InputError(f"{key}: line 1 should read 'CORRECTED ACCELEROGRAM ...' (a CSMIP V2 file) and does not",
+                         source=source)
     starts = [i for i, ln in enumerate(lines) if "CORRECTED ACCELEROGRAM" in ln.upper()
               and not ln.upper().lstrip().startswith("UNCORRECTED")]
     out = []
@@ -99,7 +99,8 @@ def _channel(lines: list[str], offset: int, *, key: str, source: str) -> CsmipCh
     npts, dt = int(b.group(1)), float(b.group(3))
     units = (b.group(4) or "CM/SEC/SEC").strip().upper().replace(" ", "")
     if units not in _UNITS:
-        raise InputError(f"{where}: acceleration units {units!r} not understood; expected CM/SEC/SEC", source=source)
+        raise InputError(f"{where}: acceleration units of the data line not understood; expected CM/SEC/SEC",
+                         source=source)
     if npts <= 0 or not dt > 0:
         raise InputError(f"{where}: {npts} points at {dt} s; expected positive numbers", source=source)
     nrows = -(-npts // 8)
@@ -115,8 +116,8 @@ def _channel(lines: list[str], offset: int, *, key: str, source: str) -> CsmipCh
             try:
                 values.append(float(field))
             except ValueError:
-                raise InputError(f"{key} line {offset + i + r + 2}: value {j + 1} is {field[:12]!r}; expected a number "
-                                 "in a 10-character column", source=source) from None
+                raise InputError(f"{key} line {offset + i + r + 2}: value {j + 1}: expected a number in a "
+                                 "10-character column", source=source) from None
     acc = np.asarray(values) * acceleration_factor(_UNITS[units])
     return CsmipChannel(acc=acc, dt=dt, station_channel=int(m.group(4)), azimuth=azimuth,
                         location=(m.group(5) or "").strip(), key=key, header=tuple(lines[:min(i, 30)]), source=source)

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from .._fileio import read_text
-from ..errors import InputError
+from ..errors import InputError, quotable
 from ..measurement import Measurement
 from ..motions import GroundMotion
 from ..units import acceleration_factor
@@ -78,7 +78,7 @@ def _fixed(line: str, width: int, count: int, kind, what: str, src: str, lineno:
         try:
             out.append(kind(field))
         except ValueError:
-            raise InputError(f"{what} line {lineno}: field {j + 1} is {field[:15]!r}, expected "
+            raise InputError(f"{what} line {lineno}: field {j + 1}: expected "
                              f"{'an integer' if kind is int else 'a number'} in a {width}-character column",
                              source=src) from None
     return out
@@ -94,8 +94,8 @@ def read_smc_channel(path: str | os.PathLike) -> SmcChannel:
                          source=src)
     kind = lines[0].strip()[:1]
     if kind not in _TYPES or "ACCELEROGRAM" not in lines[0].upper():
-        raise InputError(f"line 1 is {lines[0].strip()[:40]!r}; expected '2 CORRECTED ACCELEROGRAM' "
-                         "(an SMC acceleration file)", source=src)
+        raise InputError("line 1 should read '2 CORRECTED ACCELEROGRAM' (an SMC acceleration file) and does not",
+                         source=src)
     ints = []
     for i in range(INT_LINES):
         ints += _fixed(lines[TEXT_LINES + i], INT_WIDTH, 8, int, "integer header", src, TEXT_LINES + i + 1)
@@ -167,7 +167,8 @@ def _level(ch: SmcChannel) -> tuple[float, str] | None:
         return float(n), f"floor {n}"
     if _GROUND.search(loc):
         return 0.0, "ground"
-    raise InputError(f"cannot tell the level from the location label {loc!r}; expected basement/ground, "
+    label = f"location label {loc!r}" if quotable(loc) else "the location label"
+    raise InputError(f"cannot tell the level from {label}; expected basement/ground, "
                      "'Nth floor' or roof", source=ch.source)
 
 

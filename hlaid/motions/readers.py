@@ -1,7 +1,9 @@
 """Readers for ground motion files: PEER NGA ``.AT2``, one- or two-column text, CSV.
 
 Every reader returns a :class:`GroundMotion` in mm/s^2 and raises
-:class:`~hlaid.errors.InputError` naming the file and what is wrong.
+:class:`~hlaid.errors.InputError` naming the file and what is wrong, and where (line, column),
+without quoting the file's contents (it may be an unrelated file given by mistake; only short
+plain column names are quoted, see :func:`hlaid.errors.quotable`).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .._fileio import read_text as _read_file_text
-from ..errors import InputError
+from ..errors import InputError, columns_text, quotable
 from ..units import acceleration_factor
 from .record import GroundMotion
 
@@ -35,12 +37,26 @@ def _number(token: str) -> float:
     return float(token.strip().replace("D", "E").replace("d", "e"))
 
 
-def _floats(text: str, source: str) -> np.ndarray:
+def _floats(lines: list[tuple[int, str]], source: str) -> np.ndarray:
+    """The numbers of ``(line number, text)`` data lines, in order; a value that is not a number
+    is reported by its position, not quoted."""
+    text = "\n".join(t for _, t in lines)
     try:
         return np.array(text.replace("D", "E").replace("d", "e").split(), dtype=np.float64)
     except ValueError:
-        bad = next(t for t in text.split() if not re.fullmatch(_NUM, t))
-        raise InputError(f"non-numeric value {bad[:30]!r} in the data", source=source) from None
+        for lineno, t in lines:
+            for k, token in enumerate(t.split()):
+                try:
+                    _number(token)
+                except ValueError:
+                    raise InputError(f"non-numeric value at line {lineno} (value {k + 1} of that line)",
+                                     source=source) from None
+        raise InputError("holds a value that is not a number", source=source) from None
+
+
+def _col(header: list[str], j: int) -> str:
+    """``column 'acc (g)'``, or ``column 2`` when the header name is not quotable."""
+    return f"column {header[j]!r}" if quotable(header[j]) else f"column {j + 1}"
 
 
 def read_at2(path: str | os.PathLike, *, name: str | None = None) -> GroundMotion:
@@ -61,7 +77,7 @@ def read_at2(path: str | os.PathLike, *, name: str | None = None) -> GroundMotio
     else:
         m_old = re.match(rf"\s*(\d+)\s+({_NUM})\s+NPTS", header, re.I)
         if not m_old:
-            raise InputError(f"line 4 should give NPTS and DT (e.g. 'NPTS= 5372, DT= .0100 SEC'), got {header.strip()[:60]!r}",
+            raise InputError("line 4 should give NPTS and DT (e.g. 'NPTS= 5372, DT= .0100 SEC') and does not",
                              source=src)
         npts, dt = int(m_old.group(1)), _number(m_old.group(2))
     units = lines[2].upper()
@@ -70,9 +86,8 @@ def read_at2(path: str | os.PathLike, *, name: str | None = None) -> GroundMotio
     elif re.search(r"\bG\b", units) or "UNITS OF G" in units or units.strip() == "":
         factor = acceleration_factor("g")
     else:
-        raise InputError(f"cannot tell the units from line 3 {lines[2].strip()[:60]!r}; expected 'UNITS OF G'",
-                         source=src)
-    values = _floats("\n".join(lines[4:]), src)
+        raise InputError("cannot tell the units from line 3; expected 'UNITS OF G' (or CM/S/S)", source=src)
+    values = _floats([(i + 5, ln) for i, ln in enumerate(lines[4:])], src)
     if values.size != npts:
         raise InputError(f"header says NPTS = {npts} but the file holds {values.size} values", source=src)
     label = name or _default_name(src)
@@ -114,13 +129,15 @@ def read_text(path: str | os.PathLike, *, units: str | None = None, dt: float | 
     src = str(path)
     text = _read_file_text(path)
     comments = [ln.strip()[1:] for ln in text.splitlines() if ln.strip()[:1] in ("#", "%")]
-    body = [ln.replace(",", " ") for ln in text.splitlines() if ln.strip() and ln.strip()[:1] not in ("#", "%")]
+    numbered = [(i + 1, ln.replace(",", " ")) for i, ln in enumerate(text.splitlines())
+                if ln.strip() and ln.strip()[:1] not in ("#", "%")]
+    body = [ln for _, ln in numbered]
     if not body:
         raise InputError("holds no data lines", source=src)
     widths = {len(ln.split()) for ln in body}
     if len(widths) != 1:
         raise InputError(f"rows have different numbers of columns {sorted(widths)}", source=src)
-    data = _floats("\n".join(body), src).reshape(len(body), -1)
+    data = _floats(numbered, src).reshape(len(body), -1)
     hints = _header_hints(comments)
     units = units or hints.get("units")
     if units is None:
@@ -169,7 +186,8 @@ def read_csv(path: str | os.PathLike, *, units: str | None = None, dt: float | N
     """
     src = str(path)
     text = _read_file_text(path)
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    numbered = [(i + 1, ln) for i, ln in enumerate(text.splitlines()) if ln.strip() and not ln.lstrip().startswith("#")]
+    lines = [ln for _, ln in numbered]
     if len(lines) < 2:
         raise InputError("holds no data rows", source=src)
     header = [h.strip() for h in lines[0].split(",")]
@@ -178,31 +196,31 @@ def read_csv(path: str | os.PathLike, *, units: str | None = None, dt: float | N
     rows = [ln.split(",") for ln in lines[1:]]
     if any(len(r) != len(header) for r in rows):
         bad = next(i for i, r in enumerate(rows) if len(r) != len(header))
-        raise InputError(f"row {bad + 2} has {len(rows[bad])} fields but the header has {len(header)}", source=src)
+        raise InputError(f"line {numbered[bad + 1][0]} has {len(rows[bad])} fields but the header has {len(header)}",
+                         source=src)
     data = np.empty((len(rows), len(header)))
     for i, r in enumerate(rows):
         for j, v in enumerate(r):
             try:
                 data[i, j] = _number(v)
             except ValueError:
-                raise InputError(f"row {i + 2}, column {header[j]!r}: {v.strip()[:30]!r} is not a number",
-                                 source=src) from None
+                raise InputError(f"line {numbered[i + 1][0]}, {_col(header, j)}: not a number", source=src) from None
     base = [re.sub(r"[\(\[].*", "", h).strip().lower() for h in header]
     tcol = next((i for i, b in enumerate(base) if b in ("t", "time", "t_s", "time_s")), None)
     if isinstance(column, str):
         if column not in header and column.lower() not in base:
-            raise InputError(f"no column {column!r}; columns are {header}", source=src)
+            raise InputError(f"no column {column!r}; columns are {columns_text(header)}", source=src)
         col = header.index(column) if column in header else base.index(column.lower())
     elif isinstance(column, int):
         col = column
     else:
         col = next(i for i in range(len(header)) if i != tcol) if len(header) > 1 or tcol is None else None
     if col is None or not 0 <= col < len(header):
-        raise InputError(f"cannot pick an acceleration column from {header}", source=src)
+        raise InputError(f"cannot pick an acceleration column from {columns_text(header)}", source=src)
     unit_in_header = re.search(r"[\(\[]\s*([^\)\]]+?)\s*[\)\]]", header[col])
     units = units or (unit_in_header.group(1) if unit_in_header else None)
     if units is None:
-        raise InputError(f"units of column {header[col]!r} are not stated; give units", source=src)
+        raise InputError(f"units of {_col(header, col)} are not stated; give units", source=src)
     if tcol is not None:
         if not _is_uniform_time(data[:, tcol]):
             raise InputError("the time column is not uniformly increasing", source=src)

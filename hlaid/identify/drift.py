@@ -1,0 +1,60 @@
+"""Drift paths for the path-driven training sets.
+
+HLA's drift is the doubly integrated, high-passed relative acceleration: right above the
+high-pass corner, wrong below it (the plastic offsets of the drift are filtered away, and
+the integrated sensor noise concentrates just above the corner). A story law driven along
+it drifts away from the measured force, so the drift path for the training sets is
+reconstructed from two sources that are each good where the other is not
+(a complementary filter):
+
+    x = HP_c(x_HLA) + LP_c(x_model)
+
+``x_model`` is the drift of the current building estimate replayed on the measured ground
+motion (the low-frequency drift the model says the loops close at), ``HP_c`` and ``LP_c =
+1 - HP_c`` a zero-phase Butterworth pair at the crossover ``c`` (default 1 Hz: above the
+band where HLA's drift is wrong, below the band that carries the loops' shape).
+Measured figures: ``scripts/study_drift.py`` and docs/identification.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal
+
+from ..hla import HLAResult
+from ..model import Building
+from ..motions import GroundMotion
+from ..simulate import simulate
+
+__all__ = ["PATHS", "hla_drift", "reconstruct_drift"]
+
+PATHS = ("hla", "replay")
+"""Drift-path methods: HLA's drift as it is, or the complementary reconstruction."""
+
+
+def hla_drift(res: HLAResult) -> np.ndarray:
+    """HLA's drift of every story, ``(time, story)`` [mm]."""
+    return np.stack([s.drift for s in res.stories], axis=1)
+
+
+def reconstruct_drift(res: HLAResult, ground: GroundMotion, building: Building | None, *,
+                      crossover_hz: float = 1.0, order: int = 4) -> np.ndarray:
+    """Drift path of every story, ``(time, story)`` [mm].
+
+    Parameters
+    ----------
+    res : HLA of the measurement (its drift is the high-frequency part)
+    ground : the measured ground motion (low-passed), the excitation of the replay
+    building : the current estimate; None (or a replay that diverges): HLA's drift
+    crossover_hz : the complementary filters' corner [Hz]
+    """
+    x = hla_drift(res)
+    if building is None:
+        return x
+    r = simulate(building, ground, substeps=4)
+    if r.status[0] != 0:
+        return x
+    xm = r.drift[0][: x.shape[0]]
+    nyq = 0.5 / res.dt
+    sos = signal.butter(order, min(crossover_hz / nyq, 0.95), btype="highpass", output="sos")
+    return signal.sosfiltfilt(sos, x - xm, axis=0) + xm

@@ -1,0 +1,144 @@
+"""The story law driven along a given drift history (no building, no dynamics).
+
+For a story whose drift ``x(t)`` is known (measured, or reconstructed), the hysteretic
+displacement ``z`` and the work ``e = integral(z dx)`` follow from eq 3-10 alone: the same
+compiled functions of :mod:`hlaid.model._equations` that the batch simulator uses, integrated
+by RK4 along the path. This is how the identification generates its training half cycles:
+every simulated half cycle has the measured half cycle's own path and differs only in the
+story parameters.
+
+Between two samples the path is the cubic Hermite interpolant of the drift and the drift
+velocity when the velocity is given (what the batch simulator integrates, to RK4 accuracy),
+else the straight line between the samples (for measured paths, whose velocity is noisier
+than their drift increments).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+from ._kernel import _FASTMATH, _degradation, _hysteretic_rate, _spring_force
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy", inline="always")
+def _rk4_step(z, e, d0, dm, d1, h, al, k0, m, p, dy, de):
+    """One RK4 step of ``(z, e)`` with drift rates ``d0, dm, d1`` at the start, middle, end."""
+    eta = _degradation(e, al, k0, m, de)
+    k1 = _hysteretic_rate(d0, z, dy, p, eta)
+    l1 = z * d0
+    z2 = z + 0.5 * h * k1
+    eta = _degradation(e + 0.5 * h * l1, al, k0, m, de)
+    k2 = _hysteretic_rate(dm, z2, dy, p, eta)
+    l2 = z2 * dm
+    z3 = z + 0.5 * h * k2
+    eta = _degradation(e + 0.5 * h * l2, al, k0, m, de)
+    k3 = _hysteretic_rate(dm, z3, dy, p, eta)
+    l3 = z3 * dm
+    z4 = z + h * k3
+    eta = _degradation(e + h * l3, al, k0, m, de)
+    k4 = _hysteretic_rate(d1, z4, dy, p, eta)
+    l4 = z4 * d1
+    return z + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4), e + h / 6.0 * (l1 + 2.0 * l2 + 2.0 * l3 + l4)
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy", inline="always")
+def _hermite_rate(tau, x0, x1, v0, v1, dt):
+    """Derivative of the cubic Hermite interpolant at ``tau`` in [0, 1] of a sample interval."""
+    t2 = tau * tau
+    return ((6.0 * t2 - 6.0 * tau) * (x0 - x1) / dt + (3.0 * t2 - 4.0 * tau + 1.0) * v0
+            + (3.0 * t2 - 2.0 * tau) * v1)
+
+
+@nb.njit(cache=True, parallel=True, fastmath=_FASTMATH, error_model="numpy")
+def _drive(x, v, dt, hermite, k0, al, p, dy, de, m, nsub, force, z_out, e_out):
+    """Integrate every parameter set ``b`` along path ``x[b % n_paths]``; see :func:`drive_story`."""
+    B = k0.shape[0]
+    P, T = x.shape
+    for b in nb.prange(B):
+        xb = x[b % P]
+        vb = v[b % P]
+        z = 0.0
+        e = 0.0
+        force[b, 0] = _spring_force(xb[0], z, al[b], k0[b])
+        z_out[b, 0] = z
+        e_out[b, 0] = e
+        for k in range(T - 1):
+            x0 = xb[k]
+            x1 = xb[k + 1]
+            h = dt / nsub
+            for s in range(nsub):
+                if hermite:
+                    r0 = _hermite_rate((s + 0.0) / nsub, x0, x1, vb[k], vb[k + 1], dt)
+                    r1 = _hermite_rate((s + 0.5) / nsub, x0, x1, vb[k], vb[k + 1], dt)
+                    r2 = _hermite_rate((s + 1.0) / nsub, x0, x1, vb[k], vb[k + 1], dt)
+                    z, e = _rk4_step(z, e, r0, r1, r2, h, al[b], k0[b], m, p[b], dy[b], de[b])
+                else:
+                    d = (x1 - x0) / dt
+                    z, e = _rk4_step(z, e, d, d, d, h, al[b], k0[b], m, p[b], dy[b], de[b])
+            force[b, k + 1] = _spring_force(x1, z, al[b], k0[b])
+            z_out[b, k + 1] = z
+            e_out[b, k + 1] = e
+
+
+@dataclass(frozen=True, eq=False)
+class PathResponse:
+    """Response of the story law along a drift path; every field is ``(batch, time)``.
+
+    Attributes
+    ----------
+    force : spring force ``alpha k0 x + (1-alpha) k0 z`` [N]
+    z : hysteretic displacement [mm]
+    energy : ``e = integral(z dx)`` [mm^2]
+    """
+
+    force: np.ndarray
+    z: np.ndarray
+    energy: np.ndarray
+
+    def elastic_stiffness(self, k0, alpha, delta_eta, mass) -> np.ndarray:
+        """``ke(t) = alpha k0 + (1-alpha) k0 / eta(t)`` (eq 11), ``(batch, time)`` [N/mm]."""
+        k0, alpha, delta_eta = (np.asarray(a, float).reshape(-1, 1) for a in (k0, alpha, delta_eta))
+        eta = _degradation(self.energy, alpha, k0, mass, delta_eta)
+        return alpha * k0 + (1.0 - alpha) * k0 / eta
+
+
+def drive_story(drift: np.ndarray, *, k0, alpha, p, dy, delta_eta, mass: float, dt: float,
+                velocity: np.ndarray | None = None, substeps: int = 4) -> PathResponse:
+    """Drive the degrading Bouc-Wen story law along drift paths, batched over parameters.
+
+    Parameters
+    ----------
+    drift : ``(time,)`` or ``(path, time)`` drift [mm]; parameter set ``b`` follows path
+        ``b % path`` (one path for all, or one per parameter set)
+    k0, alpha, p, dy, delta_eta : scalars or ``(batch,)`` story parameters
+    mass : floor mass above the story [t] (enters the degradation energy, eq 8)
+    dt : sample interval [s]
+    velocity : drift velocity [mm/s], the shape of ``drift``: cubic Hermite path between
+        samples; None: straight lines between samples
+    substeps : RK4 sub-steps per sample
+
+    Returns
+    -------
+    PathResponse with ``(batch, time)`` arrays; starts from rest (``z = e = 0``).
+    """
+    x = np.atleast_2d(np.ascontiguousarray(drift, dtype=np.float64))
+    hermite = velocity is not None
+    v = np.atleast_2d(np.ascontiguousarray(velocity, dtype=np.float64)) if hermite else np.zeros((1, 1))
+    if hermite and v.shape != x.shape:
+        raise ValueError(f"velocity has shape {v.shape}; expected the drift's {x.shape}")
+    pars = np.broadcast_arrays(*(np.atleast_1d(np.asarray(a, dtype=np.float64)) for a in (k0, alpha, p, dy,
+                                                                                          delta_eta)))
+    B = max(pars[0].shape[0], x.shape[0])
+    k0_, al_, p_, dy_, de_ = (np.ascontiguousarray(np.broadcast_to(a, (B,))) for a in pars)
+    if x.shape[0] not in (1, B):
+        raise ValueError(f"{x.shape[0]} paths for {B} parameter sets; expected 1 or {B}")
+    if substeps < 1:
+        raise ValueError(f"substeps = {substeps}; expected >= 1")
+    T = x.shape[1]
+    force, z, e = (np.empty((B, T)) for _ in range(3))
+    _drive(x, v if hermite else np.zeros_like(x), float(dt), hermite, k0_, al_, p_, dy_, de_, float(mass),
+           int(substeps), force, z, e)
+    return PathResponse(force=force, z=z, energy=e)
