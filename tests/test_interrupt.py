@@ -111,10 +111,23 @@ def measurement(tmp_path_factory) -> Path:
 
 
 def test_ctrl_c_during_identify_training(measurement, tmp_path):
+    """The dynamic-simulation training sets (``training.mode: simulate``) run on a worker pool."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (tmp_path / "sim.yaml").write_text("training: {mode: simulate}\n")
+    rc, elapsed, lines = _interrupt(["identify", str(measurement), "-o", "out/c.json", "--no-cache",
+                                     "--config", "sim.yaml"], tmp_path,
+                                    after="simulating training half cycles", workers=2)
+    _assert_interrupted(rc, elapsed, lines, "identify")
+    assert _leftovers(out, "c.json") == []
+
+
+def test_ctrl_c_during_identify_path_training(measurement, tmp_path):
+    """The default path-driven training runs in-process (compiled, parallel threads)."""
     out = tmp_path / "out"
     out.mkdir()
     rc, elapsed, lines = _interrupt(["identify", str(measurement), "-o", "out/c.json", "--no-cache"], tmp_path,
-                                    after="simulating training half cycles", workers=2)
+                                    after="path-driven training sets", delay=1.0)
     _assert_interrupted(rc, elapsed, lines, "identify")
     assert _leftovers(out, "c.json") == []
 
@@ -129,6 +142,6 @@ def test_ctrl_c_during_ida(table1, tmp_path):
 
 def test_ctrl_c_during_demo(tmp_path):
     rc, elapsed, lines = _interrupt(["demo", "--out", "demo-out", "--cache", "cache"], tmp_path,
-                                    after="simulating training half cycles", workers=2)
+                                    after="path-driven training sets", delay=1.0)
     _assert_interrupted(rc, elapsed, lines, "demo")
     assert _leftovers(tmp_path, "demo-out") == []

@@ -111,6 +111,9 @@ def choose_C(X: np.ndarray, y: np.ndarray, cfg: SVMConfig) -> tuple[float, dict]
     of the best on ties); returns the choice and the accuracy of every value."""
     if cfg.C_grid is None:
         return cfg.C, {}
+    if len(y) > cfg.cv_samples:  # every k-th sample: the cross-validation costs ~n^2
+        keep = np.linspace(0, len(y) - 1, cfg.cv_samples).astype(int)
+        X, y = X[keep], y[keep]
     folds = np.arange(len(y)) % cfg.cv_folds
     scores = {}
     for C in cfg.C_grid:
@@ -156,15 +159,62 @@ def fit_machine(train: TrainingSet, param: str, bins: Bins, cfg: SVMConfig, test
     return machine, stats
 
 
-def vote(machine: KernelSVC | None, X: np.ndarray, bins: Bins, single: int = -1,
-         scaler: dict | None = None) -> np.ndarray:
-    """Votes of the measured samples ``X`` ``(sample, feature)`` for every bin."""
+def fit_ensemble(train: TrainingSet, param: str, bins: Bins, cfg: SVMConfig, test_fraction: float,
+                 seed: int = 0):
+    """``cfg.n_bags`` machines, each on a random ``cfg.bag_fraction`` of the training samples,
+    with the feature scaler and C chosen once on all of them (as :func:`fit_machine`); one
+    machine on all samples when ``n_bags`` is 1. Returns ``(machines or None, stats)``; the
+    accuracies are the ensemble's (majority of the bags)."""
+    if cfg.n_bags <= 1:
+        machine, stats = fit_machine(train, param, bins, cfg, test_fraction)
+        return (None if machine is None else [machine]), stats
+    t0 = time.perf_counter()
+    if len(train) == 0:
+        raise NotIdentifiableError(f"no training sample for the {param} classifier")
+    y = bins.label(getattr(train, param))
+    test = split(train, test_fraction)
+    idx = np.flatnonzero(~test)
+    scaler = scaler_of(train.X[idx]) if cfg.standardize else None
+    X = apply_scaler(train.X, scaler)
+    base = {"n_train": int(idx.size), "n_test": int(test.sum()), "scaler": scaler}
+    if len(np.unique(y[idx])) < 2:
+        return None, {**base, "train_accuracy": 1.0, "test_accuracy": 1.0, "confusion": np.zeros((bins.n, bins.n)),
+                      "seconds": time.perf_counter() - t0, "single": int(y[0])}
+    C, scores = choose_C(X[idx], y[idx], cfg)
+    rng = np.random.default_rng(seed)
+    machines = []
+    for _ in range(cfg.n_bags):
+        sub = rng.choice(idx, size=max(int(cfg.bag_fraction * idx.size), 2), replace=False)
+        if len(np.unique(y[sub])) >= 2:
+            machines.append(make_svc(cfg, C).fit(X[sub], y[sub]))
+
+    def predict(rows):
+        votes = np.stack([m.predict(X[rows]).astype(int) for m in machines])
+        return np.array([np.bincount(v, minlength=bins.n).argmax() for v in votes.T], dtype=int)
+
+    pred = predict(test) if test.any() else np.zeros(0, int)
+    conf = np.zeros((bins.n, bins.n))
+    np.add.at(conf, (y[test], pred), 1)
+    tr = idx[:: max(1, idx.size // 300)]  # training accuracy on a subset (it costs predictions)
+    return machines, {**base, "train_accuracy": float(np.mean(predict(tr) == y[tr])),
+                      "test_accuracy": float(np.mean(pred == y[test])) if test.any() else np.nan, "confusion": conf,
+                      "C": C, "cv_accuracy": scores, "bags": len(machines), "single": -1,
+                      "seconds": time.perf_counter() - t0}
+
+
+def vote(machine, X: np.ndarray, bins: Bins, single: int = -1, scaler: dict | None = None) -> np.ndarray:
+    """Votes of the measured samples ``X`` ``(sample, feature)`` for every bin: one per
+    sample and machine (``machine``: a :class:`KernelSVC`, a list of them, or None for a
+    single class)."""
     if machine is None:
         v = np.zeros(bins.n)
         v[single] = X.shape[0]
         return v
-    pred = machine.predict(apply_scaler(X, scaler)).astype(int) if X.shape[0] else np.zeros(0, int)
-    return np.bincount(pred, minlength=bins.n).astype(float)
+    out = np.zeros(bins.n)
+    for m in (machine if isinstance(machine, list) else [machine]):
+        pred = m.predict(apply_scaler(X, scaler)).astype(int) if X.shape[0] else np.zeros(0, int)
+        out += np.bincount(pred, minlength=bins.n)
+    return out
 
 
 AGGREGATES = ("mean", "majority")

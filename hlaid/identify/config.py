@@ -114,7 +114,11 @@ class SVMConfig:
         the machine, applied to the measured features)
     C_grid : when set, C is chosen from these values by ``cv_folds``-fold cross-validation
         on the training samples (per machine; cached with it); ``C`` is then unused
-    cv_folds : folds of that cross-validation
+    cv_folds, cv_samples : folds of that cross-validation, and at most this many training
+        samples in it (evenly spaced)
+    n_bags, bag_fraction : with ``training.mode: path``, every classifier is an ensemble of
+        ``n_bags`` machines, each trained on a random ``bag_fraction`` of the samples; each
+        votes, and ``aggregate`` combines the votes (1: one machine on all samples)
     """
 
     C: float = 10.0
@@ -124,6 +128,9 @@ class SVMConfig:
     standardize: bool = True
     C_grid: tuple[float, ...] | None = (10.0, 100.0, 1000.0)
     cv_folds: int = 2
+    cv_samples: int = 600
+    n_bags: int = 7
+    bag_fraction: float = 0.5
 
     def __post_init__(self):
         from ..svm import KERNELS
@@ -137,6 +144,8 @@ class SVMConfig:
             raise InputError(f"svm.C_grid = {list(self.C_grid)}; expected positive values (or null)")
         if not 2 <= self.cv_folds <= 10:
             raise InputError(f"svm.cv_folds = {self.cv_folds}; expected 2..10")
+        if self.cv_samples < 20 or not 1 <= self.n_bags <= 100 or not 0 < self.bag_fraction <= 1:
+            raise InputError("svm.cv_samples must be >= 20, svm.n_bags in 1..100 and svm.bag_fraction in (0, 1]")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -15,7 +15,7 @@ from ..config import config_to_dict
 from ..model import Building
 from ..motions import GroundMotion
 from .cache import MachineCache, array_digest, cache_key
-from .classify import Bins, fit_machine
+from .classify import Bins, fit_ensemble, fit_machine
 from .config import IdentifyConfig
 from .tb import TBLogger
 from .pathtrain import path_training_set
@@ -30,7 +30,9 @@ class TrainedPass:
 
     Attributes
     ----------
-    machines : ``{"story<i>_<param>": KernelSVC | None}`` (None: a single class, nothing to learn)
+    machines : ``{"story<i>_<param>": KernelSVC | None}`` (None: a single class, nothing to
+        learn); path-driven passes hold ensembles as ``"story<i>_<param>#<k>"``, see
+        :func:`machines_of`
     stats : per machine: accuracies, confusion, sample counts, seconds
     cached : taken from the cache
     seconds_simulate : time spent simulating training half cycles
@@ -138,7 +140,9 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
         for param, b in zip(PARAMS, bins[i]):
             name = f"story{i + 1}_{param}"
             svm = cfg.svm if name not in chosen_C else dataclasses.replace(cfg.svm, C=chosen_C[name], C_grid=None)
-            machines[name], st = fit_machine(S, param, b, svm, tc.test_fraction)
+            ms, st = fit_ensemble(S, param, b, svm, tc.test_fraction, seed=seed + 31 * i + len(param))
+            for k, m in enumerate(ms or []):
+                machines[f"{name}#{k}"] = m
             if "C" in st:
                 chosen_C[name] = st["C"]
             stats[name] = _jsonable(st)
@@ -163,3 +167,11 @@ def _log_machine(tb, stage, i, param, st, S, b, step):
     tb.scalar(f"{tag}/fit_seconds", st["seconds"], step)
     tb.confusion(f"{tag}/confusion", st["confusion"], b.edges, step)
     tb.features(f"{tag}/features", S.X, b.label(getattr(S, param)), b.edges, step)
+
+
+def machines_of(tp: TrainedPass, name: str):
+    """The machine (or the ensemble's list of machines, or None) named ``name`` in a pass."""
+    if name in tp.machines:
+        return tp.machines[name]
+    bags = sorted((k for k in tp.machines if k.split("#")[0] == name), key=lambda k: int(k.split("#")[1]))
+    return [tp.machines[k] for k in bags] or None

@@ -37,7 +37,7 @@ from .replaycheck import ReplayCheck, replay_check
 from .tb import TBLogger
 from .drift import hla_drift, reconstruct_drift
 from .loopfit import fit_story_loop
-from .passes import PARAMS, path_pass, train_pass
+from .passes import PARAMS, machines_of, path_pass, train_pass
 from .pathtrain import StoryPath
 from .training import strong_motion_window
 
@@ -342,7 +342,7 @@ class _Identifier:
                 for j, param in enumerate(PARAMS):
                     name = f"story{i + 1}_{param}"
                     st = tp.stats[name]
-                    v = vote(tp.machines.get(name), measured[i], bins[i][j], st.get("single", -1), st.get("scaler"))
+                    v = vote(machines_of(tp, name), measured[i], bins[i][j], st.get("single", -1), st.get("scaler"))
                     entry[param] = pass_result(param, stage, bins[i][j], v, st, tp.cached, cfg.aggregate)
             result.append(entry)
         self.passes.append({"iteration": it + 1, "stage": stage,
