@@ -135,3 +135,35 @@ def test_loop_fit_recovers_k0_along_the_true_path(table1):
     fit = fit_story_loop(meas.truth.drift[:, i], meas.truth.force[:, i], meas.dt, float(table1.mass[i]), start)
     assert abs(fit.params["k0"] / table1.k0[i] - 1) < 2e-3
     assert fit.rms_final < 0.05 * fit.rms_initial
+
+
+def test_cross_validated_C_and_bagged_ensemble_match_scikit_learn():
+    """choose_C's fold accuracies are scikit-learn SVC's on the same folds; the ensemble has
+    n_bags machines whose votes sum to n_bags per measured vector, standardised features."""
+    from sklearn.svm import SVC
+
+    from hlaid.identify.classify import Bins, apply_scaler, choose_C, fit_ensemble, scaler_of, vote
+    from hlaid.identify.config import SVMConfig
+    from hlaid.identify.training import TrainingSet
+
+    rng = np.random.default_rng(5)
+    n = 300
+    a = rng.uniform(0.0, 0.3, n)
+    X = np.column_stack([a * 40 + rng.normal(0, 1.0, n), rng.normal(0, 1, (n, 4)) * [1, 10, 100, 1000]]) + 5.0
+    cfg = SVMConfig(C_grid=(1.0, 100.0), cv_folds=2, n_bags=5, bag_fraction=0.5)
+    bins = Bins.regular(0.0, 0.3, 0.1)
+    y = bins.label(a)
+    Z = apply_scaler(X, scaler_of(X))
+    assert np.allclose(Z.mean(axis=0), 0, atol=1e-12) and np.allclose(Z.std(axis=0), 1)
+    C, scores = choose_C(Z, y, cfg)
+    folds = np.arange(n) % 2
+    for c, got in scores.items():
+        ref = np.mean([np.mean(SVC(C=c, gamma="scale").fit(Z[folds != k], y[folds != k]).predict(Z[folds == k])
+                               == y[folds == k]) for k in (0, 1)])
+        assert abs(got - ref) <= 0.01
+    assert scores[C] == max(scores.values())
+    machines, st = fit_ensemble(TrainingSet(X=X, alpha=a, p=a, sim=np.arange(n)), "alpha", bins, cfg, 0.2, seed=1)
+    assert len(machines) == 5 and st["bags"] == 5 and st["C"] in cfg.C_grid and set(st["cv_accuracy"]) == {1.0, 100.0}
+    assert st["test_accuracy"] > 0.8
+    v = vote(machines, X[:1], bins, scaler=st["scaler"])
+    assert v.sum() == 5 and v.argmax() == y[0]

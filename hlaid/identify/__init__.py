@@ -5,10 +5,14 @@ from .gradient import GradientIdentifier
 from .ukf import UKFIdentifier
 from .config import BinsConfig, IdentifyConfig, OuterConfig, RefineConfig, SVMConfig, TrainingConfig
 from .pipeline import IdentificationResult, estimate_noise_rms, identify
+from .drift import reconstruct_drift
+from .loopfit import LoopFit, fit_story_loop
+from .pathtrain import StoryPath, path_training_set, segment_operator, story_features
 from .refine import RefineResult, refine_replay
 from .regression import RegressionFit, fit_delta_eta, fit_yield_displacement
 from .replaycheck import ReplayCheck, replay_check
 
-__all__ = ["BaseIdentifier", "HLASVMIdentifier", "GradientIdentifier", "UKFIdentifier", "NotFittedError", "identify", "IdentificationResult", "IdentifyConfig", "BinsConfig", "TrainingConfig", "SVMConfig",
+__all__ = ["reconstruct_drift", "fit_story_loop", "LoopFit", "StoryPath", "path_training_set", "segment_operator",
+           "story_features", "BaseIdentifier", "HLASVMIdentifier", "GradientIdentifier", "UKFIdentifier", "NotFittedError", "identify", "IdentificationResult", "IdentifyConfig", "BinsConfig", "TrainingConfig", "SVMConfig",
            "OuterConfig", "RefineConfig", "refine_replay", "RefineResult", "fit_delta_eta", "fit_yield_displacement",
            "RegressionFit", "replay_check", "ReplayCheck", "estimate_noise_rms"]

@@ -126,7 +126,7 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
                    "kernel machines")
     machines, stats, sets = {}, {}, []
     t_sim = 0.0
-    for i, sp in enumerate(paths):
+    for i, sp in _progress.progress(list(enumerate(paths)), desc=f"[identify] {stage} pass, stories"):
         if not identifiable[i] or sp is None:
             sets.append(None)
             continue

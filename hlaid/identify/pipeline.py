@@ -123,6 +123,8 @@ class _Identifier:
         self.path_mode = cfg.training.mode == "path"
         self.paths = hla_drift(res)
         self.stories = list(res.stories)  # the stories the regressions see (drift = the path)
+        self._path_features: dict = {}  # story -> its yielding half cycles along the path
+        self.chosen_C: dict = {}  # machine -> C cross-validated in this run's first pass
         self.identifiable = np.array([s.yielded and len(F) >= 3 for s, F in zip(res.stories, self.features)])
         if not self.identifiable.any():
             peaks = ", ".join(f"{np.max(np.abs(s.drift)):.3g}" for s in res.stories)
@@ -252,15 +254,19 @@ class _Identifier:
         """Use ``paths`` ``(time, story)`` as the stories' drift in the regressions and features."""
         self.paths = paths
         res, cfg = self.res, self.cfg
-        if cfg.training.reanalyse:  # HLA again along the path: half cycles, ke and k0
-            self.stories = [reanalyse_story(s, paths[:, i], s.force, res.dt, cfg.hla, res.band_hz)
-                            for i, s in enumerate(res.stories)]
-            k0 = np.array([s.k0 for s in self.stories])
-            ok = self.identifiable & np.isfinite(k0) & (k0 > 0)
-            self.k0 = np.where(ok, k0, self.k0)
-        else:
-            self.stories = [dataclasses.replace(s, drift=paths[:, i]) for i, s in enumerate(res.stories)]
         self._path_features = {}
+        for i, s in enumerate(res.stories):
+            if cfg.training.reanalyse:  # HLA again along the path: half cycles, ke and k0
+                story = reanalyse_story(s, paths[:, i], s.force, res.dt, cfg.hla, res.band_hz)
+            else:
+                story = dataclasses.replace(s, drift=paths[:, i])
+            feats = half_cycle_features(story, cfg.training.n_segments, yield_ratio=cfg.hla.stiffness.yield_ratio)
+            if self.identifiable[i] and (len(feats) < 3 or not np.isfinite(story.k0) or story.k0 <= 0):
+                story, feats = s, self.features[i]  # the path lost the yielding half cycles: keep HLA's
+            elif self.identifiable[i]:
+                self.k0[i] = story.k0
+            self.stories[i] = story
+            self._path_features[i] = feats
 
     def _fit_k0(self, alpha, p, dy, de) -> None:
         """k0 of every identifiable story by least squares of the story law along its path
@@ -275,16 +281,9 @@ class _Identifier:
             self.k0[i] = fit.params["k0"]
 
     def _features(self, i: int):
-        """Yielding half cycles and their segment slopes along story ``i``'s current path."""
-        if not self.path_mode:
-            return self.features[i]
-        cache = self.__dict__.setdefault("_path_features", {})
-        if i not in cache:
-            cache[i] = half_cycle_features(self.stories[i], self.cfg.training.n_segments,
-                                           yield_ratio=self.cfg.hla.stiffness.yield_ratio)
-            if len(cache[i]) < 3:  # the path lost the yielding half cycles: HLA's selection
-                cache[i] = self.features[i]
-        return cache[i]
+        """Yielding half cycles and their segment slopes along story ``i``'s current path (HLA's
+        before the first reconstruction)."""
+        return self._path_features.get(i, self.features[i])
 
     def _story_paths(self) -> list:
         """Per story the :class:`StoryPath` of the path-driven training (None if not identifiable)."""
@@ -328,7 +327,7 @@ class _Identifier:
             paths = self._story_paths()
             measured = [None if sp is None else sp.measured_features()[None, :] for sp in paths]
             tp = path_pass(paths, est, bins, self.identifiable, cfg=cfg, stage=stage, seed=seed, cache=self.cache,
-                           tb=self.tb, step=it + 1, chosen_C=self.__dict__.setdefault("chosen_C", {}))
+                           tb=self.tb, step=it + 1, chosen_C=self.chosen_C)
         else:
             measured = [F.values for F in self.features]
             tp = train_pass(est, self.training_motion, bins, self.identifiable, noise=self.noise, cfg=cfg,

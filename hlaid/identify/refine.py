@@ -17,6 +17,7 @@ from scipy import signal
 from scipy.optimize import least_squares
 
 from ..hla.preprocess import _sos
+from .. import _progress
 from ..measurement import Measurement
 from ..model import Building, Damping
 from ..motions import GroundMotion
@@ -116,7 +117,12 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
             cache[key] = residuals_of([make(x)])[0]
         return cache[key]
 
+    n_jac = [0]
+
     def jac(x):
+        n_jac[0] += 1
+        _progress.info(f"[identify] refinement step {n_jac[0]} (at most {max_iterations} evaluations): "
+                       f"{x.size} parameters, cost {0.5 * float(np.sum(fun(x) ** 2)):.4g}")
         h = 1e-4 * xs
         xp = x + h
         over = xp > hi_b
