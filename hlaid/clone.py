@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ._fileio import read_text, write_json
-from .errors import InputError
+from .errors import InputError, kind_of
 from .model import Building, Damping
 from .units import UNITS_JSON
 
@@ -103,10 +103,10 @@ class Clone:
                            else _number(s["gravity_load"], f"stories[{i}].gravity_load", source))
         damping = d.get("damping", {})
         if not isinstance(damping, dict):
-            raise InputError(f"field 'damping' must be a mapping, got {_kind(damping)}", source=source)
+            raise InputError(f"field 'damping' must be a mapping, got {kind_of(damping)}", source=source)
         _no_unknown(damping, ("kind", "ratio", "modes"), "damping.", source)
         if "kind" in damping and not isinstance(damping["kind"], str):
-            raise InputError(f"damping.kind must be a string, got {_kind(damping['kind'])}", source=source)
+            raise InputError(f"damping.kind must be a string, got {kind_of(damping['kind'])}", source=source)
         if "ratio" in damping:
             _number(damping["ratio"], "damping.ratio", source)
         modes = damping.get("modes", [1, 2])
@@ -118,7 +118,7 @@ class Clone:
                                  ("diagnostics", (dict, type(None)), "a mapping"),
                                  ("provenance", (dict, type(None)), "a mapping")):
             if key in d and not isinstance(d[key], kinds):
-                raise InputError(f"field '{key}' must be {what}, got {_kind(d[key])}", source=source)
+                raise InputError(f"field '{key}' must be {what}, got {kind_of(d[key])}", source=source)
         try:
             b = Building(**cols, height=None if None in heights else heights,
                          gravity_load=None if None in gravity else gravity, damping=Damping(**damping),
@@ -144,22 +144,11 @@ _TOP_KEYS = ("format", "version", "units", "name", "stories", "damping", "pdelta
 _STORY_OPTIONAL = ("height", "gravity_load")
 
 
-def _kind(v) -> str:
-    """What a JSON value is (never the value: it may be long or not ours to echo)."""
-    if v is None:
-        return "null"
-    if isinstance(v, bool):
-        return "true or false"
-    if isinstance(v, (int, float)):
-        return "a number"
-    return {str: "a string", list: "a list", dict: "a mapping"}.get(type(v), type(v).__name__)
-
-
 def _show(v) -> str:
     """A short JSON scalar as written, anything else by its kind."""
     if isinstance(v, (bool, int, float)) or v is None or (isinstance(v, str) and len(v) <= 20 and v.isprintable()):
         return repr(v)
-    return _kind(v)
+    return kind_of(v)
 
 
 def _number(v, field: str, source: str | None) -> float:
@@ -183,7 +172,7 @@ def _check_units(units, source: str | None) -> None:
     if units is None:
         return
     if not isinstance(units, dict):
-        raise InputError(f"field 'units' must be a mapping, got {_kind(units)}", source=source)
+        raise InputError(f"field 'units' must be a mapping, got {kind_of(units)}", source=source)
     for key, want in UNITS_JSON.items():
         if units.get(key) != want:
             got = "missing" if key not in units else _show(units[key])

@@ -21,7 +21,7 @@ from typing import Any, Literal, TypeVar, Union
 import yaml
 
 from ._fileio import read_text
-from .errors import ConfigError, InputError
+from .errors import ConfigError, InputError, kind_of
 
 T = TypeVar("T")
 
@@ -214,25 +214,10 @@ def _show(v) -> str:
     return repr(v)
 
 
-def _kind(v) -> str:
-    """What a value is, never the value itself."""
-    if isinstance(v, dict):
-        return "a mapping"
-    if isinstance(v, list):
-        return "a list"
-    if v is None:
-        return "an empty document"
-    if isinstance(v, bool):
-        return "true or false"
-    if isinstance(v, (int, float)):
-        return "a number"
-    return "text" if isinstance(v, str) else type(v).__name__
-
-
 def _build_dataclass(cls, node: _Node, where: str, source: str):
     if not isinstance(node.value, dict):
         if not where:  # the whole file: perhaps not a config at all, so quote none of it
-            raise ConfigError(f"{source}:{node.line}: top level: expected a mapping, got {_kind(node.value)} "
+            raise ConfigError(f"{source}:{node.line}: top level: expected a mapping, got {kind_of(node.value, none='an empty document')} "
                               "(settings are 'key: value' lines); is this an hlaid YAML config?")
         raise ConfigError(f"{source}:{node.line}: {where}: expected a mapping, got {_show(node.value)}")
     hints = typing.get_type_hints(cls)

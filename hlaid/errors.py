@@ -50,3 +50,14 @@ def column_label(names, j: int) -> str:
 def columns_text(names) -> str:
     """The column names of a file for an error message (unquotable ones by number)."""
     return ", ".join(n if quotable(n) else f"column {j + 1}" for j, n in enumerate(names))
+
+
+def kind_of(v, *, none: str = "null") -> str:
+    """What a parsed JSON/YAML value is (never the value: it may be long or not ours to echo)."""
+    if v is None:
+        return none
+    if isinstance(v, bool):
+        return "true or false"
+    if isinstance(v, (int, float)):
+        return "a number"
+    return {str: "a string", list: "a list", dict: "a mapping"}.get(type(v), type(v).__name__)

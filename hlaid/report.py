@@ -19,7 +19,7 @@ import tempfile
 from pathlib import Path
 
 from ._fileio import atomic_write
-from .errors import InputError
+from .errors import InputError, kind_of
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
@@ -91,21 +91,11 @@ _SUMMARY = {"format": "str", "name": "str", "hlaid_version": "str", "n_stories":
 ``*`` key stands for every key (``*num``: keys that read as numbers); other keys are ignored."""
 
 
-def _kind(v) -> str:
-    if v is None:
-        return "null"
-    if isinstance(v, bool):
-        return "true or false"
-    if isinstance(v, (int, float)):
-        return "a number"
-    return {str: "a string", list: "a list", dict: "a mapping"}.get(type(v), type(v).__name__)
-
-
 def _validate(v, spec, path: str, source: str) -> None:
     """Check a value of summary.json against :data:`_SUMMARY` (an InputError naming the field, never
     quoting its value)."""
     def bad(what):
-        raise InputError(f"summary.json: field {path or 'top level'} must be {what}, got {_kind(v)}", source=source)
+        raise InputError(f"summary.json: field {path or 'top level'} must be {what}, got {kind_of(v)}", source=source)
 
     if isinstance(spec, _Null):
         if v is not None:

@@ -110,23 +110,30 @@ def main(argv=None) -> int:
                       f"(+-1 bin {row['response_within_one_bin']:.3f})  fit {fit_s:.2f} s", flush=True)
     tb.close()
     (out / "fig2.json").write_text(json.dumps({"noise_rms": noise, "spread": tcfg.spread, "rows": rows}, indent=1))
+    plot(rows, stories, [("acc_half_cycle", "o-", "per half cycle"), ("response_within_one_bin", "s--",
+                                                                        "per response, +-1 bin")],
+         f"Classifier accuracy vs training samples (noise {noise:.0%}, spread {tcfg.spread:.0%})", out)
+    return 0
+
+
+def plot(rows, stories, series, title: str, out: Path) -> None:
+    """Fig. 2: accuracy against training samples, alpha and p side by side; ``series`` are
+    ``(row key, line style, label)``."""
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
     for ax, param in zip(axes, ("alpha", "p")):
         for s in stories:
             r = [x for x in rows if x["story"] == s + 1 and x["param"] == param]
-            ax.plot([x["n"] for x in r], [x["acc_half_cycle"] for x in r], "o-", label=f"story {s + 1} per half cycle")
-            ax.plot([x["n"] for x in r], [x["response_within_one_bin"] for x in r], "s--",
-                    label=f"story {s + 1} per response, +-1 bin")
+            for key, style, label in series:
+                ax.plot([x["n"] for x in r], [x[key] for x in r], style, label=f"story {s + 1} {label}".strip())
         ax.axhline(0.94, color="k", lw=0.8, ls=":", label="paper: 94 %")
         ax.set_title(f"{param} (coarse bins)")
         ax.set_xlabel("training samples")
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("test accuracy")
     axes[1].legend(fontsize=7)
-    fig.suptitle(f"Classifier accuracy vs training samples (noise {noise:.0%}, spread {tcfg.spread:.0%})")
+    fig.suptitle(title)
     save_figure(fig, out / "fig2.png")
     print(f"wrote {out}/fig2.png, fig2.json, tensorboard/")
-    return 0
 
 
 def path_sets(cfg, noise: float, spread: float, n: int, seed: int):
@@ -222,20 +229,8 @@ def path_mode(args, cfg) -> int:
     tb.close()
     (out / "fig2.json").write_text(json.dumps({"mode": "path", "noise_rms": noise, "spread": spread,
                                                "n_test": n_test, "rows": rows}, indent=1))
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
-    for ax, param in zip(axes, ("alpha", "p")):
-        for s in stories:
-            r = [x for x in rows if x["story"] == s + 1 and x["param"] == param]
-            ax.plot([x["n"] for x in r], [x["accuracy"] for x in r], "o-", label=f"story {s + 1}")
-        ax.axhline(0.94, color="k", lw=0.8, ls=":", label="paper: 94 %")
-        ax.set_title(f"{param} (coarse bins)")
-        ax.set_xlabel("training samples")
-        ax.grid(alpha=0.3)
-    axes[0].set_ylabel("test accuracy")
-    axes[1].legend(fontsize=7)
-    fig.suptitle(f"Path-driven training: accuracy vs samples (noise {noise:.0%}, spread {spread:.0%})")
-    save_figure(fig, out / "fig2.png")
-    print(f"wrote {out}/fig2.png, fig2.json, tensorboard/")
+    plot(rows, stories, [("accuracy", "o-", "")],
+         f"Path-driven training: accuracy vs samples (noise {noise:.0%}, spread {spread:.0%})", out)
     return 0
 
 

@@ -52,6 +52,9 @@ class TrainingConfig:
         the current estimate's replayed drift below, :mod:`hlaid.identify.drift`) or ``"hla"``
     crossover_hz : the corner of the complementary filters of ``path: replay`` [Hz]
     substeps : RK4 sub-steps per sample of the path-driven story law
+    coarse_factor : in the coarse pass (whose dy and delta_eta come from regressions with a
+        guessed alpha and p) dy and delta_eta are drawn log-uniformly within this factor of
+        their estimates, not within ``spread``
     reanalyse : along a reconstructed path, HLA's half cycles, ke and k0 are analysed again
         (against the low-passed force) before the regressions and the features
     samples : samples per story and pass (the paper: 1500; with ``mode: simulate`` half cycles)
@@ -72,6 +75,7 @@ class TrainingConfig:
     crossover_hz: float = 1.0
     reanalyse: bool = True
     substeps: int = 2
+    coarse_factor: float = 3.0
     samples: int = 1200
     n_segments: int = 10
     spread: float = 0.2
@@ -97,6 +101,8 @@ class TrainingConfig:
             raise InputError(f"noise_rms = {self.noise_rms}; expected a fraction such as 0.10, or null")
         if self.seed < 0:
             raise InputError(f"seed = {self.seed}; expected an integer >= 0")
+        if not self.coarse_factor >= 1:
+            raise InputError(f"training.coarse_factor = {self.coarse_factor}; expected a factor >= 1")
         if not 1 <= self.substeps <= 64:
             raise InputError(f"training.substeps = {self.substeps}; expected 1..64")
         if not self.crossover_hz > 0:
@@ -194,7 +200,7 @@ class RefineConfig:
     damping: bool = False
     band_hz: tuple[float, float] = (0.1, 20.0)
     max_iterations: int = 40
-    upper_factor: float | None = 4.0
+    upper_factor: float | None = 10.0
 
     def __post_init__(self):
         if self.upper_factor is not None and not self.upper_factor > 1:

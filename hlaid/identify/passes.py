@@ -134,7 +134,8 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
         S = path_training_set(sp, k0=float(estimate.k0[i]), dy=float(estimate.dy[i]),
                               delta_eta=float(estimate.delta_eta[i]), alpha_range=bins[i][0].range,
                               p_range=bins[i][1].range, n_samples=tc.samples, spread=tc.spread,
-                              seed=seed + 7919 * i, substeps=tc.substeps)
+                              seed=seed + 7919 * i, substeps=tc.substeps,
+                              wide=tc.coarse_factor if stage == "coarse" else None)
         t_sim += time.perf_counter() - t
         sets.append(S)
         for param, b in zip(PARAMS, bins[i]):

@@ -125,11 +125,14 @@ def _noise_features(sp: StoryPath, op, n: int, rng: np.random.Generator, bank: i
 
 
 def path_training_set(sp: StoryPath, *, k0: float, dy: float, delta_eta: float, alpha_range, p_range,
-                      n_samples: int, spread: float, seed: int, substeps: int = 4) -> TrainingSet:
+                      n_samples: int, spread: float, seed: int, substeps: int = 4,
+                      wide: float | None = None) -> TrainingSet:
     """``n_samples`` simulated feature vectors of one story along its path.
 
     alpha and p are drawn uniformly from their ranges (the class targets); k0, dy and
-    delta_eta uniformly within ``+-spread`` (relative) of the given estimates.
+    delta_eta uniformly within ``+-spread`` (relative) of the given estimates, or, with
+    ``wide``, dy and delta_eta log-uniformly within a factor ``wide`` of them (a first pass,
+    whose estimates of dy and delta_eta are still rough).
     """
     rng = np.random.default_rng(seed)
     a = rng.uniform(alpha_range[0], alpha_range[1], n_samples)
@@ -138,8 +141,13 @@ def path_training_set(sp: StoryPath, *, k0: float, dy: float, delta_eta: float, 
     def jitter(v):
         return v * rng.uniform(1.0 - spread, 1.0 + spread, n_samples)
 
+    def draw(v):
+        if wide is None:
+            return jitter(v)
+        return max(v, 1e-3) * np.exp(rng.uniform(-np.log(wide), np.log(wide), n_samples))
+
     x = sp.drift[: sp.end]
-    resp = drive_story(x, k0=jitter(k0), alpha=a, p=p, dy=jitter(dy), delta_eta=jitter(delta_eta), mass=sp.mass,
+    resp = drive_story(x, k0=jitter(k0), alpha=a, p=p, dy=draw(dy), delta_eta=draw(max(delta_eta, 0.1)), mass=sp.mass,
                        dt=sp.dt, substeps=substeps)
     op = sp.operator()
     X = story_features(op, resp.force.T, sp.k0) + _noise_features(sp, op, n_samples, rng)

@@ -32,7 +32,7 @@ from .cache import MachineCache, default_cache_dir
 from .classify import Bins, pass_result, vote
 from .config import IdentifyConfig
 from .refine import refine_replay
-from .regression import story_delta_eta, story_yield_displacement
+from .regression import plausible_limits, story_delta_eta, story_yield_displacement
 from .replaycheck import ReplayCheck, replay_check
 from .tb import TBLogger
 from .drift import hla_drift, reconstruct_drift
@@ -156,6 +156,9 @@ class _Identifier:
                 coarse = self._pass(est, "coarse", it, None)
                 centre = (np.array([c["alpha"].value if c else a for c, a in zip(coarse, alpha)]),
                           np.array([c["p"].value if c else q for c, q in zip(coarse, p)]))
+                if self.path_mode:  # the fine pass is centred on the regressions with the coarse alpha, p
+                    de, dy, reg = self._regressions(*centre)
+                    est = self._building(centre[0], centre[1], dy, de)
             else:
                 centre = (alpha, p)
             fine = self._pass(est, "fine", it, centre)
@@ -243,6 +246,9 @@ class _Identifier:
             de[i] = max(fd.value, 0.0) if np.isfinite(fd.value) else 0.0
             dy[i] = fy.value if np.isfinite(fy.value) and fy.value > 0 else np.max(np.abs(s.drift)) / 3.0
             info.append({"delta_eta": vars(fd), "dy": vars(fy)})
+            if self.path_mode:  # keep a regression on a poor alpha from running away
+                de_max, dy_max = plausible_limits(s, mass=self.res.mass[i], alpha=alpha[i], k0=self.k0[i])
+                de[i], dy[i] = min(de[i], de_max), min(dy[i], dy_max)
         ok = self.identifiable
         for i, s in enumerate(self.res.stories):
             if not ok[i]:  # an elastic story: borrow from the identified ones, dy above what it reached

@@ -52,7 +52,7 @@ def _filt(x: np.ndarray, dt: float, band, axis: int) -> np.ndarray:
 
 def refine_replay(building: Building, measurement: Measurement, *, parameters=("k0", "alpha", "p", "dy", "delta_eta"),
                   stories=None, damping: bool = False, band_hz=(0.1, 20.0), max_iterations: int = 40,
-                  substeps: int = 4, upper_factor: float | None = 4.0) -> RefineResult:
+                  substeps: int = 4, upper_factor: float | None = 10.0) -> RefineResult:
     """Refine ``building`` so that its replay matches ``measurement``'s floor accelerations.
 
     Parameters

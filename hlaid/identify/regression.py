@@ -123,3 +123,21 @@ def story_yield_displacement(story, features, *, alpha: float, p: float, k0: flo
             k_pts.append(features.slopes[row, q])
             z_pts.append(abs(zm))
     return fit_yield_displacement(np.array(ke_pts), np.array(k_pts), np.array(z_pts), k0=k0, alpha=alpha, p=p)
+
+
+ETA_MAX = 20.0
+"""Largest degradation ``eta`` a plausible estimate may reach on the record (the hysteretic
+stiffness down to 5 % of its initial value), see :func:`plausible_limits`."""
+
+
+def plausible_limits(story, *, mass: float, alpha: float, k0: float) -> tuple[float, float]:
+    """Upper limits ``(delta_eta_max, dy_max)`` for one story's regressions: ``eta`` stays
+    below :data:`ETA_MAX` over the largest hysteretic work the story reached, and a story
+    that yielded has ``dy`` below its peak drift. A regression whose ``ke`` lies close to
+    ``alpha k0`` (alpha over-estimated) would otherwise return a delta_eta thousands of times
+    too large."""
+    z = hysteretic_displacement(story.force, story.drift, alpha, k0)
+    u = float(np.max(np.abs(hysteretic_work(z, story.drift)))) * ENERGY_SCALE
+    eps = (1.0 - alpha) * (k0 / mass) * u
+    de_max = (ETA_MAX - 1.0) / eps if eps > 0 else np.inf
+    return de_max, float(np.max(np.abs(story.drift)))
