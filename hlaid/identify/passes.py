@@ -121,6 +121,9 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
     if hit is not None:
         machines, meta = hit
         _progress.info(f"[identify] {stage} pass: classifiers from the cache")
+        for name, st in meta["stats"].items():  # later passes reuse the same C as in a cold run
+            if "C" in st:
+                chosen_C.setdefault(name, st["C"])
         return TrainedPass(machines, meta["stats"], True, 0.0, None)
     _progress.info(f"[identify] {stage} pass: path-driven training sets and {2 * int(np.sum(identifiable))} "
                    "kernel machines")
