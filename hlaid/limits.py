@@ -15,6 +15,8 @@ variable                   default     what it limits
                                        ``max_hunt``, ``max_fill``
 ``HLAID_MAX_IDA_RECORDS``  1000        ground motion records of one IDA
 ``HLAID_MAX_BOOTSTRAP``    100000      bootstrap resamples of a fragility interval
+``HLAID_MAX_TRAINING``     20000       training samples per story and classifier pass
+                                       (``training.samples``, ``training.max_simulations``)
 =========================  ==========  =========================================================
 
 A value over its limit is an :class:`~hlaid.errors.InputError` (one line naming the value,
@@ -39,6 +41,7 @@ DEFAULTS: dict[str, float] = {
     "IDA_LEVELS": 1000,
     "IDA_RECORDS": 1000,
     "BOOTSTRAP": 100_000,
+    "TRAINING": 20_000,
 }
 """Default limits by name; ``HLAID_MAX_<NAME>`` overrides each."""
 

@@ -141,7 +141,7 @@ def path_sets(cfg, noise: float, spread: float, n: int, seed: int):
     path reconstructed from a simulated measurement of it; ``(sets, bins)``."""
     from hlaid.hla import hla
     from hlaid.identify.drift import reconstruct_drift
-    from hlaid.identify.pathtrain import StoryPath, path_training_set
+    from hlaid.identify.pathtrain import path_training_set, story_paths
     from hlaid.hla.features import half_cycle_features
     from hlaid.synthetic import simulate_measurement
 
@@ -151,17 +151,14 @@ def path_sets(cfg, noise: float, spread: float, n: int, seed: int):
     res = hla(meas, cfg.identify.hla)
     ground = GroundMotion(dt=meas.dt, acc=pp.bandpass(np.asarray(meas.ground_acc), meas.dt, (0.0, res.band_hz[1])))
     paths = reconstruct_drift(res, ground, b, crossover_hz=cfg.identify.training.crossover_hz)
-    rms = np.sqrt(np.mean(np.asarray(meas.floor_acc) ** 2, axis=0))
     bins = pass_bins(b, cfg.alpha_max, cfg.identify, "coarse")
+    tc = cfg.identify.training
+    stories = [dataclasses.replace(s, drift=paths[:, i], force_fit=s.force) for i, s in enumerate(res.stories)]
+    sps = story_paths(stories, [half_cycle_features(s, tc.n_segments) for s in stories], mass=b.mass, k0=b.k0,
+                      floor_acc=meas.floor_acc, noise_rms=noise, dt=meas.dt, cutoff_hz=res.band_hz[1],
+                      n_segments=tc.n_segments)
     sets = []
-    for i, s in enumerate(res.stories):
-        st = dataclasses.replace(s, drift=paths[:, i], force_fit=s.force)
-        F = half_cycle_features(st, cfg.identify.training.n_segments)
-        sp = StoryPath(drift=paths[:, i], force=s.force, bounds=np.stack([s.half_cycles.start[F.index],
-                                                                          s.half_cycles.end[F.index]], axis=1),
-                       k0=float(b.k0[i]), mass=float(b.mass[i]),
-                       noise_std=noise * float(np.sqrt(np.sum((b.mass[i:] * rms[i:]) ** 2))), dt=meas.dt,
-                       cutoff_hz=res.band_hz[1], n_segments=cfg.identify.training.n_segments)
+    for i, sp in enumerate(sps):
         sets.append(path_training_set(sp, k0=float(b.k0[i]), dy=float(b.dy[i]), delta_eta=float(b.delta_eta[i]),
                                       alpha_range=bins[i][0].range, p_range=bins[i][1].range, n_samples=n,
                                       spread=spread, seed=cfg.identify.training.seed + i))

@@ -336,3 +336,20 @@ def test_cache_entry_failing_its_check_is_reported_and_retrained(tmp_path, machi
     assert err[0].endswith("; retraining")
     c.store("k1", {"a": machine}, {"stats": {}})  # the retrained machines replace the entry
     assert c.load("k1") is not None
+
+
+@pytest.mark.parametrize("block, message", [
+    ({"training": {"samples": 100_000_000}}, "HLAID_MAX_TRAINING"),
+    ({"training": {"max_simulations": 100_000_000}}, "HLAID_MAX_TRAINING"),
+    ({"training": {"crossover_hz": 1000.0}}, "crossover_hz"),
+    ({"training": {"coarse_factor": 1e300}}, "coarse_factor"),
+    ({"svm": {"n_bags": 10_000}}, "n_bags"),
+])
+def test_identify_training_sizes_are_bounded(block, message):
+    """Path-driven training allocates samples x time per story: its sizes are checked on load."""
+    from hlaid.config import config_from_dict
+    from hlaid.errors import InputError
+    from hlaid.identify import IdentifyConfig
+
+    with pytest.raises(InputError, match=message):
+        config_from_dict(IdentifyConfig, block)

@@ -4,6 +4,8 @@ and simulated data, the drift reconstruction and the force-drift loop fit."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from conftest import paper_record, random_building, window
@@ -98,11 +100,11 @@ def test_measured_and_simulated_features_through_one_function(table1):
     assert S.X.shape == (2, 80)
     assert np.max(np.abs(S.X[0] - measured)) < 5e-3 * np.max(np.abs(measured))
     # the noise enters with the covariance of the low-passed force noise
-    noisy = StoryPath(**{**sp.__dict__, "noise_std": 1e3})
+    noisy = dataclasses.replace(sp, noise_std=1e3)
     Sn = path_training_set(noisy, k0=table1.k0[i], dy=table1.dy[i], delta_eta=table1.delta_eta[i],
                            alpha_range=(table1.alpha[i],) * 2, p_range=(table1.p[i],) * 2, n_samples=400,
                            spread=0.0, seed=1)
-    direct = story_features(sp.operator(), pp.bandpass(np.random.default_rng(2).standard_normal((sp.end, 400)) * 1e3,
+    direct = story_features(sp.operator, pp.bandpass(np.random.default_rng(2).standard_normal((sp.end, 400)) * 1e3,
                                                        sp.dt, (0.0, 20.0)), sp.k0)
     sd_model, sd_direct = (Sn.X - S.X[0]).std(axis=0), direct.std(axis=0)
     assert np.median(np.abs(sd_model / sd_direct - 1)) < 0.15

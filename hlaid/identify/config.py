@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from ..errors import InputError
+from ..limits import check_count
 from ..hla import HLAConfig
 
 
@@ -50,11 +51,11 @@ class TrainingConfig:
         version, kept for comparison)
     path : drift path of ``mode: path``: ``"replay"`` (HLA's drift above ``crossover_hz``,
         the current estimate's replayed drift below, :mod:`hlaid.identify.drift`) or ``"hla"``
-    crossover_hz : the corner of the complementary filters of ``path: replay`` [Hz]
+    crossover_hz : the corner of the complementary filters of ``path: replay`` [Hz], at most 10
     substeps : RK4 sub-steps per sample of the path-driven story law
     coarse_factor : in the coarse pass (whose dy and delta_eta come from regressions with a
-        guessed alpha and p) dy and delta_eta are drawn log-uniformly within this factor of
-        their estimates, not within ``spread``
+        guessed alpha and p) dy and delta_eta are drawn log-uniformly within this factor (1..100)
+        of their estimates, not within ``spread``
     reanalyse : along a reconstructed path, HLA's half cycles, ke and k0 are analysed again
         (against the low-passed force) before the regressions and the features
     samples : samples per story and pass (the paper: 1500; with ``mode: simulate`` half cycles)
@@ -87,6 +88,8 @@ class TrainingConfig:
     seed: int = 0
 
     def __post_init__(self):
+        check_count(self.samples, "TRAINING", "training.samples")
+        check_count(self.max_simulations, "TRAINING", "training.max_simulations")
         if self.samples < 20 or self.n_segments < 3:
             raise InputError("training.samples must be >= 20 and training.n_segments >= 3")
         if not 0 <= self.spread < 1 or not 0 < self.test_fraction < 1:
@@ -101,12 +104,13 @@ class TrainingConfig:
             raise InputError(f"noise_rms = {self.noise_rms}; expected a fraction such as 0.10, or null")
         if self.seed < 0:
             raise InputError(f"seed = {self.seed}; expected an integer >= 0")
-        if not self.coarse_factor >= 1:
-            raise InputError(f"training.coarse_factor = {self.coarse_factor}; expected a factor >= 1")
+        if not 1 <= self.coarse_factor <= 100:
+            raise InputError(f"training.coarse_factor = {self.coarse_factor}; expected a factor in 1..100")
         if not 1 <= self.substeps <= 64:
             raise InputError(f"training.substeps = {self.substeps}; expected 1..64")
-        if not self.crossover_hz > 0:
-            raise InputError(f"training.crossover_hz = {self.crossover_hz}; expected a positive frequency [Hz]")
+        if not 0 < self.crossover_hz <= 10:
+            raise InputError(f"training.crossover_hz = {self.crossover_hz}; expected a frequency in (0, 10] Hz "
+                             "(below the band that carries the loops' shape)")
 
 
 @dataclass(frozen=True, kw_only=True)

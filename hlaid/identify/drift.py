@@ -19,17 +19,15 @@ Measured figures: ``scripts/study_drift.py`` and docs/identification.md.
 from __future__ import annotations
 
 import numpy as np
-from scipy import signal
 
+from ..errors import InputError
 from ..hla import HLAResult
+from ..hla.preprocess import highpass
 from ..model import Building
 from ..motions import GroundMotion
 from ..simulate import simulate
 
-__all__ = ["PATHS", "hla_drift", "reconstruct_drift"]
-
-PATHS = ("hla", "replay")
-"""Drift-path methods: HLA's drift as it is, or the complementary reconstruction."""
+__all__ = ["hla_drift", "reconstruct_drift"]
 
 
 def hla_drift(res: HLAResult) -> np.ndarray:
@@ -48,6 +46,9 @@ def reconstruct_drift(res: HLAResult, ground: GroundMotion, building: Building |
     building : the current estimate; None (or a replay that diverges): HLA's drift
     crossover_hz : the complementary filters' corner [Hz]
     """
+    if not 0 < crossover_hz < 0.45 / res.dt:
+        raise InputError(f"crossover_hz = {crossover_hz:g} Hz; expected a frequency below 0.45 x the sampling rate "
+                         f"({0.45 / res.dt:g} Hz)", source=res.source)
     x = hla_drift(res)
     if building is None:
         return x
@@ -55,6 +56,4 @@ def reconstruct_drift(res: HLAResult, ground: GroundMotion, building: Building |
     if r.status[0] != 0:
         return x
     xm = r.drift[0][: x.shape[0]]
-    nyq = 0.5 / res.dt
-    sos = signal.butter(order, min(crossover_hz / nyq, 0.95), btype="highpass", output="sos")
-    return signal.sosfiltfilt(sos, x - xm, axis=0) + xm
+    return highpass(x - xm, res.dt, (crossover_hz, np.inf), order) + xm

@@ -19,6 +19,7 @@ story with their masses (eq 1-2), low-passed like the force.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sps
@@ -28,7 +29,7 @@ from ..hla.preprocess import bandpass
 from ..simulate.path import drive_story
 from .training import TrainingSet
 
-__all__ = ["StoryPath", "segment_operator", "story_features", "path_training_set"]
+__all__ = ["StoryPath", "story_paths", "segment_operator", "story_features", "path_training_set"]
 
 
 def segment_operator(drift: np.ndarray, bounds: np.ndarray, n_segments: int) -> sps.csr_matrix:
@@ -102,12 +103,41 @@ class StoryPath:
         """One past the last sample any feature uses: the path is driven up to here."""
         return int(np.max(self.bounds[:, 1])) + 2 if len(self.bounds) else 0
 
+    @cached_property
     def operator(self) -> sps.csr_matrix:
+        """The segment operator ``W`` of this path (built once)."""
         return segment_operator(self.drift[: self.end], self.bounds, self.n_segments)
 
     def measured_features(self) -> np.ndarray:
         """``(feature,)`` features of the measured force."""
-        return story_features(self.operator(), self.force[: self.end], self.k0)
+        return story_features(self.operator, self.force[: self.end], self.k0)
+
+
+def story_paths(stories, selected, *, mass: np.ndarray, k0: np.ndarray, floor_acc: np.ndarray, noise_rms: float,
+                dt: float, cutoff_hz: float, n_segments: int, identifiable: np.ndarray | None = None) -> list:
+    """The :class:`StoryPath` of every story (None where not ``identifiable``).
+
+    Parameters
+    ----------
+    stories : per story a :class:`~hlaid.hla.StoryHLA` whose ``drift`` is the path
+    selected : per story the yielding half cycles (:class:`~hlaid.hla.features.HalfCycleFeatures`)
+    mass, k0 : (story,) floor masses [t] and initial stiffness estimates [N/mm]
+    floor_acc : (time, floor) the measured floor accelerations: the story force noise is
+        ``noise_rms`` x each floor's RMS, summed over the floors above with their masses (eq 1-2)
+    """
+    acc = np.asarray(floor_acc)
+    rms = np.sqrt(np.mean((acc - acc.mean(axis=0)) ** 2, axis=0))
+    out = []
+    for i, (s, F) in enumerate(zip(stories, selected)):
+        if identifiable is not None and not identifiable[i]:
+            out.append(None)
+            continue
+        hc = s.half_cycles
+        out.append(StoryPath(drift=s.drift, force=s.force, bounds=np.stack([hc.start[F.index], hc.end[F.index]], axis=1),
+                             k0=float(k0[i]), mass=float(mass[i]),
+                             noise_std=noise_rms * float(np.sqrt(np.sum((mass[i:] * rms[i:]) ** 2))), dt=dt,
+                             cutoff_hz=cutoff_hz, n_segments=n_segments))
+    return out
 
 
 def _noise_features(sp: StoryPath, op, n: int, rng: np.random.Generator, bank: int = 256) -> np.ndarray:
@@ -149,7 +179,7 @@ def path_training_set(sp: StoryPath, *, k0: float, dy: float, delta_eta: float, 
     x = sp.drift[: sp.end]
     resp = drive_story(x, k0=jitter(k0), alpha=a, p=p, dy=draw(dy), delta_eta=draw(max(delta_eta, 0.1)), mass=sp.mass,
                        dt=sp.dt, substeps=substeps)
-    op = sp.operator()
+    op = sp.operator
     X = story_features(op, resp.force.T, sp.k0) + _noise_features(sp, op, n_samples, rng)
     return TrainingSet(X=X, alpha=a, p=p, sim=np.arange(n_samples))
 

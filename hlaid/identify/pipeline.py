@@ -35,10 +35,10 @@ from .refine import refine_replay
 from .regression import plausible_limits, story_delta_eta, story_yield_displacement
 from .replaycheck import ReplayCheck, replay_check
 from .tb import TBLogger
-from .drift import hla_drift, reconstruct_drift
+from .drift import reconstruct_drift
 from .loopfit import fit_story_loop
 from .passes import PARAMS, machines_of, path_pass, train_pass
-from .pathtrain import StoryPath
+from .pathtrain import story_paths
 from .training import strong_motion_window
 
 
@@ -121,7 +121,6 @@ class _Identifier:
         self.features = [half_cycle_features(s, nseg, yield_ratio=cfg.hla.stiffness.yield_ratio, with_ke=True)
                          for s in res.stories]
         self.path_mode = cfg.training.mode == "path"
-        self.paths = hla_drift(res)
         self.stories = list(res.stories)  # the stories the regressions see (drift = the path)
         self._path_features: dict = {}  # story -> its yielding half cycles along the path
         self.chosen_C: dict = {}  # machine -> C cross-validated in this run's first pass
@@ -258,7 +257,6 @@ class _Identifier:
 
     def _set_paths(self, paths: np.ndarray) -> None:
         """Use ``paths`` ``(time, story)`` as the stories' drift in the regressions and features."""
-        self.paths = paths
         res, cfg = self.res, self.cfg
         self._path_features = {}
         for i, s in enumerate(res.stories):
@@ -293,22 +291,11 @@ class _Identifier:
 
     def _story_paths(self) -> list:
         """Per story the :class:`StoryPath` of the path-driven training (None if not identifiable)."""
-        meas, res = self.meas, self.res
-        acc = np.asarray(meas.floor_acc)
-        rms = np.sqrt(np.mean((acc - acc.mean(axis=0)) ** 2, axis=0))
-        out = []
-        for i, s in enumerate(self.stories):
-            if not self.identifiable[i]:
-                out.append(None)
-                continue
-            noise_std = self.noise * float(np.sqrt(np.sum((res.mass[i:] * rms[i:]) ** 2)))
-            hc = s.half_cycles
-            idx = self._features(i).index
-            bounds = np.stack([hc.start[idx], hc.end[idx]], axis=1)
-            out.append(StoryPath(drift=s.drift, force=s.force, bounds=bounds, k0=float(self.k0[i]),
-                                 mass=float(res.mass[i]), noise_std=noise_std, dt=res.dt, cutoff_hz=res.band_hz[1],
-                                 n_segments=self.cfg.training.n_segments))
-        return out
+        res = self.res
+        return story_paths(self.stories, [self._features(i) for i in range(res.n_stories)], mass=res.mass,
+                           k0=self.k0, floor_acc=self.meas.floor_acc, noise_rms=self.noise, dt=res.dt,
+                           cutoff_hz=res.band_hz[1], n_segments=self.cfg.training.n_segments,
+                           identifiable=self.identifiable)
 
     def _ranges(self, stage: str, centre):
         """Per-story (alpha Bins, p Bins) of a pass: the coarse bins, or fine bins over the
