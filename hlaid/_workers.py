@@ -17,10 +17,18 @@ _MASK = hasattr(signal, "pthread_sigmask")  # POSIX only
 
 
 def _ignore_sigint() -> None:
-    """Pool initializer: SIGINT is the parent's business."""
+    """Pool initializer: SIGINT is the parent's business; one torch thread per worker.
+
+    The workers are one per core, so a second intra-op thread each would only oversubscribe;
+    and a forked child must not enter an OpenMP parallel region of the parent's thread pool
+    (libgomp is not fork-safe: the first large tensor copy in the worker hung for ever).
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if _MASK:
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    import torch
+
+    torch.set_num_threads(1)
 
 
 def process_pool(n_jobs: int) -> multiprocessing.pool.Pool:

@@ -52,7 +52,8 @@ class TrainingConfig:
     path : drift path of ``mode: path``: ``"replay"`` (HLA's drift above ``crossover_hz``,
         the current estimate's replayed drift below, :mod:`hlaid.identify.drift`) or ``"hla"``
     crossover_hz : the corner of the complementary filters of ``path: replay`` [Hz], at most 10
-    substeps : RK4 sub-steps per sample of the path-driven story law
+    substeps : RK4 sub-steps per sample of the path-driven story law (one: 1e-5 of the force RMS
+        from the converged value on Table 1, far below the sensor noise; docs/identification.md)
     coarse_factor : in the coarse pass (whose dy and delta_eta come from regressions with a
         guessed alpha and p) dy and delta_eta are drawn log-uniformly within this factor (1..100)
         of their estimates, not within ``spread``
@@ -75,7 +76,7 @@ class TrainingConfig:
     path: Literal["replay", "hla"] = "replay"
     crossover_hz: float = 1.0
     reanalyse: bool = True
-    substeps: int = 2
+    substeps: int = 1
     coarse_factor: float = 3.0
     samples: int = 1200
     n_segments: int = 10
@@ -197,6 +198,10 @@ class RefineConfig:
     damping : also refine the Rayleigh damping ratio.
     band_hz : band of the compared accelerations [Hz].
     max_iterations : Levenberg-Marquardt iterations.
+    ftol : the search stops when a step lowers the cost by less than this fraction of it
+        (the k0 stage, which the joint stage refines again, at 100x this)
+    substeps : RK4 sub-steps per sample of the replays (two: 2e-4 of the accelerations' RMS
+        from the converged value on Table 1, far below the sensor noise)
     """
 
     method: Literal["replay", "none"] = "replay"
@@ -205,8 +210,14 @@ class RefineConfig:
     band_hz: tuple[float, float] = (0.1, 20.0)
     max_iterations: int = 40
     upper_factor: float | None = 10.0
+    ftol: float = 1e-6
+    substeps: int = 2
 
     def __post_init__(self):
+        if not 0 < self.ftol < 1:
+            raise InputError(f"refine.ftol = {self.ftol}; expected a fraction in (0, 1), e.g. 1e-6")
+        if not 1 <= self.substeps <= 64:
+            raise InputError(f"refine.substeps = {self.substeps}; expected 1..64")
         if self.upper_factor is not None and not self.upper_factor > 1:
             raise InputError(f"refine.upper_factor = {self.upper_factor}; expected a factor > 1 (or null)")
         bad = set(self.parameters) - {"k0", "alpha", "p", "dy", "delta_eta"}
@@ -230,7 +241,8 @@ class IdentifyConfig:
         mean of the bin centres) or ``"majority"`` (the paper's most voted bin)
     damping_ratio : Rayleigh damping of the clone (modes 1 and 2), as assumed by HLA
     cache_dir : where trained classifiers are cached (null: ``~/.cache/hlaid/svm``)
-    n_jobs : worker processes for the training simulations' HLA
+    n_jobs : worker processes: the kernel machines of the path-driven passes train on them while
+        the next story's samples are drawn (mode path); the training simulations' HLA (mode simulate)
     """
 
     hla: HLAConfig = field(default_factory=HLAConfig)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _progress
+from .._workers import process_pool
 from ..config import config_to_dict
 from ..model import Building
 from ..motions import GroundMotion
@@ -129,22 +130,31 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
                    "kernel machines")
     machines, stats, sets = {}, {}, []
     t_sim = 0.0
-    for i, sp in _progress.progress(list(enumerate(paths)), desc=f"[identify] {stage} pass, stories"):
-        if not identifiable[i] or sp is None:
-            sets.append(None)
-            continue
-        t = time.perf_counter()
-        S = path_training_set(sp, k0=float(estimate.k0[i]), dy=float(estimate.dy[i]),
-                              delta_eta=float(estimate.delta_eta[i]), alpha_range=bins[i][0].range,
-                              p_range=bins[i][1].range, n_samples=tc.samples, spread=tc.spread,
-                              seed=seed + 7919 * i, substeps=tc.substeps,
-                              wide=tc.coarse_factor if stage == "coarse" else None)
-        t_sim += time.perf_counter() - t
-        sets.append(S)
-        for param, b in zip(PARAMS, bins[i]):
+    # the story law runs here (compiled, both cores); the machines of a story train on the worker
+    # processes while the next story's samples are drawn: the two kinds of work overlap
+    pool = process_pool(cfg.n_jobs) if cfg.n_jobs > 1 and int(np.sum(identifiable)) > 0 else None
+    jobs = []
+    try:
+        for i, sp in _progress.progress(list(enumerate(paths)), desc=f"[identify] {stage} pass, stories"):
+            if not identifiable[i] or sp is None:
+                sets.append(None)
+                continue
+            t = time.perf_counter()
+            S = path_training_set(sp, k0=float(estimate.k0[i]), dy=float(estimate.dy[i]),
+                                  delta_eta=float(estimate.delta_eta[i]), alpha_range=bins[i][0].range,
+                                  p_range=bins[i][1].range, n_samples=tc.samples, spread=tc.spread,
+                                  seed=seed + 7919 * i, substeps=tc.substeps,
+                                  wide=tc.coarse_factor if stage == "coarse" else None)
+            t_sim += time.perf_counter() - t
+            sets.append(S)
+            for param, b in zip(PARAMS, bins[i]):
+                name = f"story{i + 1}_{param}"
+                svm = cfg.svm if name not in chosen_C else dataclasses.replace(cfg.svm, C=chosen_C[name], C_grid=None)
+                args = (S, param, b, svm, tc.test_fraction, seed + 31 * i + len(param))
+                jobs.append((i, param, b, S, pool.apply_async(_fit_ensemble, (args,)) if pool else _fit_ensemble(args)))
+        for i, param, b, S, job in jobs:
+            ms, st = job.get() if pool else job
             name = f"story{i + 1}_{param}"
-            svm = cfg.svm if name not in chosen_C else dataclasses.replace(cfg.svm, C=chosen_C[name], C_grid=None)
-            ms, st = fit_ensemble(S, param, b, svm, tc.test_fraction, seed=seed + 31 * i + len(param))
             for k, m in enumerate(ms or []):
                 machines[f"{name}#{k}"] = m
             if "C" in st:
@@ -152,10 +162,23 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
             stats[name] = _jsonable(st)
             _log_machine(tb, stage, i, param, st, S, b, step)
             _progress.debug(f"  story {i + 1} {param}: test accuracy {st['test_accuracy']:.3f} (C {st.get('C')})")
+    except BaseException:  # Ctrl-C or an error: stop the workers now rather than wait for their tasks
+        if pool:
+            pool.terminate()
+        raise
+    finally:
+        if pool:
+            pool.close()
+            pool.join()
     if tb is not None:
         tb.scalar(f"{stage}/simulate_seconds", t_sim, step)
     cache.store(key, machines, {"stats": stats})
     return TrainedPass(machines, stats, False, t_sim, sets)
+
+
+def _fit_ensemble(args):
+    """Worker: one story's ensemble for one parameter (:func:`fit_ensemble`)."""
+    return fit_ensemble(*args[:5], seed=args[5])
 
 
 def _jsonable(st: dict) -> dict:

@@ -208,19 +208,19 @@ class _Identifier:
         _progress.info("[identify] replay refinement against the measured accelerations")
         t = time.perf_counter()
         ident = [i for i in range(self.res.n_stories) if self.identifiable[i]]
-        common = {"damping": False, "band_hz": cfg.refine.band_hz, "max_iterations": cfg.refine.max_iterations,
-                  "upper_factor": cfg.refine.upper_factor}
+        rc = cfg.refine
+        common = {"band_hz": rc.band_hz, "max_iterations": rc.max_iterations, "upper_factor": rc.upper_factor,
+                  "substeps": rc.substeps}
         info = {}
         start = paper
-        if "k0" in cfg.refine.parameters:
-            s1 = refine_replay(paper, meas, parameters=("k0",), **common)
+        if "k0" in rc.parameters:
+            s1 = refine_replay(paper, meas, parameters=("k0",), damping=False, ftol=min(100 * rc.ftol, 0.1), **common)
             self.k0 = s1.building.k0.copy()
             de, dy, _ = self._regressions(alpha, p)
             start = self._building(alpha, p, dy, de)
             info["stage1_k0"] = {"cost_initial": s1.cost_initial, "cost_final": s1.cost_final, "nfev": s1.nfev}
-        rr = refine_replay(start, meas, parameters=cfg.refine.parameters, stories=ident, damping=cfg.refine.damping,
-                           band_hz=cfg.refine.band_hz, max_iterations=cfg.refine.max_iterations,
-                           upper_factor=cfg.refine.upper_factor)
+        rr = refine_replay(start, meas, parameters=rc.parameters, stories=ident, damping=rc.damping, ftol=rc.ftol,
+                           **common)
         info.update({"cost_initial": rr.cost_initial, "cost_final": rr.cost_final, "nfev": rr.nfev,
                      "message": rr.message})
         self.timings["refine"] = time.perf_counter() - t

@@ -52,7 +52,7 @@ def _filt(x: np.ndarray, dt: float, band, axis: int) -> np.ndarray:
 
 def refine_replay(building: Building, measurement: Measurement, *, parameters=("k0", "alpha", "p", "dy", "delta_eta"),
                   stories=None, damping: bool = False, band_hz=(0.1, 20.0), max_iterations: int = 40,
-                  substeps: int = 4, upper_factor: float | None = 10.0) -> RefineResult:
+                  substeps: int = 4, upper_factor: float | None = 10.0, ftol: float = 1e-10) -> RefineResult:
     """Refine ``building`` so that its replay matches ``measurement``'s floor accelerations.
 
     Parameters
@@ -66,6 +66,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
     upper_factor : k0, dy and delta_eta are bounded above by this factor times their start
         (delta_eta's start taken as at least 0.5 s^2/m^2), so that a parameter the data
         hardly constrain cannot run away; None: open above
+    ftol : stop when a step lowers the cost by less than this fraction of it
     """
     t0 = time.perf_counter()
     dt = measurement.dt
@@ -102,7 +103,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
                                                           modes=building.damping.modes))
 
     def residuals_of(bs):
-        r = simulate(bs, ground, substeps=substeps)
+        r = simulate(bs, ground, substeps=substeps, outputs="acc")
         acc = _filt(np.nan_to_num(r.acc, nan=0.0), dt, (band_hz[0], hi), 1)
         res = ((acc - target[None]) / scale).reshape(len(bs), -1)
         res[r.status != 0] = 1e3  # a diverged trial is far from the data
@@ -132,7 +133,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         return ((rp - fun(x)[None]) / (xp - x)[:, None]).T
 
     sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi_b), x_scale=xs, method="trf",
-                        max_nfev=max_iterations, xtol=1e-10, ftol=1e-10, gtol=1e-10)
+                        max_nfev=max_iterations, xtol=1e-10, ftol=ftol, gtol=1e-10)
     cost0 = 0.5 * float(np.sum(fun(x0) ** 2))
     return RefineResult(building=make(sol.x), cost_initial=cost0, cost_final=float(sol.cost), nfev=int(sol.nfev),
                         seconds=time.perf_counter() - t0, message=str(sol.message))

@@ -71,7 +71,7 @@ def _absolute_acc(y, n, m, al, k0, kg, C, f, acc):
 
 @nb.njit(cache=True, parallel=True, fastmath=_FASTMATH, error_model="numpy")
 def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, stop_drift,
-              save, states, peak_drift, peak_acc, final, n_done, status):
+              save, states, save_acc, acc_hist, peak_drift, peak_acc, final, n_done, status):
     """Integrate every batch element; results are written into the output arrays.
 
     Parameters
@@ -85,6 +85,8 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
     y0 : (batch, 4*story) initial states
     stop_drift : (batch, story) |drift| [mm] at which an element stops (inf: never)
     save : write the state at every sample into ``states`` (batch, time, 4*story)
+    save_acc : write the absolute floor acceleration at every sample into ``acc_hist``
+        (batch, time, story), NaN after the element's end (the replay's only output)
     peak_drift, peak_acc : (batch, story) outputs; final : (batch, 4*story) last state
     n_done : (batch,) samples integrated; status : (batch,) 0 ok, 1 drift limit, 2 diverged
     """
@@ -109,6 +111,9 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
         if save:
             states[b, 0, :] = y
         _absolute_acc(y, n, mb, alb, k0b, kgb, Cb, f, acc)
+        if save_acc:
+            for i in range(n):
+                acc_hist[b, 0, i] = acc[i]
         for i in range(n):
             peak_acc[b, i] = abs(acc[i])
             peak_drift[b, i] = abs(y[i] - (y[i - 1] if i > 0 else 0.0))
@@ -154,6 +159,9 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
             if save:
                 states[b, k, :] = y
             _absolute_acc(y, n, mb, alb, k0b, kgb, Cb, f, acc)
+            if save_acc:
+                for i in range(n):
+                    acc_hist[b, k, i] = acc[i]
             finite = True
             for j in range(S):
                 if not np.isfinite(y[j]):
@@ -175,6 +183,10 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
             for kk in range(k + 1, states.shape[1]):
                 for j in range(S):
                     states[b, kk, j] = np.nan
+        if save_acc:
+            for kk in range(k + 1, acc_hist.shape[1]):
+                for i in range(n):
+                    acc_hist[b, kk, i] = np.nan
         final[b, :] = y
         n_done[b] = k + 1
         status[b] = st

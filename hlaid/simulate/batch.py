@@ -10,6 +10,7 @@ numba and runs batch elements in parallel; the ``"torch"`` backend steps the
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,6 +20,9 @@ from ..errors import InputError
 from ..model import BoucWenBuilding, Building, BuildingTensors
 from ..motions import GroundMotion
 from . import _kernel
+
+OUTPUTS = ("full", "acc", "peaks")
+"""What :func:`simulate` keeps: every history, the floor accelerations only, or the peaks."""
 
 HISTORY_FIELDS = ("disp", "vel", "acc", "drift", "force", "z", "eta", "energy")
 """Response histories of a full simulation, each ``(batch, time, story)``."""
@@ -129,21 +133,23 @@ def _stop_array(stop_drift, bi, n, nb) -> np.ndarray:
     return np.ascontiguousarray(s[bi])
 
 
-def _run_numba(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, save):
+def _run_numba(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, outputs):
     B, n = bi.size, P["mass"].shape[1]
     T = int(nt.max())
+    save, save_acc = outputs == "full", outputs == "acc"
     states = np.empty((B, T, 4 * n) if save else (0, 0, 0))
+    acc = np.empty((B, T, n) if save_acc else (0, 0, 0))
     peak_drift, peak_acc = np.zeros((B, n)), np.zeros((B, n))
     final = np.zeros((B, 4 * n))
     n_done = np.zeros(B, dtype=np.int64)
     status = np.zeros(B, dtype=np.int64)
     _kernel.integrate(ag, dt, nt, mi, bi, sc, int(nsub), P["mass"], P["k0"], P["alpha"], P["p"], P["dy"],
-                      P["delta_eta"], P["kg"], P["damping"], y0, stop, bool(save), states, peak_drift,
+                      P["delta_eta"], P["kg"], P["damping"], y0, stop, save, states, save_acc, acc, peak_drift,
                       peak_acc, final, n_done, status)
-    return (states if save else None), peak_drift, peak_acc, final, n_done, status
+    return (states if save else None), (acc if save_acc else None), peak_drift, peak_acc, final, n_done, status
 
 
-def _run_torch(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, save):
+def _run_torch(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, outputs):
     """Eager torch RK4 over the module; the same arithmetic as the compiled kernel (always full states)."""
     if np.isfinite(stop).any():
         raise InputError("backend 'torch' does not stop at a drift limit; use backend='numba'")
@@ -165,7 +171,7 @@ def _run_torch(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, save):
         states[b, n_done[b]:] = np.nan
     final = states[np.arange(bi.size), n_done - 1]
     status = np.where(np.isfinite(final).all(axis=1), _kernel.STATUS_OK, _kernel.STATUS_DIVERGED)
-    return states, None, None, final, n_done, status
+    return states, None, None, None, final, n_done, status
 
 
 BACKENDS: dict[str, Callable] = {"numba": _run_numba, "torch": _run_torch}
@@ -187,7 +193,9 @@ def simulate(buildings: Building | Sequence[Building], motions: GroundMotion | S
     substeps : RK4 steps per record sample (the step is ``dt / substeps``)
     pairing : ``"product"``: every building x motion x scale, batch index
         ``((building * n_motions) + motion) * n_scales + scale``; ``"zip"``: element-wise
-    outputs : ``"full"`` (histories) or ``"peaks"`` (peaks and final state only, low memory)
+    outputs : ``"full"`` (every history), ``"acc"`` (the absolute floor accelerations only: what
+        a replay against accelerometers needs, without the full state history) or ``"peaks"``
+        (peaks and final state only, low memory)
     backend : a name in :data:`BACKENDS`
     free_vibration : seconds of zero ground motion appended to every record
     stop_drift : |drift| [mm] at which an element stops (status 1): a number, ``(story,)``
@@ -202,8 +210,8 @@ def simulate(buildings: Building | Sequence[Building], motions: GroundMotion | S
     motions = _as_list(motions, GroundMotion)
     if backend not in BACKENDS:
         raise InputError(f"unknown backend {backend!r}; expected one of {sorted(BACKENDS)}")
-    if outputs not in ("full", "peaks"):
-        raise InputError(f"outputs = {outputs!r}; expected 'full' or 'peaks'")
+    if outputs not in OUTPUTS:
+        raise InputError(f"outputs = {outputs!r}; expected one of {', '.join(map(repr, OUTPUTS))}")
     if int(substeps) < 1:
         raise InputError(f"substeps = {substeps}; expected an integer >= 1")
     if free_vibration > 0:
@@ -226,12 +234,15 @@ def simulate(buildings: Building | Sequence[Building], motions: GroundMotion | S
             raise InputError(f"y0 of shape {np.shape(y0)}; expected (batch, 4*story) = ({bi.size}, {4 * n}) "
                              f"or ({4 * n},)") from None
     stop = _stop_array(stop_drift, bi, n, len(buildings))
-    states, peak_drift, peak_acc, final, n_done, status = BACKENDS[backend](
-        P, ag, dt, nt, mi.astype(np.int64), bi.astype(np.int64), sc, int(substeps), y0, stop, outputs == "full")
+    states, acc, peak_drift, peak_acc, final, n_done, status = BACKENDS[backend](
+        P, ag, dt, nt, mi.astype(np.int64), bi.astype(np.int64), sc, int(substeps), y0, stop, outputs)
     params = BuildingTensors(**{k: torch.as_tensor(v) for k, v in P.items()}).index(bi)
-    return result_from_states(params, states, dt=dt[mi], n_time=n_done, building_index=bi, motion_index=mi,
-                              scale=sc, status=status, final_state=final, peak_drift=peak_drift,
-                              peak_acc=peak_acc, keep_histories=outputs == "full")
+    res = result_from_states(params, states, dt=dt[mi], n_time=n_done, building_index=bi, motion_index=mi,
+                             scale=sc, status=status, final_state=final, peak_drift=peak_drift,
+                             peak_acc=peak_acc, keep_histories=outputs != "peaks")
+    if outputs == "acc":  # only the accelerations: the compiled kernel wrote them, the torch backend has all
+        res = dataclasses.replace(res, **{**dict.fromkeys(HISTORY_FIELDS), "acc": res.acc if acc is None else acc})
+    return res
 
 
 def result_from_states(params: BuildingTensors, states: np.ndarray | None, *, final_state: np.ndarray,
