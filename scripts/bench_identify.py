@@ -68,7 +68,8 @@ def main(argv=None) -> int:
         print(f"| {name} | {t:.1f} | {t / rows[0][1]:.2f} |")
     tm = res.timings
     sim = sum(v for k, v in tm.items() if k.startswith("simulate"))
-    print(f"\nfrom scratch: simulation of training half cycles {sim:.1f} s, classifier fits {fits:.1f} s, "
+    print(f"\nfrom scratch: training samples {sim:.1f} s, classifier fits {fits:.1f} s of CPU (on the worker "
+          f"processes, overlapping the samples), "
           f"refinement {tm.get('refine', np.nan):.1f} s, HLA {tm['hla']:.2f} s; outer iterations {res.iterations}")
     print("targets: <= 10 s from scratch, <= 3 s cached (the paper: ~30 min of training on a Core i7)")
     return 0

@@ -7,6 +7,7 @@ The accuracy studies (5 records x 3 seeds, 30 random structures) are scripts
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -116,6 +117,21 @@ def test_identify_end_to_end_cached_and_logged(table1, record, tmp_path):
     assert again.timings["total"] < res.timings["total"]
 
 
+def test_worker_processes_give_the_same_clone(table1, record):
+    """The kernel machines trained on worker processes (n_jobs 2, overlapping the next story's
+    samples) are the machines trained in the process itself: the same clone to the digit."""
+    meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
+    cfg = _small_config(refine=RefineConfig(method="none"))
+    one = identify(meas, dataclasses.replace(cfg, n_jobs=1), cache_dir="")
+    two = identify(meas, dataclasses.replace(cfg, n_jobs=2), cache_dir="")
+    for name in ("k0", "alpha", "p", "dy", "delta_eta"):
+        np.testing.assert_array_equal(getattr(one.clone.building, name), getattr(two.clone.building, name))
+    def votes(res):
+        return [[{k: (v["votes"], v["test_accuracy"]) for k, v in s.items()} for s in p["stories"]] for p in res.passes]
+
+    assert votes(one) == votes(two)
+
+
 def test_no_yield_is_not_identifiable(table1, record):
     meas = simulate_measurement(table1, record.scaled(0.03 / 0.62), noise_rms=0.02)
     with pytest.raises(NotIdentifiableError, match="no story yielded"):
@@ -148,3 +164,10 @@ def test_cli_identify(table1, record, tmp_path, capsys):
     assert "samplez" in err and "bad.yaml:1" in err and "Traceback" not in err
     assert not (tmp_path / "c2.json").exists()
     json.loads(out.read_text())
+
+
+@pytest.mark.parametrize("kw, match", [({"ftol": 0.0}, "ftol"), ({"ftol": 1.5}, "ftol"), ({"substeps": 0}, "substeps"),
+                                       ({"substeps": 65}, "substeps")])
+def test_refine_settings_are_bounded(kw, match):
+    with pytest.raises(ValueError, match=match):
+        RefineConfig(**kw)

@@ -249,6 +249,22 @@ def test_peaks_output_equals_full_output(table1, records):
     np.testing.assert_allclose(full.peak_acc, np.abs(full.acc).max(axis=1))
 
 
+@pytest.mark.parametrize("backend", ["numba", "torch"])
+def test_acc_output_equals_full_output(table1, records, backend):
+    """outputs="acc" (what replays read; written by the compiled kernel itself) holds the
+    same accelerations as the full run, NaN after each element's end, and nothing else."""
+    a = window(records["elcentro-1940-ns"], 3.0)
+    b = window(records["kocaeli-1999-dzc180"].resampled(100.0), 5.0)
+    buildings = [table1, table1.replace(k0=0.8 * table1.k0)]
+    full = simulate(buildings, [a, b], backend=backend)
+    acc = simulate(buildings, [a, b], backend=backend, outputs="acc")
+    np.testing.assert_allclose(acc.acc, full.acc, rtol=0, atol=1e-9 * np.nanmax(np.abs(full.acc)))
+    assert np.array_equal(np.isnan(acc.acc), np.isnan(full.acc)) and np.isnan(acc.acc).any()
+    assert acc.disp is None and acc.drift is None and acc.force is None
+    for name in ("residual_drift", "final_state", "status", "n_time"):
+        np.testing.assert_array_equal(getattr(full, name), getattr(acc, name))
+
+
 def test_records_of_different_length_and_rate(table1, records):
     a = window(records["elcentro-1940-ns"], 3.0)                # 200 Hz, 601 samples
     b = window(records["kocaeli-1999-dzc180"].resampled(100.0), 5.0)  # 100 Hz, 501 samples

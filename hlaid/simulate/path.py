@@ -83,6 +83,10 @@ def _drive(x, v, dt, hermite, k0, al, p, dy, de, m, nsub, force, z_out, e_out):
             e_out[b, k + 1] = e
 
 
+_CHUNK = 16
+"""Parameter sets per chunk of the parallel loop (dynamic scheduling)."""
+
+
 @dataclass(frozen=True, eq=False)
 class PathResponse:
     """Response of the story law along a drift path; every field is ``(batch, time)``.
@@ -139,6 +143,9 @@ def drive_story(drift: np.ndarray, *, k0, alpha, p, dy, delta_eta, mass: float, 
         raise ValueError(f"substeps = {substeps}; expected >= 1")
     T = x.shape[1]
     force, z, e = (np.empty((B, T)) for _ in range(3))
-    _drive(x, v if hermite else np.zeros_like(x), float(dt), hermite, k0_, al_, p_, dy_, de_, float(mass),
-           int(substeps), force, z, e)
+    # small chunks taken in turn: a thread slowed by other work on the machine (the kernel machines
+    # train on worker processes meanwhile) does not hold the others up at the end of the loop
+    with nb.parallel_chunksize(_CHUNK):
+        _drive(x, v if hermite else np.zeros_like(x), float(dt), hermite, k0_, al_, p_, dy_, de_, float(mass),
+               int(substeps), force, z, e)
     return PathResponse(force=force, z=z, energy=e)
