@@ -200,8 +200,9 @@ class RefineConfig:
     max_iterations : Levenberg-Marquardt iterations.
     ftol : the search stops when a step lowers the cost by less than this fraction of it
         (the k0 stage, which the joint stage refines again, at 100x this)
-    substeps : RK4 sub-steps per sample of the replays (two: 2e-4 of the accelerations' RMS
-        from the converged value on Table 1, far below the sensor noise)
+    substeps : RK4 sub-steps of the replays per 5 ms of record (so per sample at 200 Hz, twice
+        that at 100 Hz: the sub-step is what sets the error; two: 1.7e-4 of the accelerations'
+        RMS from the converged value on Table 1, far below the sensor noise)
     """
 
     method: Literal["replay", "none"] = "replay"
@@ -218,6 +219,10 @@ class RefineConfig:
             raise InputError(f"refine.ftol = {self.ftol}; expected a fraction in (0, 1), e.g. 1e-6")
         if not 1 <= self.substeps <= 64:
             raise InputError(f"refine.substeps = {self.substeps}; expected 1..64")
+
+    def substeps_for(self, dt: float) -> int:
+        """RK4 sub-steps per sample of a record sampled every ``dt`` seconds."""
+        return max(1, math.ceil(self.substeps * dt / 0.005 - 1e-9))
         if self.upper_factor is not None and not self.upper_factor > 1:
             raise InputError(f"refine.upper_factor = {self.upper_factor}; expected a factor > 1 (or null)")
         bad = set(self.parameters) - {"k0", "alpha", "p", "dy", "delta_eta"}
