@@ -9,6 +9,7 @@ forever for the lost result. Workers made here ignore SIGINT, so only the parent
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing as mp
 import multiprocessing.pool
 import signal
@@ -45,3 +46,20 @@ def process_pool(n_jobs: int) -> multiprocessing.pool.Pool:
         return ctx.Pool(n_jobs, initializer=_ignore_sigint)
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+@contextlib.contextmanager
+def worker_pool(n_jobs: int):
+    """:func:`process_pool` of ``n_jobs`` workers (None for one job: work in this process),
+    terminated at once on an error or Ctrl-C rather than left to finish its tasks, joined on exit."""
+    pool = process_pool(n_jobs) if n_jobs > 1 else None
+    try:
+        yield pool
+    except BaseException:
+        if pool:
+            pool.terminate()
+        raise
+    finally:
+        if pool:
+            pool.close()
+            pool.join()

@@ -172,8 +172,3 @@ def test_refine_settings_are_bounded(kw, match):
     with pytest.raises(ValueError, match=match):
         RefineConfig(**kw)
 
-
-def test_refine_substeps_follow_the_sample_interval():
-    """The replays' sub-step is at most 5 ms / substeps whatever the record's rate."""
-    rc = RefineConfig(substeps=2)
-    assert [rc.substeps_for(dt) for dt in (0.001, 0.005, 0.01, 0.02)] == [1, 2, 4, 8]

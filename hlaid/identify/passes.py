@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _progress
-from .._workers import process_pool
+from .._workers import worker_pool
 from ..config import config_to_dict
 from ..model import Building
 from ..motions import GroundMotion
@@ -132,9 +132,8 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
     t_sim = 0.0
     # the story law runs here (compiled, both cores); the machines of a story train on the worker
     # processes while the next story's samples are drawn: the two kinds of work overlap
-    pool = process_pool(cfg.n_jobs) if cfg.n_jobs > 1 and int(np.sum(identifiable)) > 0 else None
     jobs = []
-    try:
+    with worker_pool(cfg.n_jobs if int(np.sum(identifiable)) > 0 else 1) as pool:
         for i, sp in _progress.progress(list(enumerate(paths)), desc=f"[identify] {stage} pass, stories"):
             if not identifiable[i] or sp is None:
                 sets.append(None)
@@ -162,14 +161,6 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
             stats[name] = _jsonable(st)
             _log_machine(tb, stage, i, param, st, S, b, step)
             _progress.debug(f"  story {i + 1} {param}: test accuracy {st['test_accuracy']:.3f} (C {st.get('C')})")
-    except BaseException:  # Ctrl-C or an error: stop the workers now rather than wait for their tasks
-        if pool:
-            pool.terminate()
-        raise
-    finally:
-        if pool:
-            pool.close()
-            pool.join()
     if tb is not None:
         tb.scalar(f"{stage}/simulate_seconds", t_sim, step)
     cache.store(key, machines, {"stats": stats})

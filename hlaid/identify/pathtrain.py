@@ -178,7 +178,7 @@ def path_training_set(sp: StoryPath, *, k0: float, dy: float, delta_eta: float, 
 
     x = sp.drift[: sp.end]
     resp = drive_story(x, k0=jitter(k0), alpha=a, p=p, dy=draw(dy), delta_eta=draw(max(delta_eta, 0.1)), mass=sp.mass,
-                       dt=sp.dt, substeps=substeps)
+                       dt=sp.dt, substeps=substeps, state=False)
     op = sp.operator
     X = story_features(op, resp.force.T, sp.k0) + _noise_features(sp, op, n_samples, rng)
     return TrainingSet(X=X, alpha=a, p=p, sim=np.arange(n_samples))

@@ -210,11 +210,11 @@ class _Identifier:
         ident = [i for i in range(self.res.n_stories) if self.identifiable[i]]
         rc = cfg.refine
         common = {"band_hz": rc.band_hz, "max_iterations": rc.max_iterations, "upper_factor": rc.upper_factor,
-                  "substeps": rc.substeps_for(meas.dt)}
+                  "substeps": rc.substeps}
         info = {}
         start = paper
         if "k0" in rc.parameters:
-            s1 = refine_replay(paper, meas, parameters=("k0",), damping=False, ftol=min(100 * rc.ftol, 0.1), **common)
+            s1 = refine_replay(paper, meas, parameters=("k0",), damping=False, ftol=rc.ftol, **common)
             self.k0 = s1.building.k0.copy()
             de, dy, _ = self._regressions(alpha, p)
             start = self._building(alpha, p, dy, de)

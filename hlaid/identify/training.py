@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._workers import process_pool
+from .._workers import worker_pool
 from ..hla import HLAConfig, hla
 from ..hla.features import half_cycle_features
 from ..measurement import Measurement
@@ -82,10 +82,6 @@ def _features_of(args):
     return [half_cycle_features(s, n_segments, yield_ratio=yield_ratio, with_ke=with_ke).values for s in res.stories]
 
 
-def _pool(n_jobs: int):
-    return process_pool(n_jobs) if n_jobs > 1 else None  # workers ignore Ctrl-C (hlaid._workers)
-
-
 def simulate_training_sets(estimate: Building, motion: GroundMotion, ranges: Ranges, *, n_samples: int,
                            noise_rms: float, hla_config: HLAConfig, n_segments: int = 10, yield_ratio: float = 0.6,
                            spread: float = 0.2, batch: int = 32, max_simulations: int = 2000,
@@ -116,8 +112,7 @@ def simulate_training_sets(estimate: Building, motion: GroundMotion, ranges: Ran
     counts = np.zeros(ns, dtype=int)
     n_sim = 0
     n_jobs = n_jobs or min(2, os.cpu_count() or 1)
-    pool = _pool(n_jobs)
-    try:
+    with worker_pool(n_jobs) as pool:  # workers ignore Ctrl-C (hlaid._workers)
         while counts.min() < n_samples and n_sim < max_simulations:
             nb = min(batch, max_simulations - n_sim)
             buildings, a, p = draw_buildings(estimate, ranges, nb, spread, rng)
@@ -142,14 +137,6 @@ def simulate_training_sets(estimate: Building, motion: GroundMotion, ranges: Ran
             n_sim += nb
             if progress:
                 progress(int(counts.min()), n_samples)
-    except BaseException:  # Ctrl-C or an error: stop the workers now rather than wait for their tasks
-        if pool:
-            pool.terminate()
-        raise
-    finally:
-        if pool:
-            pool.close()
-            pool.join()
     out = []
     for s in range(ns):
         if feats[s]:

@@ -53,8 +53,10 @@ def _hermite_rate(tau, x0, x1, v0, v1, dt):
 
 
 @nb.njit(cache=True, parallel=True, fastmath=_FASTMATH, error_model="numpy")
-def _drive(x, v, dt, hermite, k0, al, p, dy, de, m, nsub, force, z_out, e_out):
-    """Integrate every parameter set ``b`` along path ``x[b % n_paths]``; see :func:`drive_story`."""
+def _drive(x, v, dt, hermite, k0, al, p, dy, de, m, nsub, state, force, z_out, e_out):
+    """Integrate every parameter set ``b`` along path ``x[b % n_paths]``; see :func:`drive_story`.
+    ``z_out`` and ``e_out`` are written only with ``state`` (the force alone halves the memory
+    traffic of a large batch)."""
     B = k0.shape[0]
     P, T = x.shape
     for b in nb.prange(B):
@@ -63,8 +65,9 @@ def _drive(x, v, dt, hermite, k0, al, p, dy, de, m, nsub, force, z_out, e_out):
         z = 0.0
         e = 0.0
         force[b, 0] = _spring_force(xb[0], z, al[b], k0[b])
-        z_out[b, 0] = z
-        e_out[b, 0] = e
+        if state:
+            z_out[b, 0] = z
+            e_out[b, 0] = e
         for k in range(T - 1):
             x0 = xb[k]
             x1 = xb[k + 1]
@@ -79,8 +82,9 @@ def _drive(x, v, dt, hermite, k0, al, p, dy, de, m, nsub, force, z_out, e_out):
                     d = (x1 - x0) / dt
                     z, e = _rk4_step(z, e, d, d, d, h, al[b], k0[b], m, p[b], dy[b], de[b])
             force[b, k + 1] = _spring_force(x1, z, al[b], k0[b])
-            z_out[b, k + 1] = z
-            e_out[b, k + 1] = e
+            if state:
+                z_out[b, k + 1] = z
+                e_out[b, k + 1] = e
 
 
 _CHUNK = 16
@@ -94,23 +98,25 @@ class PathResponse:
     Attributes
     ----------
     force : spring force ``alpha k0 x + (1-alpha) k0 z`` [N]
-    z : hysteretic displacement [mm]
-    energy : ``e = integral(z dx)`` [mm^2]
+    z : hysteretic displacement [mm] (None when driven with ``state=False``)
+    energy : ``e = integral(z dx)`` [mm^2] (None when driven with ``state=False``)
     """
 
     force: np.ndarray
-    z: np.ndarray
-    energy: np.ndarray
+    z: np.ndarray | None
+    energy: np.ndarray | None
 
     def elastic_stiffness(self, k0, alpha, delta_eta, mass) -> np.ndarray:
         """``ke(t) = alpha k0 + (1-alpha) k0 / eta(t)`` (eq 11), ``(batch, time)`` [N/mm]."""
+        if self.energy is None:
+            raise ValueError("this response was driven with state=False; drive it with state=True for ke(t)")
         k0, alpha, delta_eta = (np.asarray(a, float).reshape(-1, 1) for a in (k0, alpha, delta_eta))
         eta = _degradation(self.energy, alpha, k0, mass, delta_eta)
         return alpha * k0 + (1.0 - alpha) * k0 / eta
 
 
 def drive_story(drift: np.ndarray, *, k0, alpha, p, dy, delta_eta, mass: float, dt: float,
-                velocity: np.ndarray | None = None, substeps: int = 4) -> PathResponse:
+                velocity: np.ndarray | None = None, substeps: int = 4, state: bool = True) -> PathResponse:
     """Drive the degrading Bouc-Wen story law along drift paths, batched over parameters.
 
     Parameters
@@ -123,6 +129,7 @@ def drive_story(drift: np.ndarray, *, k0, alpha, p, dy, delta_eta, mass: float, 
     velocity : drift velocity [mm/s], the shape of ``drift``: cubic Hermite path between
         samples; None: straight lines between samples
     substeps : RK4 sub-steps per sample
+    state : also return the ``z`` and ``energy`` histories (False: the force only)
 
     Returns
     -------
@@ -142,10 +149,11 @@ def drive_story(drift: np.ndarray, *, k0, alpha, p, dy, delta_eta, mass: float, 
     if substeps < 1:
         raise ValueError(f"substeps = {substeps}; expected >= 1")
     T = x.shape[1]
-    force, z, e = (np.empty((B, T)) for _ in range(3))
+    force = np.empty((B, T))
+    z, e = (np.empty((B, T) if state else (1, 1)) for _ in range(2))
     # small chunks taken in turn: a thread slowed by other work on the machine (the kernel machines
     # train on worker processes meanwhile) does not hold the others up at the end of the loop
     with nb.parallel_chunksize(_CHUNK):
         _drive(x, v if hermite else np.zeros_like(x), float(dt), hermite, k0_, al_, p_, dy_, de_, float(mass),
-               int(substeps), force, z, e)
-    return PathResponse(force=force, z=z, energy=e)
+               int(substeps), bool(state), force, z, e)
+    return PathResponse(force=force, z=z if state else None, energy=e if state else None)
