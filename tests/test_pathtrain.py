@@ -64,6 +64,10 @@ def test_drive_story_batches_parameters_and_paths(table1):
     assert np.all(ke > alphas[:, None] * 1.9e4) and np.all(ke <= 1.9e4 * (1 + 1e-9))
     with pytest.raises(ValueError, match="paths"):
         drive_story(np.stack([x, x]), k0=1.9e4, alpha=alphas, p=2.0, dy=6.0, delta_eta=0.5, mass=17.5, dt=gm.dt)
+    lean = drive_story(x, k0=1.9e4, alpha=alphas, p=2.0, dy=6.0, delta_eta=0.5, mass=17.5, dt=gm.dt, state=False)
+    assert np.array_equal(lean.force, batch.force) and lean.z is None and lean.energy is None
+    with pytest.raises(ValueError, match="state=True"):
+        lean.elastic_stiffness(1.9e4, alphas, 0.5, 17.5)
 
 
 def test_segment_operator_equals_segment_slopes():

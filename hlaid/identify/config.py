@@ -216,10 +216,9 @@ class RefineConfig:
 
     def __post_init__(self):
         if not 0 < self.ftol < 1:
-            raise InputError(f"refine.ftol = {self.ftol}; expected a fraction in (0, 1), e.g. 1e-6")
+            raise InputError(f"refine.ftol = {self.ftol}; expected a fraction in (0, 1), e.g. 1e-10")
         if not 1 <= self.substeps <= 64:
             raise InputError(f"refine.substeps = {self.substeps}; expected 1..64")
-
         if self.upper_factor is not None and not self.upper_factor > 1:
             raise InputError(f"refine.upper_factor = {self.upper_factor}; expected a factor > 1 (or null)")
         bad = set(self.parameters) - {"k0", "alpha", "p", "dy", "delta_eta"}

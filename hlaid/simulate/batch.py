@@ -9,8 +9,8 @@ numba and runs batch elements in parallel; the ``"torch"`` backend steps the
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
 import dataclasses
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
