@@ -123,11 +123,12 @@ def test_ctrl_c_during_identify_training(measurement, tmp_path):
 
 
 def test_ctrl_c_during_identify_path_training(measurement, tmp_path):
-    """The default path-driven training runs in-process (compiled, parallel threads)."""
+    """The default path-driven training: the story law runs in-process (compiled, parallel
+    threads) while the kernel machines train on a worker pool."""
     out = tmp_path / "out"
     out.mkdir()
     rc, elapsed, lines = _interrupt(["identify", str(measurement), "-o", "out/c.json", "--no-cache"], tmp_path,
-                                    after="path-driven training sets", delay=1.0)
+                                    after="path-driven training sets", workers=2, delay=1.0)
     _assert_interrupted(rc, elapsed, lines, "identify")
     assert _leftovers(out, "c.json") == []
 
