@@ -149,8 +149,9 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
             for param, b in zip(PARAMS, bins[i]):
                 name = f"story{i + 1}_{param}"
                 svm = cfg.svm if name not in chosen_C else dataclasses.replace(cfg.svm, C=chosen_C[name], C_grid=None)
-                args = (S, param, b, svm, tc.test_fraction, seed + 31 * i + len(param))
-                jobs.append((i, param, b, S, pool.apply_async(_fit_ensemble, (args,)) if pool else _fit_ensemble(args)))
+                args, kw = (S, param, b, svm, tc.test_fraction), {"seed": seed + 31 * i + len(param)}
+                job = pool.apply_async(fit_ensemble, args, kw) if pool else fit_ensemble(*args, **kw)
+                jobs.append((i, param, b, S, job))
         for i, param, b, S, job in jobs:
             ms, st = job.get() if pool else job
             name = f"story{i + 1}_{param}"
@@ -165,11 +166,6 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
         tb.scalar(f"{stage}/simulate_seconds", t_sim, step)
     cache.store(key, machines, {"stats": stats})
     return TrainedPass(machines, stats, False, t_sim, sets)
-
-
-def _fit_ensemble(args):
-    """Worker: one story's ensemble for one parameter (:func:`fit_ensemble`)."""
-    return fit_ensemble(*args[:5], seed=args[5])
 
 
 def _jsonable(st: dict) -> dict:

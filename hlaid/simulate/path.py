@@ -87,10 +87,6 @@ def _drive(x, v, dt, hermite, k0, al, p, dy, de, m, nsub, state, force, z_out, e
                 e_out[b, k + 1] = e
 
 
-_CHUNK = 16
-"""Parameter sets per chunk of the parallel loop (dynamic scheduling)."""
-
-
 @dataclass(frozen=True, eq=False)
 class PathResponse:
     """Response of the story law along a drift path; every field is ``(batch, time)``.
@@ -151,9 +147,6 @@ def drive_story(drift: np.ndarray, *, k0, alpha, p, dy, delta_eta, mass: float, 
     T = x.shape[1]
     force = np.empty((B, T))
     z, e = (np.empty((B, T) if state else (1, 1)) for _ in range(2))
-    # small chunks taken in turn: a thread slowed by other work on the machine (the kernel machines
-    # train on worker processes meanwhile) does not hold the others up at the end of the loop
-    with nb.parallel_chunksize(_CHUNK):
-        _drive(x, v if hermite else np.zeros_like(x), float(dt), hermite, k0_, al_, p_, dy_, de_, float(mass),
-               int(substeps), bool(state), force, z, e)
+    _drive(x, v if hermite else np.zeros_like(x), float(dt), hermite, k0_, al_, p_, dy_, de_, float(mass),
+           int(substeps), bool(state), force, z, e)
     return PathResponse(force=force, z=z if state else None, energy=e if state else None)
