@@ -203,6 +203,10 @@ class RefineConfig:
         but was measured to move the optimum on ill-conditioned random buildings (2 sub-steps
         at 200 Hz: one run's worst parameter from 63 % to 3000 %; ftol 1e-6: another's from
         36 % to 2500 %, docs/identification.md), so the defaults stay tight
+    jac_substeps : RK4 sub-steps of the replays that build the finite-difference Jacobian.
+        The Jacobian only steers the search; the residuals (``substeps``) define the optimum,
+        so 2 sub-steps here roughly halve the refinement without moving its result
+        (docs/identification.md, "Speed")
     """
 
     method: Literal["replay", "none"] = "replay"
@@ -213,12 +217,15 @@ class RefineConfig:
     upper_factor: float | None = 10.0
     ftol: float = 1e-10
     substeps: int = 4
+    jac_substeps: int = 2
 
     def __post_init__(self):
         if not 0 < self.ftol < 1:
             raise InputError(f"refine.ftol = {self.ftol}; expected a fraction in (0, 1), e.g. 1e-10")
         if not 1 <= self.substeps <= 64:
             raise InputError(f"refine.substeps = {self.substeps}; expected 1..64")
+        if not 1 <= self.jac_substeps <= 64:
+            raise InputError(f"refine.jac_substeps = {self.jac_substeps}; expected 1..64")
         if self.upper_factor is not None and not self.upper_factor > 1:
             raise InputError(f"refine.upper_factor = {self.upper_factor}; expected a factor > 1 (or null)")
         bad = set(self.parameters) - {"k0", "alpha", "p", "dy", "delta_eta"}

@@ -210,7 +210,7 @@ class _Identifier:
         ident = [i for i in range(self.res.n_stories) if self.identifiable[i]]
         rc = cfg.refine
         common = {"band_hz": rc.band_hz, "max_iterations": rc.max_iterations, "upper_factor": rc.upper_factor,
-                  "substeps": rc.substeps}
+                  "substeps": rc.substeps, "jac_substeps": rc.jac_substeps}
         info = {}
         start = paper
         if "k0" in rc.parameters:
