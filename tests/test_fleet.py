@@ -133,6 +133,14 @@ def test_three_buildings_on_an_in_process_cluster(fleet_dir, tmp_path):
         dist = {n: np.abs(np.log(k0 / _building(n).k0)).sum() for n in STORIES}
         assert min(dist, key=dist.get) == name and np.allclose(k0, _building(name).k0, rtol=0.25), (name, k0)
     assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporary files left
+    try:
+        import pyarrow.parquet as pq
+    except ImportError:
+        pq = None
+    if pq is not None:  # Parquet too when pyarrow is installed
+        t = pq.read_table(out / "results.parquet")
+        assert t.num_rows == 3 and str(t.schema.field("p_collapse").type) == "double"
+        assert t.column("building").to_pylist() == [r["building"] for r in rows]
     print(f"3-building fleet: {wall:.1f} s")
 
 

@@ -124,33 +124,38 @@ def _read_traces(paths: list[Path], fmt: str | None, options: dict) -> list[tupl
     return out
 
 
+def _id(tr) -> str:
+    """A trace id read from a file, for a message (quoted only when it is a plain label)."""
+    return tr.id if quotable(tr.id) else "(an unprintable id)"
+
+
 def _pick(traces, spec: StationChannel, role: str, where: str):
     hits = [(tr, p) for tr, p in traces if fnmatch.fnmatchcase(tr.id, spec.channel)]
-    ids = sorted({tr.id for tr in hits})
-    label = repr(spec.channel) if quotable(spec.channel) else "(unprintable)"
+    ids = sorted({tr.id for tr, _ in hits})
+    label = repr(spec.channel[:60])  # the config's own text (ids read from the files are quoted only if plain)
     if not ids:
         have = sorted({tr.id for tr, _ in traces})
         shown = ", ".join(i for i in have[:12] if quotable(i))
         raise InputError(f"{role}: channel {label} is not in the file(s); they hold {len(have)} channel(s)"
                          + (f": {shown}" if shown else ""), source=where)
     if len(ids) > 1:
-        raise InputError(f"{role}: channel {label} matches {len(ids)} channels ({', '.join(ids[:6])}); "
+        raise InputError(f"{role}: channel {label} matches {len(ids)} channels ({', '.join(i for i in ids[:6] if quotable(i))}); "
                          "give one SEED id", source=where)
     obspy = _obspy()
     st = obspy.Stream([tr for tr, _ in hits])
     src = _where(sorted({p for _, p in hits}))
     rates = {float(tr.stats.sampling_rate) for tr in st}
     if len(rates) > 1:
-        raise InputError(f"{role}: channel {ids[0]} has records at different sample rates {sorted(rates)} Hz",
+        raise InputError(f"{role}: channel {_id(st[0])} has records at different sample rates {sorted(rates)} Hz",
                          source=src)
     if len(st) > 1:
         try:
             st.merge(method=0, fill_value=None)
         except Exception as err:  # noqa: BLE001
-            raise InputError(f"{role}: channel {ids[0]}: its records cannot be merged ({err})", source=src) from None
+            raise InputError(f"{role}: channel {_id(st[0])}: its records cannot be merged ({type(err).__name__})", source=src) from None
     tr = st[0]
     if len(st) > 1 or np.ma.isMaskedArray(tr.data) and np.ma.getmaskarray(tr.data).any():
-        raise InputError(f"{role}: channel {ids[0]} has a gap; give gap-free records", source=src)
+        raise InputError(f"{role}: channel {_id(st[0])} has a gap; give gap-free records", source=src)
     return tr, src
 
 
@@ -190,7 +195,7 @@ def read_station(config: str | os.PathLike | StationConfig, *, base: str | os.Pa
     rate = float(picked[0][2].stats.sampling_rate)
     for role, spec, tr, src in picked[1:]:
         if abs(float(tr.stats.sampling_rate) / rate - 1) > 1e-9:
-            raise InputError(f"{role}: channel {tr.id} is sampled at {tr.stats.sampling_rate:g} Hz but the ground "
+            raise InputError(f"{role}: channel {_id(tr)} is sampled at {tr.stats.sampling_rate:g} Hz but the ground "
                              f"channel at {rate:g} Hz; resample first", source=src)
     dt = 1.0 / rate
     t0 = max(tr.stats.starttime for _, _, tr, _ in picked)
@@ -205,13 +210,13 @@ def read_station(config: str | os.PathLike | StationConfig, *, base: str | os.Pa
         shift = (t0 - tr.stats.starttime) / dt
         i0 = int(round(shift))
         if abs(shift - i0) > 0.1:
-            _progress.warn(f"{src}: {role}: channel {tr.id} is sampled {abs(shift - i0):.2f} samples off the "
+            _progress.warn(f"{src}: {role}: channel {_id(tr)} is sampled {abs(shift - i0):.2f} samples off the "
                            "ground channel's instants; taken as simultaneous")
         data = np.asarray(tr.data[i0:i0 + n], dtype=np.float64)
         if data.size < n:
-            raise InputError(f"{role}: channel {tr.id} ends before the common window", source=src)
+            raise InputError(f"{role}: channel {_id(tr)} ends before the common window", source=src)
         if not np.all(np.isfinite(data)):
-            raise InputError(f"{role}: channel {tr.id} has NaN or inf samples", source=src)
+            raise InputError(f"{role}: channel {_id(tr)} has NaN or inf samples", source=src)
         cols.append(data * spec.factor())
     values = np.stack(cols, axis=1)
     if cfg.offset == "mean":
