@@ -77,9 +77,10 @@ def fleet_dir(tmp_path_factory) -> Path:
 def fake_assess(clone, records, *, n_ensemble=20, ida_config=None, own_motion=None, seed=0):
     """A quick stand-in with the contract of hlaid.uncertainty.assess: risk from the clone's k0."""
     k = float(clone.building.k0[0])
-    return {"median_collapse_g": k / 1e4, "collapse_band_g": [k / 1.2e4, k / 0.8e4], "own_im_g": 0.5,
-            "p_collapse": round(1e4 / k / 10, 4), "p_drift": {"0.01": 0.5, "0.02": 0.2}, "reoccupancy": "re-occupy",
-            "ensemble": n_ensemble, "n_records": len(records)}
+    return {"collapse_median": k / 1e4, "collapse_median_band": [k / 1.2e4, k / 0.8e4], "own_im": 0.5,
+            "p_collapse": round(1e4 / k / 10, 4), "drift_limits": [0.01, 0.02], "p_exceed": [0.5, 0.2],
+            "indicator": "green", "n_ensemble": n_ensemble, "n_records": len(records),
+            "member_median": [1.0, 2.0, 3.0][:n_ensemble]}
 
 
 fake_assess.engine = "fake"
@@ -118,9 +119,10 @@ def test_three_buildings_on_an_in_process_cluster(fleet_dir, tmp_path):
     assert [r["rank"] for r in rows] == ["1", "2", "3"]
     for r in rows:
         assert r["status"] == "ok" and r["ensemble"] == "0" and r["engine"] == FALLBACK
-        assert float(r["median_collapse_g"]) > 0 and 0 <= float(r["p_collapse"]) <= 1
-        assert float(r["collapse_band_g_lo"]) <= float(r["median_collapse_g"]) <= float(r["collapse_band_g_hi"])
-        assert r["reoccupancy"] in ("re-occupy", "restricted", "unsafe")
+        assert float(r["collapse_median"]) > 0 and 0 <= float(r["p_collapse"]) <= 1
+        assert float(r["collapse_median_band_lo"]) <= float(r["collapse_median"]) <= float(r["collapse_median_band_hi"])
+        assert r["indicator"] in ("green", "yellow", "red") and float(r["own_im"]) > 0
+        assert 0 <= float(r["p_exceed_0.01"]) <= 1 and float(r["p_exceed_0.01"]) >= float(r["p_exceed_0.04"])
         assert float(r["replay_r_min"]) > 0.9  # the identification worked
     p = [float(r["p_collapse"]) for r in rows]
     assert p == sorted(p, reverse=True)  # ranked by risk
@@ -269,3 +271,16 @@ def test_ctrl_c_closes_the_cluster(fleet_dir, tmp_path):
     assert elapsed < 15, elapsed  # the workers' graceful stop is 4 s; the machine may be busy
     assert lines[-1] == "hlaid fleet: interrupted", lines[-8:]
     assert not any("Traceback" in ln or "KeyboardInterrupt" in ln for ln in lines), lines
+
+
+def test_flatten_keeps_bands_and_exceedance_by_limit():
+    from hlaid.fleet.assess import flatten
+    d = {"collapse_median": 2.0, "collapse_median_band": [1.5, 2.6], "member_median": [1.9, 2.1],
+         "drift_limits": [0.005, 0.01], "p_exceed": [0.9, 0.5], "p_exceed_band": [[0.8, 1.0], [0.3, 0.6]],
+         "timing": {"wall_s": 3.0}, "indicator": "green", "own_peak_drift": [0.01, 0.02]}
+    f = flatten(d)
+    assert f["collapse_median_band_lo"] == 1.5 and f["collapse_median_band_hi"] == 2.6
+    assert f["p_exceed_0.005"] == 0.9 and f["p_exceed_0.01"] == 0.5
+    assert f["p_exceed_0.01_band_lo"] == 0.3 and f["p_exceed_0.01_band_hi"] == 0.6
+    assert f["timing.wall_s"] == 3.0 and f["indicator"] == "green"
+    assert not any(k.startswith(("member_median", "own_peak_drift", "drift_limits")) for k in f)

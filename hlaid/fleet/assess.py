@@ -66,48 +66,57 @@ def assess_clone(clone: Clone, records: Sequence[GroundMotion], *, n_ensemble: i
     if assess is point_assess:
         engine = FALLBACK
     d.setdefault("engine", engine)
-    d.setdefault("ensemble", 0 if engine == FALLBACK else n_ensemble)
+    d["ensemble"] = 0 if engine == FALLBACK else int(d.get("n_ensemble", n_ensemble))
     return d
 
 
 # ---------------------------------------------------------------------------- fallback
+PLACARDS = {"green": "INSPECTED (re-occupancy permitted)", "yellow": "RESTRICTED USE (engineering evaluation)",
+            "red": "UNSAFE (do not re-occupy)"}
+"""The indicator's ATC-20 placard wording (as ``hlaid.uncertainty``)."""
+
+FALLBACK_RULE = ("point clone (record-to-record variability only): red if P(collapse) >= 0.10 at the own "
+                 "intensity, yellow if >= 0.02, else green")
+
+
 @dataclass(frozen=True, kw_only=True)
 class PointAssessment:
-    """Risk of a point clone (no ensemble): see :func:`point_assess`.
+    """Risk of a point clone (no ensemble), the fallback of :func:`assess_clone`. Field names
+    are those of ``hlaid.uncertainty.Assessment`` so the fleet table has one layout.
 
     Attributes
     ----------
-    median_collapse_g : median collapse intensity [g] (lognormal MLE over the records)
-    collapse_band_g : bootstrap interval (level ``ci``) of that median over records
+    collapse_median : median collapse intensity [g] (lognormal MLE over the records)
+    collapse_median_band : bootstrap interval (level ``ci``) of that median over records [g]
     beta : lognormal dispersion (record-to-record)
-    own_im_g : the building's own record's intensity [g] (None without the record)
-    p_collapse : P(collapse | own intensity)
-    p_drift : P(peak drift ratio > limit | own intensity), by limit (``"0.01"``: 1 %)
-    reoccupancy : ``"re-occupy"``, ``"restricted"`` or ``"unsafe"`` (rule: :data:`FALLBACK_RULE`)
+    own_im : the building's own record's intensity [g] (None without the record)
+    p_collapse : P(collapse | own intensity) from the fitted fragility
+    drift_limits, p_exceed : P(peak drift ratio > limit | own intensity), per limit
+    indicator : ``"green"``, ``"yellow"``, ``"red"`` (rule: :data:`FALLBACK_RULE`)
     """
 
-    median_collapse_g: float | None
-    collapse_band_g: tuple[float, float] | None
-    beta: float | None
+    n_records: int
+    ci: float
     im: str
-    period_s: float | None
-    own_im_g: float | None
-    p_collapse: float | None
-    p_drift: dict = field(default_factory=dict)
-    reoccupancy: str = "unknown"
-    n_records: int = 0
+    period: float | None
+    collapse_median: float | None
+    collapse_median_band: tuple[float, float] | None
+    beta: float | None
+    own_im: float | None = None
+    p_collapse: float | None = None
+    drift_limits: tuple = ()
+    p_exceed: tuple = ()
+    indicator: str | None = None
     notes: tuple = ()
 
     def to_dict(self) -> dict:
-        return {"ensemble": 0, "engine": FALLBACK, "median_collapse_g": self.median_collapse_g,
-                "collapse_band_g": list(self.collapse_band_g) if self.collapse_band_g else None,
-                "beta": self.beta, "im": self.im, "period_s": self.period_s, "own_im_g": self.own_im_g,
-                "p_collapse": self.p_collapse, "p_drift": dict(self.p_drift), "reoccupancy": self.reoccupancy,
-                "decision_rule": FALLBACK_RULE, "n_records": self.n_records, "notes": list(self.notes)}
-
-
-FALLBACK_RULE = ("unsafe if P(collapse) >= 0.10 at the own intensity; restricted if P(drift > 2 %) >= 0.50; "
-                 "else re-occupy (point clone, record-to-record variability only)")
+        return {"n_ensemble": 0, "engine": FALLBACK, "n_records": self.n_records, "ci": self.ci, "im": self.im,
+                "period": self.period, "collapse_median": self.collapse_median,
+                "collapse_median_band": list(self.collapse_median_band) if self.collapse_median_band else None,
+                "beta": self.beta, "own_im": self.own_im, "p_collapse": self.p_collapse,
+                "drift_limits": list(self.drift_limits), "p_exceed": list(self.p_exceed),
+                "indicator": self.indicator, "placard": PLACARDS.get(self.indicator), "rule": FALLBACK_RULE,
+                "notes": list(self.notes)}
 
 
 def _num(v) -> float | None:
@@ -130,35 +139,40 @@ def point_assess(clone, records, *, n_ensemble: int = 0, ida_config: IDAConfig |
     if own_motion is not None:
         own = float(intensity(own_motion, res.im, building=res.building, period=cfg.period)[0])
     p_col = None if frag is None or own is None else _num(frag.probability(own))
-    p_drift = {}
+    p_exc = []
     if own is not None:
         for d in res.exceedance_limits:
             try:
                 p = res.limit_fragility(d, n_boot=0, seed=seed).probability(own)
             except ValueError:  # too few exceedances to fit: the fraction of records
                 p = res.exceedance([d], [own])[0, 0]
-            p_drift[f"{d:g}"] = _num(p)
-    decision = "unknown"
-    if p_col is not None:
-        p2 = p_drift.get("0.02")
-        decision = ("unsafe" if p_col >= 0.10 else "restricted" if p2 is not None and p2 >= 0.5 else "re-occupy")
+            p_exc.append(_num(p))
+    indicator = None if p_col is None else "red" if p_col >= 0.10 else "yellow" if p_col >= 0.02 else "green"
     return PointAssessment(
-        median_collapse_g=None if frag is None else _num(frag.median),
-        collapse_band_g=None if frag is None or frag.median_ci is None else tuple(float(v) for v in frag.median_ci),
-        beta=None if frag is None else _num(frag.beta), im=res.im, period_s=_num(res.period), own_im_g=own,
-        p_collapse=p_col, p_drift=p_drift, reoccupancy=decision, n_records=res.n_records, notes=tuple(notes))
+        n_records=res.n_records, ci=cfg.ci, im=res.im, period=_num(res.period),
+        collapse_median=None if frag is None else _num(frag.median),
+        collapse_median_band=None if frag is None or frag.median_ci is None else tuple(float(v) for v in frag.median_ci),
+        beta=None if frag is None else _num(frag.beta), own_im=own, p_collapse=p_col,
+        drift_limits=tuple(res.exceedance_limits) if own is not None else (), p_exceed=tuple(p_exc),
+        indicator=indicator, notes=tuple(notes))
 
 
 def flatten(d: dict, prefix: str = "") -> dict:
-    """Scalar entries of a nested mapping as ``{"a.b": value}``; a pair of numbers ``[lo, hi]``
-    becomes ``a_lo``/``a_hi``; other lists are left out (they stay in the result JSON)."""
+    """Scalar entries of a nested mapping as ``{"a.b": value}``: a band ``[lo, hi]`` (a key
+    ending in ``band``) becomes ``KEY_lo``/``KEY_hi``; ``p_exceed`` (and ``p_exceed_band``) per
+    ``drift_limits`` becomes ``p_exceed_0.01`` (``p_exceed_0.01_band_lo`` ...); other lists are left out (they stay in
+    the result JSON)."""
     out = {}
+    limits = d.get("drift_limits")
     for k, v in d.items():
         key = f"{prefix}{k}"
         if isinstance(v, dict):
             out.update(flatten(v, key + "."))
         elif isinstance(v, (list, tuple)):
-            if len(v) == 2 and all(isinstance(x, (int, float)) or x is None for x in v):
+            if k in ("p_exceed", "p_exceed_band") and isinstance(limits, (list, tuple)) and len(limits) == len(v):
+                for lim, x in zip(limits, v):
+                    out.update(flatten({f"p_exceed_{lim:g}" + k.removeprefix("p_exceed"): x}, prefix))
+            elif k.endswith("band") and len(v) == 2 and all(isinstance(x, (int, float)) or x is None for x in v):
                 out[f"{key}_lo"], out[f"{key}_hi"] = v
         elif isinstance(v, (np.floating, np.integer, np.bool_)):
             out[key] = v.item()
@@ -167,4 +181,5 @@ def flatten(d: dict, prefix: str = "") -> dict:
     return out
 
 
-__all__ = ["assess_clone", "default_assess", "point_assess", "PointAssessment", "flatten", "FALLBACK", "ENGINE"]
+__all__ = ["assess_clone", "default_assess", "point_assess", "PointAssessment", "flatten", "FALLBACK", "ENGINE",
+           "FALLBACK_RULE", "PLACARDS"]

@@ -257,7 +257,7 @@ def _quiet() -> None:
 
 
 def _risk_text(row: dict) -> str:
-    p, r = row.get("p_collapse"), row.get("reoccupancy")
+    p, r = row.get("p_collapse"), row.get("indicator")
     return ", ".join(([f"P(collapse) {p:.3g}"] if isinstance(p, (int, float)) else [])
                      + ([str(r)] if r is not None else [])) or "no risk figures"
 

@@ -18,14 +18,15 @@ import numpy as np
 
 from .._fileio import atomic_write
 
-LEADING = ["rank", "building", "event", "status", "reason", "reoccupancy", "p_collapse", "own_im_g",
-           "median_collapse_g", "collapse_band_g_lo", "collapse_band_g_hi", "beta", "ensemble", "engine",
+LEADING = ["rank", "building", "event", "status", "reason", "indicator", "p_collapse", "p_collapse_band_lo",
+           "p_collapse_band_hi", "own_im", "collapse_median", "collapse_median_band_lo", "collapse_median_band_hi",
+           "beta", "ensemble", "engine",
            "n_stories", "T1_s", "replay_r_min", "identify_s", "assess_s", "total_s", "worker", "digest"]
-"""Columns that come first in the table (others, e.g. ``p_drift.0.01``, follow in order of appearance)."""
+"""Columns that come first in the table (others, e.g. ``p_exceed_0.01``, follow in order of appearance)."""
 
 RISK_KEYS = ("p_collapse",)
-CAPACITY_KEYS = ("median_collapse_g",)
-OWN_KEYS = ("own_im_g",)
+CAPACITY_KEYS = ("collapse_median",)
+OWN_KEYS = ("own_im",)
 """Where the ranking finds P(collapse), the median collapse IM and the own IM in a row (the
 assessment's ``to_dict()`` names, flattened)."""
 
@@ -110,7 +111,7 @@ def _cell(v):
 # ---------------------------------------------------------------------------- report
 _CSS = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}table{border-collapse:collapse;"
         "font-size:13px}td,th{border:1px solid #ccc;padding:3px 6px;text-align:right}th{background:#eee}"
-        "td.l{text-align:left}.unsafe{background:#f8d0d0}.restricted{background:#fbeec2}.re-occupy{background:#d8f0d8}"
+        "td.l{text-align:left}.red{background:#f8d0d0}.yellow{background:#fbeec2}.green{background:#d8f0d8}"
         ".kpi{display:inline-block;margin:0 1.5em 1em 0}.kpi b{display:block;font-size:1.4em}figure{margin:1em 0}"
         "img{max-width:100%}")
 
@@ -134,11 +135,11 @@ def plot_risk(rows: list[dict], top: int = 40):
     """P(collapse) at the own intensity, ranked (the ``top`` highest)."""
     import matplotlib.pyplot as plt
     ok = [r for r in rows if r["status"] == "ok"][:top]
-    colors = {"unsafe": "#c0392b", "restricted": "#e0a800", "re-occupy": "#2e8b57"}
+    colors = {"red": "#c0392b", "yellow": "#e0a800", "green": "#2e8b57"}
     fig, ax = plt.subplots(figsize=(7.5, 0.25 * len(ok) + 1.2))
     y = np.arange(len(ok))[::-1]
     p = [(_get(r, RISK_KEYS) or 0.0) for r in ok]
-    ax.barh(y, p, color=[colors.get(str(r.get("reoccupancy")), "#7f8c8d") for r in ok])
+    ax.barh(y, p, color=[colors.get(str(r.get("indicator")), "#7f8c8d") for r in ok])
     ax.set_yticks(y, [_label(r) for r in ok], fontsize=8)
     ax.set_xlabel("P(collapse) at the building's own intensity")
     ax.set_xlim(0, max(0.05, max(p, default=0) * 1.15))
@@ -153,9 +154,9 @@ def plot_margin(rows: list[dict], top: int = 40):
     fig, ax = plt.subplots(figsize=(7.5, 0.25 * len(ok) + 1.2))
     y = np.arange(len(ok))[::-1]
     med = np.array([_get(r, CAPACITY_KEYS) for r in ok])
-    lo = np.array([r.get("collapse_band_g_lo") if r.get("collapse_band_g_lo") is not None else m
+    lo = np.array([r.get("collapse_median_band_lo") if r.get("collapse_median_band_lo") is not None else m
                    for r, m in zip(ok, med)], dtype=float)
-    hi = np.array([r.get("collapse_band_g_hi") if r.get("collapse_band_g_hi") is not None else m
+    hi = np.array([r.get("collapse_median_band_hi") if r.get("collapse_median_band_hi") is not None else m
                    for r, m in zip(ok, med)], dtype=float)
     ax.errorbar(med, y, xerr=[med - lo, hi - med], fmt="o", color="#34495e", capsize=3, label="median collapse IM, band")
     own = [_get(r, OWN_KEYS) for r in ok]
@@ -192,7 +193,7 @@ def build_fleet_report(out: Path, rows: list[dict], meta: dict) -> Path:
     failed = [r for r in rows if r["status"] != "ok"]
     decisions = {}
     for r in ok:
-        decisions[str(r.get("reoccupancy"))] = decisions.get(str(r.get("reoccupancy")), 0) + 1
+        decisions[str(r.get("indicator"))] = decisions.get(str(r.get("indicator")), 0) + 1
     parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>{e(meta['name'])}</title>"
              f"<style>{_CSS}</style></head><body><h1>{e(meta['name'])}: portfolio risk</h1>"]
     kpis = [("units assessed", f"{len(ok)} / {len(rows)}"), ("failed", str(len(failed)))]
@@ -206,13 +207,14 @@ def build_fleet_report(out: Path, rows: list[dict], meta: dict) -> Path:
     if any(r.get("ensemble") == 0 for r in ok):
         parts.append("<p><b>ensemble: 0</b> rows are point clones (hlaid.uncertainty not installed): their band is "
                      "record-to-record only, without identification uncertainty.</p>")
-    cols = [c for c in ("rank", "building", "event", "reoccupancy", "p_collapse", "own_im_g", "median_collapse_g",
-                        "collapse_band_g_lo", "collapse_band_g_hi", "ensemble", "n_stories", "T1_s", "replay_r_min",
-                        "total_s") if any(c in r for r in ok)]
-    cols += [c for c in columns(ok) if c.startswith("p_drift.")]
+    cols = [c for c in ("rank", "building", "event", "indicator", "p_collapse", "p_collapse_band_lo",
+                        "p_collapse_band_hi", "own_im", "collapse_median", "collapse_median_band_lo",
+                        "collapse_median_band_hi", "ensemble", "n_stories", "T1_s", "replay_r_min", "total_s")
+            if any(c in r for r in ok)]
+    cols += [c for c in columns(ok) if c.startswith("p_exceed_") and "_band" not in c]
     parts.append("<h2>Ranked by risk</h2><table><tr>" + "".join(f"<th>{e(c)}</th>" for c in cols) + "</tr>")
     for r in ok:
-        cls = e(str(r.get("reoccupancy", "")))
+        cls = e(str(r.get("indicator", "")))
         parts.append(f"<tr class='{cls}'>" + "".join(
             f"<td class='l'>{e(str(r.get(c, '')))}</td>" if isinstance(r.get(c), str) else f"<td>{e(str(_cell(r.get(c))))}</td>"
             for c in cols) + "</tr>")
