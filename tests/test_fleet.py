@@ -22,7 +22,7 @@ pytest.importorskip("dask.distributed")
 from conftest import window  # noqa: E402
 
 from hlaid.errors import ConfigError, InputError  # noqa: E402
-from hlaid.fleet import FALLBACK, load_fleet_config, run_fleet  # noqa: E402
+from hlaid.fleet import FALLBACK, POINT, load_fleet_config, point_assess, run_fleet  # noqa: E402
 from hlaid.model import Building  # noqa: E402
 from hlaid.motions import load_builtin  # noqa: E402
 from hlaid.synthetic import simulate_measurement  # noqa: E402
@@ -108,17 +108,16 @@ def _rows(out: Path) -> list[dict]:
 
 def test_three_buildings_on_an_in_process_cluster(fleet_dir, tmp_path):
     """Real identification and the point-clone IDA fallback on a LocalCluster(processes=False)."""
-    cfg = load_fleet_config(fleet_dir / "fleet.yaml")
+    cfg = dataclasses.replace(load_fleet_config(fleet_dir / "fleet.yaml"), n_ensemble=0)  # the point clone
     out = tmp_path / "out"
     t0 = time.perf_counter()
-    from hlaid.fleet import point_assess
-    s = run_fleet(cfg, out, base_dir=fleet_dir, assess=point_assess, cache_dir=str(tmp_path / "cache"))
+    s = run_fleet(cfg, out, base_dir=fleet_dir, cache_dir=str(tmp_path / "cache"))
     wall = time.perf_counter() - t0
     assert sorted(s.computed) == ["B1@ev1", "B2@ev1", "B3@ev1"] and not s.failed
     rows = _rows(out)
     assert [r["rank"] for r in rows] == ["1", "2", "3"]
     for r in rows:
-        assert r["status"] == "ok" and r["ensemble"] == "0" and r["engine"] == FALLBACK
+        assert r["status"] == "ok" and r["ensemble"] == "0" and r["engine"] == POINT
         assert float(r["collapse_median"]) > 0 and 0 <= float(r["p_collapse"]) <= 1
         assert float(r["collapse_median_band_lo"]) <= float(r["collapse_median"]) <= float(r["collapse_median_band_hi"])
         assert r["indicator"] in ("green", "yellow", "red") and float(r["own_im"]) > 0
@@ -271,6 +270,18 @@ def test_ctrl_c_closes_the_cluster(fleet_dir, tmp_path):
     assert elapsed < 15, elapsed  # the workers' graceful stop is 4 s; the machine may be busy
     assert lines[-1] == "hlaid fleet: interrupted", lines[-8:]
     assert not any("Traceback" in ln or "KeyboardInterrupt" in ln for ln in lines), lines
+
+
+def test_the_seam_falls_back_only_when_hlaid_uncertainty_is_missing():
+    import importlib.util
+
+    from hlaid.fleet import default_assess
+    fn, engine = default_assess()
+    if importlib.util.find_spec("hlaid.uncertainty") is None:
+        assert fn is point_assess and engine == FALLBACK
+    else:
+        import hlaid.uncertainty
+        assert fn is hlaid.uncertainty.assess and engine == "hlaid.uncertainty"
 
 
 def test_flatten_keeps_bands_and_exceedance_by_limit():

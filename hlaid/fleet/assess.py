@@ -29,7 +29,10 @@ from ..ida import IDAConfig, ida, intensity
 from ..motions import GroundMotion
 
 FALLBACK = "point clone (hlaid.uncertainty missing)"
-"""The ``engine`` entry of a result computed by :func:`point_assess`."""
+"""The ``engine`` entry of a result computed by :func:`point_assess` as the fallback."""
+
+POINT = "point clone (n_ensemble: 0)"
+"""The ``engine`` entry of a result computed by :func:`point_assess` on request (``n_ensemble: 0``)."""
 
 ENGINE = "hlaid.uncertainty"
 
@@ -44,30 +47,39 @@ def default_assess() -> tuple[Callable, str]:
 
 
 def assess_clone(clone: Clone, records: Sequence[GroundMotion], *, n_ensemble: int, ida_config: IDAConfig,
-                 own_motion: GroundMotion | None, seed: int, assess: Callable | None = None) -> dict:
+                 own_motion: GroundMotion | None, seed: int, assess: Callable | None = None,
+                 engine: str | None = None) -> dict:
     """Assess one clone; returns the assessment as a JSON-able dict with ``engine`` and ``ensemble``.
 
     Parameters
     ----------
     clone : the identified clone
     records : IDA records
-    n_ensemble : clones in the ensemble (the fallback always has 0)
+    n_ensemble : clones in the ensemble (the point-clone fallback has 0)
     ida_config : IDA settings (its ``records`` are ignored: ``records`` is used)
     own_motion : the ground motion the building recorded (its Sa(T1) is the own intensity)
+    seed : seed of the ensemble and the bootstraps
     assess : an assess function with the contract above; None: :func:`default_assess`
+    engine : the label of ``assess`` in the results (default: its name)
     """
     if assess is None:
-        assess, engine = default_assess()
+        assess, label = default_assess()
     else:
-        engine = getattr(assess, "engine", None) or f"{assess.__module__}.{assess.__qualname__}"
+        label = engine_label(assess)
     res = assess(clone, list(records), n_ensemble=n_ensemble, ida_config=ida_config, own_motion=own_motion,
                  seed=seed)
     d = dict(res.to_dict() if hasattr(res, "to_dict") else res)
-    if assess is point_assess:
-        engine = FALLBACK
-    d.setdefault("engine", engine)
-    d["ensemble"] = 0 if engine == FALLBACK else int(d.get("n_ensemble", n_ensemble))
+    d["engine"] = engine or label
+    d["ensemble"] = 0 if assess is point_assess else int(d.get("n_ensemble", n_ensemble))
     return d
+
+
+def engine_label(assess: Callable) -> str:
+    """How the results name an assess function: its ``engine`` attribute, :data:`FALLBACK` for
+    :func:`point_assess`, else its qualified name."""
+    if assess is point_assess:
+        return FALLBACK
+    return getattr(assess, "engine", None) or f"{assess.__module__}.{assess.__qualname__}"
 
 
 # ---------------------------------------------------------------------------- fallback
@@ -110,7 +122,7 @@ class PointAssessment:
     notes: tuple = ()
 
     def to_dict(self) -> dict:
-        return {"n_ensemble": 0, "engine": FALLBACK, "n_records": self.n_records, "ci": self.ci, "im": self.im,
+        return {"n_ensemble": 0, "n_records": self.n_records, "ci": self.ci, "im": self.im,
                 "period": self.period, "collapse_median": self.collapse_median,
                 "collapse_median_band": list(self.collapse_median_band) if self.collapse_median_band else None,
                 "beta": self.beta, "own_im": self.own_im, "p_collapse": self.p_collapse,
@@ -181,5 +193,5 @@ def flatten(d: dict, prefix: str = "") -> dict:
     return out
 
 
-__all__ = ["assess_clone", "default_assess", "point_assess", "PointAssessment", "flatten", "FALLBACK", "ENGINE",
+__all__ = ["assess_clone", "default_assess", "engine_label", "POINT", "point_assess", "PointAssessment", "flatten", "FALLBACK", "ENGINE",
            "FALLBACK_RULE", "PLACARDS"]

@@ -28,7 +28,7 @@ from .. import __version__, _progress
 from .._fileio import _check_parent, write_json
 from ..errors import InputError
 from ..ida import load_records
-from .assess import default_assess
+from .assess import ENGINE, POINT, default_assess, engine_label, point_assess
 from .config import ClusterConfig, FleetConfig, load_fleet_config
 from .report import build_fleet_report, table_rows, write_table
 from .task import RESULT_FORMAT, UnitJob, make_jobs, records_digest, run_unit
@@ -178,10 +178,15 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
     base = Path(base_dir) if base_dir is not None else None
     out = prepare_output(Path(out), force=force)
     records = load_records(cfg.record_specs(base), units=cfg.ida.units)
-    if assess is None:
+    if assess is None and cfg.n_ensemble == 0:
+        assess, engine = point_assess, POINT
+    elif assess is None:
         assess, engine = default_assess()
+        if engine == ENGINE and cfg.identify.refine.method == "none":
+            raise InputError("identify.refine.method is 'none': such clones carry no identification uncertainty, "
+                             "which the ensemble (n_ensemble > 0) is drawn from; use 'replay' or n_ensemble: 0")
     else:
-        engine = getattr(assess, "engine", None) or f"{assess.__module__}.{assess.__qualname__}"
+        engine = engine_label(assess)
     jobs = make_jobs(cfg, base, records_digest(records), engine, cache_dir=cache_dir)
     todo, kept = plan(out, jobs, force=force)
     _progress.info(f"fleet {cfg.name!r}: {len(jobs)} unit(s) (building@event), {len(kept)} done before, "

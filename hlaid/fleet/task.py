@@ -175,7 +175,7 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
         t = time.perf_counter()
         own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name=f"{job.unit}-own", source=meas.source)
         a = assess_clone(res.clone, records, n_ensemble=job.n_ensemble, ida_config=job.ida, own_motion=own,
-                         seed=job.seed, assess=assess)
+                         seed=job.seed, assess=assess, engine=job.engine or None)
         timings["assess_s"] = time.perf_counter() - t
     except Exception as err:  # noqa: BLE001 - one building's failure must not stop the fleet
         timings["total_s"] = time.perf_counter() - t_all
