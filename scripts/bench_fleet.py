@@ -138,6 +138,7 @@ def main() -> int:
     tot = [r["timings"]["total_s"] for r in ok]
     ide = [r["timings"]["identify_s"] for r in ok]
     ass = [r["timings"]["assess_s"] for r in ok]
+    cpu = {k: [r["timings"][f"{k}_cpu_s"] for r in ok] for k in ("identify", "assess", "total")}
     workers = {r["worker"] for r in ok}
     busiest = max(sum(r["timings"]["total_s"] for r in ok if r["worker"] == w) for w in workers)
     overhead = max(0.0, wall - busiest)
@@ -147,27 +148,36 @@ def main() -> int:
           f"{os.cpu_count()} CPU(s), load average at the end {os.getloadavg()[0]:.1f}\n")
     print(f"- wall time {wall:.1f} s for {len(results)} unit(s) ({len(results) - len(ok)} failed); "
           f"overhead (start, scatter, table, report) {overhead:.1f} s")
-    print(f"- per unit, on one worker: identify {stats(ide)}; assess {stats(ass)}; total {stats(tot)}")
+    print(f"- per unit, wall on one worker: identify {stats(ide)}; assess {stats(ass)}; total {stats(tot)}")
+    print(f"- per unit, CPU of the worker thread: identify {stats(cpu['identify'])}; assess {stats(cpu['assess'])}; "
+          f"total {stats(cpu['total'])} (wall / CPU {sum(tot) / sum(cpu['total']):.2f}: the share of a core a "
+          "worker got)")
     if a.ensemble:
-        print(f"- assess per ensemble member x record: {statistics.mean(ass) / (max(a.ensemble, 1) * a.records):.3f} s")
-    print("\n| workers | projected wall time [s] | per building [s] |\n|---|---|---|")
+        print(f"- assess CPU per ensemble member x record: "
+              f"{statistics.mean(cpu['assess']) / (a.ensemble * a.records):.3f} s")
+    print("\nProjection (longest-first list scheduling of the measured per-unit times on W dedicated workers, "
+          "plus the measured overhead):\n\n| workers W | from wall times [s] | from CPU times [s] |\n|---|---|---|")
     proj = {}
     for w in (int(v) for v in a.project.split(",")):
-        m = makespan(tot, w) + overhead
-        proj[w] = m
-        print(f"| {w} | {m:.0f} | {m / len(ok):.1f} |")
+        proj[w] = (makespan(tot, w) + overhead, makespan(cpu["total"], w) + overhead)
+        print(f"| {w} | {proj[w][0]:.0f} | {proj[w][1]:.0f} |")
     if a.ensemble:
-        ass_full = statistics.mean(ass) * (44 / a.records) * (20 / a.ensemble)
-        per = statistics.mean(ide) + ass_full
-        print(f"\nScaled to the issue's size (50 x 44 x 20; assess time scaled linearly in records x members): "
-              f"{per:.0f} s per building on one worker, {50 * per / 3600:.2f} worker-hours; "
-              + ", ".join(f"{w} workers ~ {50 * per / w / 3600:.2f} h" for w in (2, 16, 64)))
+        scale = (44 / a.records) * (20 / a.ensemble)
+        per = statistics.mean(cpu["identify"]) + statistics.mean(cpu["assess"]) * scale
+        print(f"\nScaled to the issue's size (50 buildings x 44 records x ensemble 20; assess CPU scaled linearly "
+              f"in records x members): {per:.0f} s CPU per building, {50 * per / 3600:.2f} core-hours; on W "
+              "dedicated workers: " + ", ".join(f"W={w}: {50 * per / w / 60:.0f} min" for w in (2, 8, 16, 64)))
     if a.json:
         a.json.write_text(json.dumps({"args": {k: str(v) for k, v in vars(a).items()}, "wall_s": wall,
                                       "overhead_s": overhead, "identify_s": ide, "assess_s": ass, "total_s": tot,
-                                      "engine": engine, "projection_s": proj}, indent=2))
+                                      "cpu_s": cpu, "engine": engine, "projection_s": proj,
+                                      "load_average": os.getloadavg()}, indent=2))
     return 0
 
 
 if __name__ == "__main__":  # the local cluster's worker processes re-import this file: guard the run
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except KeyboardInterrupt:
+        print("bench_fleet: interrupted", file=sys.stderr)
+        sys.exit(130)

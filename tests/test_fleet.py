@@ -231,7 +231,8 @@ def test_ctrl_c_closes_the_cluster(fleet_dir, tmp_path):
         (d / f"{n}.npz").write_bytes((fleet_dir / f"{n}.npz").read_bytes())
     (d / "fleet.yaml").write_text(cfg)
     env = {**os.environ, "HLAID_CACHE": str(tmp_path / "cache"), "PYTHONUNBUFFERED": "1"}
-    p = subprocess.Popen([sys.executable, "-m", "hlaid", "fleet", str(d / "fleet.yaml"), "-o", str(tmp_path / "out")],
+    p = subprocess.Popen([sys.executable, "-m", "hlaid", "fleet", str(d / "fleet.yaml"), "-o", str(tmp_path / "out"),
+                          "-v"],  # -v: the workers' messages too, so the test sees a task running
                          env=env, start_new_session=True, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                          stderr=subprocess.PIPE, text=True)
     lines: list[str] = []

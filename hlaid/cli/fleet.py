@@ -41,4 +41,6 @@ def run_fleet_cli(args) -> int:
         cfg = dataclasses.replace(cfg, cluster=dataclasses.replace(cfg.cluster, **changes))
     summary = run_fleet(cfg, args.out, base_dir=Path(args.config).parent, scheduler=args.scheduler,
                         force=args.force, cache_dir=args.cache)
-    return 1 if summary.failed and not (summary.computed or summary.skipped) else 0
+    if summary.failed and not (summary.computed or summary.skipped):
+        raise InputError(f"all {len(summary.failed)} unit(s) failed; the reasons are in {summary.out / 'results.csv'}")
+    return 0

@@ -21,7 +21,7 @@ from .._fileio import atomic_write
 LEADING = ["rank", "building", "event", "status", "reason", "indicator", "p_collapse", "p_collapse_band_lo",
            "p_collapse_band_hi", "own_im", "collapse_median", "collapse_median_band_lo", "collapse_median_band_hi",
            "beta", "ensemble", "engine",
-           "n_stories", "T1_s", "replay_r_min", "identify_s", "assess_s", "total_s", "worker", "digest"]
+           "n_stories", "T1_s", "replay_r_min", "identify_s", "assess_s", "total_s", "total_cpu_s", "worker", "digest"]
 """Columns that come first in the table (others, e.g. ``p_exceed_0.01``, follow in order of appearance)."""
 
 RISK_KEYS = ("p_collapse",)
@@ -56,7 +56,8 @@ def table_rows(results: list[dict]) -> list[dict]:
         t = r.get("timings", {})
         row = {"building": r["building"], "event": r["event"], "status": r["status"], "reason": r.get("reason", ""),
                **r.get("row", {}), "identify_s": t.get("identify_s"), "assess_s": t.get("assess_s"),
-               "total_s": t.get("total_s"), "worker": r.get("worker"), "digest": r.get("digest")}
+               "total_s": t.get("total_s"), "total_cpu_s": t.get("total_cpu_s"), "worker": r.get("worker"),
+               "digest": r.get("digest")}
         rows.append(row)
     rows.sort(key=risk_key)
     for i, row in enumerate(rows):

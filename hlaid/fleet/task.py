@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
+from .. import __version__, _progress
 from ..config import config_to_dict
 from ..errors import InputError
 from ..ida import IDAConfig
@@ -55,6 +55,8 @@ class UnitJob:
     torch_threads: int = 1
     engine: str = ""
     digest: str = ""
+    verbosity: int = 1
+    driver_pid: int = 0
 
 
 def unit_seed(seed: int, unit: str) -> int:
@@ -118,7 +120,7 @@ def make_jobs(cfg: FleetConfig, base_dir: Path | None, records_sha: str, engine:
                "n_ensemble": cfg.n_ensemble, "seed": job.seed, "engine": engine, "hlaid": __version__,
                "records": records_sha, "files": {str(p): _file_digest(p) for p in input_files(m, base)}}
         digest = hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()
-        jobs.append(dataclasses.replace(job, digest=digest))
+        jobs.append(dataclasses.replace(job, digest=digest, verbosity=_progress.VERBOSITY, driver_pid=os.getpid()))
     return jobs
 
 
@@ -163,26 +165,33 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
     stage = "measurement"
     saved = torch.get_num_threads()
     torch.set_num_threads(job.torch_threads)
+    if os.getpid() != job.driver_pid:  # a worker process: its own messages only with --verbose
+        _progress.set_verbosity(2 if job.verbosity >= 2 else 0)
+    c_all = time.thread_time()
+
+    def clock(name: str, t: float, c: float) -> None:  # wall and CPU seconds of this thread
+        timings[f"{name}_s"] = time.perf_counter() - t
+        timings[f"{name}_cpu_s"] = time.thread_time() - c
     try:
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.thread_time()
         meas = load_unit_measurement(job)
-        timings["measurement_s"] = time.perf_counter() - t
+        clock("measurement", t, c)
         stage = "identify"
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.thread_time()
         res = identify(meas, job.identify, cache_dir=job.cache_dir)
-        timings["identify_s"] = time.perf_counter() - t
+        clock("identify", t, c)
         stage = "assess"
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.thread_time()
         own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name=f"{job.unit}-own", source=meas.source)
         a = assess_clone(res.clone, records, n_ensemble=job.n_ensemble, ida_config=job.ida, own_motion=own,
                          seed=job.seed, assess=assess, engine=job.engine or None)
-        timings["assess_s"] = time.perf_counter() - t
+        clock("assess", t, c)
     except Exception as err:  # noqa: BLE001 - one building's failure must not stop the fleet
-        timings["total_s"] = time.perf_counter() - t_all
+        clock("total", t_all, c_all)
         return {**out, "status": "failed", "stage": stage, "reason": f"{stage}: {_one_line(err)}", "timings": timings}
     finally:
         torch.set_num_threads(saved)
-    timings["total_s"] = time.perf_counter() - t_all
+    clock("total", t_all, c_all)
     b = res.clone.building
     r = np.asarray(res.replay.r_measured, dtype=np.float64)
     row = {"n_stories": b.n_stories, "mass_normalised": bool(res.clone.mass_normalised),
