@@ -107,18 +107,19 @@ class BuildingEntry:
 class ClusterConfig:
     """The embedded dask ``LocalCluster`` (``--scheduler`` replaces it with an existing cluster).
 
-    One worker assesses one building at a time (``threads_per_worker: 1``): the identification
-    and the batched simulator are single-threaded chains, and a building's records stay on one
-    worker. ``processes: false`` runs the workers as threads of this process (tests)."""
+    One worker assesses one building at a time (``threads_per_worker: 1``), with ``task_threads``
+    torch and numba threads inside the task (1: the workers, one per core, do not oversubscribe
+    the cores); a building's records stay on one worker. ``processes: false`` runs the workers
+    as threads of this process (tests)."""
 
     n_workers: int = 2
     threads_per_worker: int = 1
     memory_limit: str = "auto"
     processes: bool = True
-    torch_threads: int = 1
+    task_threads: int = 1
 
     def __post_init__(self):
-        for k in ("n_workers", "threads_per_worker", "torch_threads"):
+        for k in ("n_workers", "threads_per_worker", "task_threads"):
             if getattr(self, k) < 1:
                 raise InputError(f"{k} = {getattr(self, k)}; expected an integer >= 1")
 

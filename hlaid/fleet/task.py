@@ -52,7 +52,7 @@ class UnitJob:
     seed: int
     base_dir: str | None
     cache_dir: str | None = None
-    torch_threads: int = 1
+    task_threads: int = 1
     engine: str = ""
     digest: str = ""
     verbosity: int = 1
@@ -114,7 +114,7 @@ def make_jobs(cfg: FleetConfig, base_dir: Path | None, records_sha: str, engine:
                       height_mm=m.height_mm if m.height_mm is not None else b.height_mm,
                       identify=dataclasses.replace(cfg.identify, n_jobs=1), ida=cfg.ida, n_ensemble=cfg.n_ensemble,
                       seed=unit_seed(cfg.seed, uid), base_dir=base, cache_dir=cache_dir,
-                      torch_threads=cfg.cluster.torch_threads, engine=engine)
+                      task_threads=cfg.cluster.task_threads, engine=engine)
         key = {"unit": uid, "measurement": config_to_dict(m), "mass_t": job.mass_t, "height_mm": job.height_mm,
                "identify": config_to_dict(job.identify), "ida": config_to_dict(dataclasses.replace(cfg.ida, records=None)),
                "n_ensemble": cfg.n_ensemble, "seed": job.seed, "engine": engine, "hlaid": __version__,
@@ -163,25 +163,32 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
            "event": job.event, "digest": job.digest, "worker": f"{socket.gethostname()}:{os.getpid()}"}
     timings = {}
     stage = "measurement"
-    saved = torch.get_num_threads()
-    torch.set_num_threads(job.torch_threads)
-    if os.getpid() != job.driver_pid:  # a worker process: its own messages only with --verbose
-        _progress.set_verbosity(2 if job.verbosity >= 2 else 0)
-    c_all = time.thread_time()
+    import numba
 
-    def clock(name: str, t: float, c: float) -> None:  # wall and CPU seconds of this thread
+    saved = torch.get_num_threads(), numba.get_num_threads()
+    torch.set_num_threads(job.task_threads)
+    numba.set_num_threads(min(job.task_threads, numba.config.NUMBA_NUM_THREADS))
+    own_process = os.getpid() != job.driver_pid
+    if own_process:  # a worker process: its own messages only with --verbose
+        _progress.set_verbosity(2 if job.verbosity >= 2 else 0)
+    # CPU seconds: of the worker process (one task at a time; numba's threads included), or of
+    # this thread when the workers are threads of the driver (processes: false)
+    cpu_time = time.process_time if own_process else time.thread_time
+    c_all = cpu_time()
+
+    def clock(name: str, t: float, c: float) -> None:
         timings[f"{name}_s"] = time.perf_counter() - t
-        timings[f"{name}_cpu_s"] = time.thread_time() - c
+        timings[f"{name}_cpu_s"] = cpu_time() - c
     try:
-        t, c = time.perf_counter(), time.thread_time()
+        t, c = time.perf_counter(), cpu_time()
         meas = load_unit_measurement(job)
         clock("measurement", t, c)
         stage = "identify"
-        t, c = time.perf_counter(), time.thread_time()
+        t, c = time.perf_counter(), cpu_time()
         res = identify(meas, job.identify, cache_dir=job.cache_dir)
         clock("identify", t, c)
         stage = "assess"
-        t, c = time.perf_counter(), time.thread_time()
+        t, c = time.perf_counter(), cpu_time()
         own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name=f"{job.unit}-own", source=meas.source)
         a = assess_clone(res.clone, records, n_ensemble=job.n_ensemble, ida_config=job.ida, own_motion=own,
                          seed=job.seed, assess=assess, engine=job.engine or None)
@@ -190,7 +197,8 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
         clock("total", t_all, c_all)
         return {**out, "status": "failed", "stage": stage, "reason": f"{stage}: {_one_line(err)}", "timings": timings}
     finally:
-        torch.set_num_threads(saved)
+        torch.set_num_threads(saved[0])
+        numba.set_num_threads(saved[1])
     clock("total", t_all, c_all)
     b = res.clone.building
     r = np.asarray(res.replay.r_measured, dtype=np.float64)
