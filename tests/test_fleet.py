@@ -167,6 +167,19 @@ def test_resume_skips_finished_buildings_and_retries_failed(fleet_dir, tmp_path)
     assert len(s3.computed) == 3
 
 
+def test_an_existing_scheduler(fleet_dir, tmp_path):
+    """--scheduler: the fleet runs on a cluster it did not start, and leaves it running."""
+    from dask.distributed import Client, LocalCluster
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as lc:
+        s = run_fleet(load_fleet_config(fleet_dir / "fleet.yaml"), tmp_path / "out", base_dir=fleet_dir,
+                      scheduler=lc.scheduler_address, assess=fake_assess, cache_dir=str(tmp_path / "cache"))
+        assert len(s.computed) == 3
+        with Client(lc) as c:  # still up
+            assert len(c.scheduler_info()["workers"]) == 1
+    rows = _rows(tmp_path / "out")
+    assert {r["worker"].split(":")[1] for r in rows} == {str(os.getpid())}  # one in-process worker
+
+
 def test_a_bad_measurement_file_fails_alone(fleet_dir, tmp_path):
     d = tmp_path / "cfg"
     d.mkdir()

@@ -117,6 +117,15 @@ _CSS = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222
         "img{max-width:100%}")
 
 
+def _short(v) -> str:
+    """A number for the HTML table: 3 significant digits."""
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return f"{v:.3g}"
+    return str(v)
+
+
 def _png(fig) -> str:
     import matplotlib.pyplot as plt
     buf = io.BytesIO()
@@ -137,7 +146,7 @@ def plot_risk(rows: list[dict], top: int = 40):
     import matplotlib.pyplot as plt
     ok = [r for r in rows if r["status"] == "ok"][:top]
     colors = {"red": "#c0392b", "yellow": "#e0a800", "green": "#2e8b57"}
-    fig, ax = plt.subplots(figsize=(7.5, 0.25 * len(ok) + 1.2))
+    fig, ax = plt.subplots(figsize=(7.5, max(2.6, 0.25 * len(ok) + 1.2)))
     y = np.arange(len(ok))[::-1]
     p = [(_get(r, RISK_KEYS) or 0.0) for r in ok]
     ax.barh(y, p, color=[colors.get(str(r.get("indicator")), "#7f8c8d") for r in ok])
@@ -152,7 +161,7 @@ def plot_margin(rows: list[dict], top: int = 40):
     """Median collapse intensity with its band against the own intensity, per unit."""
     import matplotlib.pyplot as plt
     ok = [r for r in rows if r["status"] == "ok" and _get(r, CAPACITY_KEYS) is not None][:top]
-    fig, ax = plt.subplots(figsize=(7.5, 0.25 * len(ok) + 1.2))
+    fig, ax = plt.subplots(figsize=(7.5, max(2.6, 0.25 * len(ok) + 1.2)))
     y = np.arange(len(ok))[::-1]
     med = np.array([_get(r, CAPACITY_KEYS) for r in ok])
     lo = np.array([r.get("collapse_median_band_lo") if r.get("collapse_median_band_lo") is not None else m
@@ -217,7 +226,7 @@ def build_fleet_report(out: Path, rows: list[dict], meta: dict) -> Path:
     for r in ok:
         cls = e(str(r.get("indicator", "")))
         parts.append(f"<tr class='{cls}'>" + "".join(
-            f"<td class='l'>{e(str(r.get(c, '')))}</td>" if isinstance(r.get(c), str) else f"<td>{e(str(_cell(r.get(c))))}</td>"
+            f"<td class='l'>{e(str(r.get(c, '')))}</td>" if isinstance(r.get(c), str) else f"<td>{e(_short(r.get(c)))}</td>"
             for c in cols) + "</tr>")
     parts.append("</table>")
     if failed:
