@@ -96,7 +96,7 @@ class FailingAssess:
         self.fail = set(fail)
 
     def __call__(self, clone, records, **kw):
-        if clone.building.name.split("-")[0] in self.fail:
+        if clone.building.name.split("@")[0] in self.fail:  # clones are named BUILDING@EVENT
             raise RuntimeError("ensemble diverged\nsecond line")
         return fake_assess(clone, records, **kw)
 
@@ -201,6 +201,11 @@ def test_output_folder_is_protected(fleet_dir, tmp_path):
     with pytest.raises(InputError, match="not an hlaid fleet output.*--force"):
         run_fleet(load_fleet_config(fleet_dir / "fleet.yaml"), other, base_dir=fleet_dir, assess=fake_assess)
     assert (other / "keep.txt").read_text() == "x" and not (other / "buildings").exists()
+    # a run refused before it starts (here: no such record) leaves no output folder behind
+    cfg = dataclasses.replace(load_fleet_config(fleet_dir / "fleet.yaml"), records=["nothing-here.AT2"])
+    with pytest.raises(InputError, match="nothing-here.AT2: record file or folder not found"):
+        run_fleet(cfg, tmp_path / "new", base_dir=fleet_dir, assess=fake_assess)
+    assert not (tmp_path / "new").exists()
 
 
 @pytest.mark.parametrize("text, match", [

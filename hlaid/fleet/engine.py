@@ -104,9 +104,9 @@ def open_client(cluster: ClusterConfig, scheduler: str | None = None) -> Iterato
 
 
 # ---------------------------------------------------------------------------- output folder
-def prepare_output(out: Path, *, force: bool) -> Path:
-    """Create (or reopen) the output folder. A folder that is neither empty nor a fleet output
-    is refused without ``force``."""
+def check_output(out: Path, *, force: bool) -> Path:
+    """Refuse an output folder that cannot be (re)used: a file, a folder that is neither empty
+    nor a fleet output (without ``force``), a missing or unwritable parent."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a folder", source=str(out))
@@ -115,7 +115,13 @@ def prepare_output(out: Path, *, force: bool) -> Path:
                          "choose another folder", source=str(out))
     if not out.exists():
         _check_parent(out)
-        out.mkdir()
+    return out
+
+
+def prepare_output(out: Path, *, force: bool) -> Path:
+    """Create (or reopen) the output folder (see :func:`check_output`)."""
+    out = check_output(out, force=force)
+    out.mkdir(exist_ok=True)
     (out / "buildings").mkdir(exist_ok=True)
     return out
 
@@ -176,7 +182,7 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
     """
     t0 = time.perf_counter()
     base = Path(base_dir) if base_dir is not None else None
-    out = prepare_output(Path(out), force=force)
+    out = check_output(Path(out), force=force)
     records = load_records(cfg.record_specs(base), units=cfg.ida.units)
     if assess is None and cfg.n_ensemble == 0:
         assess, engine = point_assess, POINT
@@ -189,6 +195,7 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
         engine = engine_label(assess)
     jobs = make_jobs(cfg, base, records_digest(records), engine, cache_dir=cache_dir)
     todo, kept = plan(out, jobs, force=force)
+    prepare_output(out, force=force)  # only now, when nothing refused the run
     _progress.info(f"fleet {cfg.name!r}: {len(jobs)} unit(s) (building@event), {len(kept)} done before, "
                    f"{len(todo)} to run; {len(records)} IDA records, ensemble {cfg.n_ensemble}, assessment: {engine}")
     write_json(out / MARKER, {"format": "hlaid-fleet", "version": 1, "name": cfg.name, "hlaid_version": __version__,
@@ -273,4 +280,5 @@ def run_fleet_from_file(path: str | Path, out: str | Path, **kw) -> FleetSummary
     return run_fleet(cfg, out, base_dir=Path(path).parent, **kw)
 
 
-__all__ = ["run_fleet", "run_fleet_from_file", "open_client", "FleetSummary", "plan", "prepare_output", "MARKER"]
+__all__ = ["run_fleet", "run_fleet_from_file", "open_client", "FleetSummary", "plan", "check_output",
+           "prepare_output", "MARKER"]

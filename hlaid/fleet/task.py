@@ -132,16 +132,15 @@ def load_unit_measurement(job: UnitJob) -> Measurement:
     base = None if job.base_dir is None else Path(job.base_dir)
     if m.station is not None:
         meas = read_station(m.station, base=base if base is not None else Path("."))
-        meas = dataclasses.replace(meas, name=job.unit)
     else:
         src = MeasurementSource(file=m.file, format=m.format, options=m.options, simulate=m.simulate)
         meas = load_measurement(src, base)
-    changes = {}
+    changes = {"name": job.unit}  # the clone is named after the unit
     if job.mass_t is not None:
         changes["mass"] = np.asarray(job.mass_t, float)
     if job.height_mm is not None:
         changes["height"] = np.asarray(job.height_mm, float)
-    return dataclasses.replace(meas, **changes) if changes else meas
+    return dataclasses.replace(meas, **changes)
 
 
 def _one_line(err: BaseException) -> str:
