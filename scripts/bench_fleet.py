@@ -111,6 +111,8 @@ def main() -> int:
     ap.add_argument("--project", default="1,2,4,8,16,32,64", help="worker counts of the projection")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", type=Path, help="also write the figures as JSON")
+    ap.add_argument("--resume", action="store_true",
+                    help="continue an interrupted run (per-unit figures from every unit; wall time of this run only)")
     a = ap.parse_args()
 
     from hlaid import _progress
@@ -122,8 +124,8 @@ def main() -> int:
     a.work.mkdir(exist_ok=True)
     cfg_path = make_fleet(a.work, a.buildings, files, a.ensemble, a.identify, a.workers, a.threads, a.n_levels, a.seed)
     out = a.work / f"out-{a.buildings}x{a.records}x{a.ensemble}-w{a.workers}"
-    if out.exists():
-        print(f"{out} exists: remove it to measure afresh (a rerun would skip the finished buildings)", file=sys.stderr)
+    if out.exists() and not a.resume:
+        print(f"{out} exists: remove it to measure afresh (or --resume to finish it)", file=sys.stderr)
         return 2
     cfg = load_fleet_config(cfg_path)
     _progress.set_verbosity(1)
