@@ -145,6 +145,20 @@ def test_three_buildings_on_an_in_process_cluster(fleet_dir, tmp_path):
     print(f"3-building fleet: {wall:.1f} s")
 
 
+def test_three_buildings_with_the_ensemble(fleet_dir, tmp_path):
+    """With hlaid.uncertainty (after the merge of its branch): its assess through the seam."""
+    pytest.importorskip("hlaid.uncertainty")
+    cfg = load_fleet_config(fleet_dir / "fleet.yaml")
+    cfg = dataclasses.replace(cfg, n_ensemble=2, identify=dataclasses.replace(
+        cfg.identify, refine=dataclasses.replace(cfg.identify.refine, method="replay", max_iterations=10)))
+    s = run_fleet(cfg, tmp_path / "out", base_dir=fleet_dir, cache_dir=str(tmp_path / "cache"))
+    assert not s.failed, [r["reason"] for r in s.rows]
+    for r in _rows(tmp_path / "out"):
+        assert r["engine"] == "hlaid.uncertainty" and r["ensemble"] == "2"
+        assert float(r["collapse_median_band_lo"]) <= float(r["collapse_median"]) <= float(r["collapse_median_band_hi"])
+        assert r["indicator"] in ("green", "yellow", "red") and 0 <= float(r["p_collapse"]) <= 1
+
+
 def test_resume_skips_finished_buildings_and_retries_failed(fleet_dir, tmp_path):
     cfg = load_fleet_config(fleet_dir / "fleet.yaml")
     out = tmp_path / "out"
