@@ -173,7 +173,12 @@ def plot_margin(rows: list[dict], top: int = 40):
     ax.plot([v if v is not None else np.nan for v in own], y, "x", color="#c0392b", ms=8, label="own record's IM")
     ax.set_yticks(y, [_label(r) for r in ok], fontsize=8)
     ax.set_xscale("log")
-    ax.set_xlabel("intensity [g]")
+    from matplotlib.ticker import FormatStrFormatter
+    ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
+    ax.xaxis.set_minor_formatter(FormatStrFormatter("%g"))
+    ax.tick_params(axis="x", which="minor", labelsize=7)
+    label = next((str(r[k]) for r in ok for k in ("im_label", "im") if r.get(k)), "intensity")
+    ax.set_xlabel(f"{label} [g]")
     ax.legend(loc="best", fontsize=8)
     ax.set_title("Collapse capacity against the intensity each building just had")
     return fig
