@@ -20,7 +20,7 @@ from __future__ import annotations
 import importlib.util
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -193,5 +193,6 @@ def flatten(d: dict, prefix: str = "") -> dict:
     return out
 
 
-__all__ = ["assess_clone", "default_assess", "engine_label", "POINT", "point_assess", "PointAssessment", "flatten", "FALLBACK", "ENGINE",
+__all__ = ["assess_clone", "default_assess", "engine_label", "POINT", "point_assess", "PointAssessment", "flatten",
+           "FALLBACK", "ENGINE",
            "FALLBACK_RULE", "PLACARDS"]

@@ -30,7 +30,7 @@ from ..identify import IdentifyConfig
 from ..measurement import Measurement
 from ..motions import GroundMotion
 from .assess import assess_clone, flatten
-from .config import BuildingEntry, FleetConfig, FleetMeasurement, unit_id
+from .config import FleetConfig, FleetMeasurement, unit_id
 
 RESULT_FORMAT = "hlaid-fleet-unit"
 RESULT_VERSION = 1

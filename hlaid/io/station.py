@@ -139,7 +139,8 @@ def _pick(traces, spec: StationChannel, role: str, where: str):
         raise InputError(f"{role}: channel {label} is not in the file(s); they hold {len(have)} channel(s)"
                          + (f": {shown}" if shown else ""), source=where)
     if len(ids) > 1:
-        raise InputError(f"{role}: channel {label} matches {len(ids)} channels ({', '.join(i for i in ids[:6] if quotable(i))}); "
+        shown = ", ".join(i for i in ids[:6] if quotable(i))
+        raise InputError(f"{role}: channel {label} matches {len(ids)} channels ({shown}); "
                          "give one SEED id", source=where)
     obspy = _obspy()
     st = obspy.Stream([tr for tr, _ in hits])
@@ -152,7 +153,8 @@ def _pick(traces, spec: StationChannel, role: str, where: str):
         try:
             st.merge(method=0, fill_value=None)
         except Exception as err:  # noqa: BLE001
-            raise InputError(f"{role}: channel {_id(st[0])}: its records cannot be merged ({type(err).__name__})", source=src) from None
+            raise InputError(f"{role}: channel {_id(st[0])}: its records cannot be merged ({type(err).__name__})",
+                             source=src) from None
     tr = st[0]
     if len(st) > 1 or np.ma.isMaskedArray(tr.data) and np.ma.getmaskarray(tr.data).any():
         raise InputError(f"{role}: channel {_id(st[0])} has a gap; give gap-free records", source=src)
