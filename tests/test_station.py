@@ -153,3 +153,10 @@ def test_a_fleet_building_from_station_data(meas, tmp_path):
     f.write_bytes(f.read_bytes()[:-512])
     job2, = make_jobs(cfg, tmp_path, "records-sha", "fake")
     assert job2.digest != job.digest
+
+
+def test_a_bare_station_file_asks_for_the_mapping(tmp_path):
+    f = tmp_path / "b001.mseed"
+    f.write_bytes(b"\0" * 512)
+    with pytest.raises(InputError, match=f"{f}: is seismic station data .*format 'station'"):
+        read_any(f)

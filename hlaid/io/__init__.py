@@ -84,6 +84,10 @@ def detect_format(path: str | os.PathLike) -> str:
         return "columns"
     if bare.endswith(".npz"):
         return "npz"
+    if bare.endswith((".mseed", ".miniseed", ".sac")):
+        raise InputError("is seismic station data (miniSEED/SAC): describe which channel is the ground and which "
+                         "each floor in a YAML file and read that with format 'station' (see hlaid.io.station)",
+                         source=src)
     if bare.endswith(".mat"):
         return "hotel"
     if bare.endswith(".smc"):
