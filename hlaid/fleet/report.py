@@ -87,7 +87,8 @@ def write_table(rows: list[dict], out: Path) -> list[Path]:
     try:
         import pyarrow as pa
         import pyarrow.parquet as pq
-    except ImportError:
+    except ImportError:  # a table of an earlier run (with pyarrow) would now be stale
+        (out / "results.parquet").unlink(missing_ok=True)
         return written
     data = {k: [r.get(k) for r in rows] for k in cols}
     table = pa.table({k: pa.array(v, from_pandas=True) if _uniform(v) else pa.array([_cell(x) for x in v])
