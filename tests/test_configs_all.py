@@ -25,6 +25,7 @@ LOADERS = {
     "run_example.yaml": ("hlaid.runner", "load_run_config"),
     "compare.yaml": ("hlaid.identify.compare", "CompareConfig"),
     "validate_real.yaml": ("hlaid.validation", "ValidationConfig"),
+    "fleet_example.yaml": ("hlaid.fleet", "load_fleet_config"),
 }
 """Each config file and its schema (a dataclass) or loader (a function). A new config must
 be listed here."""

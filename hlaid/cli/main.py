@@ -22,6 +22,7 @@ COMMANDS = [
     "hlaid.cli.identify",
     "hlaid.cli.run",
     "hlaid.cli.ida",
+    "hlaid.cli.fleet",
 ]
 """Modules that each register one or more subcommands."""
 

@@ -13,6 +13,8 @@ Readers by name (:data:`MEASUREMENT_READERS`):
 - ``csmip``: a CSMIP V2 file or CESMD zip, channels chosen by the caller (:func:`csmip_measurement`)
 - ``columns``: any table, mapped by a YAML file (:func:`read_columns`)
 - ``hotel``: the PhyCNN 6-story hotel ``.mat``, one earthquake chosen by the caller (:func:`read_hotel`)
+- ``station``: miniSEED/SAC station data through ObsPy (optional extra), channels mapped onto
+  floors by a YAML file (:func:`read_station`)
 
 :func:`read_any` picks the reader from the extension and the first lines of the file.
 """
@@ -33,6 +35,7 @@ from .csmip import CsmipChannel, csmip_measurement, read_csmip, read_csmip_chann
 from .hotel import hotel_events, read_hotel
 from .mini_shake_table import read_mini_shake_table, sniff_mini_shake_table
 from .smc import SmcChannel, read_smc, read_smc_channel, smc_measurement, sniff_smc
+from .station import StationChannel, StationConfig, read_station
 from .steel_frame import read_steel_frame, sniff_steel_frame
 
 MEASUREMENT_READERS: dict[str, Callable[..., Measurement]] = {
@@ -44,13 +47,14 @@ MEASUREMENT_READERS: dict[str, Callable[..., Measurement]] = {
     "csmip": csmip_measurement,
     "columns": read_columns,
     "hotel": read_hotel,
+    "station": read_station,
 }
 """Measurement readers by name; each takes the path first and keyword options after it."""
 
 __all__ = ["MEASUREMENT_READERS", "read_any", "detect_format", "read_steel_frame", "read_mini_shake_table",
            "read_smc", "read_smc_channel", "smc_measurement", "SmcChannel", "read_csmip", "read_csmip_channels",
            "csmip_measurement", "CsmipChannel", "read_columns", "load_columns_config", "ColumnsConfig",
-           "ChannelSpec", "read_hotel", "hotel_events"]
+           "ChannelSpec", "read_hotel", "hotel_events", "read_station", "StationConfig", "StationChannel"]
 
 
 def _head(p: Path) -> str:
@@ -80,6 +84,10 @@ def detect_format(path: str | os.PathLike) -> str:
         return "columns"
     if bare.endswith(".npz"):
         return "npz"
+    if bare.endswith((".mseed", ".miniseed", ".sac")):
+        raise InputError("is seismic station data (miniSEED/SAC): describe which channel is the ground and which "
+                         "each floor in a YAML file and read that with format 'station' (see hlaid.io.station)",
+                         source=src)
     if bare.endswith(".mat"):
         return "hotel"
     if bare.endswith(".smc"):

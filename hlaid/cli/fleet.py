@@ -1,0 +1,46 @@
+"""``hlaid fleet``: a building portfolio on dask.distributed."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+from ..errors import InputError
+from .main import subcommand
+
+
+def register(sub) -> None:
+    p = subcommand(sub, "fleet", help="identify, assess and rank many buildings and events on a dask cluster",
+                   example="hlaid fleet configs/fleet_example.yaml -o fleet-out --workers 2")
+    p.add_argument("config", help="fleet config YAML (buildings, events, records, identify, ida, cluster)")
+    p.add_argument("-o", "--out", required=True,
+                   help="output folder; an existing fleet output is resumed (finished buildings are kept)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="address of an existing dask scheduler (e.g. tcp://10.0.0.5:8786); default: an embedded "
+                        "LocalCluster. The workers must see the config's files at the same paths")
+    p.add_argument("--workers", type=int, metavar="N", help="workers of the embedded cluster (config: cluster.n_workers)")
+    p.add_argument("--threads", type=int, metavar="N",
+                   help="threads per worker of the embedded cluster (config: cluster.threads_per_worker)")
+    p.add_argument("--cache", metavar="DIR", help="classifier cache folder (default ~/.cache/hlaid/svm)")
+    p.add_argument("--force", action="store_true",
+                   help="recompute buildings whose stored result came from other inputs; write into a non-fleet folder")
+    p.set_defaults(func=run_fleet_cli)
+
+
+def run_fleet_cli(args) -> int:
+    from ..fleet import load_fleet_config, run_fleet
+    cfg = load_fleet_config(args.config)
+    changes = {}
+    for opt, key in (("workers", "n_workers"), ("threads", "threads_per_worker")):
+        v = getattr(args, opt)
+        if v is not None:
+            if v < 1:
+                raise InputError(f"--{opt} {v}: expected an integer >= 1")
+            changes[key] = v
+    if changes:
+        cfg = dataclasses.replace(cfg, cluster=dataclasses.replace(cfg.cluster, **changes))
+    summary = run_fleet(cfg, args.out, base_dir=Path(args.config).parent, scheduler=args.scheduler,
+                        force=args.force, cache_dir=args.cache)
+    if summary.failed and not (summary.computed or summary.skipped):
+        raise InputError(f"all {len(summary.failed)} unit(s) failed; the reasons are in {summary.out / 'results.csv'}")
+    return 0

@@ -1,0 +1,284 @@
+"""Running a fleet on dask.distributed: one task per (building, event), results as they come.
+
+The driver (this process) reads the IDA records once and scatters them to every worker, then
+submits one task per unit (:func:`hlaid.fleet.task.run_unit`): a worker holds one building from
+its measurement to its decision. Each finished unit is written at once, atomically, to
+``OUT/buildings/BUILDING@EVENT.json`` with the digest of its inputs, so a rerun skips it; a
+unit that failed is retried by the next run. The table and the report are rebuilt from those
+files at the end of every run.
+
+Ctrl-C: the worker processes are started with SIGINT ignored (only the driver handles it); the
+driver cancels the tasks, closes the client and the cluster, and the command exits with 130. A
+Ctrl-C in the seconds while the workers start is ignored (the driver ignores it then too).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from .. import __version__, _progress
+from .._fileio import _check_parent, write_json
+from ..errors import InputError
+from ..ida import load_records
+from .assess import ENGINE, POINT, default_assess, engine_label, point_assess
+from .config import ClusterConfig, FleetConfig, load_fleet_config
+from .report import build_fleet_report, table_rows, write_table
+from .task import RESULT_FORMAT, UnitJob, make_jobs, records_digest, run_unit
+
+MARKER = "fleet.json"
+"""The file that makes a folder an hlaid fleet output (a rerun resumes it)."""
+
+
+@dataclass(frozen=True)
+class FleetSummary:
+    """What a fleet run did: units computed, skipped (done before) and failed; the table rows."""
+
+    out: Path
+    computed: tuple[str, ...]
+    skipped: tuple[str, ...]
+    failed: tuple[str, ...]
+    rows: list
+    wall_s: float
+
+
+def _dask():
+    try:
+        from dask import distributed
+    except ImportError:
+        raise InputError("hlaid fleet needs dask.distributed: pip install \"hlaid[fleet]\"") from None
+    return distributed
+
+
+@contextlib.contextmanager
+def _workers_ignore_sigint() -> Iterator[None]:
+    """SIGINT ignored while the worker processes start: an ignored signal stays ignored in a
+    spawned child (a blocked one does not: multiprocessing's spawn clears the mask), so a Ctrl-C
+    sent to the whole process group reaches only the driver, which then closes the cluster.
+    Only the main thread can change it; elsewhere (a library caller's thread) nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+@contextlib.contextmanager
+def open_client(cluster: ClusterConfig, scheduler: str | None = None) -> Iterator:
+    """A dask ``Client``: of the cluster at ``scheduler`` (an address such as
+    ``tcp://10.0.0.5:8786``), else of an embedded ``LocalCluster`` closed on exit."""
+    distributed = _dask()
+    if scheduler:
+        try:
+            client = distributed.Client(scheduler, timeout="20s")
+        except (OSError, TimeoutError) as err:
+            raise InputError(f"--scheduler {scheduler}: cannot connect ({type(err).__name__}: "
+                             f"{' '.join(str(err).split())[:200]})") from None
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    with _workers_ignore_sigint():
+        lc = distributed.LocalCluster(n_workers=cluster.n_workers, threads_per_worker=cluster.threads_per_worker,
+                                      processes=cluster.processes, memory_limit=cluster.memory_limit,
+                                      dashboard_address=None, silence_logs=logging.CRITICAL)
+    try:
+        client = distributed.Client(lc)
+        try:
+            yield client
+        finally:
+            client.close()
+    finally:
+        lc.close()
+
+
+# ---------------------------------------------------------------------------- output folder
+def check_output(out: Path, *, force: bool) -> Path:
+    """Refuse an output folder that cannot be (re)used: a file, a folder that is neither empty
+    nor a fleet output (without ``force``), a missing or unwritable parent."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError("exists and is not a folder", source=str(out))
+    if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file() and not force:
+        raise InputError("is not empty and is not an hlaid fleet output; use --force to write into it, or "
+                         "choose another folder", source=str(out))
+    if not out.exists():
+        _check_parent(out)
+    return out
+
+
+def prepare_output(out: Path, *, force: bool) -> Path:
+    """Create (or reopen) the output folder (see :func:`check_output`)."""
+    out = check_output(out, force=force)
+    out.mkdir(exist_ok=True)
+    (out / "buildings").mkdir(exist_ok=True)
+    return out
+
+
+def result_path(out: Path, job: UnitJob) -> Path:
+    return out / "buildings" / f"{job.unit}.json"
+
+
+def stored_result(out: Path, job: UnitJob) -> dict | None:
+    """The stored result of a unit, or None (none, unreadable, or not a fleet result)."""
+    p = result_path(out, job)
+    if not p.is_file():
+        return None
+    try:
+        d = json.loads(p.read_text())
+    except (OSError, ValueError):
+        _progress.warn(f"{p}: unreadable result; {job.unit} is recomputed")
+        return None
+    return d if isinstance(d, dict) and d.get("format") == RESULT_FORMAT else None
+
+
+def plan(out: Path, jobs: list[UnitJob], *, force: bool) -> tuple[list[UnitJob], list[dict]]:
+    """``(jobs to run, results kept)``: an ``ok`` result with the job's digest is kept; a failed
+    one is retried; an ``ok`` result of other inputs (stale) is recomputed only with ``force``."""
+    todo, kept, stale = [], [], []
+    for job in jobs:
+        d = stored_result(out, job)
+        if d is not None and d.get("status") == "ok":
+            if d.get("digest") == job.digest:
+                kept.append(d)
+                continue
+            stale.append(job.unit)
+        todo.append(job)
+    if stale and not force:
+        shown = ", ".join(stale[:5]) + (f" and {len(stale) - 5} more" if len(stale) > 5 else "")
+        raise InputError(f"holds results of other inputs (config, files or hlaid version changed) for {shown}; "
+                         "use --force to recompute them, or choose another folder", source=str(out))
+    return todo, kept
+
+
+# ---------------------------------------------------------------------------- the run
+def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None = None, scheduler: str | None = None,
+              client=None, force: bool = False, assess: Callable | None = None,
+              cache_dir: str | None = None) -> FleetSummary:
+    """Assess every (building, event) of ``cfg`` on dask and write the table and the report.
+
+    Parameters
+    ----------
+    cfg : the fleet config
+    out : output folder (created; a fleet output is resumed)
+    base_dir : folder that relative paths in ``cfg`` are taken from
+    scheduler : address of an existing dask scheduler; None: an embedded ``LocalCluster``
+        (``cfg.cluster``); ``client``: an already connected ``dask.distributed.Client`` instead
+    force : recompute units whose stored result came from other inputs
+    assess : an assess function (contract: :mod:`hlaid.fleet.assess`); None:
+        ``hlaid.uncertainty.assess``, or the point-clone fallback when that is missing
+    cache_dir : classifier cache of the identifications (None: hlaid's default)
+    """
+    t0 = time.perf_counter()
+    base = Path(base_dir) if base_dir is not None else None
+    out = check_output(Path(out), force=force)
+    records = load_records(cfg.record_specs(base), units=cfg.ida.units)
+    if assess is None and cfg.n_ensemble == 0:
+        assess, engine = point_assess, POINT
+    elif assess is None:
+        assess, engine = default_assess()
+        if engine == ENGINE and cfg.identify.refine.method == "none":
+            raise InputError("identify.refine.method is 'none': such clones carry no identification uncertainty, "
+                             "which the ensemble (n_ensemble > 0) is drawn from; use 'replay' or n_ensemble: 0")
+    else:
+        engine = engine_label(assess)
+    jobs = make_jobs(cfg, base, records_digest(records), engine, cache_dir=cache_dir)
+    todo, kept = plan(out, jobs, force=force)
+    prepare_output(out, force=force)  # only now, when nothing refused the run
+    _progress.info(f"fleet {cfg.name!r}: {len(jobs)} unit(s) (building@event), {len(kept)} done before, "
+                   f"{len(todo)} to run; {len(records)} IDA records, ensemble {cfg.n_ensemble}, assessment: {engine}")
+    write_json(out / MARKER, {"format": "hlaid-fleet", "version": 1, "name": cfg.name, "hlaid_version": __version__,
+                              "state": "running", "units": [j.unit for j in jobs]})
+    computed, failed = [], []
+    results = {d["unit"]: d for d in kept}
+    if todo:
+        ctx = contextlib.nullcontext(client) if client is not None else open_client(cfg.cluster, scheduler)
+        with ctx as cl:
+            computed, failed = _run_on(cl, todo, records, assess, out, results)
+    ordered = [results[j.unit] for j in jobs if j.unit in results]
+    rows = table_rows(ordered)
+    wall = time.perf_counter() - t0
+    written = write_table(rows, out)
+    meta = {"name": cfg.name, "n_records": len(records), "n_ensemble": cfg.n_ensemble, "hlaid_version": __version__,
+            "wall_s": wall}
+    build_fleet_report(out, rows, meta)
+    write_json(out / MARKER, {"format": "hlaid-fleet", "version": 1, "name": cfg.name, "hlaid_version": __version__,
+                              "state": "complete", "units": [j.unit for j in jobs], "computed": computed,
+                              "skipped": [d["unit"] for d in kept], "failed": failed, "engine": engine,
+                              "n_records": len(records), "wall_s": wall,
+                              "tables": [p.name for p in written]})
+    _progress.info(f"wrote {out}/ (report.html, {', '.join(p.name for p in written)}, buildings/): "
+                   f"{len(rows) - len(failed)} ok, {len(failed)} failed, {wall:.1f} s")
+    return FleetSummary(out=out, computed=tuple(computed), skipped=tuple(d["unit"] for d in kept),
+                        failed=tuple(failed), rows=rows, wall_s=wall)
+
+
+def _run_on(client, todo: list[UnitJob], records, assess, out: Path, results: dict) -> tuple[list, list]:
+    distributed = _dask()
+    n_workers = len(client.scheduler_info().get("workers", {}))
+    _progress.info(f"dask: {n_workers} worker(s) at {client.scheduler.address}")
+    futures = {}
+    try:
+        recs = client.scatter(list(records), broadcast=True)
+    except BaseException:
+        _quiet()
+        raise
+    for job in todo:
+        f = client.submit(run_unit, job, recs, assess, key=f"hlaid-fleet-{job.unit}-{job.digest[:12]}", pure=False)
+        futures[f] = job
+    computed, failed = [], []
+    try:
+        for i, fut in enumerate(distributed.as_completed(futures), 1):
+            job = futures[fut]
+            try:
+                res = fut.result()
+            except Exception as err:  # noqa: BLE001 - a lost worker, an unpicklable result ...
+                res = {"format": RESULT_FORMAT, "version": 1, "unit": job.unit, "building": job.building,
+                       "event": job.event, "digest": job.digest, "status": "failed", "stage": "worker",
+                       "reason": f"worker: {type(err).__name__}: {' '.join(str(err).split())[:300]}", "timings": {}}
+            write_json(result_path(out, job), res)
+            results[job.unit] = res
+            (computed if res["status"] == "ok" else failed).append(job.unit)
+            t = res.get("timings", {}).get("total_s")
+            what = (_risk_text(res["row"]) if res["status"] == "ok" else res["reason"])
+            _progress.info(f"[{i}/{len(todo)}] {job.unit}: {res['status']}"
+                           + (f" in {t:.1f} s" if t is not None else "") + f" ({what})")
+    except BaseException:  # Ctrl-C: stop the remaining tasks before the cluster closes
+        _quiet()
+        client.cancel(list(futures), force=True)
+        raise
+    return computed, failed
+
+
+def _quiet() -> None:
+    """After Ctrl-C: the connections that the closing cluster cuts are expected, not errors to
+    log (asyncio's "exception was never retrieved", distributed's comm errors)."""
+    for name in ("asyncio", "distributed", "tornado"):
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+
+
+def _risk_text(row: dict) -> str:
+    p, r = row.get("p_collapse"), row.get("indicator")
+    return ", ".join(([f"P(collapse) {p:.3g}"] if isinstance(p, (int, float)) else [])
+                     + ([str(r)] if r is not None else [])) or "no risk figures"
+
+
+def run_fleet_from_file(path: str | Path, out: str | Path, **kw) -> FleetSummary:
+    """Load a fleet config and :func:`run_fleet` it (relative paths from the config's folder)."""
+    cfg = load_fleet_config(path)
+    return run_fleet(cfg, out, base_dir=Path(path).parent, **kw)
+
+
+__all__ = ["run_fleet", "run_fleet_from_file", "open_client", "FleetSummary", "plan", "check_output",
+           "prepare_output", "MARKER"]
