@@ -10,6 +10,8 @@ Each batch element ``b`` integrates building ``bi[b]`` under motion ``mi[b]`` sc
 
 from __future__ import annotations
 
+import types
+
 import numba as nb
 import numpy as np
 
@@ -24,12 +26,29 @@ _degradation = _jit(eq.degradation)
 _hysteretic_rate = _jit(eq.hysteretic_rate)
 _spring_force = _jit(eq.spring_force)
 
+
+def _jit_composed(names):
+    """Compile functions of ``_equations`` that call each other: each is compiled with the
+    already compiled ones as its globals (the source stays the one in ``_equations``)."""
+    done = {}
+    for name in names:
+        fn = getattr(eq, name)
+        g = {**vars(eq), **done}
+        done[name] = _jit(types.FunctionType(fn.__code__, g, fn.__name__, fn.__defaults__))
+    return done
+
+
+_c = _jit_composed(("_pos", "spring_force", "strength_factor", "collapse_force", "collapse_spring_force",
+                    "peak_rate"))
+_collapse_spring_force, _peak_rate = _c["collapse_spring_force"], _c["peak_rate"]
+
 STATUS_OK, STATUS_DRIFT_LIMIT, STATUS_DIVERGED = 0, 1, 2
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
-def _rhs(y, ag, n, m, k0, al, p, dy, de, kg, C, f, out):
-    """``out = dy/dt`` for one building; ``f`` is scratch ``(n,)``. See BoucWenBuilding.rates."""
+def _rhs(y, ag, n, m, k0, al, p, dy, de, kg, C, col, cp, f, out):
+    """``out = dy/dt`` for one building; ``f`` is scratch ``(n,)``. See BoucWenBuilding.rates.
+    ``col``: the state has the collapse memory ``[xp, xn]`` (6n), ``cp`` ``(n, 4)`` its values."""
     u_below = 0.0
     v_below = 0.0
     for i in range(n):
@@ -41,7 +60,15 @@ def _rhs(y, ag, n, m, k0, al, p, dy, de, kg, C, f, out):
         eta = _degradation(y[3 * n + i], al[i], k0[i], m[i], de[i])
         out[2 * n + i] = _hysteretic_rate(xd, z, dy[i], p[i], eta)
         out[3 * n + i] = z * xd
-        f[i] = _spring_force(x, z, al[i], k0[i]) - kg[i] * x
+        if col:
+            xp = y[4 * n + i]
+            xn = y[5 * n + i]
+            out[4 * n + i] = _peak_rate(x, xd, xp)
+            out[5 * n + i] = _peak_rate(-x, -xd, xn)
+            f[i] = _collapse_spring_force(x, z, xp, xn, al[i], k0[i], dy[i], cp[i, 0], cp[i, 1], cp[i, 2],
+                                          cp[i, 3]) - kg[i] * x
+        else:
+            f[i] = _spring_force(x, z, al[i], k0[i]) - kg[i] * x
         out[i] = v
         u_below = u
         v_below = v
@@ -54,12 +81,16 @@ def _rhs(y, ag, n, m, k0, al, p, dy, de, kg, C, f, out):
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
-def _absolute_acc(y, n, m, al, k0, kg, C, f, acc):
+def _absolute_acc(y, n, m, al, k0, dy, kg, C, col, cp, f, acc):
     """Absolute floor accelerations ``-(R + C v)/m`` at state ``y``."""
     u_below = 0.0
     for i in range(n):
         x = y[i] - u_below
-        f[i] = _spring_force(x, y[2 * n + i], al[i], k0[i]) - kg[i] * x
+        if col:
+            f[i] = _collapse_spring_force(x, y[2 * n + i], y[4 * n + i], y[5 * n + i], al[i], k0[i], dy[i],
+                                          cp[i, 0], cp[i, 1], cp[i, 2], cp[i, 3]) - kg[i] * x
+        else:
+            f[i] = _spring_force(x, y[2 * n + i], al[i], k0[i]) - kg[i] * x
         u_below = y[i]
     for j in range(n):
         fd = 0.0
@@ -69,8 +100,21 @@ def _absolute_acc(y, n, m, al, k0, kg, C, f, acc):
         acc[j] = -(f[j] - f_above + fd) / m[j]
 
 
+@nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy", inline="always")
+def _update_peaks(y, n):
+    """Collapse memory after a step: ``xp = max(xp, x)``, ``xn = max(xn, -x)`` (exact running peaks)."""
+    u_below = 0.0
+    for i in range(n):
+        x = y[i] - u_below
+        if x > y[4 * n + i]:
+            y[4 * n + i] = x
+        if -x > y[5 * n + i]:
+            y[5 * n + i] = -x
+        u_below = y[i]
+
+
 @nb.njit(cache=True, parallel=True, fastmath=_FASTMATH, error_model="numpy")
-def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, stop_drift,
+def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, cpar, y0, stop_drift,
               save, states, save_acc, acc_hist, peak_drift, peak_acc, final, n_done, status):
     """Integrate every batch element; results are written into the output arrays.
 
@@ -82,7 +126,10 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
     nsub : RK4 sub-steps per sample; a sample whose step lets |z| overshoot dy (or the
         state blow up) is redone with 2x, 4x, ... up to 16x the sub-steps
     m, k0, al, p, dy, de, kg : (building, story) parameters; C : (building, story, story)
-    y0 : (batch, 4*story) initial states
+    cpar : (building, story, 4) collapse values ``xc, kpc, fr, xu`` (see hlaid.model.collapse),
+        used when the state has the collapse memory
+    y0 : (batch, 4*story) initial states, or (batch, 6*story) with the collapse memory
+        ``[xp, xn]`` (largest past drift per direction), which switches the collapse law on
     stop_drift : (batch, story) |drift| [mm] at which an element stops (inf: never)
     save : write the state at every sample into ``states`` (batch, time, 4*story)
     save_acc : write the absolute floor acceleration at every sample into ``acc_hist``
@@ -92,12 +139,14 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
     """
     B = mi.shape[0]
     n = m.shape[1]
-    S = 4 * n
+    S = y0.shape[1]
+    col = S == 6 * n
     for b in nb.prange(B):
         g = ag[mi[b]]
         s_b = sc[b]
         w = bi[b]
         mb, k0b, alb, pb, dyb, deb, kgb, Cb = m[w], k0[w], al[w], p[w], dy[w], de[w], kg[w], C[w]
+        cpb = cpar[w]
         y = y0[b].copy()
         y_prev = np.empty(S)
         yt = np.empty(S)
@@ -110,7 +159,7 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
         T = nt[mi[b]]
         if save:
             states[b, 0, :] = y
-        _absolute_acc(y, n, mb, alb, k0b, kgb, Cb, f, acc)
+        _absolute_acc(y, n, mb, alb, k0b, dyb, kgb, Cb, col, cpb, f, acc)
         if save_acc:
             for i in range(n):
                 acc_hist[b, 0, i] = acc[i]
@@ -131,18 +180,20 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
                     g0 = lo + da * (s / ns)
                     gm = lo + da * ((s + 0.5) / ns)
                     g1 = lo + da * ((s + 1.0) / ns)
-                    _rhs(y, g0, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k1)
+                    _rhs(y, g0, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, col, cpb, f, k1)
                     for j in range(S):
                         yt[j] = y[j] + 0.5 * hs * k1[j]
-                    _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k2)
+                    _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, col, cpb, f, k2)
                     for j in range(S):
                         yt[j] = y[j] + 0.5 * hs * k2[j]
-                    _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k3)
+                    _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, col, cpb, f, k3)
                     for j in range(S):
                         yt[j] = y[j] + hs * k3[j]
-                    _rhs(yt, g1, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k4)
+                    _rhs(yt, g1, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, col, cpb, f, k4)
                     for j in range(S):
                         y[j] = y[j] + hs / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+                    if col:
+                        _update_peaks(y, n)
                 # the step was too long if z overshot the yield surface or the state blew up:
                 # redo this sample with twice the sub-steps (up to 16x)
                 bad = False
@@ -158,7 +209,7 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
             k += 1
             if save:
                 states[b, k, :] = y
-            _absolute_acc(y, n, mb, alb, k0b, kgb, Cb, f, acc)
+            _absolute_acc(y, n, mb, alb, k0b, dyb, kgb, Cb, col, cpb, f, acc)
             if save_acc:
                 for i in range(n):
                     acc_hist[b, k, i] = acc[i]
