@@ -35,15 +35,50 @@ def backbone(xi, s=STORY, c=MODEL):
     return np.where(xi <= xc, np.inf, post), xc, fc, kpc, fr, xu
 
 
-def factor(xi, s=STORY, c=MODEL):
-    """Strength factor: backbone over the yielded Bouc-Wen envelope, at most 1."""
-    b, xc, *_ = backbone(xi, s, c)
-    env = (1 - s["alpha"]) * s["k0"] * s["dy"] + s["alpha"] * s["k0"] * np.maximum(xi, xc)
-    return np.minimum(1.0, b / env)
+def kinks(s=STORY, c=MODEL):
+    """(drift, slope change) of the backbone's kinks, found numerically from the lines above."""
+    x = np.linspace(0.0, 2000.0, 2_000_001)
+    b, xc, fc, *_ = backbone(x, s, c)
+    b = np.where(x <= xc, fc + s["alpha"] * s["k0"] * (x - xc), b)  # the yielded Bouc-Wen line before
+    slope = np.diff(b) / np.diff(x)
+    j = np.flatnonzero(np.abs(np.diff(slope)) > 1e-6)
+    out = []
+    for i in j:
+        x0 = x[i + 1]
+        if out and x0 - out[-1][0] < 1e-2:
+            continue
+        out.append((x0, slope[i + 5] - slope[i - 5]))
+    return out
+
+
+class Gap:
+    """Elastic-perfectly-plastic gap of unit stiffness yielding at ``xj`` both ways; the gap grows
+    with the plastic deformation (OpenSees ElasticPPGap with damage), by return mapping."""
+
+    def __init__(self, xj):
+        self.xj, self.gp, self.gn = xj, 0.0, 0.0
+
+    def __call__(self, x):
+        h = 0.0
+        if x - self.gp > 0:
+            h = min(x - self.gp, self.xj)
+            if x - self.gp > self.xj:
+                self.gp = x - self.xj
+        if -x - self.gn > 0:
+            h = -min(-x - self.gn, self.xj)
+            if -x - self.gn > self.xj:
+                self.gn = -x - self.xj
+        return h
+
+
+def collapse_part(x, s=STORY, c=MODEL):
+    """Force of the gap springs along a sampled drift path [N]."""
+    springs = [(Gap(xj), dk) for xj, dk in kinks(s, c)]
+    return np.array([sum(dk * (xi - g(xi)) for g, dk in springs) for xi in x])
 
 
 def ref_path_force(x_of_t, xd_of_t, t, s=STORY):
-    """solve_ivp of z, e along a drift path, then the collapse force with the exact running peaks."""
+    """solve_ivp of z, e along a drift path, then the gap springs along the sampled path."""
     k0, a, p, dy, de, m = s["k0"], s["alpha"], s["p"], s["dy"], s["delta_eta"], s["mass_t"]
 
     def rhs(tt, y):
@@ -58,9 +93,7 @@ def ref_path_force(x_of_t, xd_of_t, t, s=STORY):
     z = sol.y[0]
     x = x_of_t(t)
     fbw = a * k0 * x + (1 - a) * k0 * z
-    xp = np.maximum.accumulate(np.maximum(x, 0.0))
-    xn = np.maximum.accumulate(np.maximum(-x, 0.0))
-    return np.where(fbw > 0, fbw * factor(xp), fbw * factor(xn)), fbw
+    return fbw + collapse_part(x, s), fbw
 
 
 def _building(s=STORY, c=MODEL, pdelta=True):
@@ -124,7 +157,7 @@ def test_pushover_backbone_matches_solve_ivp_and_the_imk_lines():
     assert abs(r.force[0][pre] - fbw[pre]).max() < 1e-7 * fc  # untouched before the cap
     assert r.force[0][np.argmin(abs(x - xc))] == pytest.approx(fc, rel=1e-3)
     i = np.flatnonzero(x > xu + fr / -kpc + 1.0)
-    assert np.all(r.force[0][i] == 0.0)  # no strength left beyond the ultimate drop
+    assert i.size and np.abs(r.force[0][i]).max() < 1e-6 * fc  # no strength left beyond the ultimate drop
 
 
 # ------------------------------------------------------------------ cyclic path
@@ -138,17 +171,17 @@ def test_cyclic_path_memory_matches_solve_ivp():
     r = drive_story(x_of(t), velocity=xd_of(t), dt=t[1] - t[0], mass=STORY["mass_t"], k0=STORY["k0"],
                     alpha=STORY["alpha"], p=STORY["p"], dy=STORY["dy"], delta_eta=STORY["delta_eta"],
                     substeps=4, collapse=_building().collapse_values()[0])
-    f_ref, _ = ref_path_force(x_of, xd_of, t)
+    f_ref, fbw = ref_path_force(x_of, xd_of, t)
     scale = np.abs(f_ref).max()
     err = np.abs(r.force[0] - f_ref).max() / scale
     assert err < 1e-5, err
-    # peak-oriented memory: after the first excursion past the cap, the force at a later, smaller
-    # positive drift is below the (virgin) backbone there
+    # memory: after the first excursion past the cap, reloading to smaller positive drifts does
+    # not regain the Bouc-Wen strength
     x = x_of(t)
-    xc = backbone(0.0)[1]
+    _, xc, fc, *_ = backbone(0.0)
     first = np.argmax(x > 1.5 * xc)
-    later = np.flatnonzero((np.arange(t.size) > first + 200) & (x > 0.9 * xc) & (x < 1.2 * xc))
-    assert later.size and np.all(r.force[0][later] < backbone(x[later])[0].clip(max=backbone(xc + 1e-9)[2]))
+    later = np.flatnonzero((np.arange(t.size) > first + 200) & (x > 0.5 * xc) & (x < 1.2 * xc) & (fbw > 0))
+    assert later.size and np.all(r.force[0][later] < fbw[later] - 0.01 * fc)
 
 
 # ------------------------------------------------------------------ dynamic, with P-Delta
@@ -159,14 +192,16 @@ def _ref_sdof(b: Building, gm, scale: float, t_end: float):
     c = b.damping_matrix()[0, 0]
     tg = np.arange(gm.npts) * gm.dt
     ag = gm.acc * scale
+    springs = kinks()
 
     def rhs(t, y):
         u, v, z, e, xp, xn = y
         eta = 1 + de * 1e-6 * (1 - a) * k0 / m * e
         load = 1.0 if v * z > 0 else 0.0
-        fbw = a * k0 * u + (1 - a) * k0 * z
-        r = factor(max(xp, u)) if fbw > 0 else factor(max(xn, -u))
-        f = fbw * r - kg * u
+        f = a * k0 * u + (1 - a) * k0 * z - kg * u
+        for xj, dk in springs:  # elastic-plastic gaps whose gaps are the plastic parts of the peaks
+            h = np.clip(u - max(xp - xj, 0.0), 0.0, xj) - np.clip(-u - max(xn - xj, 0.0), 0.0, xj)
+            f += dk * (u - h)
         return [v, -(f + c * v) / m - np.interp(t, tg, ag), v * (1 - load * abs(z / dy) ** p) / eta, z * v,
                 max(v, 0.0) if u >= xp else 0.0, max(-v, 0.0) if -u >= xn else 0.0]
 
@@ -176,9 +211,9 @@ def _ref_sdof(b: Building, gm, scale: float, t_end: float):
     return sol.y[0]
 
 
-@pytest.mark.parametrize("scale", [1.0, 2.5, 3.0])
+@pytest.mark.parametrize("scale", [2.5, 3.0])
 def test_dynamic_response_matches_solve_ivp(scale):
-    """One story with P-Delta under El Centro: elastic-plastic (1.0), past the cap (2.5) and into the
+    """One story with P-Delta under El Centro: past the cap (2.5) and into the
     residual strength, still moving (3.0)."""
     b = _building()
     gm = paper_record("elcentro-1940-ns")

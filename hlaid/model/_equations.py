@@ -51,43 +51,37 @@ def elastic_stiffness(eta, alpha, k0):
 
 # ---------------------------------------------------------------------- collapse (strength loss)
 # With a collapse model (hlaid.model.collapse) each story also carries the largest past drift in
-# each direction, ``xp = max(x)`` and ``xn = max(-x)`` [mm] (>= 0). The Bouc-Wen force is scaled by
-# a strength factor of that memory, per direction (peak-oriented): positive forces by the factor
-# of ``xp``, negative ones by that of ``xn``. The factor makes the monotonic envelope the modified
-# IMK backbone: Bouc-Wen up to the capping drift ``xc``, then a straight line of slope ``kpc`` (< 0)
-# from the capping strength ``fc = (1-alpha) k0 dy + alpha k0 xc`` down to the residual ``fr``, which
-# falls to zero with the same slope beyond the ultimate drift ``xu``. Nothing here but arithmetic
-# and abs: ``max(a, b) = (a + b + |a - b|) / 2``.
+# each direction, ``xp = max(x)`` and ``xn = max(-x)`` [mm] (>= 0), and its force gets up to four
+# *gap springs* in parallel with the Bouc-Wen spring. Gap spring j changes the slope of the story's
+# monotonic envelope by ``dk_j`` beyond the drift ``x_j``: its force is ``dk_j (x - h_j)``, with
+# ``h_j`` the deformation of an elastic-perfectly-plastic gap element of unit stiffness yielding at
+# ``x_j`` in each direction whose gap grows with the plastic deformation (OpenSees'
+# ``ElasticPPGap ... damage``):
+#
+#     h_j = min((x - (xp - x_j)+)+, x_j) - min((-x - (xn - x_j)+)+, x_j)
+#
+# so ``x - h_j`` is 0 while |x| has never passed x_j, ``x - x_j`` on a first excursion beyond it,
+# and after it a constant offset (the strength lost at the peak is kept) that closes only near zero
+# drift. The four kinks of the modified-IMK backbone (cap, residual, ultimate, zero strength) are
+# four such springs. Nothing here but arithmetic and abs: ``min(a, b) = (a + b - |a - b|) / 2``.
 
 def _pos(a):
     """``max(a, 0)``."""
     return 0.5 * (a + abs(a))
 
 
-def strength_factor(xi, alpha, k0, dy, xc, kpc, fr, xu):
-    """Strength factor in (0, 1] of a story whose largest past drift in one direction is ``xi`` [mm].
-
-    ``B(xi) = max(fc + kpc (xi - xc)+, max(fr + kpc (xi - xu)+, 0))`` is the target backbone and
-    ``alpha k0 xi + (1-alpha) k0 dy`` the yielded Bouc-Wen envelope it scales (at ``max(xi, xc)``, so
-    that the factor is exactly 1 up to the cap).
-    """
-    qy = (1.0 - alpha) * k0 * dy
-    ka = alpha * k0
-    fc = qy + ka * xc
-    b = fc + kpc * _pos(xi - xc)
-    r = _pos(fr + kpc * _pos(xi - xu))
-    b = 0.5 * (b + r + abs(b - r))
-    d = xi - xc
-    env = qy + ka * (xc + _pos(d))
-    q = b / env
-    return 0.5 * (q + 1.0 - abs(q - 1.0))
+def gap_offset(x, xp, xn, xj):
+    """``x - h_j`` [mm] of a gap spring yielding at ``xj`` with memory ``xp``, ``xn`` (see above)."""
+    a = _pos(x - _pos(xp - xj))
+    b = _pos(-x - _pos(xn - xj))
+    return x - 0.5 * (a + xj - abs(a - xj)) + 0.5 * (b + xj - abs(b - xj))
 
 
-def collapse_force(fbw, rp, rn):
-    """Story force [N] of the collapse law: the Bouc-Wen force ``fbw`` scaled by ``rp`` where it is
-    positive and by ``rn`` where it is negative (continuous: both vanish with ``fbw``)."""
-    pos = (fbw > 0.0) * 1.0
-    return fbw * (pos * rp + (1.0 - pos) * rn)
+def collapse_spring_force(x, z, xp, xn, alpha, k0, x1, d1, x2, d2, x3, d3, x4, d4):
+    """Story force [N] with strength loss: the Bouc-Wen force plus four gap springs
+    ``dk_j (x - h_j)`` (kink drifts ``x1..x4`` [mm], slope changes ``d1..d4`` [N/mm]). P-Delta excluded."""
+    return (spring_force(x, z, alpha, k0) + d1 * gap_offset(x, xp, xn, x1) + d2 * gap_offset(x, xp, xn, x2)
+            + d3 * gap_offset(x, xp, xn, x3) + d4 * gap_offset(x, xp, xn, x4))
 
 
 def peak_rate(x, xd, xi):
@@ -95,12 +89,3 @@ def peak_rate(x, xd, xi):
     ``-x, -xd`` for the other direction): ``xd`` while ``x >= xi`` and moving outwards, else 0.
     Steppers also set ``xi = max(xi, x)`` after each step, which this rate makes exact."""
     return ((x - xi) >= 0.0) * _pos(xd)
-
-
-def collapse_spring_force(x, z, xp, xn, alpha, k0, dy, xc, kpc, fr, xu):
-    """Story force [N] with strength loss: ``spring_force`` scaled per direction by the strength
-    factor of the largest drift so far, the current drift included (``max(xp, x)``, ``max(xn, -x)``)."""
-    fbw = spring_force(x, z, alpha, k0)
-    rp = strength_factor(xp + _pos(x - xp), alpha, k0, dy, xc, kpc, fr, xu)
-    rn = strength_factor(xn + _pos(-x - xn), alpha, k0, dy, xc, kpc, fr, xu)
-    return collapse_force(fbw, rp, rn)

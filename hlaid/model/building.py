@@ -175,7 +175,7 @@ def _story_force(P: BuildingTensors, x, z, xp=None, xn=None):
     if xp is None:
         return eq.spring_force(x, z, P.alpha, P.k0)
     c = P.collapse
-    return eq.collapse_spring_force(x, z, xp, xn, P.alpha, P.k0, P.dy, c[..., 0], c[..., 1], c[..., 2], c[..., 3])
+    return eq.collapse_spring_force(x, z, xp, xn, P.alpha, P.k0, *(c[..., j] for j in range(c.shape[-1])))
 
 
 def _absolute_acceleration(P: BuildingTensors, x, v, z, xp=None, xn=None):

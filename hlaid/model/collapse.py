@@ -2,19 +2,22 @@
 
 The degrading Bouc-Wen law of the paper (eq 3-10) has no strength loss and a positive post-yield
 stiffness ``alpha k0``, so a clone can only "collapse" at the IDA drift limit. A *collapse model*
-adds the strength deterioration of the modified Ibarra-Medina-Krawinkler (IMK) backbone to every
-story, as a peak-oriented reduction of the Bouc-Wen force (the equations are in
-:mod:`hlaid.model._equations`, written once):
+gives every story the monotonic envelope of the modified Ibarra-Medina-Krawinkler (IMK) backbone:
 
-* up to the capping drift ``xc = dy + theta_p h`` the story is the Bouc-Wen story, unchanged;
-* beyond it, the strength in that direction falls along a straight line of slope
-  ``kpc = -Fc / (theta_pc h)`` (``Fc`` the capping strength; ``theta_pc`` is the drift from the
-  cap to zero strength, IMK's definition) down to the residual strength ``Fr = kappa k0 dy``;
-* beyond the ultimate drift ``xu = theta_u h`` the residual falls to zero with the same slope.
+* up to the capping drift ``xc = dy + theta_p h`` the story is the Bouc-Wen story, unchanged
+  (capping strength ``Fc = (1-alpha) k0 dy + alpha k0 xc``, the yielded Bouc-Wen force there);
+* beyond it, the strength falls along a straight line of slope ``kpc = -Fc / (theta_pc h)``
+  (``theta_pc`` is the drift from the cap to zero strength, IMK's definition) down to the residual
+  strength ``Fr = kappa k0 dy``;
+* beyond the ultimate drift ``xu = theta_u h`` the residual falls to zero with the same slope
+  (when the post-capping line reaches zero before ``xu`` there is no residual plateau).
 
-The reduction depends on the largest past drift in each direction (memory), so unloading and
-reloading after capping do not regain strength; P-Delta (``-P/h x``) is added as before, and the
-net story stiffness beyond the cap is negative: IDA curves flatten for a physical reason.
+The kinks are gap springs in parallel with the Bouc-Wen spring (elastic-perfectly-plastic, the gap
+growing with plastic deformation: OpenSees' ``ElasticPPGap ... damage``), written once in
+:mod:`hlaid.model._equations`. Their memory is the largest past drift in each direction: strength
+lost at a peak is not regained on reloading (beyond the plastic offset). P-Delta (``-P/h x``) is
+added as before, and the net story stiffness beyond the cap is negative: IDA curves flatten for a
+physical reason.
 
 Named models (:data:`COLLAPSE_MODELS`) give literature ratios for the structural system; a
 mapping of the four ratios gives user values. ``"none"`` is the paper's law, bit for bit.
@@ -35,8 +38,9 @@ from ..errors import InputError
 NO_CAP = 1e290
 """Capping and ultimate drift [mm] of a story without a collapse model (never reached)."""
 
-N_COLLAPSE = 4
-"""Resolved per-story collapse values: ``xc`` [mm], ``kpc`` [N/mm], ``fr`` [N], ``xu`` [mm]."""
+N_COLLAPSE = 8
+"""Resolved per-story collapse values: four gap springs ``x1, dk1, ..., x4, dk4`` (kink drift [mm],
+change of the envelope's slope there [N/mm])."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -78,8 +82,9 @@ class CollapseModel:
     def to_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
-    def resolve(self, *, k0, alpha, dy, height) -> np.ndarray:
-        """Per-story values ``(story, 4)``: ``xc`` [mm], ``kpc`` [N/mm] (< 0), ``fr`` [N], ``xu`` [mm]."""
+    def backbone(self, *, k0, alpha, dy, height) -> dict[str, np.ndarray]:
+        """The IMK points of every story ``(story,)``: ``xc, fc, kpc, fr, xr`` (start of the
+        residual plateau, inf when there is none), ``xu`` and ``xz`` (zero strength) [mm, N, N/mm]."""
         k0, alpha, dy, h = (np.asarray(a, dtype=np.float64) for a in (k0, alpha, dy, height))
         xc = dy + self.theta_p * h
         fc = (1.0 - alpha) * k0 * dy + alpha * k0 * xc
@@ -89,14 +94,32 @@ class CollapseModel:
             i = int(bad[0])
             raise InputError(f"collapse.theta_u = {self.theta_u:g} is below the capping drift ratio "
                              f"{xc[i] / h[i]:.4g} of story {i + 1} (dy/h + theta_p); give a larger theta_u")
-        return np.stack([xc, -fc / (self.theta_pc * h), self.kappa * k0 * dy, xu], axis=-1)
+        kpc = -fc / (self.theta_pc * h)
+        fr = self.kappa * k0 * dy
+        xr = xc + (fc - fr) / -kpc
+        plateau = xr < xu
+        xz = np.where(plateau, xu + fr / -kpc, xc + fc / -kpc)
+        return {"xc": xc, "fc": fc, "kpc": kpc, "fr": fr, "xr": np.where(plateau, xr, np.inf), "xu": xu, "xz": xz}
+
+    def resolve(self, *, k0, alpha, dy, height) -> np.ndarray:
+        """Per-story gap springs ``(story, 8)``: ``x1, dk1, ..., x4, dk4`` (see :data:`N_COLLAPSE`)."""
+        b = self.backbone(k0=k0, alpha=alpha, dy=dy, height=height)
+        ka = np.asarray(alpha, dtype=np.float64) * np.asarray(k0, dtype=np.float64)
+        kpc, plateau = b["kpc"], np.isfinite(b["xr"])
+        out = no_collapse(kpc.shape[0])
+        out[:, 0], out[:, 1] = b["xc"], kpc - ka  # cap: Bouc-Wen slope -> post-capping slope
+        out[:, 2], out[:, 3] = np.where(plateau, b["xr"], b["xz"]), -kpc  # residual plateau, or zero strength
+        out[:, 4] = np.where(plateau, b["xu"], NO_CAP)  # ultimate: the residual falls...
+        out[:, 5] = np.where(plateau, kpc, 0.0)
+        out[:, 6] = np.where(plateau, b["xz"], NO_CAP)  # ...to zero
+        out[:, 7] = np.where(plateau, -kpc, 0.0)
+        return out
 
 
 def no_collapse(n_stories: int) -> np.ndarray:
-    """Resolved values ``(story, 4)`` of stories without strength loss (the factor is exactly 1)."""
+    """Resolved values ``(story, 8)`` of stories without strength loss (springs that never engage)."""
     out = np.zeros((n_stories, N_COLLAPSE))
-    out[:, 0] = NO_CAP
-    out[:, 3] = NO_CAP
+    out[:, 0::2] = NO_CAP
     return out
 
 

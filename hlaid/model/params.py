@@ -239,8 +239,8 @@ class Building:
         return np.cumsum(self.floor_gravity()[::-1])[::-1] / self.height
 
     def collapse_values(self) -> np.ndarray:
-        """Resolved collapse values ``(story, 4)``: ``xc`` [mm], ``kpc`` [N/mm], ``fr`` [N], ``xu`` [mm]
-        (:meth:`CollapseModel.resolve`); stories that never lose strength without a model."""
+        """Resolved collapse gap springs ``(story, 8)``: ``x1, dk1, ..., x4, dk4`` [mm, N/mm]
+        (:meth:`CollapseModel.resolve`); springs that never engage without a model."""
         if self.collapse is None:
             return no_collapse(self.n_stories)
         return self.collapse.resolve(k0=self.k0, alpha=self.alpha, dy=self.dy, height=self.height)
@@ -281,7 +281,7 @@ class BuildingTensors:
 
     Every per-story field is ``(batch, story)``; ``damping`` is ``(batch, story, story)``;
     ``kg`` is the P-Delta stiffness ``P/h`` (zeros where inactive); ``collapse`` is
-    ``(batch, story, 4)`` (``xc, kpc, fr, xu``, :meth:`Building.collapse_values`) or None when no
+    ``(batch, story, 8)`` (gap springs ``x1, dk1, ..., x4, dk4``, :meth:`Building.collapse_values`) or None when no
     building of the batch has a collapse model. It is used when the state carries the collapse
     memory (``6*story`` wide, see :class:`~hlaid.model.BoucWenBuilding`).
     """
@@ -320,7 +320,7 @@ class BuildingTensors:
         return self.collapse is not None
 
     def collapse_array(self) -> np.ndarray:
-        """``(batch, story, 4)`` collapse values for the compiled simulator (no-loss values when None)."""
+        """``(batch, story, 8)`` collapse gap springs for the compiled simulator (inactive ones when None)."""
         if self.collapse is not None:
             return np.ascontiguousarray(self.collapse.detach().cpu().numpy())
         n = self.mass.shape[-1]

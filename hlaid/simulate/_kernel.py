@@ -38,8 +38,7 @@ def _jit_composed(names):
     return done
 
 
-_c = _jit_composed(("_pos", "spring_force", "strength_factor", "collapse_force", "collapse_spring_force",
-                    "peak_rate"))
+_c = _jit_composed(("_pos", "spring_force", "gap_offset", "collapse_spring_force", "peak_rate"))
 _collapse_spring_force, _peak_rate = _c["collapse_spring_force"], _c["peak_rate"]
 
 STATUS_OK, STATUS_DRIFT_LIMIT, STATUS_DIVERGED = 0, 1, 2
@@ -48,7 +47,7 @@ STATUS_OK, STATUS_DRIFT_LIMIT, STATUS_DIVERGED = 0, 1, 2
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
 def _rhs(y, ag, n, m, k0, al, p, dy, de, kg, C, col, cp, f, out):
     """``out = dy/dt`` for one building; ``f`` is scratch ``(n,)``. See BoucWenBuilding.rates.
-    ``col``: the state has the collapse memory ``[xp, xn]`` (6n), ``cp`` ``(n, 4)`` its values."""
+    ``col``: the state has the collapse memory ``[xp, xn]`` (6n), ``cp`` ``(n, 8)`` its gap springs."""
     u_below = 0.0
     v_below = 0.0
     for i in range(n):
@@ -65,8 +64,8 @@ def _rhs(y, ag, n, m, k0, al, p, dy, de, kg, C, col, cp, f, out):
             xn = y[5 * n + i]
             out[4 * n + i] = _peak_rate(x, xd, xp)
             out[5 * n + i] = _peak_rate(-x, -xd, xn)
-            f[i] = _collapse_spring_force(x, z, xp, xn, al[i], k0[i], dy[i], cp[i, 0], cp[i, 1], cp[i, 2],
-                                          cp[i, 3]) - kg[i] * x
+            f[i] = _collapse_spring_force(x, z, xp, xn, al[i], k0[i], cp[i, 0], cp[i, 1], cp[i, 2], cp[i, 3],
+                                          cp[i, 4], cp[i, 5], cp[i, 6], cp[i, 7]) - kg[i] * x
         else:
             f[i] = _spring_force(x, z, al[i], k0[i]) - kg[i] * x
         out[i] = v
@@ -87,8 +86,9 @@ def _absolute_acc(y, n, m, al, k0, dy, kg, C, col, cp, f, acc):
     for i in range(n):
         x = y[i] - u_below
         if col:
-            f[i] = _collapse_spring_force(x, y[2 * n + i], y[4 * n + i], y[5 * n + i], al[i], k0[i], dy[i],
-                                          cp[i, 0], cp[i, 1], cp[i, 2], cp[i, 3]) - kg[i] * x
+            f[i] = _collapse_spring_force(x, y[2 * n + i], y[4 * n + i], y[5 * n + i], al[i], k0[i], cp[i, 0],
+                                          cp[i, 1], cp[i, 2], cp[i, 3], cp[i, 4], cp[i, 5], cp[i, 6],
+                                          cp[i, 7]) - kg[i] * x
         else:
             f[i] = _spring_force(x, y[2 * n + i], al[i], k0[i]) - kg[i] * x
         u_below = y[i]
@@ -126,7 +126,7 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, cpar, y
     nsub : RK4 sub-steps per sample; a sample whose step lets |z| overshoot dy (or the
         state blow up) is redone with 2x, 4x, ... up to 16x the sub-steps
     m, k0, al, p, dy, de, kg : (building, story) parameters; C : (building, story, story)
-    cpar : (building, story, 4) collapse values ``xc, kpc, fr, xu`` (see hlaid.model.collapse),
+    cpar : (building, story, 8) collapse gap springs ``x1, dk1, ..., x4, dk4`` (hlaid.model.collapse),
         used when the state has the collapse memory
     y0 : (batch, 4*story) initial states, or (batch, 6*story) with the collapse memory
         ``[xp, xn]`` (largest past drift per direction), which switches the collapse law on
