@@ -77,11 +77,16 @@ def gap_offset(x, xp, xn, xj):
     return x - 0.5 * (a + xj - abs(a - xj)) + 0.5 * (b + xj - abs(b - xj))
 
 
+def gap_force(x, xp, xn, x1, d1, x2, d2, x3, d3, x4, d4):
+    """Force of a story's four gap springs ``sum dk_j (x - h_j)`` [N] (kink drifts ``x1..x4`` [mm],
+    slope changes ``d1..d4`` [N/mm]): what the collapse law adds to the Bouc-Wen force."""
+    return (d1 * gap_offset(x, xp, xn, x1) + d2 * gap_offset(x, xp, xn, x2) + d3 * gap_offset(x, xp, xn, x3)
+            + d4 * gap_offset(x, xp, xn, x4))
+
+
 def collapse_spring_force(x, z, xp, xn, alpha, k0, x1, d1, x2, d2, x3, d3, x4, d4):
-    """Story force [N] with strength loss: the Bouc-Wen force plus four gap springs
-    ``dk_j (x - h_j)`` (kink drifts ``x1..x4`` [mm], slope changes ``d1..d4`` [N/mm]). P-Delta excluded."""
-    return (spring_force(x, z, alpha, k0) + d1 * gap_offset(x, xp, xn, x1) + d2 * gap_offset(x, xp, xn, x2)
-            + d3 * gap_offset(x, xp, xn, x3) + d4 * gap_offset(x, xp, xn, x4))
+    """Story force [N] with strength loss: the Bouc-Wen force plus the gap springs. P-Delta excluded."""
+    return spring_force(x, z, alpha, k0) + gap_force(x, xp, xn, x1, d1, x2, d2, x3, d3, x4, d4)
 
 
 def peak_rate(x, xd, xi):
