@@ -247,3 +247,55 @@ def test_torch_module_equals_kernel(table1):
     y = torch.as_tensor(a.final_state[:1])
     m.rates(y, torch.zeros(1)).sum().backward()
     assert torch.isfinite(k0.grad).all()
+
+
+# ------------------------------------------------------------------ clone file, IDA, command line
+def test_clone_file_collapse_block(table1, tmp_path):
+    import json
+
+    from hlaid.clone import VERSION, Clone
+    b = table1.replace(height=[H] * 3, collapse="rc-frame")
+    path = Clone(building=b).save(tmp_path / "c.json")
+    d = json.loads(path.read_text())
+    assert d["version"] == VERSION and d["collapse"]["name"] == "rc-frame"
+    assert Clone.load(path).building.collapse == COLLAPSE_MODELS["rc-frame"]
+    no = Clone(building=table1.replace(height=[H] * 3)).to_dict()
+    assert "collapse" not in no  # additive: files without a collapse model are unchanged
+    for bad, match in (("steel", "collapse' must be a mapping"), ({**d["collapse"], "kappa": "x"}, "collapse.kappa"),
+                       ({**d["collapse"], "kappa": 2.0}, "kappa")):
+        path.write_text(json.dumps({**d, "collapse": bad}))
+        with pytest.raises(InputError, match=match) as err:
+            Clone.load(path)
+        assert str(path) in str(err.value)
+
+
+def test_ida_flatlines_at_a_lower_intensity_with_a_collapse_model(table1):
+    from hlaid.ida import ida
+    b = table1.replace(height=[H] * 3)
+    recs = ["builtin:elcentro-1940-ns", "builtin:kocaeli-1999-dzc180", "builtin:northridge-1994-mul009"]
+    kw = dict(levels=[0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0], tolerance=0.05)
+    none = ida(b, recs, **kw)
+    steel = ida(b, recs, collapse="steel-mrf", **kw)
+    assert any("collapse model 'none'" in n for n in none.notes)
+    assert any("steel-mrf" in n for n in steel.notes)
+    m0 = none.collapse_fragility().median
+    m1 = steel.collapse_fragility().median
+    assert m1 < 0.8 * m0
+    with pytest.raises(InputError, match="unknown collapse model"):
+        ida(b, recs, collapse="steel")
+
+
+def test_ida_command_collapse_flag(table1, tmp_path, capsys):
+    import json
+
+    from hlaid.cli import main
+    from hlaid.clone import Clone
+    path = Clone(building=table1.replace(height=[H] * 3)).save(tmp_path / "c.json")
+    assert main(["ida", str(path), "--records", "builtin:elcentro-1940-ns", "--collapse", "bogus",
+                 "-o", str(tmp_path / "o1")]) == 2
+    assert "unknown collapse model 'bogus'" in capsys.readouterr().err
+    out = tmp_path / "o2"
+    assert main(["ida", str(path), "--records", "builtin:elcentro-1940-ns", "--collapse", "rc-frame",
+                 "--levels", "1:3:1", "--bootstrap", "0", "--no-plots", "-o", str(out), "-q"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["building"]["collapse"]["name"] == "rc-frame"
