@@ -10,8 +10,8 @@ run collapses (a story drift beyond 10 %, or OpenSees failing to converge), then
 bisected ``--bisect`` times (8: 0.16 % of IM). The collapse IM is the bracket's upper end.
 Prints every record's collapse IM in both codes, their ratio, and the medians.
 
-Usage: python scripts/bench_collapse_opensees.py [--collapse steel-mrf] [--records 10] [--bisect 8]
-       [--stories 3|1]
+Usage: python scripts/bench_collapse_opensees.py [--collapse steel-mrf|'{"theta_p": ...}'] [--records 10]
+       [--bisect 8] [--stories 3|1]
 """
 
 from __future__ import annotations
@@ -65,6 +65,9 @@ def collapse_im(collapses, im_start=0.5, factor=1.5, max_hunt=12, n_bisect=8):
 
 
 def building(stories: int, collapse: str) -> Building:
+    if collapse.lstrip().startswith("{"):
+        import json
+        collapse = json.loads(collapse)  # user ratios: '{"theta_p": 0.02, "theta_pc": 0.05, ...}'
     s = table1_stories()[:stories]
     return Building.from_stories(s, pdelta=True, height=[3000.0] * stories, collapse=collapse, name="table1")
 
