@@ -96,12 +96,12 @@ def main(argv=None):
         sub = max(1, int(np.ceil(gm.dt / 0.0005 - 1e-9)))
         n = {"h": 0, "o": 0}
 
-        def ours(im):
+        def ours(im, gm=gm, sa1=sa1, sub=sub, n=n):
             n["h"] += 1
             r = simulate(b, gm, im / sa1, substeps=sub, outputs="peaks", stop_drift=stop)
             return bool(r.status[0] != 0 or np.any(r.peak_drift[0] > stop))
 
-        def theirs(im):
+        def theirs(im, gm=gm, sa1=sa1, n=n):
             n["o"] += 1
             with redirect_stderr(io.StringIO()):
                 r = run_opensees(b, gm, scale=im / sa1, dt_factor=args.dt_factor)

@@ -43,7 +43,8 @@ def backbone_figure(b: Building, path: Path):
     import matplotlib.pyplot as plt
     bs = b.replace(collapse="steel-mrf")
     h = float(b.height[0])
-    kw = dict(k0=b.k0[0], alpha=b.alpha[0], p=b.p[0], dy=b.dy[0], delta_eta=b.delta_eta[0], mass=b.mass[0])
+    kw = {"k0": b.k0[0], "alpha": b.alpha[0], "p": b.p[0], "dy": b.dy[0], "delta_eta": b.delta_eta[0],
+          "mass": b.mass[0]}
     t = np.linspace(0.0, 400.0, 8001)
     push = 0.15 * h / 400.0 * t
     w = 2 * np.pi / 20.0

@@ -20,7 +20,7 @@ from hlaid.simulate import simulate
 from hlaid.simulate.path import drive_story
 
 H = 3000.0
-STORY = dict(mass_t=17.524, k0=1.94e4, alpha=0.05, p=2.5, dy=7.0, delta_eta=0.7, height_mm=H)
+STORY = {"mass_t": 17.524, "k0": 1.94e4, "alpha": 0.05, "p": 2.5, "dy": 7.0, "delta_eta": 0.7, "height_mm": H}
 MODEL = CollapseModel(theta_p=0.02, theta_pc=0.06, kappa=0.3, theta_u=0.07)
 
 
@@ -273,7 +273,7 @@ def test_ida_flatlines_at_a_lower_intensity_with_a_collapse_model(table1):
     from hlaid.ida import ida
     b = table1.replace(height=[H] * 3)
     recs = ["builtin:elcentro-1940-ns", "builtin:kocaeli-1999-dzc180", "builtin:northridge-1994-mul009"]
-    kw = dict(levels=[0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0], tolerance=0.05)
+    kw = {"levels": [0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0], "tolerance": 0.05}
     none = ida(b, recs, **kw)
     steel = ida(b, recs, collapse="steel-mrf", **kw)
     assert any("collapse model 'none'" in n for n in none.notes)

@@ -46,6 +46,9 @@ _gap_force, _peak_rate = _c["gap_force"], _c["peak_rate"]
 
 STATUS_OK, STATUS_DRIFT_LIMIT, STATUS_DIVERGED = 0, 1, 2
 
+COLLAPSE = False
+"""Whether a compiled :func:`integrate` runs the collapse law; frozen per specialisation (below)."""
+
 
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
 def _rhs(y, ag, n, m, k0, al, p, dy, de, kg, C, f, out):
