@@ -9,6 +9,8 @@ Layout::
      "damping": {"kind": "rayleigh", "ratio": 0.05, "modes": [1, 2]},
      "pdelta": null | true | false,
      "mass_normalised": false,
+     "collapse": {"name": ..., "theta_p": ..., "theta_pc": ..., "kappa": ..., "theta_u": ...}
+                 (optional: the strength-loss model IDA uses, see hlaid.model.collapse),
      "diagnostics": {...}, "provenance": {...}}
 
 With ``mass_normalised`` true the masses are relative (ratios) and every stiffness is per
@@ -68,7 +70,8 @@ class Clone:
             stories.append(s)
         return {"format": FORMAT, "version": VERSION, "units": dict(UNITS_JSON), "name": b.name, "stories": stories,
                 "damping": b.damping.to_dict(), "pdelta": b.pdelta, "mass_normalised": self.mass_normalised,
-                "diagnostics": _jsonable(self.diagnostics), "provenance": _jsonable(self.provenance)}
+                "diagnostics": _jsonable(self.diagnostics), "provenance": _jsonable(self.provenance),
+                **({"collapse": b.collapse.to_dict()} if b.collapse is not None else {})}
 
     def save(self, path: str | os.PathLike, *, force: bool = True) -> Path:
         """Write the clone JSON atomically (never a half-written file)."""
@@ -122,7 +125,8 @@ class Clone:
         try:
             b = Building(**cols, height=None if None in heights else heights,
                          gravity_load=None if None in gravity else gravity, damping=Damping(**damping),
-                         pdelta=d.get("pdelta"), name=d.get("name") or "", source=source)
+                         pdelta=d.get("pdelta"), collapse=_collapse_block(d.get("collapse"), source),
+                         name=d.get("name") or "", source=source)
         except InputError as err:
             raise InputError(str(err).removeprefix(f"{source}: "), source=source) from None
         return cls(building=b, mass_normalised=d.get("mass_normalised", False),
@@ -140,7 +144,7 @@ class Clone:
 
 
 _TOP_KEYS = ("format", "version", "units", "name", "stories", "damping", "pdelta", "mass_normalised",
-             "diagnostics", "provenance")
+             "diagnostics", "provenance", "collapse")
 _STORY_OPTIONAL = ("height", "gravity_load")
 
 
@@ -149,6 +153,19 @@ def _show(v) -> str:
     if isinstance(v, (bool, int, float)) or v is None or (isinstance(v, str) and len(v) <= 20 and v.isprintable()):
         return repr(v)
     return kind_of(v)
+
+
+def _collapse_block(c, source: str | None):
+    """The optional ``collapse`` block: a mapping of a :class:`~hlaid.model.collapse.CollapseModel`."""
+    if c is None:
+        return None
+    if not isinstance(c, dict):
+        raise InputError(f"field 'collapse' must be a mapping of theta_p, theta_pc, kappa, theta_u, got {kind_of(c)}",
+                         source=source)
+    for k, v in c.items():
+        if k not in ("name", "source"):
+            _number(v, f"collapse.{k}", source)
+    return c
 
 
 def _number(v, field: str, source: str | None) -> float:

@@ -14,6 +14,11 @@ a parallel ``zeroLength`` with ``uniaxialMaterial Elastic`` of stiffness ``-P_i/
 same linearised geometric stiffness hlaid subtracts from the story force, with
 ``-doRayleigh 0`` because hlaid's damping ``C = a0 M + a1 K0`` uses K0 without it.
 
+A collapse model (:mod:`hlaid.model.collapse`) adds its gap springs to that parallel element:
+``uniaxialMaterial Parallel`` of ``Elastic`` (sum of the slope changes, minus ``P_i/h_i``) and, per
+kink, two ``ElasticPPGap`` of unit stiffness yielding at ``+-x_j`` with ``damage`` (the gap grows
+with the plastic deformation), with factors ``-dk_j``: exactly the gap springs of hlaid's law.
+
 openseespy is optional (``pip install openseespy==3.5.1.12`` on Python 3.11); without it,
 exporting works and running raises :class:`OpenSeesUnavailable`.
 """
@@ -72,6 +77,16 @@ def _list(a) -> str:
     return "[" + ", ".join(repr(float(v)) for v in a) + "]"
 
 
+def _collapse_list(b: Building) -> str:
+    if b.collapse is None:
+        return "None"
+    from .model.collapse import NO_CAP
+    v = b.collapse_values()
+    return "[" + ", ".join("[" + ", ".join(f"({float(v[i, 2 * j])!r}, {float(v[i, 2 * j + 1])!r})"
+                                           for j in range(v.shape[1] // 2) if v[i, 2 * j] < NO_CAP) + "]"
+                           for i in range(b.n_stories)) + "]"
+
+
 def opensees_script(model) -> str:
     """The text of the standalone OpenSeesPy script of a clone or building (see module doc)."""
     from . import __version__
@@ -92,6 +107,7 @@ def opensees_script(model) -> str:
         f"DELTA_ETA = {_list(b.delta_eta)}  # hlaid degradation [s^2/m^2]",
         f"HEIGHT = {_list(b.height) if b.height is not None else None}  # story heights [mm]",
         f"PDELTA_K = {_list(b.geometric_stiffness())}  # P_i/h_i [N/mm], zeros when P-Delta is off",
+        f"COLLAPSE = {_collapse_list(b)}  # per story [(x_j [mm], dk_j [N/mm]), ...] gap springs, or None",
         f"RAYLEIGH = ({float(a0)!r}, {float(a1)!r})  # C = a0*M + a1*K0",
         (f"DAMPING = {{'kind': {str(b.damping.kind)!r}, 'ratio': {float(b.damping.ratio)!r}, "
          f"'modes': {[int(m) for m in b.damping.modes]!r}}}  # what RAYLEIGH was computed from"),
@@ -215,6 +231,9 @@ Model (hlaid docs/DESIGN section 3):
     (OpenSees' energy is (1-alpha)*ko*integral(z dx) in N*mm, hence deltaEta = delta_eta*1e-6/m);
   P-Delta: a parallel zeroLength (-doRayleigh 0) with uniaxialMaterial Elastic -PDELTA_K[i]
     (P_i/h_i: gravity load carried by story i over its height; linearised leaning column);
+  strength loss (COLLAPSE, hlaid's collapse model): in that parallel element, per kink j of the
+    story's backbone an ElasticPPGap pair (unit stiffness, yield at +-x_j, damage) with factor
+    -dk_j, and dk_j added to the Elastic stiffness: the spring force is dk_j * (x - h_j);
   damping: rayleigh a0 0 a1 0, i.e. C = a0*M + a1*K0 (initial stiffness of the Bouc-Wen springs);
   ground motion: timeSeries Path (linear between samples), pattern UniformExcitation;
   analysis: Newmark average acceleration, Newton, NormDispIncr 1e-8 mm, step dt/dt_factor.
@@ -256,7 +275,20 @@ def build(ops):
         ops.uniaxialMaterial("BoucWen", i + 1, ALPHA[i], K0[i], P_EXP[i], g, g, 1.0, 0.0, 0.0,
                              DELTA_ETA[i] * 1e-6 / MASS[i])
         ops.element("zeroLength", i + 1, i, i + 1, "-mat", i + 1, "-dir", 1, "-doRayleigh", 1)
-        if PDELTA_K[i] != 0.0:
+        springs = COLLAPSE[i] if COLLAPSE else []
+        if springs:  # strength loss: gap springs dk*(x - h), with P-Delta, in one parallel material
+            tag = 10000 * (i + 1)
+            ops.uniaxialMaterial("Elastic", tag, sum(dk for _, dk in springs) - PDELTA_K[i])
+            tags, factors = [tag], [1.0]
+            for j, (xj, dk) in enumerate(springs):
+                for side, sign in enumerate((1.0, -1.0)):
+                    t = tag + 2 * j + side + 1
+                    ops.uniaxialMaterial("ElasticPPGap", t, 1.0, sign * xj, 0.0, 0.0, "damage")
+                    tags.append(t)
+                    factors.append(-dk)
+            ops.uniaxialMaterial("Parallel", 1000 + i + 1, *tags, "-factors", *factors)
+            ops.element("zeroLength", 1000 + i + 1, i, i + 1, "-mat", 1000 + i + 1, "-dir", 1, "-doRayleigh", 0)
+        elif PDELTA_K[i] != 0.0:
             ops.uniaxialMaterial("Elastic", 1000 + i + 1, -PDELTA_K[i])
             ops.element("zeroLength", 1000 + i + 1, i, i + 1, "-mat", 1000 + i + 1, "-dir", 1, "-doRayleigh", 0)
     ops.rayleigh(RAYLEIGH[0], 0.0, RAYLEIGH[1], 0.0)

@@ -51,6 +51,10 @@ def register(sub) -> None:
     p.add_argument("--gravity-kN", metavar="KN", help="floor gravity loads [kN] for P-Delta, bottom to top")
     p.add_argument("--units", help="acceleration units of text records: g, m/s^2, cm/s^2, mm/s^2")
     p.add_argument("--period", type=float, help="period [s] of Sa instead of the clone's T1")
+    p.add_argument("--collapse", metavar="MODEL",
+                   help="strength loss of the stories beyond a capping drift: none, steel-mrf, rc-frame, "
+                        "rc-frame-nonductile (docs/collapse.md); default: the clone's collapse block, else none "
+                        "(collapse only at the drift limit)")
     p.add_argument("--bootstrap", type=int, help="bootstrap resamples of the fragility interval (default 1000)")
     p.add_argument("--seed", type=int, help="bootstrap seed (default 0)")
     p.add_argument("--no-plots", action="store_true", help="write no PNG figures")
@@ -81,9 +85,10 @@ def run_ida(args) -> int:
                       refine=False if args.no_refine else None, pdelta=args.pdelta,
                       heights_mm=_numbers(args.heights, "--heights") if args.heights else None,
                       gravity_kN=_numbers(args.gravity_kN, "--gravity-kN") if args.gravity_kN else None,
-                      units=args.units, period=args.period, bootstrap=args.bootstrap, seed=args.seed)
+                      units=args.units, period=args.period, bootstrap=args.bootstrap, seed=args.seed,
+                      collapse=args.collapse)
     # fail on a bad clone before reading records
-    prepare_building(args.clone, pdelta=cfg.pdelta, heights=cfg.heights_mm,
+    prepare_building(args.clone, pdelta=cfg.pdelta, heights=cfg.heights_mm, collapse=cfg.collapse,
                      gravity_load=None if cfg.gravity_kN is None else [v * 1000.0 for v in cfg.gravity_kN])
     base = Path(args.config).parent if args.config else None
     res = ida_from_config(args.clone, cfg, records=args.records, base_dir=base)

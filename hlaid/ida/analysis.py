@@ -42,6 +42,7 @@ from ..clone import Clone
 from ..errors import InputError
 from ..limits import check_count
 from ..model import Building
+from ..model.collapse import get_collapse_model
 from ..motions import GroundMotion
 from ..simulate import simulate
 from ..units import G_MM_S2
@@ -63,7 +64,8 @@ within one sample: an integration blow-up, re-run with finer steps."""
 
 # ---------------------------------------------------------------------------- the building
 def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: bool | None = None,
-                     heights=None, gravity_load=None, require_heights: bool = True) -> tuple[Building, list[str]]:
+                     heights=None, gravity_load=None, require_heights: bool = True,
+                     collapse=None) -> tuple[Building, list[str]]:
     """The building an IDA runs, with P-Delta resolved, and notes on what was decided.
 
     P-Delta (``pdelta=None``): on when story heights are known, even when a clone file says
@@ -71,6 +73,8 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     mass-normalised clone the default gravity loads, relative mass x g, are per unit of total
     mass like its stiffnesses, so P-Delta stays consistent; absolute gravity loads [N] cannot be
     combined with it. Story heights are required (``require_heights``): IDA reports drift ratios.
+    ``collapse`` (a name, a mapping or a CollapseModel; see :mod:`hlaid.model.collapse`) replaces
+    the clone's strength-loss model; None keeps the clone's (``none`` when it has none).
     """
     source = None
     if isinstance(model, (str, os.PathLike)):
@@ -107,11 +111,21 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     elif not want:
         notes.append("P-Delta off" + (" (requested)" if pdelta is False else " (story heights unknown)"))
     building = building.replace(pdelta=want)
+    if collapse is not None:
+        building = building.replace(collapse=get_collapse_model(collapse))
+    if building.collapse is None:
+        notes.append("collapse model 'none': the stories never lose strength, so collapse comes only from the "
+                     "drift limit or the slope criterion (optimistic); choose one with collapse: steel-mrf, "
+                     "rc-frame, rc-frame-nonductile or your own ratios (docs/collapse.md)")
+    else:
+        c = building.collapse
+        notes.append(f"collapse model {c.name!r}: cap at dy/h + {c.theta_p:g}, post-capping drift {c.theta_pc:g} "
+                     f"to zero strength, residual {c.kappa:g} k0 dy, ultimate drift {c.theta_u:g}")
     if want:
         kg = building.geometric_stiffness()
         post = building.alpha * building.k0 - kg
         notes.append("P-Delta on: P/h = " + ", ".join(f"{v:.4g}" for v in kg) + " N/mm per story")
-        if np.all(post > 0):
+        if np.all(post > 0) and building.collapse is None:
             notes.append("every story keeps a positive post-yield stiffness alpha*k0 - P/h: collapse can "
                          "only come from the drift limit or the slope criterion")
     return building, notes
@@ -243,7 +257,7 @@ def ida(model: Clone | Building | str | os.PathLike,
         slope_ratio: float = 0.20, exceedance_limits: Sequence[float] | None = None,
         refine: bool = True, hunt_factor: float = 1.5, max_hunt: int = 10, tolerance: float = 0.02,
         max_fill: int = 12, max_step: float = 0.0025, pdelta: bool | None = None, heights=None,
-        gravity_load=None, period: float | None = None, units: str | None = None) -> IDAResult:
+        gravity_load=None, period: float | None = None, units: str | None = None, collapse=None) -> IDAResult:
     """Incremental dynamic analysis of a clone (or building) over a record set.
 
     Parameters
@@ -266,6 +280,7 @@ def ida(model: Clone | Building | str | os.PathLike,
         ``gravity_load`` [N per floor] replace the clone's
     period : period [s] of Sa(T1) instead of the clone's first elastic period
     units : acceleration units of text records
+    collapse : strength-loss model (see :func:`prepare_building`); None: the clone's, else none
 
     Returns
     -------
@@ -277,8 +292,10 @@ def ida(model: Clone | Building | str | os.PathLike,
     cfg = IDAConfig(im=im, levels=None if levels is None else list(levels), n_levels=n_levels,
                     drift_limit=drift_limit, slope_ratio=slope_ratio, exceedance_limits=list(exceedance_limits),
                     refine=refine, hunt_factor=hunt_factor, max_hunt=max_hunt, tolerance=tolerance,
-                    max_fill=max_fill, max_step=max_step, pdelta=pdelta, period=period)
-    building, notes = prepare_building(model, pdelta=pdelta, heights=heights, gravity_load=gravity_load)
+                    max_fill=max_fill, max_step=max_step, pdelta=pdelta, period=period,
+                    collapse=collapse if isinstance(collapse, (str, dict, type(None))) else collapse.to_dict())
+    building, notes = prepare_building(model, pdelta=pdelta, heights=heights, gravity_load=gravity_load,
+                                       collapse=collapse)
     motions = records if _all_motions(records) else load_records(records, units=units)
     motions = [motions] if isinstance(motions, GroundMotion) else list(motions)
     measure = get_intensity_measure(im)
@@ -291,7 +308,8 @@ def ida(model: Clone | Building | str | os.PathLike,
     runner = _Runner(building, motions, im0, drift_limit, max_step)
     _progress.info(f"IDA of {building.name or 'the clone'}: {R} records, IM {measure.label}"
                    + (f" at T1 = {T1:.3f} s" if measure.needs_period else "")
-                   + f", collapse at {drift_limit:.0%} drift, P-Delta {'on' if building.pdelta else 'off'}")
+                   + f", collapse at {drift_limit:.0%} drift, P-Delta {'on' if building.pdelta else 'off'}"
+                   + f", collapse model {building.collapse.name if building.collapse else 'none'}")
 
     # 1. elastic probe
     ar = np.arange(R)

@@ -44,6 +44,11 @@ class IDAConfig:
     pdelta : None: on when story heights are known; true/false force it
     heights_mm, gravity_kN : per-story heights and floor gravity loads replacing the clone's
     period : the period [s] of Sa instead of the clone's T1
+    collapse : strength-loss model of the stories: a name of
+        :data:`hlaid.model.collapse.COLLAPSE_MODELS` (``none``, ``steel-mrf``, ``rc-frame``,
+        ``rc-frame-nonductile``) or a mapping ``{theta_p, theta_pc, kappa, theta_u}``; None: the
+        clone's own ``collapse`` block, else ``none`` (no strength loss: collapse only at the
+        drift limit or the slope criterion; a note says so)
     bootstrap, ci, seed : bootstrap resamples, confidence level and seed of the fragility intervals
     """
 
@@ -65,6 +70,7 @@ class IDAConfig:
     heights_mm: list[float] | None = None
     gravity_kN: list[float] | None = None
     period: float | None = None
+    collapse: str | dict[str, float | str] | None = None
     bootstrap: int = 1000
     ci: float = 0.90
     seed: int = 0
@@ -88,6 +94,9 @@ class IDAConfig:
         if self.levels is not None:
             check_count(len(self.levels), "IDA_LEVELS", "number of levels")
             check_levels(self.levels)
+        if self.collapse is not None:
+            from ..model.collapse import get_collapse_model
+            get_collapse_model(self.collapse)
         for d in self.exceedance_limits or ():
             _positive("exceedance_limits", d, upper=self.drift_limit)
 

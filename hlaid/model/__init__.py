@@ -3,7 +3,8 @@
 from . import _equations as equations
 from ._structure import DAMPING_KINDS
 from .building import BoucWenBuilding
+from .collapse import COLLAPSE_MODELS, CollapseModel, get_collapse_model
 from .params import STORY_FIELDS, Building, BuildingTensors, Damping
 
 __all__ = ["Building", "BuildingTensors", "Damping", "BoucWenBuilding", "STORY_FIELDS", "DAMPING_KINDS",
-           "equations"]
+           "equations", "CollapseModel", "COLLAPSE_MODELS", "get_collapse_model"]

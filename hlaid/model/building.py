@@ -8,6 +8,14 @@ State layout (documented here once): ``y`` is ``(batch, 4*story)``, the concaten
 hysteretic displacement of each story [mm], ``e = integral(z dx)`` the signed hysteretic
 work of each story per unit (1-alpha) k0 [mm^2]. The ground acceleration is applied to
 every floor mass (``-M 1 ag``).
+
+With a collapse model (:mod:`hlaid.model.collapse`) the state is ``(batch, 6*story)``,
+
+    y = [u, v, z, e, xp, xn]
+
+``xp`` and ``xn`` the largest past drift of each story in the positive and the negative
+direction [mm] (>= 0, the strength-loss memory). The width of the state switches the collapse
+law on; a 4-story-wide state runs the paper's law exactly as without a collapse model.
 """
 
 from __future__ import annotations
@@ -64,10 +72,15 @@ class BoucWenBuilding(nn.Module):
         return cls(BuildingTensors.stack(buildings, dtype=dtype, device=device), ground_acc, dt)
 
     # ------------------------------------------------------------------ dynamics
+    @property
+    def state_size(self) -> int:
+        """``6*story`` with a collapse model, else ``4*story``."""
+        return (6 if self.params.has_collapse else 4) * self.n_stories
+
     def initial_state(self) -> torch.Tensor:
-        """At rest: ``(batch, 4*story)`` zeros."""
+        """At rest: ``(batch, state_size)`` zeros."""
         m = self.params.mass
-        return torch.zeros(m.shape[0], 4 * self.n_stories, dtype=m.dtype, device=m.device)
+        return torch.zeros(m.shape[0], self.state_size, dtype=m.dtype, device=m.device)
 
     def ground_at(self, t: torch.Tensor) -> torch.Tensor:
         """Ground acceleration at time ``t`` [mm/s^2], ``(batch,)``, linear between samples."""
@@ -86,14 +99,31 @@ class BoucWenBuilding(nn.Module):
         return self.rates(y, self.ground_at(t))
 
     def rates(self, y: torch.Tensor, ag: torch.Tensor) -> torch.Tensor:
-        """``dy/dt`` for state ``y`` ``(batch, 4*story)`` and ground acceleration ``ag`` ``(batch,)``."""
+        """``dy/dt`` for state ``y`` ``(batch, 4*story)`` (or ``6*story``: collapse law) and ground
+        acceleration ``ag`` ``(batch,)``."""
         P = self.params
-        u, v, z, e = y.split(self.n_stories, dim=-1)
+        n = self.n_stories
+        if y.shape[-1] == 6 * n:
+            u, v, z, e, xp, xn = y.split(n, dim=-1)
+        else:
+            (u, v, z, e), xp, xn = y.split(n, dim=-1), None, None
         x, xd = u - _below(u), v - _below(v)
         eta = eq.degradation(e, P.alpha, P.k0, P.mass, P.delta_eta)
         zd = eq.hysteretic_rate(xd, z, P.dy, P.p, eta)
-        acc = _absolute_acceleration(P, x, v, z) - ag[:, None]
-        return torch.cat([v, acc, zd, z * xd], dim=-1)
+        acc = _absolute_acceleration(P, x, v, z, xp, xn) - ag[:, None]
+        if xp is None:
+            return torch.cat([v, acc, zd, z * xd], dim=-1)
+        return torch.cat([v, acc, zd, z * xd, eq.peak_rate(x, xd, xp), eq.peak_rate(-x, -xd, xn)], dim=-1)
+
+    def update_peaks(self, y: torch.Tensor) -> torch.Tensor:
+        """After a step: the collapse memory set to ``max(xp, x)``, ``max(xn, -x)`` (no-op for 4*story)."""
+        n = self.n_stories
+        if y.shape[-1] != 6 * n:
+            return y
+        u = y[..., :n]
+        x = u - _below(u)
+        return torch.cat([y[..., :4 * n], torch.maximum(y[..., 4 * n:5 * n], x),
+                          torch.maximum(y[..., 5 * n:], -x)], dim=-1)
 
     def rk4_sample(self, y: torch.Tensor, ag0: torch.Tensor, ag1: torch.Tensor, dt, substeps: int) -> torch.Tensor:
         """Advance ``y`` ``(batch, 4*story)`` over one record sample of length ``dt`` (a number or
@@ -107,6 +137,8 @@ class BoucWenBuilding(nn.Module):
             k3 = self.rates(y + 0.5 * h * k2, ag0 + da * ((s + 0.5) / substeps))
             k4 = self.rates(y + h * k3, ag0 + da * ((s + 1.0) / substeps))
             y = y + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            if y.shape[-1] != 4 * self.n_stories:
+                y = self.update_peaks(y)
         return y
 
     # ------------------------------------------------------------------ responses
@@ -115,25 +147,39 @@ class BoucWenBuilding(nn.Module):
 
         Parameters
         ----------
-        states : (batch, time, 4*story)
+        states : (batch, time, 4*story) or (batch, time, 6*story) (collapse law)
 
         Returns
         -------
         dict of (batch, time, story) tensors: ``disp``, ``vel``, ``acc`` (absolute floor
         acceleration), ``drift``, ``force`` (Bouc-Wen spring force), ``z``, ``eta``,
-        ``energy`` (hysteretic work ``(1-alpha) k0 integral(z dx)`` [N mm]).
+        ``energy`` (hysteretic work ``(1-alpha) k0 integral(z dx)`` [N mm]). With the collapse law
+        ``force`` is the story force with its strength loss (P-Delta excluded).
         """
-        P = BuildingTensors(**{f.name: getattr(self.params, f.name)[:, None] for f in dataclasses.fields(self.params)})
-        u, v, z, e = states.split(self.n_stories, dim=-1)
+        P = BuildingTensors(**{f.name: None if getattr(self.params, f.name) is None
+                               else getattr(self.params, f.name)[:, None] for f in dataclasses.fields(self.params)})
+        n = self.n_stories
+        if states.shape[-1] == 6 * n:
+            u, v, z, e, xp, xn = states.split(n, dim=-1)
+        else:
+            (u, v, z, e), xp, xn = states.split(n, dim=-1), None, None
         x = u - _below(u)
-        return {"disp": u, "vel": v, "acc": _absolute_acceleration(P, x, v, z), "drift": x,
-                "force": eq.spring_force(x, z, P.alpha, P.k0), "z": z,
+        return {"disp": u, "vel": v, "acc": _absolute_acceleration(P, x, v, z, xp, xn), "drift": x,
+                "force": _story_force(P, x, z, xp, xn), "z": z,
                 "eta": eq.degradation(e, P.alpha, P.k0, P.mass, P.delta_eta),
                 "energy": (1.0 - P.alpha) * P.k0 * e}
 
 
-def _absolute_acceleration(P: BuildingTensors, x, v, z):
+def _story_force(P: BuildingTensors, x, z, xp=None, xn=None):
+    """Story spring force [N]: the paper's law, or the collapse law when the memory is given."""
+    if xp is None:
+        return eq.spring_force(x, z, P.alpha, P.k0)
+    c = P.collapse
+    return eq.collapse_spring_force(x, z, xp, xn, P.alpha, P.k0, *(c[..., j] for j in range(c.shape[-1])))
+
+
+def _absolute_acceleration(P: BuildingTensors, x, v, z, xp=None, xn=None):
     """Absolute floor acceleration ``-(R(x, z) + C v) / m`` [mm/s^2]; fields of ``P`` broadcast."""
-    f = eq.spring_force(x, z, P.alpha, P.k0) - P.kg * x  # story shear, P-Delta included
+    f = _story_force(P, x, z, xp, xn) - P.kg * x  # story shear, P-Delta included
     fd = torch.einsum("...ij,...j->...i", P.damping, v)
     return -(f - _above(f) + fd) / P.mass

@@ -13,6 +13,7 @@ import torch
 from ..errors import InputError
 from ..units import G_MM_S2, weight_kn_to_mass_t
 from . import _structure as S
+from .collapse import CollapseModel, get_collapse_model, no_collapse
 
 STORY_FIELDS = ("mass", "k0", "alpha", "p", "dy", "delta_eta")
 """Per-story parameters of the hysteretic model, in this order."""
@@ -105,6 +106,9 @@ class Building:
     gravity_load : gravity load on each floor [N]; None means ``mass * g``
     damping : viscous damping model
     pdelta : include the geometric stiffness ``-P_i/h_i``; None means "when heights are known"
+    collapse : strength loss beyond a capping drift (:class:`~hlaid.model.collapse.CollapseModel`,
+        a name of :data:`~hlaid.model.collapse.COLLAPSE_MODELS` or a mapping); None (``"none"``):
+        the paper's law. Needs story heights.
     name : a label
     """
 
@@ -118,6 +122,7 @@ class Building:
     gravity_load: np.ndarray | None = None
     damping: Damping = field(default_factory=Damping)
     pdelta: bool | None = None
+    collapse: CollapseModel | None = None
     name: str = ""
     source: str | None = field(default=None, repr=False)
 
@@ -141,6 +146,15 @@ class Building:
                              source=self.source)
         if not isinstance(self.damping, Damping):
             raise InputError(f"damping must be a Damping, got {type(self.damping).__name__}", source=self.source)
+        try:
+            object.__setattr__(self, "collapse", get_collapse_model(self.collapse))
+            if self.collapse is not None:
+                if self.height is None:
+                    raise InputError("a collapse model needs story heights (its ratios are drift ratios); "
+                                     "give height for every story")
+                self.collapse_values()
+        except InputError as e:
+            raise InputError(str(e).removeprefix(f"{self.source}: "), source=self.source) from None
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -195,6 +209,8 @@ class Building:
                 s["gravity_kN"] = float(self.gravity_load[i]) / 1000.0
             stories.append(s)
         out = {"stories": stories, "damping": self.damping.to_dict(), "pdelta": self.pdelta}
+        if self.collapse is not None:
+            out["collapse"] = self.collapse.to_dict()
         if self.name:
             out["name"] = self.name
         return out
@@ -221,6 +237,13 @@ class Building:
         if not self.pdelta_active:
             return np.zeros(self.n_stories)
         return np.cumsum(self.floor_gravity()[::-1])[::-1] / self.height
+
+    def collapse_values(self) -> np.ndarray:
+        """Resolved collapse gap springs ``(story, 8)``: ``x1, dk1, ..., x4, dk4`` [mm, N/mm]
+        (:meth:`CollapseModel.resolve`); springs that never engage without a model."""
+        if self.collapse is None:
+            return no_collapse(self.n_stories)
+        return self.collapse.resolve(k0=self.k0, alpha=self.alpha, dy=self.dy, height=self.height)
 
     def _t(self, name):
         return torch.tensor(np.asarray(getattr(self, name)), dtype=torch.float64)[None]
@@ -257,7 +280,10 @@ class BuildingTensors:
     """Batched parameters of buildings with the same number of stories.
 
     Every per-story field is ``(batch, story)``; ``damping`` is ``(batch, story, story)``;
-    ``kg`` is the P-Delta stiffness ``P/h`` (zeros where inactive).
+    ``kg`` is the P-Delta stiffness ``P/h`` (zeros where inactive); ``collapse`` is
+    ``(batch, story, 8)`` (gap springs ``x1, dk1, ..., x4, dk4``, :meth:`Building.collapse_values`) or None when no
+    building of the batch has a collapse model. It is used when the state carries the collapse
+    memory (``6*story`` wide, see :class:`~hlaid.model.BoucWenBuilding`).
     """
 
     mass: torch.Tensor
@@ -268,6 +294,7 @@ class BuildingTensors:
     delta_eta: torch.Tensor
     kg: torch.Tensor
     damping: torch.Tensor
+    collapse: torch.Tensor | None = None
 
     @classmethod
     def stack(cls, buildings: Sequence[Building], dtype=torch.float64, device=None) -> "BuildingTensors":
@@ -284,7 +311,20 @@ class BuildingTensors:
         fields = {k: t([getattr(b, k) for b in buildings]) for k in STORY_FIELDS}
         fields["kg"] = t([b.geometric_stiffness() for b in buildings])
         fields["damping"] = t([b.damping_matrix() for b in buildings])
+        if any(b.collapse is not None for b in buildings):
+            fields["collapse"] = t([b.collapse_values() for b in buildings])
         return cls(**fields)
+
+    @property
+    def has_collapse(self) -> bool:
+        return self.collapse is not None
+
+    def collapse_array(self) -> np.ndarray:
+        """``(batch, story, 8)`` collapse gap springs for the compiled simulator (inactive ones when None)."""
+        if self.collapse is not None:
+            return np.ascontiguousarray(self.collapse.detach().cpu().numpy())
+        n = self.mass.shape[-1]
+        return np.broadcast_to(no_collapse(n), (self.batch_size, n, no_collapse(n).shape[1])).copy()
 
     @property
     def batch_size(self) -> int:
@@ -293,7 +333,12 @@ class BuildingTensors:
     def index(self, idx) -> "BuildingTensors":
         """Select (or repeat) batch rows: ``idx`` is a 1-D index tensor or array."""
         idx = torch.as_tensor(idx, dtype=torch.long, device=self.mass.device)
-        return BuildingTensors(**{f.name: getattr(self, f.name)[idx] for f in dataclasses.fields(self)})
+        return BuildingTensors(**{f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[idx]
+                                  for f in dataclasses.fields(self)})
 
     def numpy(self) -> dict[str, np.ndarray]:
-        return {f.name: getattr(self, f.name).detach().cpu().numpy() for f in dataclasses.fields(self)}
+        """Every field as an array; ``collapse`` always (no-loss values when None)."""
+        out = {f.name: getattr(self, f.name).detach().cpu().numpy() for f in dataclasses.fields(self)
+               if f.name != "collapse"}
+        out["collapse"] = self.collapse_array()
+        return out

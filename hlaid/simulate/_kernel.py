@@ -4,11 +4,17 @@ The hysteretic law is not re-written here: the functions of
 :mod:`hlaid.model._equations` are compiled as they are. The structural assembly mirrors
 :meth:`hlaid.model.BoucWenBuilding.rates` loop by loop, and a test holds the two to 1e-8.
 
+With a collapse model the state carries the memory ``[xp, xn]`` (``6*story`` wide, see
+BoucWenBuilding); the gap springs' force is then added to the rates computed as without it
+(:func:`_add_collapse`), so the paper's law runs the very code it ran before.
+
 Each batch element ``b`` integrates building ``bi[b]`` under motion ``mi[b]`` scaled by
 ``sc[b]``; elements run in parallel (``prange``).
 """
 
 from __future__ import annotations
+
+import types
 
 import numba as nb
 import numpy as np
@@ -24,7 +30,24 @@ _degradation = _jit(eq.degradation)
 _hysteretic_rate = _jit(eq.hysteretic_rate)
 _spring_force = _jit(eq.spring_force)
 
+
+def _jit_composed(names):
+    """Compile functions of ``_equations`` that call each other: each is compiled with the
+    already compiled ones as its globals (the source stays the one in ``_equations``)."""
+    done = {}
+    for name in names:
+        fn = getattr(eq, name)
+        done[name] = _jit(types.FunctionType(fn.__code__, {**vars(eq), **done}, fn.__name__, fn.__defaults__))
+    return done
+
+
+_c = _jit_composed(("_pos", "gap_offset", "gap_force", "peak_rate"))
+_gap_force, _peak_rate = _c["gap_force"], _c["peak_rate"]
+
 STATUS_OK, STATUS_DRIFT_LIMIT, STATUS_DIVERGED = 0, 1, 2
+
+COLLAPSE = False
+"""Whether a compiled :func:`integrate` runs the collapse law; frozen per specialisation (below)."""
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
@@ -69,8 +92,43 @@ def _absolute_acc(y, n, m, al, k0, kg, C, f, acc):
         acc[j] = -(f[j] - f_above + fd) / m[j]
 
 
-@nb.njit(cache=True, parallel=True, fastmath=_FASTMATH, error_model="numpy")
-def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, stop_drift,
+@nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
+def _add_collapse(y, n, m, cp, g, out, rates):
+    """Add the gap springs of the collapse law (``cp`` ``(n, 8)``) to the floor accelerations
+    ``out[a:a+n]`` (``a = n`` for rates, 0 for absolute accelerations); with ``rates`` also write
+    the memory rates ``out[4n:6n]``. ``g`` is scratch ``(n,)``."""
+    u_below = 0.0
+    v_below = 0.0
+    for i in range(n):
+        x = y[i] - u_below
+        g[i] = _gap_force(x, y[4 * n + i], y[5 * n + i], cp[i, 0], cp[i, 1], cp[i, 2], cp[i, 3], cp[i, 4],
+                          cp[i, 5], cp[i, 6], cp[i, 7])
+        if rates:
+            xd = y[n + i] - v_below
+            out[4 * n + i] = _peak_rate(x, xd, y[4 * n + i])
+            out[5 * n + i] = _peak_rate(-x, -xd, y[5 * n + i])
+            v_below = y[n + i]
+        u_below = y[i]
+    a = n if rates else 0
+    for j in range(n):
+        g_above = g[j + 1] if j + 1 < n else 0.0
+        out[a + j] -= (g[j] - g_above) / m[j]
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
+def _update_peaks(y, n):
+    """Collapse memory after a step: ``xp = max(xp, x)``, ``xn = max(xn, -x)`` (exact running peaks)."""
+    u_below = 0.0
+    for i in range(n):
+        x = y[i] - u_below
+        if x > y[4 * n + i]:
+            y[4 * n + i] = x
+        if -x > y[5 * n + i]:
+            y[5 * n + i] = -x
+        u_below = y[i]
+
+
+def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, cpar, y0, stop_drift,
               save, states, save_acc, acc_hist, peak_drift, peak_acc, final, n_done, status):
     """Integrate every batch element; results are written into the output arrays.
 
@@ -82,7 +140,10 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
     nsub : RK4 sub-steps per sample; a sample whose step lets |z| overshoot dy (or the
         state blow up) is redone with 2x, 4x, ... up to 16x the sub-steps
     m, k0, al, p, dy, de, kg : (building, story) parameters; C : (building, story, story)
-    y0 : (batch, 4*story) initial states
+    cpar : (building, story, 8) collapse gap springs ``x1, dk1, ..., x4, dk4`` (hlaid.model.collapse),
+        used when the state has the collapse memory
+    y0 : (batch, 4*story) initial states, or (batch, 6*story) with the collapse memory
+        ``[xp, xn]`` (largest past drift per direction), which switches the collapse law on
     stop_drift : (batch, story) |drift| [mm] at which an element stops (inf: never)
     save : write the state at every sample into ``states`` (batch, time, 4*story)
     save_acc : write the absolute floor acceleration at every sample into ``acc_hist``
@@ -92,7 +153,8 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
     """
     B = mi.shape[0]
     n = m.shape[1]
-    S = 4 * n
+    col = COLLAPSE  # a compile-time constant: see _specialise
+    S = (6 if col else 4) * n
     for b in nb.prange(B):
         g = ag[mi[b]]
         s_b = sc[b]
@@ -107,10 +169,13 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
         k4 = np.empty(S)
         f = np.empty(n)
         acc = np.empty(n)
+        cpb = cpar[w]
         T = nt[mi[b]]
         if save:
             states[b, 0, :] = y
         _absolute_acc(y, n, mb, alb, k0b, kgb, Cb, f, acc)
+        if col:
+            _add_collapse(y, n, mb, cpb, f, acc, False)
         if save_acc:
             for i in range(n):
                 acc_hist[b, 0, i] = acc[i]
@@ -132,17 +197,27 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
                     gm = lo + da * ((s + 0.5) / ns)
                     g1 = lo + da * ((s + 1.0) / ns)
                     _rhs(y, g0, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k1)
+                    if col:
+                        _add_collapse(y, n, mb, cpb, f, k1, True)
                     for j in range(S):
                         yt[j] = y[j] + 0.5 * hs * k1[j]
                     _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k2)
+                    if col:
+                        _add_collapse(yt, n, mb, cpb, f, k2, True)
                     for j in range(S):
                         yt[j] = y[j] + 0.5 * hs * k2[j]
                     _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k3)
+                    if col:
+                        _add_collapse(yt, n, mb, cpb, f, k3, True)
                     for j in range(S):
                         yt[j] = y[j] + hs * k3[j]
                     _rhs(yt, g1, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k4)
+                    if col:
+                        _add_collapse(yt, n, mb, cpb, f, k4, True)
                     for j in range(S):
                         y[j] = y[j] + hs / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+                    if col:
+                        _update_peaks(y, n)
                 # the step was too long if z overshot the yield surface or the state blew up:
                 # redo this sample with twice the sub-steps (up to 16x)
                 bad = False
@@ -159,6 +234,8 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
             if save:
                 states[b, k, :] = y
             _absolute_acc(y, n, mb, alb, k0b, kgb, Cb, f, acc)
+            if col:
+                _add_collapse(y, n, mb, cpb, f, acc, False)
             if save_acc:
                 for i in range(n):
                     acc_hist[b, k, i] = acc[i]
@@ -190,3 +267,21 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, y0, sto
         final[b, :] = y
         n_done[b] = k + 1
         status[b] = st
+
+
+def _specialise(fn, collapse: bool, name: str):
+    """``fn`` compiled with the global ``COLLAPSE`` frozen to ``collapse``: the paper's law
+    (False) compiles without any collapse code, exactly the kernel it was before."""
+    g = dict(globals())
+    g["COLLAPSE"] = collapse
+    f = types.FunctionType(fn.__code__, g, name, fn.__defaults__)
+    f.__qualname__ = name
+    f.__doc__ = fn.__doc__
+    return nb.njit(cache=True, parallel=True, fastmath=_FASTMATH, error_model="numpy")(f)
+
+
+_integrate_source = integrate
+integrate = _specialise(_integrate_source, False, "integrate")
+"""Integrate a batch with the paper's law (``4*story`` states); see the source function's doc."""
+integrate_collapse = _specialise(_integrate_source, True, "integrate_collapse")
+"""The same with the collapse law (``6*story`` states with the memory ``[xp, xn]``)."""

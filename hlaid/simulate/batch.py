@@ -48,7 +48,8 @@ class SimulationResult:
     peak_drift : (batch, story) peak absolute inter-story drift [mm]
     peak_acc : (batch, story) peak absolute floor acceleration [mm/s^2]
     residual_drift : (batch, story) drift at the last integrated sample [mm]
-    final_state : (batch, 4*story) last state ``[u, v, z, e]``
+    final_state : (batch, 4*story) last state ``[u, v, z, e]``; ``(batch, 6*story)``
+        ``[u, v, z, e, xp, xn]`` when a building has a collapse model (see BoucWenBuilding)
     disp, vel, acc, drift, force, z, eta, energy : (batch, time, story) histories: floor
         displacement relative to the ground, velocity, absolute acceleration, drift, Bouc-Wen
         spring force [N], hysteretic displacement, degradation, hysteretic work [N mm]
@@ -135,16 +136,18 @@ def _stop_array(stop_drift, bi, n, nb) -> np.ndarray:
 
 def _run_numba(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, outputs):
     B, n = bi.size, P["mass"].shape[1]
+    S = y0.shape[1]
     T = int(nt.max())
     save, save_acc = outputs == "full", outputs == "acc"
-    states = np.empty((B, T, 4 * n) if save else (0, 0, 0))
+    states = np.empty((B, T, S) if save else (0, 0, 0))
     acc = np.empty((B, T, n) if save_acc else (0, 0, 0))
     peak_drift, peak_acc = np.zeros((B, n)), np.zeros((B, n))
-    final = np.zeros((B, 4 * n))
+    final = np.zeros((B, S))
     n_done = np.zeros(B, dtype=np.int64)
     status = np.zeros(B, dtype=np.int64)
-    _kernel.integrate(ag, dt, nt, mi, bi, sc, int(nsub), P["mass"], P["k0"], P["alpha"], P["p"], P["dy"],
-                      P["delta_eta"], P["kg"], P["damping"], y0, stop, save, states, save_acc, acc, peak_drift,
+    kernel = _kernel.integrate_collapse if S == 6 * n else _kernel.integrate
+    kernel(ag, dt, nt, mi, bi, sc, int(nsub), P["mass"], P["k0"], P["alpha"], P["p"], P["dy"],
+                      P["delta_eta"], P["kg"], P["damping"], P["collapse"], y0, stop, save, states, save_acc, acc, peak_drift,
                       peak_acc, final, n_done, status)
     return (states if save else None), (acc if save_acc else None), peak_drift, peak_acc, final, n_done, status
 
@@ -153,7 +156,7 @@ def _run_torch(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, outputs):
     """Eager torch RK4 over the module; the same arithmetic as the compiled kernel (always full states)."""
     if np.isfinite(stop).any():
         raise InputError("backend 'torch' does not stop at a drift limit; use backend='numba'")
-    params = BuildingTensors(**{k: torch.as_tensor(v) for k, v in P.items()}).index(bi)
+    params = _tensors(P, y0.shape[1]).index(bi)
     model = BoucWenBuilding(params)
     g = torch.as_tensor(ag[mi] * sc[:, None])
     dt_b = torch.as_tensor(dt[mi])[:, None]
@@ -172,6 +175,12 @@ def _run_torch(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, outputs):
     final = states[np.arange(bi.size), n_done - 1]
     status = np.where(np.isfinite(final).all(axis=1), _kernel.STATUS_OK, _kernel.STATUS_DIVERGED)
     return states, None, None, None, final, n_done, status
+
+
+def _tensors(P: dict, width: int) -> BuildingTensors:
+    """The parameters as tensors; the collapse values only for a collapse-law (6*story) state."""
+    n = P["mass"].shape[1]
+    return BuildingTensors(**{k: torch.as_tensor(v) for k, v in P.items() if k != "collapse" or width == 6 * n})
 
 
 BACKENDS: dict[str, Callable] = {"numba": _run_numba, "torch": _run_torch}
@@ -200,7 +209,8 @@ def simulate(buildings: Building | Sequence[Building], motions: GroundMotion | S
     free_vibration : seconds of zero ground motion appended to every record
     stop_drift : |drift| [mm] at which an element stops (status 1): a number, ``(story,)``
         or ``(building, story)``; None never stops
-    y0 : (batch, 4*story) initial states; None starts at rest
+    y0 : (batch, 4*story) initial states (``6*story`` when a building has a collapse model);
+        None starts at rest
 
     Returns
     -------
@@ -218,6 +228,7 @@ def simulate(buildings: Building | Sequence[Building], motions: GroundMotion | S
         motions = [m.padded(free_vibration) for m in motions]
     P = BuildingTensors.stack(buildings).numpy()
     n = P["mass"].shape[1]
+    S = (6 if any(b.collapse is not None for b in buildings) else 4) * n
     bi, mi, sc = _layout(len(buildings), len(motions), scales, pairing)
     T = max(m.npts for m in motions)
     ag = np.zeros((len(motions), T))
@@ -226,17 +237,17 @@ def simulate(buildings: Building | Sequence[Building], motions: GroundMotion | S
     dt = np.array([m.dt for m in motions])
     nt = np.array([m.npts for m in motions], dtype=np.int64)
     if y0 is None:
-        y0 = np.zeros((bi.size, 4 * n))
+        y0 = np.zeros((bi.size, S))
     else:
         try:  # a writable copy: a read-only view would make numba compile the kernel a second time
-            y0 = np.broadcast_to(np.asarray(y0, dtype=np.float64), (bi.size, 4 * n)).copy()
+            y0 = np.broadcast_to(np.asarray(y0, dtype=np.float64), (bi.size, S)).copy()
         except ValueError:
-            raise InputError(f"y0 of shape {np.shape(y0)}; expected (batch, 4*story) = ({bi.size}, {4 * n}) "
-                             f"or ({4 * n},)") from None
+            raise InputError(f"y0 of shape {np.shape(y0)}; expected (batch, {S // n}*story) = ({bi.size}, {S}) "
+                             f"or ({S},)") from None
     stop = _stop_array(stop_drift, bi, n, len(buildings))
     states, acc, peak_drift, peak_acc, final, n_done, status = BACKENDS[backend](
         P, ag, dt, nt, mi.astype(np.int64), bi.astype(np.int64), sc, int(substeps), y0, stop, outputs)
-    params = BuildingTensors(**{k: torch.as_tensor(v) for k, v in P.items()}).index(bi)
+    params = _tensors(P, S).index(bi)
     res = result_from_states(params, states, dt=dt[mi], n_time=n_done, building_index=bi, motion_index=mi,
                              scale=sc, status=status, final_state=final, peak_drift=peak_drift,
                              peak_acc=peak_acc, keep_histories=outputs != "peaks")

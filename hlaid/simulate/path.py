@@ -20,6 +20,8 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from ..model import _equations as eq
+from ..model.collapse import N_COLLAPSE
 from ._kernel import _FASTMATH, _degradation, _hysteretic_rate, _spring_force
 
 
@@ -112,7 +114,8 @@ class PathResponse:
 
 
 def drive_story(drift: np.ndarray, *, k0, alpha, p, dy, delta_eta, mass: float, dt: float,
-                velocity: np.ndarray | None = None, substeps: int = 4, state: bool = True) -> PathResponse:
+                velocity: np.ndarray | None = None, substeps: int = 4, state: bool = True,
+                collapse=None) -> PathResponse:
     """Drive the degrading Bouc-Wen story law along drift paths, batched over parameters.
 
     Parameters
@@ -126,6 +129,10 @@ def drive_story(drift: np.ndarray, *, k0, alpha, p, dy, delta_eta, mass: float, 
         samples; None: straight lines between samples
     substeps : RK4 sub-steps per sample
     state : also return the ``z`` and ``energy`` histories (False: the force only)
+    collapse : None (the paper's law), or ``(8,)`` / ``(batch, 8)`` collapse gap springs
+        (:meth:`hlaid.model.Building.collapse_values`): the force is then the collapse law
+        (:func:`hlaid.model._equations.collapse_spring_force`) with the largest drift of each
+        direction taken over the path's samples (``z`` does not depend on it)
 
     Returns
     -------
@@ -147,6 +154,15 @@ def drive_story(drift: np.ndarray, *, k0, alpha, p, dy, delta_eta, mass: float, 
     T = x.shape[1]
     force = np.empty((B, T))
     z, e = (np.empty((B, T) if state else (1, 1)) for _ in range(2))
+    if collapse is not None and not state:
+        z, e = (np.empty((B, T)) for _ in range(2))
     _drive(x, v if hermite else np.zeros_like(x), float(dt), hermite, k0_, al_, p_, dy_, de_, float(mass),
-           int(substeps), bool(state), force, z, e)
+           int(substeps), bool(state or collapse is not None), force, z, e)
+    if collapse is not None:
+        c = np.broadcast_to(np.asarray(collapse, dtype=np.float64), (B, N_COLLAPSE))[:, :, None]
+        xb = np.broadcast_to(x, (B, T))
+        xp = np.maximum.accumulate(np.maximum(xb, 0.0), axis=1)
+        xn = np.maximum.accumulate(np.maximum(-xb, 0.0), axis=1)
+        force = eq.collapse_spring_force(xb, z, xp, xn, al_[:, None], k0_[:, None], *(c[:, j] for j in
+                                                                                      range(N_COLLAPSE)))
     return PathResponse(force=force, z=z if state else None, energy=e if state else None)
