@@ -240,3 +240,18 @@ def test_building_argument_kinds(table1, motions):
     with pytest.raises(InputError, match="expected a Clone, a Building or a clone file"):
         ida(42, motions)
     assert isinstance(table1, Building)
+
+
+@pytest.mark.parametrize("n", [1, 20, 99, 100, 200, 1000])
+def test_auto_levels_stay_strictly_increasing(n):
+    """Rounding keeps the automatic levels distinct for any count (n_levels 200 once failed
+    with "level 142 is not above level 141"); the default 20 keeps 3 digits."""
+    from hlaid.ida.analysis import _auto_levels
+    from hlaid.ida.config import check_levels
+
+    for top in (0.37, 1.0, 9.87, 13.8):
+        lv = _auto_levels(np.array([top / 0.1]), 0.1, n)
+        assert len(lv) == n and check_levels(lv) == lv
+        assert lv[-1] == pytest.approx(top, rel=1e-3)
+        if n == 20:
+            assert all(v == float(f"{v:.3g}") for v in lv)

@@ -244,10 +244,12 @@ def scan_collapse(im: np.ndarray, edp: np.ndarray, failed: np.ndarray, elastic_s
 
 
 def _auto_levels(elastic_slope: np.ndarray, drift_limit: float, n: int) -> list[float]:
-    """``n`` equal steps up to the median equal-displacement IM at the drift limit (3 digits)."""
+    """``n`` equal steps up to the median equal-displacement IM at the drift limit, rounded to
+    3 significant digits, more where ``n`` steps need them to stay distinct (n >= 100)."""
     top = float(np.median(elastic_slope * drift_limit))
     lv = [top * (i + 1) / n for i in range(n)]
-    return [float(f"{v:.3g}") for v in lv]
+    digits = max(3, len(str(n)) + 1)
+    return [float(f"{v:.{digits}g}") for v in lv]
 
 
 # ---------------------------------------------------------------------------- the analysis
