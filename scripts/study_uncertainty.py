@@ -14,8 +14,9 @@ their buildings from different seeds, so a calibration fitted on one is tested o
 inside the nominal 90 % intervals, per parameter and overall, on the held-out set; the
 calibration factor fitted on the calibration set; a calibration plot (observed against
 nominal coverage) in ``<out>/coverage.png`` and the figures in ``<out>/coverage.json``/``.md``.
-``bootstrap``: on a few cases, the Laplace standard deviations against a parametric
-bootstrap (re-identification on re-noised simulations of the clone).
+``bootstrap``: on the Table 1 structure under one to three records (PGA 0.62 g), the Laplace
+standard deviations against a parametric bootstrap (re-identification on re-noised
+simulations of the clone).
 """
 
 from __future__ import annotations
@@ -34,12 +35,13 @@ from study_identification import RANDOM_RECORDS, random_building, scale_to_yield
 from hlaid import _progress  # noqa: E402
 from hlaid.identify import IdentifyConfig, identify  # noqa: E402
 from hlaid.motions import read_motion  # noqa: E402
-from hlaid.synthetic import simulate_measurement  # noqa: E402
+from hlaid.synthetic import load_simulation_config, simulate_measurement  # noqa: E402
 from hlaid.uncertainty import calibration_factor, coverage, parametric_bootstrap, zscores  # noqa: E402
-from hlaid.uncertainty.laplace import METHODS, from_refinement  # noqa: E402
+from hlaid.uncertainty.laplace import METHODS, MISFIT_LIMIT, from_refinement, noise_residual_rms  # noqa: E402
 
 SET_SEEDS = {"heldout": 1515, "calibration": 2727}
 PARAMS = ("k0", "alpha", "p", "dy", "delta_eta")
+BOOT_RECORDS = ["builtin:elcentro-1940-ns", "builtin:kocaeli-1999-dzc180", "builtin:northridge-1994-mul009"]
 LEVELS = np.array([0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99])
 
 
@@ -90,72 +92,86 @@ class _RR:
 
 
 def load(folder: Path) -> list:
+    """(refinement, true values, floors, misfit ratio) of every identified case in ``folder``."""
+    s0 = noise_residual_rms(0.10, IdentifyConfig().refine.band_hz, 1 / 200.0)
     out = []
     for p in sorted(folder.glob("case_*.npz")):
         z = np.load(p, allow_pickle=False)
         if "failed" in z:
             continue
-        out.append((_RR(z), z["true_x"], int(z["n_floors"])))
+        rr = _RR(z)
+        out.append((rr, z["true_x"], int(z["n_floors"]), float(np.sqrt(np.mean(rr.residuals**2)) / s0)))
     return out
 
 
-def all_zscores(data, method: str) -> tuple[np.ndarray, list]:
-    """Standardised errors (theta_hat - theta_true) / std of every slot of every case."""
-    z, names = [], []
-    for rr, true_x, nf in data:
+def all_zscores(data, method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Standardised errors (theta_hat - theta_true) / std of every slot of every case, the slots'
+    parameter names and whether their case's fit is consistent with the noise."""
+    z, names, ok = [], [], []
+    for rr, true_x, nf, rho in data:
         u = from_refinement(rr, nf, method=method)
         z.append(zscores(u, true_x))
         names += [n for n, _ in u.slots]
-    return np.concatenate(z), names
+        ok += [rho <= MISFIT_LIMIT] * len(u.slots)
+    return np.concatenate(z), np.array(names), np.array(ok)
+
+
+def _entry(z, names, scale):
+    return {"overall_90": coverage(z, 0.9, scale), "n_intervals": int(z.size),
+            "per_parameter_90": {p: coverage(z[names == p], 0.9, scale) for p in PARAMS if (names == p).any()},
+            "levels": {f"{lv:g}": coverage(z, lv, scale) for lv in LEVELS}}
 
 
 def analyse(args) -> None:
     out = Path(args.out)
     held, cal = load(out / "heldout"), load(out / "calibration")
-    report = {"cases_heldout": len(held), "cases_calibration": len(cal), "methods": {}}
+    n_ok_h = sum(r[3] <= MISFIT_LIMIT for r in held)
+    report = {"cases_heldout": len(held), "cases_calibration": len(cal), "misfit_limit": MISFIT_LIMIT,
+              "heldout_fit_consistent": int(n_ok_h), "calibration_fit_consistent": int(sum(r[3] <= MISFIT_LIMIT
+                                                                                           for r in cal)),
+              "misfit_ratio_heldout": [r[3] for r in held], "rows": {}}
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(5.2, 4.6))
+    fig, ax = plt.subplots(figsize=(5.6, 4.8))
+    ax.axhspan(0.85, 0.95, color="0.9", zorder=0)
     ax.plot([0.45, 1], [0.45, 1], "k:", lw=1, label="ideal")
+    rows = report["rows"]
     for method in METHODS:
-        zh, names = all_zscores(held, method)
-        entry = {"uncalibrated": {}, "calibrated": {}}
-        scale = 1.0
-        if cal:
-            zc, _ = all_zscores(cal, method)
-            scale = calibration_factor(zc, 0.9)  # the factor giving 90 % on the calibration set
-            entry["calibration_factor"] = scale
-        for key, s in (("uncalibrated", 1.0), ("calibrated", scale)):
-            names_a = np.array(names)
-            entry[key]["overall_90"] = coverage(zh, 0.9, s)
-            entry[key]["per_parameter_90"] = {p: coverage(zh[names_a == p], 0.9, s) for p in PARAMS if (names_a == p).any()}
-            entry[key]["levels"] = {f"{lv:g}": coverage(zh, lv, s) for lv in LEVELS}
-        entry["n_intervals"] = int(zh.size)
-        entry["median_abs_z"] = float(np.median(np.abs(zh)))
-        report["methods"][method] = entry
-        ax.plot(LEVELS, [entry["uncalibrated"]["levels"][f"{lv:g}"] for lv in LEVELS], "o-", label=method)
-        if method == "sandwich" and cal:
-            ax.plot(LEVELS, [entry["calibrated"]["levels"][f"{lv:g}"] for lv in LEVELS], "s--",
-                    label=f"sandwich x {scale:.2f} (factor from calibration set)")
-    ax.axhspan(0.85, 0.95, xmin=0, xmax=1, color="0.9", zorder=0)
+        zh, nh, okh = all_zscores(held, method)
+        rows[f"{method}, all cases"] = _entry(zh, nh, 1.0)
+        ax.plot(LEVELS, list(rows[f"{method}, all cases"]["levels"].values()), "o-", ms=4, label=f"{method}, all cases")
+        if method != "sandwich" or not cal:
+            continue
+        zc, nc, okc = all_zscores(cal, method)
+        f_all = calibration_factor(zc, 0.9)
+        f_ok = calibration_factor(zc[okc], 0.9)
+        report["factor_all"], report["factor_consistent"] = f_all, f_ok
+        rows[f"sandwich x {f_all:.2f} (factor: calibration set, all cases), all cases"] = _entry(zh, nh, f_all)
+        rows[f"sandwich x {f_ok:.2f} (factor: calibration set, consistent fits), consistent fits"] = \
+            _entry(zh[okh], nh[okh], f_ok)
+        rows[f"sandwich x {f_ok:.2f}, all cases (inconsistent fits included)"] = _entry(zh, nh, f_ok)
+        rows["sandwich, consistent fits"] = _entry(zh[okh], nh[okh], 1.0)
+        ax.plot(LEVELS, [coverage(zh, lv, f_all) for lv in LEVELS], "s--", ms=4,
+                label=f"sandwich x {f_all:.2f}, all cases")
+        ax.plot(LEVELS, [coverage(zh[okh], lv, f_ok) for lv in LEVELS], "^-", ms=5, lw=2,
+                label=f"sandwich x {f_ok:.2f}, consistent fits")
     ax.set_xlabel("nominal coverage of the interval")
-    ax.set_ylabel("observed fraction of true values inside")
-    ax.set_title(f"Held-out: {len(held)} random buildings, 10 % noise", fontsize=10)
-    ax.legend(fontsize=8)
+    ax.set_ylabel("fraction of true values inside")
+    ax.set_title(f"Held-out: {len(held)} random buildings ({n_ok_h} consistent fits), 10 % noise", fontsize=9)
+    ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(out / "coverage.png", dpi=120)
     (out / "coverage.json").write_text(json.dumps(report, indent=1))
-    lines = [f"Held-out cases: {len(held)}, calibration cases: {len(cal)}", "",
-             "| method | overall 90 % | " + " | ".join(PARAMS) + " | factor (calibration set) |",
+    lines = [f"Held-out cases: {len(held)} ({n_ok_h} with a fit consistent with the noise, misfit ratio <= "
+             f"{MISFIT_LIMIT:g}), calibration cases: {len(cal)}", "",
+             "| intervals | 90 % coverage | " + " | ".join(PARAMS) + " | intervals |",
              "|---|---|" + "---|" * len(PARAMS) + "---|"]
-    for m, e in report["methods"].items():
-        for key in ("uncalibrated", "calibrated"):
-            pp = e[key]["per_parameter_90"]
-            lines.append(f"| {m} {key} | {e[key]['overall_90']:.1%} | "
-                         + " | ".join(f"{pp.get(p, float('nan')):.1%}" for p in PARAMS)
-                         + f" | {e.get('calibration_factor', float('nan')):.2f} |")
+    for name, e in rows.items():
+        pp = e["per_parameter_90"]
+        lines.append(f"| {name} | {e['overall_90']:.1%} | "
+                     + " | ".join(f"{pp.get(p, float('nan')):.1%}" for p in PARAMS) + f" | {e['n_intervals']} |")
     (out / "coverage.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
@@ -164,13 +180,16 @@ def bootstrap(args) -> None:
     out = Path(args.out)
     rows = []
     cfg = IdentifyConfig()
-    for j, (truth, gm, seed) in enumerate(cases("heldout", args.n_boot_cases)):
+    truth = load_simulation_config("configs/poc_3story.yaml").building.build()
+    jobs = [(truth, read_motion(r).scaled_to_pga(0.62), 0) for r in BOOT_RECORDS[: args.n_boot_cases]]
+    for j, (truth, gm, seed) in enumerate(jobs):
         meas = simulate_measurement(truth, gm, noise_rms=0.10, seed=seed)
         res = identify(meas, cfg, cache_dir=args.cache)
         t = time.perf_counter()
         boot = parametric_bootstrap(res.clone, meas, args.n_boot, config=cfg, cache_dir=args.cache, seed=j)
         u = res.clone.uncertainty
-        theta = np.log(np.maximum(boot.values, 1e-300))
+        log = np.array([t == "log" for t in u.transform])
+        theta = np.where(log, np.log(np.maximum(boot.values, 1e-300)), boot.values)
         std_boot = theta.std(axis=0, ddof=1)
         rows.append({"case": j, "record": gm.name, "stories": truth.n_stories, "names": u.names,
                      "std_laplace": u.std.tolist(), "std_bootstrap": std_boot.tolist(),

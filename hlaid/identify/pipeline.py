@@ -199,7 +199,8 @@ class _Identifier:
                       "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                       "noise_rms_used": self.noise}
         rr = getattr(self, "refinement", None)
-        unc = None if rr is None else uncertainty_of_refinement(rr, meas.n_floors)
+        unc = None if rr is None else uncertainty_of_refinement(rr, meas.n_floors, noise_rms=self.noise,
+                                                                band_hz=cfg.refine.band_hz, dt=meas.dt)
         clone = Clone(building=final, mass_normalised=res.mass_normalised, diagnostics=diagnostics,
                       provenance=provenance, uncertainty=unc)
         return IdentificationResult(clone=clone, hla=res, paper_estimate=paper, passes=self.passes,

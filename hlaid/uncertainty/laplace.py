@@ -140,13 +140,38 @@ def from_refinement(refinement, n_floors: int, *, method: str = "sandwich", scal
 
 
 CALIBRATION = 1.0
-"""Factor on the standard deviations that :func:`uncertainty_of_refinement` applies (1: none; see
-docs/uncertainty.md for how coverage was measured)."""
+"""Factor on the standard deviations that :func:`uncertainty_of_refinement` applies (fitted on a
+calibration set of simulated cases separate from the ones coverage is reported on; see
+docs/uncertainty.md)."""
+
+MISFIT_LIMIT = 2.0
+"""Residual RMS over the noise-only expectation above which the fit is flagged as inconsistent
+with the measurement noise (a wrong local minimum or a model that does not fit): its Laplace
+intervals describe the local curvature only and are not to be trusted."""
 
 
-def uncertainty_of_refinement(refinement, n_floors: int) -> ParameterUncertainty | None:
+def noise_residual_rms(noise_rms: float, band_hz, dt: float) -> float:
+    """Expected RMS of the normalised residuals if the model were exact: white sensor noise of
+    ``noise_rms`` x channel RMS, band-passed to ``band_hz`` (the ground sensor's noise, seen
+    through the structure, adds to it)."""
+    lo, hi = band_hz
+    hi = min(hi, 0.45 / dt)
+    return float(noise_rms * np.sqrt(max(2.0 * (hi - lo) * dt, 0.0)))
+
+
+def uncertainty_of_refinement(refinement, n_floors: int, *, noise_rms: float | None = None, band_hz=None,
+                              dt: float | None = None) -> ParameterUncertainty | None:
     """The default uncertainty attached to an identified clone: the sandwich covariance with
-    :data:`CALIBRATION`; None when the refinement has no Jacobian."""
+    :data:`CALIBRATION`, and (given the noise level, band and dt) the misfit ratio
+    ``info["misfit_ratio"]`` and ``info["fit_consistent"]`` (ratio <= :data:`MISFIT_LIMIT`);
+    None when the refinement has no Jacobian."""
     if refinement is None or refinement.jacobian is None or len(refinement.slots) == 0:
         return None
-    return from_refinement(refinement, n_floors, method="sandwich", scale=CALIBRATION)
+    u = from_refinement(refinement, n_floors, method="sandwich", scale=CALIBRATION)
+    if noise_rms and band_hz is not None and dt:
+        s0 = noise_residual_rms(noise_rms, band_hz, dt)
+        if s0 > 0:
+            ratio = u.info["sigma"] / s0
+            u.info.update(misfit_ratio=float(ratio), fit_consistent=bool(ratio <= MISFIT_LIMIT),
+                          noise_rms=float(noise_rms))
+    return u
