@@ -293,7 +293,8 @@ def _assess_block(a: dict) -> str:
                    + "".join(rows) + "</table>")
         if a.get("own_residual_drift_median") is not None:
             out.append(f"<p>The clones under the measured record: median peak drift ratio "
-                       f"{_fmt(a.get('own_peak_drift_median'), True)}, residual {_fmt(a['own_residual_drift_median'], True)}."
+                       f"{_fmt(a.get('own_peak_drift_median'), True)}, residual "
+                       f"{_fmt(a['own_residual_drift_median'], True)}."
                        "</p>")
         out.append("<ul>" + "".join(f"<li>{e(r)}</li>" for r in a["reasons"]) + "</ul>")
         out.append("<p>Indicator (assumptions, docs/uncertainty.md): the worse of P(collapse) at the experienced "

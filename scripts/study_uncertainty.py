@@ -1,9 +1,10 @@
 """Coverage of the identification uncertainty intervals (issue 15), on simulated measurements.
 
-    python scripts/study_uncertainty.py --part run --set heldout --n 60 --out runs/study_uncert --cache runs/uq_cache
-    python scripts/study_uncertainty.py --part run --set calibration --n 30 --out runs/study_uncert --cache runs/uq_cache
-    python scripts/study_uncertainty.py --part analyse --out runs/study_uncert
-    python scripts/study_uncertainty.py --part bootstrap --out runs/study_uncert --cache runs/uq_cache
+    S=scripts/study_uncertainty.py; O="--out runs/study_uncert --cache runs/uq_cache"
+    python $S --part run --set heldout --n 66 $O
+    python $S --part run --set calibration --n 20 $O
+    python $S --part analyse --out runs/study_uncert
+    python $S --part bootstrap --n-boot-cases 1 --n-boot 12 $O
 
 ``run``: random 2-6 story buildings (as ``scripts/study_identification.py``'s random part)
 under six far-field records scaled until every story reaches 1.5 dy, 10 % noise, a noise

@@ -295,3 +295,17 @@ def test_assess_bad_input(kw, message):
 
     with pytest.raises(InputError, match=message):
         assess(_uncertain_clone(), _motions(2), **kw)
+
+
+def test_inconsistent_fit_is_never_green(small_assessment):
+    import dataclasses
+
+    from hlaid.uncertainty import assess
+
+    c, cfg, own, a = small_assessment
+    weak = own.scaled(0.01 / max(a.own_im, 1e-9))
+    u = dataclasses.replace(c.uncertainty, info={"misfit_ratio": 4.0, "fit_consistent": False})
+    bad = Clone(building=c.building, uncertainty=u)
+    ab = assess(bad, _motions(), n_ensemble=3, ida_config=cfg, own_motion=weak, seed=1, n_boot=5)
+    assert ab.indicator == "yellow" and "misfit ratio 4" in ab.reasons[-1]
+    assert any("misfit" in n for n in ab.notes)

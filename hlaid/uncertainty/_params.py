@@ -165,7 +165,8 @@ class ParameterUncertainty:
                 raise bad(f"parameters[{j}].story must be a story number >= 1")
             if t not in TRANSFORMS:
                 raise bad(f"parameters[{j}].transform must be 'log' or 'linear'")
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or (t == "log" and v <= 0):
+            number = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            if not number or (t == "log" and v <= 0):
                 raise bad(f"parameters[{j}].value must be a finite number (> 0 for transform 'log')")
             slots.append((name, story - 1))
             transforms.append(t)

@@ -20,7 +20,8 @@
   accepts at MCE_R for risk category II; yellow >= 2 %), and of the residual drift ratio of
   the clone under the record (red >= 1 %, yellow >= 0.5 %: FEMA P-58-1's residual drift
   damage states DS3 "major realignment, repair may not be feasible" and DS2 "realignment
-  necessary"). The worse of the two decides. The IDA runs the undamaged clone: damage
+  necessary"). The worse of the two decides; a clone whose fit is not consistent with the
+  noise (``uncertainty.info["fit_consistent"]`` false) is at least yellow. The IDA runs the undamaged clone: damage
   accumulated in the event is not carried into the collapse probability (an aftershock
   assessment would start from the clone's state at the end of the record).
 """
@@ -114,7 +115,7 @@ class Assessment:
     own_peak_drift, own_residual_drift : (n_ensemble,) the members' largest story peak and
         residual drift ratio under the experienced record
     indicator : ``"green"``, ``"yellow"``, ``"red"`` (None without ``own_motion``)
-    reasons : why (one line per measure)
+    reasons : why (one line per measure, and one when the clone's fit is inconsistent)
     thresholds : the :class:`ReoccupancyThresholds` used, as a mapping
     notes, timing : what was decided on the way and how long it took
     """
@@ -258,6 +259,10 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
     if measure.needs_period:
         cfg = cfg.replace(period=period)
         notes.append(f"every member's {measure.label} at the nominal clone's T1 = {period:.3f} s")
+    if clone.uncertainty.info and clone.uncertainty.info.get("fit_consistent") is False:
+        notes.append("identification misfit above the noise level: the ensemble describes the curvature at a "
+                     "fit that does not match the record (intervals not trustworthy)")
+        _progress.warn(notes[-1])
     members = clone_ensemble(clone, n_ensemble, seed=seed)
     results = []
     for b in _progress.progress(members, desc="ensemble IDA"):
@@ -311,6 +316,11 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
         resid = np.max(np.abs(sim.residual_drift) / h, axis=1)
         resid = np.where(sim.status == 0, resid, np.inf)  # stopped or diverged: no re-occupancy
         colour, reasons = _indicator(p_all, resid, thr)
+        if clone.uncertainty.info and clone.uncertainty.info.get("fit_consistent") is False:
+            reasons.append(f"the identified clone does not fit the record to the noise level (misfit ratio "
+                           f"{clone.uncertainty.info.get('misfit_ratio', float('nan')):.2g}): its intervals are not "
+                           "trustworthy, so the indicator is at least yellow")
+            colour = COLOURS[max(COLOURS.index(colour), 1)]
         out.update(own_im=own_im, p_collapse=float(pm.mean()),
                    p_collapse_band=tuple(float(v) for v in np.quantile(p_all, (q[0], q[2]))),
                    p_exceed=tuple(float(v) for v in exceed.mean(axis=0)),
