@@ -4,7 +4,7 @@
     python $S --part run --set heldout --n 66 $O
     python $S --part run --set calibration --n 20 $O
     python $S --part analyse --out runs/study_uncert
-    python $S --part bootstrap --n-boot-cases 1 --n-boot 12 $O
+    python $S --part bootstrap --n-boot-cases 1 --n-boot 8 $O
 
 ``run``: random 2-6 story buildings (as ``scripts/study_identification.py``'s random part)
 under six far-field records scaled until every story reaches 1.5 dy, 10 % noise, a noise

@@ -21,9 +21,10 @@
   the clone under the record (red >= 1 %, yellow >= 0.5 %: FEMA P-58-1's residual drift
   damage states DS3 "major realignment, repair may not be feasible" and DS2 "realignment
   necessary"). The worse of the two decides; a clone whose fit is not consistent with the
-  noise (``uncertainty.info["fit_consistent"]`` false) is at least yellow. The IDA runs the undamaged clone: damage
-  accumulated in the event is not carried into the collapse probability (an aftershock
-  assessment would start from the clone's state at the end of the record).
+  noise (``uncertainty.info["fit_consistent"]`` false) is at least yellow. The IDA runs the
+  undamaged clone: damage accumulated in the event is not carried into the collapse
+  probability (an aftershock assessment would start from the clone's state at the end of the
+  record).
 """
 
 from __future__ import annotations
