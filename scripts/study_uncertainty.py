@@ -29,6 +29,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import norm
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from study_identification import RANDOM_RECORDS, random_building, scale_to_yield  # noqa: E402
@@ -37,7 +38,7 @@ from hlaid import _progress  # noqa: E402
 from hlaid.identify import IdentifyConfig, identify  # noqa: E402
 from hlaid.motions import read_motion  # noqa: E402
 from hlaid.synthetic import load_simulation_config, simulate_measurement  # noqa: E402
-from hlaid.uncertainty import calibration_factor, coverage, parametric_bootstrap, zscores  # noqa: E402
+from hlaid.uncertainty import calibration_factor, parametric_bootstrap, zscores  # noqa: E402
 from hlaid.uncertainty.laplace import METHODS, MISFIT_LIMIT, from_refinement, noise_residual_rms  # noqa: E402
 
 SET_SEEDS = {"heldout": 1515, "calibration": 2727}
@@ -105,68 +106,92 @@ def load(folder: Path) -> list:
     return out
 
 
-def all_zscores(data, method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Standardised errors (theta_hat - theta_true) / std of every slot of every case, the slots'
-    parameter names and whether their case's fit is consistent with the noise."""
-    z, names, ok = [], [], []
+def case_zscores(data, method: str) -> list:
+    """Per case: (z-scores of its slots, their parameter names, fit consistent with the noise)."""
+    out = []
     for rr, true_x, nf, rho in data:
         u = from_refinement(rr, nf, method=method)
-        z.append(zscores(u, true_x))
-        names += [n for n, _ in u.slots]
-        ok += [rho <= MISFIT_LIMIT] * len(u.slots)
-    return np.concatenate(z), np.array(names), np.array(ok)
+        out.append((zscores(u, true_x), np.array([n for n, _ in u.slots]), rho <= MISFIT_LIMIT))
+    return out
+
+
+def _cat(cases, only_ok=False):
+    sel = [c for c in cases if c[2] or not only_ok]
+    return np.concatenate([c[0] for c in sel]), np.concatenate([c[1] for c in sel])
 
 
 def _entry(z, names, scale):
-    return {"overall_90": coverage(z, 0.9, scale), "n_intervals": int(z.size),
-            "per_parameter_90": {p: coverage(z[names == p], 0.9, scale) for p in PARAMS if (names == p).any()},
-            "levels": {f"{lv:g}": coverage(z, lv, scale) for lv in LEVELS}}
+    scale = np.broadcast_to(np.asarray(scale, dtype=float), z.shape)
+    cov = lambda m, lv: float(np.mean(np.abs(z[m]) <= scale[m] * norm.ppf(0.5 + 0.5 * lv)))  # noqa: E731
+    allm = np.ones(z.size, dtype=bool)
+    return {"overall_90": cov(allm, 0.9), "n_intervals": int(z.size),
+            "per_parameter_90": {p: cov(names == p, 0.9) for p in PARAMS if (names == p).any()},
+            "levels": {f"{lv:g}": cov(allm, lv) for lv in LEVELS}}
+
+
+def loco(cases, only_ok: bool, by_class: bool = True):
+    """Leave-one-case-out calibration: each case's intervals widened by the factor fitted on the
+    *other* cases of its class (fit consistent with the noise or not; ``by_class`` False: the
+    other consistent fits for every case), so no case is scored with a factor fitted on itself.
+    Returns (z, names, per-slot factors) of the cases scored (consistent fits only if ``only_ok``)."""
+    zs, ns, fs = [], [], []
+    for k, (z, n, ok) in enumerate(cases):
+        if only_ok and not ok:
+            continue
+        want = ok if by_class else True
+        others = np.concatenate([c[0] for j, c in enumerate(cases) if j != k and c[2] == want])
+        zs.append(z)
+        ns.append(n)
+        fs.append(np.full(z.size, calibration_factor(others, 0.9)))
+    return np.concatenate(zs), np.concatenate(ns), np.concatenate(fs)
 
 
 def analyse(args) -> None:
     out = Path(args.out)
-    held, cal = load(out / "heldout"), load(out / "calibration")
-    n_ok_h = sum(r[3] <= MISFIT_LIMIT for r in held)
-    report = {"cases_heldout": len(held), "cases_calibration": len(cal), "misfit_limit": MISFIT_LIMIT,
-              "heldout_fit_consistent": int(n_ok_h), "calibration_fit_consistent": int(sum(r[3] <= MISFIT_LIMIT
-                                                                                           for r in cal)),
-              "misfit_ratio_heldout": [r[3] for r in held], "rows": {}}
+    held = load(out / "heldout")
+    n_ok = int(sum(r[3] <= MISFIT_LIMIT for r in held))
+    report = {"cases": len(held), "misfit_limit": MISFIT_LIMIT, "fit_consistent": n_ok,
+              "misfit_ratio": [r[3] for r in held], "rows": {}}
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(5.6, 4.8))
+    fig, ax = plt.subplots(figsize=(5.8, 5.0))
     ax.axhspan(0.85, 0.95, color="0.9", zorder=0)
     ax.plot([0.45, 1], [0.45, 1], "k:", lw=1, label="ideal")
     rows = report["rows"]
     for method in METHODS:
-        zh, nh, okh = all_zscores(held, method)
-        rows[f"{method}, all cases"] = _entry(zh, nh, 1.0)
+        cases = case_zscores(held, method)
+        z, n = _cat(cases)
+        rows[f"{method}, all cases"] = _entry(z, n, 1.0)
+        zo, no = _cat(cases, True)
+        rows[f"{method}, consistent fits"] = _entry(zo, no, 1.0)
         ax.plot(LEVELS, list(rows[f"{method}, all cases"]["levels"].values()), "o-", ms=4, label=f"{method}, all cases")
-        if method != "sandwich" or not cal:
+        if method != "sandwich":
             continue
-        zc, nc, okc = all_zscores(cal, method)
-        f_all = calibration_factor(zc, 0.9)
-        f_ok = calibration_factor(zc[okc], 0.9)
-        report["factor_all"], report["factor_consistent"] = f_all, f_ok
-        rows[f"sandwich x {f_all:.2f} (factor: calibration set, all cases), all cases"] = _entry(zh, nh, f_all)
-        rows[f"sandwich x {f_ok:.2f} (factor: calibration set, consistent fits), consistent fits"] = \
-            _entry(zh[okh], nh[okh], f_ok)
-        rows[f"sandwich x {f_ok:.2f}, all cases (inconsistent fits included)"] = _entry(zh, nh, f_ok)
-        rows["sandwich, consistent fits"] = _entry(zh[okh], nh[okh], 1.0)
-        ax.plot(LEVELS, [coverage(zh, lv, f_all) for lv in LEVELS], "s--", ms=4,
-                label=f"sandwich x {f_all:.2f}, all cases")
-        ax.plot(LEVELS, [coverage(zh[okh], lv, f_ok) for lv in LEVELS], "^-", ms=5, lw=2,
-                label=f"sandwich x {f_ok:.2f}, consistent fits")
+        report["factor_all_consistent"] = calibration_factor(zo, 0.9)
+        zi = np.concatenate([c[0] for c in cases if not c[2]] or [np.zeros(0)])
+        report["factor_all_inconsistent"] = calibration_factor(zi, 0.9) if zi.size else None
+        for only_ok, by_class, label, style in (
+                (True, True, "consistent fits", "^-"),
+                (False, False, "all cases, consistent-fit factor for every case", "s--"),
+                (False, True, "all cases, factor per class (consistent / not)", "D-")):
+            zl, nl, fl = loco(cases, only_ok, by_class)
+            key = f"sandwich x factor (leave-one-case-out), {label}"
+            rows[key] = _entry(zl, nl, fl)
+            report[f"loco_factor_range: {label}"] = [float(fl.min()), float(fl.max())]
+            ax.plot(LEVELS, list(rows[key]["levels"].values()), style, ms=5, lw=2 if style != "s--" else 1,
+                    label=f"sandwich x factor (LOCO), {label}")
     ax.set_xlabel("nominal coverage of the interval")
     ax.set_ylabel("fraction of true values inside")
-    ax.set_title(f"Held-out: {len(held)} random buildings ({n_ok_h} consistent fits), 10 % noise", fontsize=9)
+    ax.set_title(f"{len(held)} random buildings ({n_ok} fits consistent with the noise), 10 % noise", fontsize=9)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(out / "coverage.png", dpi=120)
     (out / "coverage.json").write_text(json.dumps(report, indent=1))
-    lines = [f"Held-out cases: {len(held)} ({n_ok_h} with a fit consistent with the noise, misfit ratio <= "
-             f"{MISFIT_LIMIT:g}), calibration cases: {len(cal)}", "",
+    lines = [f"Cases: {len(held)} ({n_ok} with a fit consistent with the noise, misfit ratio <= {MISFIT_LIMIT:g}); "
+             f"factors fitted on all cases: consistent fits {report['factor_all_consistent']:.2f}, the others "
+             f"{report['factor_all_inconsistent'] or float('nan'):.2f}", "",
              "| intervals | 90 % coverage | " + " | ".join(PARAMS) + " | intervals |",
              "|---|---|" + "---|" * len(PARAMS) + "---|"]
     for name, e in rows.items():
