@@ -309,3 +309,32 @@ def test_inconsistent_fit_is_never_green(small_assessment):
     ab = assess(bad, _motions(), n_ensemble=3, ida_config=cfg, own_motion=weak, seed=1, n_boot=5)
     assert ab.indicator == "yellow" and "misfit ratio 4" in ab.reasons[-1]
     assert any("misfit" in n for n in ab.notes)
+
+
+def test_misfit_check_widens_an_inconsistent_fit():
+    """The default uncertainty: the calibrated sandwich, and the misfit ratio against the noise-only
+    residual level; a fit whose residuals are far above the noise is flagged and widened."""
+    from types import SimpleNamespace
+
+    from hlaid.uncertainty import laplace
+
+    J = _toy(n=2000, c=1, P=2)
+    rng = np.random.default_rng(5)
+    s0 = laplace.noise_residual_rms(0.1, (0.1, 20.0), 0.005)
+    assert s0 == pytest.approx(0.1 * np.sqrt(2 * 19.9 * 0.005))
+
+    base = rng.standard_normal(J.shape[0])
+    base /= np.sqrt(np.mean(base**2))
+
+    def rr(sigma):  # the same residual pattern at another level
+        r = sigma * base
+        return SimpleNamespace(slots=(("k0", 0), ("alpha", 0)), x=np.array([2e4, 0.2]), jacobian=J / [2e4, 0.2],
+                               residuals=r)
+
+    good = laplace.uncertainty_of_refinement(rr(1.1 * s0), 1, noise_rms=0.1, band_hz=(0.1, 20.0), dt=0.005)
+    bad = laplace.uncertainty_of_refinement(rr(4.0 * s0), 1, noise_rms=0.1, band_hz=(0.1, 20.0), dt=0.005)
+    plain = laplace.from_refinement(rr(1.1 * s0), 1)
+    assert good.info["fit_consistent"] and good.info["misfit_ratio"] == pytest.approx(1.1, rel=0.01)
+    np.testing.assert_allclose(good.std, laplace.CALIBRATION * plain.std, rtol=1e-9)
+    assert not bad.info["fit_consistent"] and bad.info["misfit_ratio"] == pytest.approx(4.0, rel=0.01)
+    np.testing.assert_allclose(bad.std, laplace.CALIBRATION_MISFIT * 4.0 / 1.1 * plain.std, rtol=1e-6)
