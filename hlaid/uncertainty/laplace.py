@@ -146,12 +146,12 @@ def from_refinement(refinement, n_floors: int, *, method: str = "sandwich", scal
                                 method=f"laplace-{method}", info=info)
 
 
-CALIBRATION = 2.03
+CALIBRATION = 2.06
 """Factor on the sandwich standard deviations of a fit consistent with the noise (misfit ratio <=
 :data:`MISFIT_LIMIT`), fitted so that 90 % intervals hold 90 % of the true values on the
 random-building study; coverage was scored leave-one-case-out (docs/uncertainty.md)."""
 
-CALIBRATION_MISFIT = 23.4
+CALIBRATION_MISFIT = 13.1
 """The same for a fit *not* consistent with the noise (a wrong local minimum): the local
 curvature says nothing there, and intervals this wide say "not identified"."""
 
