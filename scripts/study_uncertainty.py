@@ -1,19 +1,19 @@
 """Coverage of the identification uncertainty intervals (issue 15), on simulated measurements.
 
     S=scripts/study_uncertainty.py; O="--out runs/study_uncert --cache runs/uq_cache"
-    python $S --part run --set heldout --n 66 $O
-    python $S --part run --set calibration --n 20 $O
+    python $S --part run --set heldout --n 60 $O
     python $S --part analyse --out runs/study_uncert
-    python $S --part bootstrap --n-boot-cases 1 --n-boot 8 $O
+    python $S --part bootstrap --n-boot-cases 3 --n-boot 12 $O
 
 ``run``: random 2-6 story buildings (as ``scripts/study_identification.py``'s random part)
 under six far-field records scaled until every story reaches 1.5 dy, 10 % noise, a noise
 seed per case; each case identified and its refinement's Jacobian and residuals stored in
-``<out>/<set>/case_NNN.npz`` (resumable: existing cases are skipped). The two sets draw
-their buildings from different seeds, so a calibration fitted on one is tested on the other.
+``<out>/<set>/case_NNN.npz`` (resumable: existing cases are skipped). ``--set calibration``
+draws other buildings (another seed); it was not run for docs/uncertainty.md (time).
 ``analyse``: per covariance method (naive, neff, sandwich) the fraction of true parameters
-inside the nominal 90 % intervals, per parameter and overall, on the held-out set; the
-calibration factor fitted on the calibration set; a calibration plot (observed against
+inside the nominal 90 % intervals, per parameter and overall, over the ``heldout`` cases;
+the sandwich widened by calibration factors scored leave-one-case-out (each case with the
+factor fitted on the other cases of its fit class); a calibration plot (observed against
 nominal coverage) in ``<out>/coverage.png`` and the figures in ``<out>/coverage.json``/``.md``.
 ``bootstrap``: on the Table 1 structure under one to three records (PGA 0.62 g), the Laplace
 standard deviations against a parametric bootstrap (re-identification on re-noised
