@@ -2,7 +2,7 @@
 
 Layout::
 
-    {"format": "hlaid-clone", "version": 1,
+    {"format": "hlaid-clone", "version": 2,
      "units": {"force": "N", "length": "mm", "mass": "t", "time": "s", ...},
      "stories": [{"k0": ..., "alpha": ..., "p": ..., "dy": ..., "delta_eta": ..., "mass": ...,
                   "height": ... (optional), "gravity_load": ... (optional, N)}, ...],
@@ -11,7 +11,13 @@ Layout::
      "mass_normalised": false,
      "collapse": {"name": ..., "theta_p": ..., "theta_pc": ..., "kappa": ..., "theta_u": ...}
                  (optional: the strength-loss model IDA uses, see hlaid.model.collapse),
-     "diagnostics": {...}, "provenance": {...}}
+     "diagnostics": {...}, "provenance": {...},
+     "uncertainty": null | {...}}                          (version 2 only)
+
+Version 2 (written since issue 15) adds the optional ``uncertainty`` block: the identified
+parameters' Gaussian in log space (per parameter: name, story, transform, value, std and a
+90 % interval; the covariance), see :class:`hlaid.uncertainty.ParameterUncertainty`.
+Version 1 files (no ``uncertainty``) are still read.
 
 With ``mass_normalised`` true the masses are relative (ratios) and every stiffness is per
 unit of that relative mass; responses (drifts, accelerations) are unaffected.
@@ -28,6 +34,7 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -36,8 +43,13 @@ from .errors import InputError, kind_of
 from .model import Building, Damping
 from .units import UNITS_JSON
 
+if TYPE_CHECKING:
+    from .uncertainty import ParameterUncertainty
+
 FORMAT = "hlaid-clone"
-VERSION = 1
+VERSION = 2
+READS = (1, 2)
+"""Clone file versions this hlaid reads (it writes :data:`VERSION`)."""
 _STORY_KEYS = ("k0", "alpha", "p", "dy", "delta_eta", "mass")
 
 
@@ -51,12 +63,14 @@ class Clone:
     mass_normalised : masses are relative (unknown absolute masses)
     diagnostics : identification diagnostics (errors, iterations, R per story, ...)
     provenance : input file hash, config, package version, timings
+    uncertainty : the identified parameters' uncertainty (None: a point estimate only)
     """
 
     building: Building
     mass_normalised: bool = False
     diagnostics: dict = field(default_factory=dict)
     provenance: dict = field(default_factory=dict)
+    uncertainty: "ParameterUncertainty | None" = None
 
     def to_dict(self) -> dict:
         b = self.building
@@ -71,6 +85,7 @@ class Clone:
         return {"format": FORMAT, "version": VERSION, "units": dict(UNITS_JSON), "name": b.name, "stories": stories,
                 "damping": b.damping.to_dict(), "pdelta": b.pdelta, "mass_normalised": self.mass_normalised,
                 "diagnostics": _jsonable(self.diagnostics), "provenance": _jsonable(self.provenance),
+                "uncertainty": None if self.uncertainty is None else _jsonable(self.uncertainty.to_dict()),
                 **({"collapse": b.collapse.to_dict()} if b.collapse is not None else {})}
 
     def save(self, path: str | os.PathLike, *, force: bool = True) -> Path:
@@ -83,10 +98,11 @@ class Clone:
         and fields of the wrong type (``pdelta: "yes"``) are each an :class:`InputError` naming the field."""
         if not isinstance(d, dict) or d.get("format") != FORMAT:
             raise InputError(f"not an hlaid clone (field 'format' should be {FORMAT!r})", source=source)
-        if d.get("version") != VERSION:
-            raise InputError(f"clone version {_show(d.get('version'))} is not supported; this hlaid reads version "
-                             f"{VERSION}", source=source)
-        _no_unknown(d, _TOP_KEYS, "", source)
+        version = d.get("version")
+        if isinstance(version, bool) or version not in READS:
+            raise InputError(f"clone version {_show(version)} is not supported; this hlaid reads versions "
+                             f"{', '.join(map(str, READS))}", source=source)
+        _no_unknown(d, _TOP_KEYS + (("uncertainty",) if version >= 2 else ()), "", source)
         _check_units(d.get("units"), source)
         stories = d.get("stories")
         if not isinstance(stories, list) or not stories:
@@ -129,8 +145,15 @@ class Clone:
                          name=d.get("name") or "", source=source)
         except InputError as err:
             raise InputError(str(err).removeprefix(f"{source}: "), source=source) from None
+        unc = None
+        if d.get("uncertainty") is not None:
+            from .uncertainty import ParameterUncertainty
+
+            unc = ParameterUncertainty.from_dict(d["uncertainty"], source=source)
+            if any(i >= b.n_stories for n, i in unc.slots):
+                raise InputError(f"uncertainty names a story beyond the clone's {b.n_stories}", source=source)
         return cls(building=b, mass_normalised=d.get("mass_normalised", False),
-                   diagnostics=d.get("diagnostics") or {}, provenance=d.get("provenance") or {})
+                   diagnostics=d.get("diagnostics") or {}, provenance=d.get("provenance") or {}, uncertainty=unc)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Clone":

@@ -41,6 +41,11 @@ _FIGURES = [
     ("ida/fragility.png", "Collapse fragility: lognormal fit by maximum likelihood with its bootstrap band."),
     ("ida/exceedance.png", "Probability of exceeding drift-ratio limits against intensity."),
 ]
+_ASSESS_FIGURE = ("figures/fragility_band.png",
+                  "Collapse fragility over the ensemble of clones drawn from the identification uncertainty: "
+                  "median curve and band (identification and record sampling), the measured record's intensity "
+                  "marked (dashed) with P(collapse) there, coloured by the re-occupancy indicator.")
+_INDICATOR_CSS = {"green": "#1e8e3e", "yellow": "#d4a000", "red": "#c5221f"}
 
 
 _PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -86,7 +91,14 @@ _SUMMARY = {"format": "str", "name": "str", "hlaid_version": "str", "n_stories":
                             "error": _Null("num")}],
             "paper_method?": _Null([{"parameter": "str", "story": "int", "identified?": _Null("num"),
                                      "error?": _Null("num")}]),
-            "outer_iterations": "int", "timings": {"*": "num"}, "ida?": _Null(_IDA)}
+            "outer_iterations": "int", "timings": {"*": "num"}, "ida?": _Null(_IDA),
+            "assessment?": _Null({"n_ensemble": "int", "n_records": "int", "ci": "num", "im_label": "str",
+                                  "collapse_median": "num", "collapse_median_band": _Pair("num"),
+                                  "own_im": _Null("num"), "p_collapse": _Null("num"),
+                                  "p_collapse_band": _Null(_Pair("num")), "drift_limits": ["num"],
+                                  "p_exceed": ["num"], "indicator": _Null("str"), "placard": _Null("str"),
+                                  "reasons": ["str"], "own_residual_drift_median?": _Null("num"),
+                                  "own_peak_drift_median?": _Null("num")})}
 """What :func:`build_report` reads from ``summary.json``: keys ending in ``?`` may be absent, a
 ``*`` key stands for every key (``*num``: keys that read as numbers); other keys are ignored."""
 
@@ -147,7 +159,8 @@ def _validate(v, spec, path: str, source: str) -> None:
 def required_figures(summary: dict) -> list[str]:
     """Figures (relative paths) a run folder must hold: those of :data:`_FIGURES` under
     ``figures/``, and those under ``ida/`` when the run made an IDA."""
-    return [rel for rel, _ in _FIGURES if rel.startswith("figures/") or summary.get("ida")]
+    out = [rel for rel, _ in _FIGURES if rel.startswith("figures/") or summary.get("ida")]
+    return out + ([_ASSESS_FIGURE[0]] if summary.get("assessment") else [])
 
 
 def _fmt(v, pct=False):
@@ -202,6 +215,10 @@ def build_report(run_dir: str | os.PathLike) -> Path:
         label = s["ida"].get("intensity_measure", {}).get("label", "IM")
         beta = f" (beta {cf['beta']:.2f})" if cf.get("beta") is not None else ""
         kpis.append((f"median collapse {label}", f"{cf['median_g']:.3g} g{beta}"))
+    asm = s.get("assessment")
+    if asm and asm.get("indicator") in _INDICATOR_CSS:
+        kpis.append(("re-occupancy indicator", f"<span style='color:{_INDICATOR_CSS[asm['indicator']]}'>"
+                                               f"{e(asm['indicator'].upper())}</span>"))
     parts.append("<div>" + "".join(f"<span class='kpi'>{e(k)}<b>{v}</b></span>" for k, v in kpis) + "</div>")
     parts.append("<h2>Identified parameters</h2>")
     parts.append(_param_table(s))
@@ -213,6 +230,10 @@ def build_report(run_dir: str | os.PathLike) -> Path:
             parts.append(f"<figure>{_img(p, src)}<figcaption>{e(cap)}</figcaption></figure>")
     if s.get("ida"):
         parts.append("<h2>Incremental dynamic analysis</h2>" + _ida_block(s["ida"]))
+    if s.get("assessment"):
+        parts.append("<h2>Collapse risk with identification uncertainty</h2>" + _assess_block(s["assessment"]))
+        p = d / _ASSESS_FIGURE[0]
+        parts.append(f"<figure>{_img(p, src)}<figcaption>{e(_ASSESS_FIGURE[1])}</figcaption></figure>")
     t = s["timings"]
     parts.append("<h2>Run</h2><p>" + ", ".join(f"{e(k)} {v:.1f} s" for k, v in t.items()) +
                  ". Files: <code>clone.json</code>, <code>parameters.csv</code>, <code>hla/</code>, "
@@ -224,7 +245,9 @@ def _param_table(s: dict) -> str:
     rows = s["parameters"]
     paper = {(r["parameter"], r["story"]): r for r in s.get("paper_method") or []}
     has_truth = any(r["true"] is not None for r in rows)
+    has_iv = any(r.get("lo90") is not None for r in rows)
     head = "<tr><th class='l'>parameter</th><th>story</th><th>identified</th>"
+    head += "<th>90 % interval</th>" if has_iv else ""
     head += "<th>true</th><th>error</th>" if has_truth else ""
     head += "<th>paper method alone</th>" + ("<th>its error</th>" if has_truth else "") + "</tr>"
     body = []
@@ -232,6 +255,10 @@ def _param_table(s: dict) -> str:
         pr = paper.get((r["parameter"], r["story"]), {})
         cells = [f"<td class='l'>{html.escape(r['parameter'])}</td><td>{r['story']}</td>"
                  f"<td>{_fmt(r['identified'])}</td>"]
+        if has_iv:
+            lo, hi = r.get("lo90"), r.get("hi90")
+            cells.append("<td>&ndash;</td>" if not isinstance(lo, (int, float)) or not isinstance(hi, (int, float))
+                         else f"<td>{_fmt(lo)} &ndash; {_fmt(hi)}</td>")
         if has_truth:
             cls = "ok" if r["error"] is not None and r["error"] <= 0.03 else "bad"
             cells.append(f"<td>{_fmt(r['true'])}</td><td class='{cls}'>{_fmt(r['error'], True)}</td>")
@@ -240,6 +267,42 @@ def _param_table(s: dict) -> str:
             cells.append(f"<td>{_fmt(pr.get('error'), True)}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
     return "<table>" + head + "".join(body) + "</table>"
+
+
+def _assess_block(a: dict) -> str:
+    """The ensemble assessment: indicator, P(collapse) and drift exceedance at the measured record."""
+    e = html.escape
+    lo, hi = a["collapse_median_band"]
+    ci = f"{a['ci']:.0%}"
+    out = [f"<p>IDA of {a['n_ensemble']} clones drawn from the identification uncertainty over {a['n_records']} "
+           f"records. Median collapse {e(a['im_label'])}: <b>{a['collapse_median']:.3g} g</b> ({ci} band "
+           f"{lo:.3g} &ndash; {hi:.3g} g).</p>"]
+    if a.get("own_im") is not None and a.get("indicator") in _INDICATOR_CSS:
+        colour = _INDICATOR_CSS[a["indicator"]]
+        plo, phi = a["p_collapse_band"]
+        out.append(f"<p style='font-size:1.15em'><span style='display:inline-block;padding:.3em .8em;border-radius:5px;"
+                   f"background:{colour};color:white;font-weight:bold'>{e(a['indicator'].upper())}</span> "
+                   f"{e(a.get('placard') or '')}</p>")
+        rows = [f"<tr><td class='l'>collapse</td><td>{_fmt(a['p_collapse'], True)}</td>"
+                f"<td>{_fmt(plo, True)} &ndash; {_fmt(phi, True)}</td></tr>"]
+        for lim, p, band in zip(a["drift_limits"], a["p_exceed"], a.get("p_exceed_band") or []):
+            rows.append(f"<tr><td class='l'>peak drift ratio &gt; {lim:.1%}</td><td>{_fmt(p, True)}</td>"
+                        f"<td>{_fmt(band[0], True)} &ndash; {_fmt(band[1], True)}</td></tr>")
+        out.append(f"<p>At the measured record's intensity, {e(a['im_label'])} = {a['own_im']:.3g} g:</p>"
+                   f"<table><tr><th class='l'>event</th><th>probability</th><th>{ci} band</th></tr>"
+                   + "".join(rows) + "</table>")
+        if a.get("own_residual_drift_median") is not None:
+            out.append(f"<p>The clones under the measured record: median peak drift ratio "
+                       f"{_fmt(a.get('own_peak_drift_median'), True)}, residual "
+                       f"{_fmt(a['own_residual_drift_median'], True)}."
+                       "</p>")
+        out.append("<ul>" + "".join(f"<li>{e(r)}</li>" for r in a["reasons"]) + "</ul>")
+        out.append("<p>Indicator (assumptions, docs/uncertainty.md): the worse of P(collapse) at the experienced "
+                   "intensity (red &ge; 10 %, ASCE 7-16's target at MCE<sub>R</sub>; yellow &ge; 2 %) and the residual "
+                   "drift ratio (red &ge; 1 %, yellow &ge; 0.5 %: FEMA P-58 residual-drift damage states DS3, DS2), "
+                   "each at the upper end of the ensemble; placards after ATC-20. The clones are undamaged at the "
+                   "start of each IDA.</p>")
+    return "".join(out)
 
 
 def _collapse_fit(ida: dict | None) -> dict | None:

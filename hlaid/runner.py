@@ -1,7 +1,9 @@
 """The whole pipeline from records to decision: ``hlaid run CONFIG.yaml`` and ``hlaid demo``.
 
 measurement (file or simulation) -> HLA -> identification (clone) -> replay check -> IDA and
-collapse fragility -> figures, machine-readable files and a self-contained ``report.html``.
+collapse fragility -> (with an ``assess`` block) IDA over an ensemble of clones drawn from the
+identification uncertainty, fragility band and re-occupancy indicator at the measured record ->
+figures, machine-readable files and a self-contained ``report.html``.
 Everything is written into a temporary folder that replaces the output folder only once
 complete.
 """
@@ -9,6 +11,7 @@ complete.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 import time
@@ -53,11 +56,13 @@ class MeasurementSource:
 
 @dataclass(frozen=True, kw_only=True)
 class RunConfig:
-    """``hlaid run`` config: measurement, identification and (optionally) IDA settings."""
+    """``hlaid run`` config: measurement, identification and (optionally) IDA settings, and the
+    ensemble assessment (``assess``, needs ``ida``)."""
 
     measurement: MeasurementSource
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
     ida: Any = None  # IDAConfig (validated when loaded, see load_run_config)
+    assess: Any = None  # hlaid.uncertainty.AssessConfig (validated when loaded)
     name: str = "hlaid run"
 
 
@@ -70,7 +75,13 @@ def load_run_config(path) -> RunConfig:
     cfg = config_from_node(RunConfig, root, source)
     if cfg.ida is not None:
         ida = config_from_node(IDAConfig, root.value["ida"], source, where="ida")
-        cfg = RunConfig(measurement=cfg.measurement, identify=cfg.identify, ida=ida, name=cfg.name)
+        cfg = dataclasses.replace(cfg, ida=ida)
+    if cfg.assess is not None:
+        from .uncertainty import AssessConfig
+        if cfg.ida is None:
+            raise InputError(f"{source}: the assess block needs an ida block (records and IDA settings)")
+        cfg = dataclasses.replace(cfg, assess=config_from_node(AssessConfig, root.value["assess"], source,
+                                                               where="assess"))
     return cfg
 
 
@@ -91,15 +102,20 @@ def load_measurement(src: MeasurementSource, base_dir: Path | None) -> Measureme
     return dataclasses.replace(meas, **changes) if changes else meas
 
 
-def parameter_table(identified: Building, truth: Building | None) -> list[dict]:
-    """The paper's Table 4 layout: one row per parameter and story (error when the truth is known)."""
+def parameter_table(identified: Building, truth: Building | None, uncertainty=None) -> list[dict]:
+    """The paper's Table 4 layout: one row per parameter and story (error when the truth is known;
+    with ``uncertainty`` the 90 % interval, ``lo90`` and ``hi90``, None for a parameter without one)."""
     rows = []
+    iv = uncertainty.interval(0.9) if uncertainty is not None else None
     for name in PARAMS:
         for i in range(identified.n_stories):
             v = float(getattr(identified, name)[i])
             t = None if truth is None else float(getattr(truth, name)[i])
-            rows.append({"parameter": name, "story": i + 1, "identified": v, "true": t,
-                         "error": None if t is None else abs(v / t - 1.0)})
+            row = {"parameter": name, "story": i + 1, "identified": v, "true": t,
+                   "error": None if t is None else abs(v / t - 1.0)}
+            if iv is not None:
+                row["lo90"], row["hi90"] = iv.get(f"{name}[{i + 1}]", (None, None))
+            rows.append(row)
     return rows
 
 
@@ -136,7 +152,7 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
         res.clone.save(tmp / "clone.json")
         res.hla.save(tmp / "hla")
         truth = meas.truth.building if meas.truth is not None else None
-        table = parameter_table(res.clone.building, truth)
+        table = parameter_table(res.clone.building, truth, res.clone.uncertainty)
         paper = parameter_table(res.paper_estimate, truth)
         write_json(tmp / "parameters.json", {"identified": table, "paper_method": paper})
         (tmp / "parameters.csv").write_text(_csv(table))
@@ -155,18 +171,50 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
             ir.save(tmp / "ida", plots=True, **boot)
             ida_summary = json.loads((tmp / "ida" / "summary.json").read_text())
             timings["ida"] = time.perf_counter() - t
+        assessment = None
+        if cfg.ida is not None and cfg.assess is not None:
+            t = time.perf_counter()
+            assessment = _assess(res.clone, meas, cfg, tmp, base_dir)
+            timings["assess"] = time.perf_counter() - t
         timings["total"] = time.perf_counter() - t_all
         summary = {"format": "hlaid-run", "version": 1, "name": cfg.name, "hlaid_version": __version__,
                    "config": config_to_dict(cfg), "source": meas.source, "n_stories": meas.n_floors,
                    "mass_normalised": res.clone.mass_normalised, "parameters": table, "paper_method": paper,
                    "replay": res.replay.to_dict(), "outer_iterations": res.iterations,
                    "identify_timings": res.timings, "timings": timings, "ida": ida_summary,
-                   "noise_rms": meas.noise_rms}
+                   "noise_rms": meas.noise_rms, "assessment": assessment}
         write_json(tmp / "summary.json", summary)
         build_report(tmp)
     _progress.info(f"wrote {out}/ (report.html, clone.json, hla/, ida/, figures/, tensorboard/) in "
                    f"{timings['total']:.0f} s")
     return summary
+
+
+def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> dict | None:
+    """Ensemble IDA and re-occupancy indicator at the measured record; writes ``assessment.json`` and
+    ``figures/fragility_band.png``; returns the summary's ``assessment`` block (None: no uncertainty)."""
+    from .motions import GroundMotion
+    from .uncertainty import assess
+    if clone.uncertainty is None:
+        _progress.warn("no identification uncertainty (refinement off): the ensemble assessment is skipped")
+        return None
+    a = cfg.assess
+    _progress.info(f"[4/4] ensemble assessment: IDA of {a.n_ensemble} clones drawn from the identification "
+                   "uncertainty")
+    recs = cfg.ida.record_specs(base_dir)
+    own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name="measured")
+    res = assess(clone, recs, n_ensemble=a.n_ensemble, ida_config=cfg.ida, own_motion=own, seed=a.seed,
+                 n_boot=a.n_boot, ci=a.ci)
+    d = res.to_dict()
+    write_json(tmp / "assessment.json", d)
+    save_figure(res.plot(), tmp / "figures" / "fragility_band.png")
+    keep = ("n_ensemble", "n_records", "ci", "im_label", "period", "collapse_median", "collapse_median_band",
+            "beta", "own_im", "p_collapse", "p_collapse_band", "drift_limits", "p_exceed", "p_exceed_band",
+            "indicator", "placard", "reasons", "thresholds")
+    out = {k: d[k] for k in keep}
+    out["own_residual_drift_median"] = float(np.median(res.own_residual_drift))
+    out["own_peak_drift_median"] = float(np.median(res.own_peak_drift))
+    return out
 
 
 def _replay_figure(meas: Measurement, res):

@@ -123,6 +123,10 @@ def test_identify_end_to_end_cached_and_logged(table1, record, tmp_path):
     assert d["format"] == "hlaid-clone" and len(d["stories"]) == 3
     assert d["provenance"]["hlaid_version"] and "timings" in d["provenance"]
     assert {"outer_iterations", "passes", "stories", "replay"} <= set(d["diagnostics"])
+    # the refinement's Laplace uncertainty, stored in the file (version 2); a fit at the noise level
+    u = res.clone.uncertainty
+    assert d["version"] == 2 and len(d["uncertainty"]["parameters"]) == len(u.slots) > 0
+    assert u.info["fit_consistent"] and np.all(u.std > 0) and np.all(u.std < 0.5)
     assert any(p.name.startswith("events.out.tfevents") for p in (tmp_path / "tb").iterdir())
     again = identify(meas, cfg, cache_dir=str(tmp_path / "cache"))
     assert all(s["alpha"]["cached"] for p in again.passes for s in p["stories"] if s)

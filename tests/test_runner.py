@@ -12,7 +12,7 @@ import pytest
 
 from hlaid.clone import load_clone
 from hlaid.errors import InputError
-from hlaid.report import _FIGURES, build_report, embedded_figures, screenshot
+from hlaid.report import _ASSESS_FIGURE, _FIGURES, build_report, embedded_figures, screenshot
 from hlaid.runner import load_run_config, run_pipeline
 
 CONFIG = """
@@ -33,6 +33,7 @@ ida:
   records: ["builtin:northridge-1994-mul009", "builtin:kobe-1995-nis000", "builtin:lomaprieta-1989-cap000"]
   n_levels: 4
   bootstrap: 50
+assess: {n_ensemble: 2, n_boot: 5}
 """
 
 
@@ -69,9 +70,37 @@ def test_every_output_is_written(run_dir):
 def test_report_embeds_every_figure(run_dir):
     out, _ = run_dir
     alts = {alt for alt, size in embedded_figures(out / "report.html") if size > 10_000}
-    assert alts == {rel.split("/")[-1] for rel, _ in _FIGURES}
+    assert alts == {rel.split("/")[-1] for rel, _ in _FIGURES} | {_ASSESS_FIGURE[0].split("/")[-1]}
     text = (out / "report.html").read_text()
     assert "median collapse" in text and "drift ratio &gt; 1.0%" in text and "src=\"file:" not in text
+    # the ensemble assessment: indicator, P(collapse) at the measured record, intervals per parameter
+    assert "Collapse risk with identification uncertainty" in text and "re-occupancy indicator" in text
+    assert "90 % interval" in text
+
+
+def test_assessment_is_written(run_dir):
+    out, summary = run_dir
+    a = summary["assessment"]
+    assert a["n_ensemble"] == 2 and a["indicator"] in ("green", "yellow", "red")
+    assert 0 <= a["p_collapse"] <= 1 and a["own_im"] > 0
+    full = json.loads((out / "assessment.json").read_text())
+    assert len(full["member_median"]) == 2 and len(full["fragility_median"]) == len(full["im_grid"])
+    clone = load_clone(out / "clone.json")
+    assert clone.uncertainty is not None and clone.uncertainty.info["fit_consistent"] in (True, False)
+    rows = json.loads((out / "parameters.json").read_text())["identified"]
+    assert all(r["lo90"] <= r["identified"] <= r["hi90"] for r in rows if r["lo90"] is not None)
+
+
+def test_assess_block_needs_ida(tmp_path):
+    (tmp_path / "a.yaml").write_text(CONFIG.split("ida:")[0] + "assess: {n_ensemble: 2}\n")
+    with pytest.raises(InputError, match="the assess block needs an ida block"):
+        load_run_config(tmp_path / "a.yaml")
+    (tmp_path / "b.yaml").write_text(CONFIG.replace("n_boot: 5", "n_boots: 5"))
+    with pytest.raises(InputError, match="n_boots"):
+        load_run_config(tmp_path / "b.yaml")
+    (tmp_path / "c.yaml").write_text(CONFIG.replace("n_ensemble: 2", "n_ensemble: 0"))
+    with pytest.raises(InputError, match="n_ensemble"):
+        load_run_config(tmp_path / "c.yaml")
 
 
 def test_report_rebuilds_and_refuses_to_replace_a_run(run_dir, tmp_path):

@@ -32,6 +32,7 @@ from .cache import MachineCache, default_cache_dir
 from .classify import Bins, pass_result, vote
 from .config import IdentifyConfig
 from .refine import refine_replay
+from ..uncertainty.laplace import uncertainty_of_refinement
 from .regression import plausible_limits, story_delta_eta, story_yield_displacement
 from .replaycheck import ReplayCheck, replay_check
 from .tb import TBLogger
@@ -55,6 +56,8 @@ class IdentificationResult:
     iterations : outer-loop iterations run
     replay : replay of the clone on the measured ground motion
     timings : seconds per step
+    refinement : the replay refinement's final stage (its Jacobian and residuals at the
+        solution give ``clone.uncertainty``), None without refinement
     """
 
     clone: Clone
@@ -64,6 +67,7 @@ class IdentificationResult:
     iterations: int
     replay: ReplayCheck
     timings: dict
+    refinement: object = None
 
 
 def estimate_noise_rms(meas: Measurement) -> float:
@@ -194,10 +198,13 @@ class _Identifier:
                       "hlaid_version": __version__, "config": config_to_dict(cfg), "timings": self.timings,
                       "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                       "noise_rms_used": self.noise}
+        rr = getattr(self, "refinement", None)
+        unc = None if rr is None else uncertainty_of_refinement(rr, meas.n_floors, noise_rms=self.noise,
+                                                                band_hz=cfg.refine.band_hz, dt=meas.dt)
         clone = Clone(building=final, mass_normalised=res.mass_normalised, diagnostics=diagnostics,
-                      provenance=provenance)
+                      provenance=provenance, uncertainty=unc)
         return IdentificationResult(clone=clone, hla=res, paper_estimate=paper, passes=self.passes,
-                                    iterations=len(history), replay=check, timings=self.timings)
+                                    iterations=len(history), replay=check, timings=self.timings, refinement=rr)
 
     # ------------------------------------------------------------------ helpers
     def _refine(self, paper: Building, alpha, p):
@@ -221,6 +228,7 @@ class _Identifier:
             info["stage1_k0"] = {"cost_initial": s1.cost_initial, "cost_final": s1.cost_final, "nfev": s1.nfev}
         rr = refine_replay(start, meas, parameters=rc.parameters, stories=ident, damping=rc.damping, ftol=rc.ftol,
                            **common)
+        self.refinement = rr
         info.update({"cost_initial": rr.cost_initial, "cost_final": rr.cost_final, "nfev": rr.nfev,
                      "message": rr.message})
         self.timings["refine"] = time.perf_counter() - t

@@ -36,6 +36,13 @@ class RefineResult:
     building : the refined building
     cost_initial, cost_final : half the sum of squared normalised residuals
     nfev : residual evaluations; seconds : wall time; message : the optimiser's
+    slots : the adjusted parameters as ``(name, story)`` pairs (story -1: the damping ratio)
+    x : their values at the solution, shape ``(n_params,)``
+    jacobian : d residuals / d x at the solution (the optimiser's last finite-difference
+        Jacobian), shape ``(n_time * n_floors, n_params)``, rows time-major
+    residuals : normalised residuals at the solution, shape ``(n_time * n_floors,)``
+        (``reshape(n_time, n_floors)`` gives one column per floor); both feed
+        :mod:`hlaid.uncertainty`
     """
 
     building: Building
@@ -44,6 +51,10 @@ class RefineResult:
     nfev: int
     seconds: float
     message: str
+    slots: tuple = ()
+    x: np.ndarray | None = None
+    jacobian: np.ndarray | None = None
+    residuals: np.ndarray | None = None
 
 
 def _filt(x: np.ndarray, dt: float, band, axis: int) -> np.ndarray:
@@ -147,4 +158,5 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
                         max_nfev=max_iterations, xtol=1e-10, ftol=ftol, gtol=1e-10)
     cost0 = 0.5 * float(np.sum(fun(x0) ** 2))
     return RefineResult(building=make(sol.x), cost_initial=cost0, cost_final=float(sol.cost), nfev=int(sol.nfev),
-                        seconds=time.perf_counter() - t0, message=str(sol.message))
+                        seconds=time.perf_counter() - t0, message=str(sol.message), slots=tuple(slots),
+                        x=np.array(sol.x), jacobian=np.array(sol.jac), residuals=np.array(sol.fun))

@@ -1,0 +1,189 @@
+"""Parameter uncertainty of an identified clone: a Gaussian in transformed parameters.
+
+Each uncertain parameter is a slot ``(name, story)`` (story 0-based; ``("damping", -1)`` is the
+Rayleigh ratio). Positive parameters are carried as ``theta = log(x)`` (``transform "log"``),
+a parameter at a zero lower bound (``delta_eta = 0``) as ``theta = x`` (``"linear"``). The
+uncertainty is ``theta ~ N(centre, covariance)``; intervals and ensemble draws map back
+through the transform and are clipped to the parameter's physical bounds. Parameters that
+are not slots (those of stories the record did not drive past yield, which identification
+does not refine) are held at their identified value.
+
+This module imports only numpy and the model, so :mod:`hlaid.clone` can hold one.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import norm
+
+from ..errors import InputError
+from ..model import Building, Damping
+
+TRANSFORMS = ("log", "linear")
+BOUNDS = {"k0": (0.0, math.inf), "alpha": (0.0, 0.95), "p": (1.0, 10.0), "dy": (0.0, math.inf),
+          "delta_eta": (0.0, math.inf), "damping": (0.0, 0.5)}
+"""Physical range of each parameter (draws and intervals are clipped to it)."""
+
+
+@dataclass(frozen=True, eq=False)
+class ParameterUncertainty:
+    """A Gaussian over the identified parameters in transformed space.
+
+    Attributes
+    ----------
+    slots : tuple of ``(name, story)``, length P
+    transform : tuple of ``"log"`` / ``"linear"``, length P
+    centre : (P,) transformed values at the identified clone
+    covariance : (P, P) covariance of the transformed values
+    method : how the covariance was obtained (e.g. ``"laplace-sandwich"``)
+    info : method details (noise level, effective samples, calibration factor, ...)
+    """
+
+    slots: tuple
+    transform: tuple
+    centre: np.ndarray
+    covariance: np.ndarray
+    method: str = "laplace-sandwich"
+    info: dict | None = None
+
+    def __post_init__(self):
+        P = len(self.slots)
+        c = np.asarray(self.centre, dtype=float).reshape(-1)
+        S = np.asarray(self.covariance, dtype=float)
+        if c.shape != (P,) or S.shape != (P, P) or len(self.transform) != P:
+            raise InputError(f"uncertainty: {P} slots need a centre of {P} values, a {P}x{P} covariance and {P} "
+                             f"transforms; got {c.shape}, {S.shape}, {len(self.transform)}")
+        for n, i in self.slots:
+            if n not in BOUNDS:
+                raise InputError(f"uncertainty: unknown parameter {n!r}; expected one of {', '.join(BOUNDS)}")
+        bad = [t for t in self.transform if t not in TRANSFORMS]
+        if bad:
+            raise InputError(f"uncertainty: unknown transform {bad[0]!r}; expected 'log' or 'linear'")
+        if not (np.all(np.isfinite(c)) and np.all(np.isfinite(S))):
+            raise InputError("uncertainty: centre and covariance must be finite")
+        if not np.allclose(S, S.T, rtol=1e-8, atol=1e-14 * max(1.0, float(np.abs(S).max(initial=0.0)))):
+            raise InputError("uncertainty: the covariance must be symmetric")
+        if P and np.linalg.eigvalsh(0.5 * (S + S.T)).min() < -1e-9 * max(1e-300, float(np.abs(np.diag(S)).max())):
+            raise InputError("uncertainty: the covariance must be positive semi-definite")
+        object.__setattr__(self, "centre", c)
+        object.__setattr__(self, "covariance", 0.5 * (S + S.T))
+        object.__setattr__(self, "slots", tuple((str(n), int(i)) for n, i in self.slots))
+        object.__setattr__(self, "transform", tuple(self.transform))
+
+    # ------------------------------------------------------------------ values
+    @property
+    def names(self) -> list[str]:
+        """``"k0[1]"`` style labels (1-based story numbers), ``"damping"`` for the ratio."""
+        return [n if i < 0 else f"{n}[{i + 1}]" for n, i in self.slots]
+
+    @property
+    def std(self) -> np.ndarray:
+        """(P,) standard deviations in transformed space (log: about the coefficient of variation)."""
+        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+
+    def values(self, theta) -> np.ndarray:
+        """Parameter values of transformed ``theta`` ``(..., P)``, clipped to their bounds."""
+        theta = np.asarray(theta, dtype=float)
+        x = np.where(np.array([t == "log" for t in self.transform]), np.exp(np.minimum(theta, 700.0)), theta)
+        lo = np.array([BOUNDS[n][0] for n, _ in self.slots])
+        hi = np.array([BOUNDS[n][1] for n, _ in self.slots])
+        return np.clip(x, lo, hi)
+
+    def interval(self, level: float = 0.9) -> dict[str, tuple[float, float]]:
+        """Central ``level`` interval of every slot, ``{"k0[1]": (lo, hi), ...}`` (parameter units)."""
+        if not (isinstance(level, (int, float)) and 0.0 < level < 1.0):
+            raise InputError(f"interval level = {level!r}; expected a probability in (0, 1), e.g. 0.9")
+        z = float(norm.ppf(0.5 + 0.5 * level))
+        lo = self.values(self.centre - z * self.std)
+        hi = self.values(self.centre + z * self.std)
+        return {k: (float(a), float(b)) for k, a, b in zip(self.names, lo, hi)}
+
+    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """(n, P) parameter values drawn from the Gaussian (clipped to bounds)."""
+        P = len(self.slots)
+        w, V = np.linalg.eigh(self.covariance)
+        L = V * np.sqrt(np.clip(w, 0.0, None))
+        return self.values(self.centre + rng.standard_normal((n, P)) @ L.T)
+
+    def apply(self, building: Building, x) -> Building:
+        """``building`` with the slots set to the values ``x`` ``(P,)``."""
+        fields = {n: np.array(getattr(building, n), dtype=float) for n in ("k0", "alpha", "p", "dy", "delta_eta")}
+        ratio = building.damping.ratio
+        for (n, i), v in zip(self.slots, np.asarray(x, dtype=float)):
+            if n == "damping":
+                ratio = float(v)
+            else:
+                if i >= building.n_stories:
+                    raise InputError(f"uncertainty slot {n}[{i + 1}] is beyond the building's "
+                                     f"{building.n_stories} stories")
+                fields[n][i] = v
+        d = building.damping
+        return building.replace(**fields, damping=Damping(kind=d.kind, ratio=ratio, modes=d.modes))
+
+    # ------------------------------------------------------------------ I/O
+    def to_dict(self, level: float = 0.9) -> dict:
+        """JSON-able: per parameter its slot, transform, value and ``level`` interval, and the covariance."""
+        iv = self.interval(level)
+        vals = self.values(self.centre)
+        params = [{"name": n, "story": i + 1 if i >= 0 else None, "transform": t, "value": float(v),
+                   "std": float(s), "interval": list(iv[k])}
+                  for (n, i), t, v, s, k in zip(self.slots, self.transform, vals, self.std, self.names)]
+        return {"method": self.method, "level": level, "parameters": params,
+                "covariance": self.covariance.tolist(), "info": dict(self.info or {})}
+
+    @classmethod
+    def from_dict(cls, d, *, source: str | None = None) -> "ParameterUncertainty":
+        """Inverse of :meth:`to_dict` (strict: unknown fields are an :class:`InputError`)."""
+        def bad(msg):
+            return InputError(f"uncertainty.{msg}", source=source)
+
+        if not isinstance(d, dict):
+            raise bad("(the block) must be a mapping")
+        unknown = [k for k in d if k not in ("method", "level", "parameters", "covariance", "info")]
+        if unknown:
+            raise bad(f"{unknown[0][:40]}: unknown field; expected method, level, parameters, covariance, info")
+        params = d.get("parameters")
+        if not isinstance(params, list):
+            raise bad("parameters must be a list")
+        slots, transforms, centre = [], [], []
+        for j, p in enumerate(params):
+            if not isinstance(p, dict):
+                raise bad(f"parameters[{j}] must be a mapping")
+            unknown = [k for k in p if k not in ("name", "story", "transform", "value", "std", "interval")]
+            if unknown:
+                raise bad(f"parameters[{j}].{unknown[0][:40]}: unknown field; expected name, story, transform, value, "
+                          "std, interval")
+            name, story, t, v = p.get("name"), p.get("story"), p.get("transform"), p.get("value")
+            if name not in BOUNDS:
+                raise bad(f"parameters[{j}].name must be one of {', '.join(BOUNDS)}")
+            if name == "damping":
+                story = 0
+            elif isinstance(story, bool) or not isinstance(story, int) or story < 1:
+                raise bad(f"parameters[{j}].story must be a story number >= 1")
+            if t not in TRANSFORMS:
+                raise bad(f"parameters[{j}].transform must be 'log' or 'linear'")
+            number = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            if not number or (t == "log" and v <= 0):
+                raise bad(f"parameters[{j}].value must be a finite number (> 0 for transform 'log')")
+            slots.append((name, story - 1))
+            transforms.append(t)
+            centre.append(math.log(v) if t == "log" else float(v))
+        cov = d.get("covariance")
+        P = len(slots)
+        try:
+            S = np.array(cov, dtype=float)
+        except (TypeError, ValueError):
+            raise bad(f"covariance must be a {P}x{P} list of numbers") from None
+        if S.shape != (P, P):
+            raise bad(f"covariance must be a {P}x{P} list of numbers (one row per parameter)")
+        info = d.get("info") or {}
+        if not isinstance(info, dict):
+            raise bad("info must be a mapping")
+        try:
+            return cls(slots=tuple(slots), transform=tuple(transforms), centre=np.array(centre), covariance=S,
+                       method=str(d.get("method", "")), info=info)
+        except InputError as err:
+            raise InputError(str(err), source=source) from None

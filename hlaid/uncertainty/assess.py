@@ -1,0 +1,348 @@
+"""Collapse fragility with epistemic uncertainty and a re-occupancy indicator.
+
+:func:`assess` draws an ensemble of buildings from the clone's identification uncertainty
+(:func:`clone_ensemble`), runs an IDA of every member over the same records, and combines:
+
+* **fragility band**: each member's lognormal collapse fragility (maximum likelihood with
+  right-censoring), refitted on ``n_boot`` bootstrap resamples of the records; the median
+  curve and the ``ci`` band are pointwise quantiles over all member x resample curves, so the
+  band holds both the identification (epistemic) and the record-to-record sampling uncertainty.
+  Every member's IM is Sa(T1) at the *nominal* clone's T1 (one common axis).
+* **at the building's own record** (``own_motion``, the ground motion it just experienced):
+  its Sa(T1); P(collapse) = the ensemble mean of the members' fragilities there, with the
+  band over members; P(peak drift > limit) from the members' IDA curves at that intensity
+  (fraction of records); and the members' own response to that record (peak and residual
+  drift ratio, one batch simulation).
+* **re-occupancy indicator** after ATC-20's placards (green INSPECTED, yellow RESTRICTED USE,
+  red UNSAFE), from two measures and stated thresholds (:class:`ReoccupancyThresholds`,
+  assumptions, not a code requirement): the upper (``quantile``) end over the ensemble of
+  P(collapse) at the experienced intensity (red >= 10 %: the collapse probability ASCE 7-16
+  accepts at MCE_R for risk category II; yellow >= 2 %), and of the residual drift ratio of
+  the clone under the record (red >= 1 %, yellow >= 0.5 %: FEMA P-58-1's residual drift
+  damage states DS3 "major realignment, repair may not be feasible" and DS2 "realignment
+  necessary"). The worse of the two decides; a clone whose fit is not consistent with the
+  noise (``uncertainty.info["fit_consistent"]`` false) is at least yellow. The IDA runs the
+  undamaged clone: damage accumulated in the event is not carried into the collapse
+  probability (an aftershock assessment would start from the clone's state at the end of the
+  record).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from scipy.special import ndtr
+
+from .. import _progress
+from ..errors import InputError
+from .ensemble import _check_clone, _check_n, clone_ensemble
+
+COLOURS = ("green", "yellow", "red")
+PLACARDS = {"green": "INSPECTED (re-occupancy permitted)", "yellow": "RESTRICTED USE (engineering evaluation)",
+            "red": "UNSAFE (do not re-occupy)"}
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReoccupancyThresholds:
+    """Thresholds of the re-occupancy indicator (assumptions; see the module docstring).
+
+    p_collapse_yellow, p_collapse_red : P(collapse) at the experienced intensity
+    residual_yellow, residual_red : residual inter-story drift ratio under the record
+    quantile : the ensemble quantile compared with them (0.9: nine members in ten below)
+    """
+
+    p_collapse_yellow: float = 0.02
+    p_collapse_red: float = 0.10
+    residual_yellow: float = 0.005
+    residual_red: float = 0.01
+    quantile: float = 0.90
+
+    def __post_init__(self):
+        for k, v in asdict(self).items():
+            if not (isinstance(v, (int, float)) and 0 < v < 1):
+                raise InputError(f"reoccupancy threshold {k} = {v!r}; expected a fraction in (0, 1)")
+        if self.p_collapse_yellow > self.p_collapse_red or self.residual_yellow > self.residual_red:
+            raise InputError("reoccupancy thresholds: yellow must not exceed red")
+
+
+@dataclass(frozen=True, kw_only=True)
+class AssessConfig:
+    """The ``assess:`` block of a run config (``hlaid run``, ``hlaid demo``): :func:`assess` settings.
+
+    n_ensemble : clones drawn from the identification uncertainty, each given a full IDA
+    n_boot : record bootstrap resamples per member for the bands
+    ci : level of the bands
+    seed : seed of the ensemble and the bootstrap
+    """
+
+    n_ensemble: int = 10
+    n_boot: int = 30
+    ci: float = 0.90
+    seed: int = 0
+
+    def __post_init__(self):
+        _check_n(self.n_ensemble, "assess.n_ensemble")
+        if isinstance(self.n_boot, bool) or not isinstance(self.n_boot, int) or not 0 <= self.n_boot <= 10_000:
+            raise InputError(f"assess.n_boot = {self.n_boot!r}; expected a whole number in 0..10000")
+        if isinstance(self.ci, bool) or not isinstance(self.ci, (int, float)) or not 0 < self.ci < 1:
+            raise InputError(f"assess.ci = {self.ci!r}; expected a confidence level in (0, 1), e.g. 0.9")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise InputError(f"assess.seed = {self.seed!r}; expected a whole number >= 0")
+
+
+@dataclass(frozen=True, eq=False)
+class Assessment:
+    """What :func:`assess` found (IM in g, drift ratios dimensionless).
+
+    Attributes
+    ----------
+    n_ensemble, n_records, n_boot, ci : ensemble members, records, record bootstraps per member,
+        confidence level of the bands
+    im, im_label, period : intensity measure and the common period [s] of Sa(T1)
+    im_grid : (G,) IM values of the fragility curves [g]
+    fragility_median, fragility_lo, fragility_hi : (G,) P(collapse | IM): pointwise median and band
+    collapse_median : median collapse intensity [g] (median over members of their fitted medians)
+    collapse_median_band : (lo, hi) its ``ci`` band over members x record resamples [g]
+    beta : median dispersion of the members' fragilities
+    member_median, member_beta : (n_ensemble,) each member's fitted fragility
+    own_im : the experienced record's IM [g] (None without ``own_motion``)
+    p_collapse, p_collapse_band : P(collapse) at ``own_im`` (mean over members) and its ``ci`` band
+        over members x record resamples
+    drift_limits : drift ratios of the exceedance probabilities
+    p_exceed, p_exceed_band : per limit, P(peak drift > limit) at ``own_im`` (fraction of records,
+        mean over members) and its band over members x record resamples
+    own_peak_drift, own_residual_drift : (n_ensemble,) the members' largest story peak and
+        residual drift ratio under the experienced record
+    indicator : ``"green"``, ``"yellow"``, ``"red"`` (None without ``own_motion``)
+    reasons : why (one line per measure, and one when the clone's fit is inconsistent)
+    thresholds : the :class:`ReoccupancyThresholds` used, as a mapping
+    notes, timing : what was decided on the way and how long it took
+    """
+
+    n_ensemble: int
+    n_records: int
+    n_boot: int
+    ci: float
+    im: str
+    im_label: str
+    period: float
+    im_grid: np.ndarray
+    fragility_median: np.ndarray
+    fragility_lo: np.ndarray
+    fragility_hi: np.ndarray
+    collapse_median: float
+    collapse_median_band: tuple
+    beta: float
+    member_median: np.ndarray
+    member_beta: np.ndarray
+    own_im: float | None = None
+    p_collapse: float | None = None
+    p_collapse_band: tuple | None = None
+    drift_limits: tuple = ()
+    p_exceed: tuple = ()
+    p_exceed_band: tuple = ()
+    own_peak_drift: np.ndarray | None = None
+    own_residual_drift: np.ndarray | None = None
+    indicator: str | None = None
+    reasons: tuple = ()
+    thresholds: dict = field(default_factory=dict)
+    notes: tuple = ()
+    timing: dict = field(default_factory=dict)
+
+    @property
+    def placard(self) -> str | None:
+        """The ATC-20 placard wording of :attr:`indicator`."""
+        return None if self.indicator is None else PLACARDS[self.indicator]
+
+    def to_dict(self) -> dict:
+        """JSON-able mapping of every field (arrays as lists)."""
+        from ..clone import _jsonable
+
+        d = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        d["placard"] = self.placard
+        return _jsonable(d)
+
+    def plot(self, ax=None):
+        """The fragility band with the experienced intensity marked; returns the figure."""
+        import matplotlib.pyplot as plt
+
+        fig, ax = (plt.subplots(figsize=(6.4, 4.2)) if ax is None else (ax.figure, ax))
+        ax.fill_between(self.im_grid, self.fragility_lo, self.fragility_hi, color="C0", alpha=0.25,
+                        label=f"{self.ci:.0%} band (identification x record sampling)")
+        ax.plot(self.im_grid, self.fragility_median, "C0", lw=2,
+                label=f"median curve (collapse median {self.collapse_median:.3g} g)")
+        if self.own_im is not None:
+            ax.axvline(self.own_im, color="k", ls="--", lw=1.2)
+            colour = {"green": "tab:green", "yellow": "goldenrod", "red": "tab:red"}[self.indicator]
+            lo, hi = self.p_collapse_band
+            ax.plot([self.own_im], [self.p_collapse], "o", color=colour, ms=9, mec="k",
+                    label=f"experienced {self.im_label} = {self.own_im:.3g} g: P(collapse) {self.p_collapse:.1%} "
+                          f"[{lo:.1%}, {hi:.1%}]")
+        ax.set_xlabel(f"{self.im_label} [g]")
+        ax.set_ylabel("P(collapse)")
+        ax.set_ylim(0, 1)
+        ax.set_xlim(0, float(self.im_grid[-1]))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="lower right")
+        ax.set_title(f"Collapse fragility over {self.n_ensemble} clones x {self.n_records} records", fontsize=10)
+        return fig
+
+
+def _member_fit(res, idx=None) -> tuple[float, float]:
+    from ..ida import fit_capacities
+
+    c = res.collapse_im if idx is None else res.collapse_im[idx]
+    cens = res.censored_im if idx is None else res.censored_im[idx]
+    obs, cen = c[np.isfinite(c)], cens[np.isfinite(cens)]
+    if obs.size < 2 or np.ptp(np.log(obs)) == 0:
+        return np.nan, np.nan
+    return fit_capacities(obs, cen)
+
+
+def _fragility(im, median, beta):
+    im = np.asarray(im, dtype=float)
+    return ndtr(np.log(np.maximum(im, 1e-300) / median) / beta)
+
+
+def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=None, seed: int = 0,
+           n_boot: int = 30, ci: float = 0.90, thresholds: ReoccupancyThresholds | None = None) -> Assessment:
+    """IDA over an ensemble of the clone, fragility band, risk at the experienced intensity.
+
+    Parameters
+    ----------
+    clone : a :class:`~hlaid.clone.Clone` with ``uncertainty``
+    records : what :func:`hlaid.ida.ida` takes (``"builtin-suite"``, a folder, files, GroundMotions)
+    n_ensemble : members drawn from the uncertainty (1..100000)
+    ida_config : :class:`hlaid.ida.IDAConfig` (its records are ignored; default: 10 levels)
+    own_motion : the ground motion the building just experienced (GroundMotion, [mm/s^2]);
+        None: no probabilities at it and no indicator
+    seed : seeds the ensemble and the record bootstrap
+    n_boot : record bootstrap resamples per member for the band (0: members only)
+    ci : level of the bands
+    thresholds : the re-occupancy indicator's (default :class:`ReoccupancyThresholds`)
+
+    Returns
+    -------
+    Assessment
+    """
+    from ..clone import Clone
+    from ..ida import IDAConfig, get_intensity_measure, ida_from_config, intensity, load_records, prepare_building
+    from ..ida.analysis import _all_motions
+    from ..ida.intensity import period_for
+    from ..motions import GroundMotion
+    from ..simulate import simulate
+
+    t0 = time.perf_counter()
+    _check_clone(clone)
+    n_ensemble = _check_n(n_ensemble, "n_ensemble")
+    if isinstance(n_boot, bool) or not isinstance(n_boot, int) or not 0 <= n_boot <= 10_000:
+        raise InputError(f"n_boot = {n_boot!r}; expected a whole number in 0..10000")
+    if isinstance(ci, bool) or not isinstance(ci, (int, float)) or not 0 < ci < 1:
+        raise InputError(f"ci = {ci!r}; expected a confidence level in (0, 1), e.g. 0.9")
+    if own_motion is not None and not isinstance(own_motion, GroundMotion):
+        raise InputError(f"own_motion must be a GroundMotion (hlaid.motions.read_motion), got "
+                         f"{type(own_motion).__name__}")
+    thr = thresholds or ReoccupancyThresholds()
+    cfg = IDAConfig(n_levels=10) if ida_config is None else ida_config
+    if not isinstance(cfg, IDAConfig):
+        raise InputError(f"ida_config must be an hlaid.ida.IDAConfig, got {type(cfg).__name__}")
+    motions = records if _all_motions(records) else load_records(records, units=cfg.units)
+    motions = [motions] if isinstance(motions, GroundMotion) else list(motions)
+    if len(motions) < 2:
+        raise InputError(f"assess needs at least 2 records for a fragility; got {len(motions)}")
+    kw = cfg.ida_kwargs()
+    nominal, notes = prepare_building(clone, pdelta=kw["pdelta"], heights=kw["heights"],
+                                      gravity_load=kw["gravity_load"])
+    measure = get_intensity_measure(cfg.im)
+    period = period_for(measure, nominal, cfg.period)
+    if measure.needs_period:
+        cfg = cfg.replace(period=period)
+        notes.append(f"every member's {measure.label} at the nominal clone's T1 = {period:.3f} s")
+    if clone.uncertainty.info and clone.uncertainty.info.get("fit_consistent") is False:
+        notes.append("identification misfit above the noise level: the ensemble describes the curvature at a "
+                     "fit that does not match the record (intervals not trustworthy)")
+        _progress.warn(notes[-1])
+    members = clone_ensemble(clone, n_ensemble, seed=seed)
+    results = []
+    for b in _progress.progress(members, desc="ensemble IDA"):
+        results.append(ida_from_config(Clone(building=b, mass_normalised=clone.mass_normalised), cfg, motions))
+    t_ida = time.perf_counter() - t0
+    R = len(motions)
+    fits = np.array([_member_fit(r) for r in results])
+    ok = np.isfinite(fits[:, 0])
+    if not ok.any():
+        raise InputError("no ensemble member collapsed under 2 or more records: raise the IDA levels or hunting "
+                         "(ida_config.max_hunt) to reach collapse")
+    if not ok.all():
+        notes.append(f"{int((~ok).sum())} member(s) collapsed under fewer than 2 records and were left out")
+    rng = np.random.default_rng(int(seed) + 1)
+    curves_par = [fits[ok]]
+    boots = [rng.integers(0, R, R) for _ in range(n_boot)]
+    for idx in boots:
+        curves_par.append(np.array([_member_fit(r, idx) for r, good in zip(results, ok) if good]))
+    par = np.concatenate(curves_par)
+    par = par[np.isfinite(par[:, 0])]
+    q = (0.5 - ci / 2, 0.5, 0.5 + ci / 2)
+    hi_im = float(np.quantile(par[:, 0] * np.exp(2.0 * par[:, 1]), 0.95))
+    grid = np.linspace(0.0, hi_im, 200)
+    P = _fragility(grid[None, :], par[:, :1], par[:, 1:])
+    lo_c, med_c, hi_c = np.quantile(P, q, axis=0)
+    med_band = tuple(float(v) for v in np.quantile(par[:, 0], (q[0], q[2])))
+    out = dict(n_ensemble=n_ensemble, n_records=R, n_boot=n_boot, ci=float(ci), im=measure.name, im_label=measure.label,
+               period=period, im_grid=grid, fragility_median=med_c, fragility_lo=lo_c, fragility_hi=hi_c,
+               collapse_median=float(np.median(fits[ok, 0])), collapse_median_band=med_band,
+               beta=float(np.median(fits[ok, 1])), member_median=fits[:, 0], member_beta=fits[:, 1],
+               thresholds=asdict(thr), drift_limits=tuple(results[0].exceedance_limits))
+    if own_motion is not None:
+        own_im = float(intensity(own_motion, measure.name, period=None if not measure.needs_period else period)[0])
+        pm = _fragility(own_im, fits[ok, 0], fits[ok, 1])
+        p_all = _fragility(own_im, par[:, 0], par[:, 1])  # members x record resamples
+        limits = np.array(results[0].exceedance_limits)
+        hit = []  # (member, record, limit)
+        for r in results:
+            e = r.edp_at([own_im])[:, 0]
+            e = np.where(np.isnan(e), np.inf, e)  # above the highest level run: counted as exceeding
+            hit.append(e[:, None] > limits[None, :])
+        hit = np.array(hit, dtype=float)
+        exceed = hit.mean(axis=1)
+        ex_all = np.concatenate([exceed] + [hit[:, idx].mean(axis=1) for idx in boots])
+        bs = [prepare_building(Clone(building=b, mass_normalised=clone.mass_normalised), pdelta=kw["pdelta"],
+                               heights=kw["heights"], gravity_load=kw["gravity_load"])[0] for b in members]
+        sub = max(1, int(np.ceil(own_motion.dt / cfg.max_step)))
+        h = np.array([np.asarray(b.height, dtype=float) for b in bs])
+        sim = simulate(bs, own_motion, substeps=sub, outputs="peaks", stop_drift=cfg.drift_limit * h)
+        peak = np.max(sim.peak_drift / h, axis=1)
+        resid = np.max(np.abs(sim.residual_drift) / h, axis=1)
+        resid = np.where(sim.status == 0, resid, np.inf)  # stopped or diverged: no re-occupancy
+        colour, reasons = _indicator(p_all, resid, thr)
+        if clone.uncertainty.info and clone.uncertainty.info.get("fit_consistent") is False:
+            reasons.append(f"the identified clone does not fit the record to the noise level (misfit ratio "
+                           f"{clone.uncertainty.info.get('misfit_ratio', float('nan')):.2g}): its intervals are not "
+                           "trustworthy, so the indicator is at least yellow")
+            colour = COLOURS[max(COLOURS.index(colour), 1)]
+        out.update(own_im=own_im, p_collapse=float(pm.mean()),
+                   p_collapse_band=tuple(float(v) for v in np.quantile(p_all, (q[0], q[2]))),
+                   p_exceed=tuple(float(v) for v in exceed.mean(axis=0)),
+                   p_exceed_band=tuple(tuple(float(v) for v in np.quantile(ex_all[:, j], (q[0], q[2])))
+                                       for j in range(ex_all.shape[1])),
+                   own_peak_drift=peak, own_residual_drift=resid, indicator=colour, reasons=tuple(reasons))
+    out["notes"] = tuple(notes)
+    out["timing"] = {"ida_s": t_ida, "total_s": time.perf_counter() - t0,
+                     "runs": int(sum(r.timing.get("runs", 0) for r in results))}
+    return Assessment(**out)
+
+
+def _indicator(p_collapse: np.ndarray, residual: np.ndarray, thr: ReoccupancyThresholds):
+    pc = float(np.quantile(p_collapse, thr.quantile))
+    rd = float(np.quantile(np.where(np.isfinite(residual), residual, 1.0), thr.quantile))  # stopped runs: 100 %
+    level_p = 2 if pc >= thr.p_collapse_red else 1 if pc >= thr.p_collapse_yellow else 0
+    level_r = 2 if rd >= thr.residual_red else 1 if rd >= thr.residual_yellow else 0
+    q = f"{thr.quantile:.0%} of the ensemble"
+    reasons = [f"P(collapse) at the experienced intensity, {q}: {pc:.1%} (yellow >= {thr.p_collapse_yellow:.0%}, "
+               f"red >= {thr.p_collapse_red:.0%})",
+               f"residual drift ratio under the record, {q}: "
+               + ("runs stopped at the drift limit" if rd >= 1.0 else f"{rd:.2%}")
+               + f" (yellow >= {thr.residual_yellow:.1%}, red >= {thr.residual_red:.1%})"]
+    return COLOURS[max(level_p, level_r)], reasons
