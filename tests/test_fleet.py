@@ -22,7 +22,7 @@ pytest.importorskip("dask.distributed")
 from conftest import window  # noqa: E402
 
 from hlaid.errors import ConfigError, InputError  # noqa: E402
-from hlaid.fleet import FALLBACK, POINT, load_fleet_config, point_assess, run_fleet  # noqa: E402
+from hlaid.fleet import POINT, load_fleet_config, point_assess, run_fleet  # noqa: E402
 from hlaid.model import Building  # noqa: E402
 from hlaid.motions import load_builtin  # noqa: E402
 from hlaid.synthetic import simulate_measurement  # noqa: E402
@@ -257,6 +257,7 @@ def test_ctrl_c_closes_the_cluster(fleet_dir, tmp_path):
     no process left, finished units kept."""
     cfg = (fleet_dir / "fleet.yaml").read_text().replace("processes: false", "processes: true")
     cfg = cfg.replace("n_levels: 3,", "n_levels: 100, refine: false,")  # long enough to interrupt
+    cfg = cfg.replace("n_ensemble: 3", "n_ensemble: 0")  # the point clone: refine: none carries no uncertainty
     d = tmp_path / "cfg"
     d.mkdir()
     for n in STORIES:
@@ -305,16 +306,14 @@ def test_ctrl_c_closes_the_cluster(fleet_dir, tmp_path):
     assert not any("Traceback" in ln or "KeyboardInterrupt" in ln for ln in lines), lines
 
 
-def test_the_seam_falls_back_only_when_hlaid_uncertainty_is_missing():
-    import importlib.util
-
+def test_the_seam_is_hlaid_uncertainty():
+    import hlaid.uncertainty
     from hlaid.fleet import default_assess
+    from hlaid.fleet.assess import engine_label
+
     fn, engine = default_assess()
-    if importlib.util.find_spec("hlaid.uncertainty") is None:
-        assert fn is point_assess and engine == FALLBACK
-    else:
-        import hlaid.uncertainty
-        assert fn is hlaid.uncertainty.assess and engine == "hlaid.uncertainty"
+    assert fn is hlaid.uncertainty.assess and engine == "hlaid.uncertainty"
+    assert engine_label(point_assess) == POINT
 
 
 def test_flatten_keeps_bands_and_exceedance_by_limit():

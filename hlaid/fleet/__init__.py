@@ -7,11 +7,11 @@ report. One dask task per (building, event); finished units are kept, so a rerun
 a failing unit does not stop the others. Reference: ``docs/fleet.md``.
 """
 
-from .assess import FALLBACK, POINT, PointAssessment, assess_clone, default_assess, point_assess
+from .assess import POINT, PointAssessment, assess_clone, default_assess, point_assess
 from .config import BuildingEntry, ClusterConfig, EventSpec, FleetConfig, FleetMeasurement, load_fleet_config
 from .engine import FleetSummary, open_client, run_fleet, run_fleet_from_file
 from .task import UnitJob, make_jobs, run_unit
 
 __all__ = ["FleetConfig", "BuildingEntry", "FleetMeasurement", "EventSpec", "ClusterConfig", "load_fleet_config",
            "run_fleet", "run_fleet_from_file", "FleetSummary", "open_client", "assess_clone", "default_assess",
-           "point_assess", "PointAssessment", "FALLBACK", "POINT", "UnitJob", "make_jobs", "run_unit"]
+           "point_assess", "PointAssessment", "POINT", "UnitJob", "make_jobs", "run_unit"]

@@ -2,8 +2,8 @@
 
 :func:`assess_clone` calls ``hlaid.uncertainty.assess`` (an ensemble of clones, IDA over the
 ensemble, the collapse fragility with its band, the probabilities at the building's own
-intensity and the re-occupancy indicator). Only when that module is not installed does it
-fall back to :func:`point_assess`: an IDA of the identified (point) clone alone, labelled
+intensity and the re-occupancy indicator). With ``n_ensemble: 0`` the fleet uses
+:func:`point_assess` instead: an IDA of the identified (point) clone alone, labelled
 ``ensemble: 0`` in every result, whose band is the bootstrap interval over records (record-to-
 record variability only, no identification uncertainty).
 
@@ -17,7 +17,6 @@ columns of the fleet table (nested mappings flattened to ``a.b``).
 
 from __future__ import annotations
 
-import importlib.util
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -28,9 +27,6 @@ from ..clone import Clone
 from ..ida import IDAConfig, ida, intensity
 from ..motions import GroundMotion
 
-FALLBACK = "point clone (hlaid.uncertainty missing)"
-"""The ``engine`` entry of a result computed by :func:`point_assess` as the fallback."""
-
 POINT = "point clone (n_ensemble: 0)"
 """The ``engine`` entry of a result computed by :func:`point_assess` on request (``n_ensemble: 0``)."""
 
@@ -38,11 +34,8 @@ ENGINE = "hlaid.uncertainty"
 
 
 def default_assess() -> tuple[Callable, str]:
-    """``(assess function, engine name)``: ``hlaid.uncertainty.assess`` when the module exists,
-    else :func:`point_assess`. An error inside an existing module is not hidden."""
-    if importlib.util.find_spec("hlaid.uncertainty") is None:
-        return point_assess, FALLBACK
-    from ..uncertainty import assess  # type: ignore[import-not-found]
+    """``(assess function, engine name)``: ``hlaid.uncertainty.assess`` (imported when needed)."""
+    from ..uncertainty import assess
     return assess, ENGINE
 
 
@@ -75,14 +68,14 @@ def assess_clone(clone: Clone, records: Sequence[GroundMotion], *, n_ensemble: i
 
 
 def engine_label(assess: Callable) -> str:
-    """How the results name an assess function: its ``engine`` attribute, :data:`FALLBACK` for
+    """How the results name an assess function: its ``engine`` attribute, :data:`POINT` for
     :func:`point_assess`, else its qualified name."""
     if assess is point_assess:
-        return FALLBACK
+        return POINT
     return getattr(assess, "engine", None) or f"{assess.__module__}.{assess.__qualname__}"
 
 
-# ---------------------------------------------------------------------------- fallback
+# ---------------------------------------------------------------------------- point clone
 PLACARDS = {"green": "INSPECTED (re-occupancy permitted)", "yellow": "RESTRICTED USE (engineering evaluation)",
             "red": "UNSAFE (do not re-occupy)"}
 """The indicator's ATC-20 placard wording (as ``hlaid.uncertainty``)."""
@@ -194,5 +187,5 @@ def flatten(d: dict, prefix: str = "") -> dict:
 
 
 __all__ = ["assess_clone", "default_assess", "engine_label", "POINT", "point_assess", "PointAssessment", "flatten",
-           "FALLBACK", "ENGINE",
+           "ENGINE",
            "FALLBACK_RULE", "PLACARDS"]

@@ -177,7 +177,7 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
         (``cfg.cluster``); ``client``: an already connected ``dask.distributed.Client`` instead
     force : recompute units whose stored result came from other inputs
     assess : an assess function (contract: :mod:`hlaid.fleet.assess`); None:
-        ``hlaid.uncertainty.assess``, or the point-clone fallback when that is missing
+        ``hlaid.uncertainty.assess`` (``n_ensemble: 0``: :func:`~hlaid.fleet.assess.point_assess`)
     cache_dir : classifier cache of the identifications (None: hlaid's default)
     """
     t0 = time.perf_counter()
@@ -188,7 +188,7 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
         assess, engine = point_assess, POINT
     elif assess is None:
         assess, engine = default_assess()
-        if engine == ENGINE and cfg.identify.refine.method == "none":
+        if cfg.identify.refine.method == "none":
             raise InputError("identify.refine.method is 'none': such clones carry no identification uncertainty, "
                              "which the ensemble (n_ensemble > 0) is drawn from; use 'replay' or n_ensemble: 0")
     else:
