@@ -23,6 +23,10 @@ from ..model import Building, Damping
 from ..motions import GroundMotion
 from ..simulate import simulate
 
+_CHUNK = 8
+"""Replays band-passed together in the refinement: filtering a whole Jacobian batch at once
+(0.2 GB for 101 replays of a 20-story building) spent up to 4x longer allocating than filtering."""
+
 _LIMITS = {"k0": (1e-6, np.inf), "alpha": (0.0, 0.95), "p": (1.0, 10.0), "dy": (1e-6, np.inf),
            "delta_eta": (0.0, np.inf)}
 
@@ -122,8 +126,14 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
 
     def residuals_of(bs, n_sub=substeps):
         r = simulate(bs, ground, substeps=n_sub, outputs="acc")
-        acc = _filt(np.nan_to_num(r.acc, nan=0.0), dt, (band_hz[0], hi), 1)
-        res = ((acc - target[None]) / scale).reshape(len(bs), -1)
+        acc = r.acc
+        acc[r.status != 0] = 0.0  # only a stopped replay has NaN (after its stop); no copy of the rest
+        res = np.empty((len(bs), acc[0].size))
+        for i in range(0, len(bs), _CHUNK):  # filtered a few replays at a time: the same values,
+            part = _filt(acc[i:i + _CHUNK], dt, (band_hz[0], hi), 1)  # without fresh large temporaries
+            part -= target[None]
+            part /= scale
+            res[i:i + _CHUNK] = part.reshape(len(part), -1)
         res[r.status != 0] = 1e3  # a diverged trial is far from the data
         return res
 
@@ -152,7 +162,9 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         else:
             both = residuals_of([make(x)] + trial, jac_substeps)
             r0, rp = both[0], both[1:]
-        return ((rp - r0[None]) / (xp - x)[:, None]).T
+        rp -= r0[None]  # in place: the batch is (n_params, n_residuals), 0.2 GB at 20 stories
+        rp /= (xp - x)[:, None]
+        return rp.T
 
     sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi_b), x_scale=xs, method="trf",
                         max_nfev=max_iterations, xtol=1e-10, ftol=ftol, gtol=1e-10)
