@@ -205,10 +205,9 @@ class RefineConfig:
         36 % to 2500 %, docs/identification.md), so the defaults stay tight
     jac_substeps : RK4 sub-steps of the replays that build the finite-difference Jacobian.
         The Jacobian only steers the search; the residuals (``substeps``) define the optimum,
-        so one sub-step here (a finite-difference step of 1e-4 of each parameter is far coarser
-        than its discretisation error) cuts the refinement of a 20-story building from 162 to
-        65 s without moving the result beyond the finite-difference level (docs/identification.md,
-        "Speed")
+        so 2 sub-steps here cut the refinement of a 20-story building by a third and left the
+        Table 1 and random-building studies as they were. One sub-step was faster still but
+        moved two random buildings to worse optima (docs/identification.md, "Speed")
     """
 
     method: Literal["replay", "none"] = "replay"
@@ -219,7 +218,7 @@ class RefineConfig:
     upper_factor: float | None = 10.0
     ftol: float = 1e-10
     substeps: int = 4
-    jac_substeps: int = 1
+    jac_substeps: int = 2
 
     def __post_init__(self):
         if not 0 < self.ftol < 1:
