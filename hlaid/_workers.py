@@ -3,8 +3,19 @@
 Ctrl-C in a terminal sends SIGINT to the whole process group. A pool worker that gets it
 dies inside its task with a traceback; the pool starts a replacement and the parent waits
 forever for the lost result. Workers made here ignore SIGINT, so only the parent sees the
-``KeyboardInterrupt``; it then stops the pool with :func:`multiprocessing.pool.Pool.terminate`
-(the caller's ``except BaseException``) and the command line exits with status 130.
+``KeyboardInterrupt``; it then stops the pool (:func:`stop`) and the command line exits with
+status 130.
+
+Two ways the parent can still miss or outlive a Ctrl-C, both handled here:
+
+* The kernel may deliver the process-wide SIGINT to another thread of the parent (numba's,
+  OpenMP's). Python then only sets a flag, and a main thread blocked without a timeout in
+  ``AsyncResult.get()`` sees it when that job ends, seconds or minutes later. :func:`result`
+  waits in short slices instead, so the interruption is raised within a fraction of a second.
+* ``Pool.terminate`` joins the pool's handler threads; one of them can be stuck on a lock that
+  the interrupted main thread held (a ``KeyboardInterrupt`` between acquiring a lock and the
+  ``try`` that releases it). :func:`stop` gives the bookkeeping a few seconds, then kills the
+  workers and moves on.
 """
 
 from __future__ import annotations
@@ -13,6 +24,11 @@ import contextlib
 import multiprocessing as mp
 import multiprocessing.pool
 import signal
+import threading
+from typing import Any
+
+_POLL_S = 0.1  # how often a waiting parent looks at its signal flag
+_GRACE_S = 3.0  # how long Pool.terminate may take before the workers are killed
 
 _MASK = hasattr(signal, "pthread_sigmask")  # POSIX only
 
@@ -57,9 +73,29 @@ def worker_pool(n_jobs: int):
         yield pool
     except BaseException:
         if pool:
-            pool.terminate()
+            stop(pool)
         raise
-    finally:
-        if pool:
-            pool.close()
-            pool.join()
+    if pool:
+        pool.close()
+        pool.join()
+
+
+def result(job: multiprocessing.pool.AsyncResult) -> Any:
+    """``job.get()``, waiting in slices of 0.1 s so that a Ctrl-C is raised here promptly even when
+    the signal was delivered to another thread of this process (see the module docstring)."""
+    while not job.ready():
+        job.wait(_POLL_S)
+    return job.get()
+
+
+def stop(pool: multiprocessing.pool.Pool, grace: float = _GRACE_S) -> None:
+    """Terminate ``pool`` now: :meth:`~multiprocessing.pool.Pool.terminate` in a helper thread,
+    given ``grace`` seconds; if its bookkeeping is stuck, the worker processes are killed and the
+    helper (a daemon thread) is left behind, so the caller's exit is never held up."""
+    helper = threading.Thread(target=pool.terminate, name="hlaid-pool-stop", daemon=True)
+    helper.start()
+    helper.join(grace)
+    if helper.is_alive():
+        for proc in getattr(pool, "_pool", []):  # the pool's worker processes (stdlib attribute)
+            if proc.exitcode is None:
+                proc.kill()

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _progress
-from .._workers import worker_pool
+from .._workers import result, worker_pool
 from ..config import config_to_dict
 from ..model import Building
 from ..motions import GroundMotion
@@ -153,7 +153,7 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
                 job = pool.apply_async(fit_ensemble, args, kw) if pool else fit_ensemble(*args, **kw)
                 jobs.append((i, param, b, S, job))
         for i, param, b, S, job in jobs:
-            ms, st = job.get() if pool else job
+            ms, st = result(job) if pool else job
             name = f"story{i + 1}_{param}"
             for k, m in enumerate(ms or []):
                 machines[f"{name}#{k}"] = m

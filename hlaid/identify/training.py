@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._workers import worker_pool
+from .._workers import result, worker_pool
 from ..hla import HLAConfig, hla
 from ..hla.features import half_cycle_features
 from ..measurement import Measurement
@@ -124,7 +124,7 @@ def simulate_training_sets(estimate: Building, motion: GroundMotion, ranges: Ran
             jobs = [(r.acc[b], motion.acc, motion.dt, estimate.mass, noise_rms, int(seeds[b]), hla_config, n_segments,
                      yield_ratio, with_ke, r.disp[b] if with_disp else None) for b in range(nb) if ok[b]]
             idx = np.flatnonzero(ok)
-            results = pool.map(_features_of, jobs) if pool else list(map(_features_of, jobs))
+            results = result(pool.map_async(_features_of, jobs)) if pool else list(map(_features_of, jobs))
             for b, per_story in zip(idx, results):
                 for s in range(ns):
                     v = per_story[s]
