@@ -26,12 +26,12 @@ from scipy import signal
 from hlaid.clone import Clone
 from hlaid.errors import InputError
 from hlaid.identify import (
+    IDENTIFIERS,
     HLASVMIdentifier,
     IdentifyConfig,
     NotFittedError,
     OuterConfig,
     TrainingConfig,
-    compare,
 )
 from hlaid.identify import _space as sp
 from hlaid.identify.gradient import (
@@ -44,6 +44,7 @@ from hlaid.identify.gradient import (
 from hlaid.identify.ukf import UKFIdentifier, sigma_weights
 from hlaid.model import Building, Damping
 from hlaid.simulate import simulate
+from hlaid.studies import compare
 from hlaid.synthetic import simulate_measurement
 
 TWO_STORY = {"mass": [20.0, 15.0], "k0": [2.0e4, 1.5e4], "alpha": [0.2, 0.15], "p": [2.0, 1.6], "dy": [6.0, 4.0],
@@ -272,7 +273,7 @@ def test_an_identifier_that_raises_is_a_failure_with_its_reason(monkeypatch, two
         def fit(self, measurement):
             raise RuntimeError("boom\nsecond line")
 
-    monkeypatch.setitem(compare.IDENTIFIERS, "broken", Broken)
+    monkeypatch.setitem(IDENTIFIERS, "broken", Broken)
     gm = window(paper_record("kocaeli-1999-dzc180"), 4.0)
     case = compare.Case(name="c", structure="two", building=two_story, motion=gm, noise=0.0, seed=0)
     (o,) = compare.run_case(case, ["broken"], {}, window(paper_record("elcentro-1940-ns"), 4.0))
@@ -312,7 +313,7 @@ groups:
 
 def test_default_study_config_loads():
     cfg = compare.load_compare_config(REPO / "configs" / "compare.yaml")
-    assert cfg.identifiers == list(compare.IDENTIFIERS) and {0.0, 0.05, 0.10, 0.20} <= {
+    assert cfg.identifiers == list(IDENTIFIERS) and {0.0, 0.05, 0.10, 0.20} <= {
         n for g in cfg.groups for n in g.noise}
     for name in cfg.identifiers:
         compare.make_identifier(name, cfg.settings.get(name), base_dir=REPO / "configs")
