@@ -38,6 +38,7 @@ from hlaid import _progress  # noqa: E402
 from hlaid._fileio import atomic_directory, atomic_write, write_json  # noqa: E402
 from hlaid.config import config_to_dict  # noqa: E402
 from hlaid.errors import InputError  # noqa: E402
+from hlaid.plots import save_figure  # noqa: E402
 from hlaid.studies.compare import (  # noqa: E402
     LABELS,
     PARAMETERS,
@@ -48,7 +49,6 @@ from hlaid.studies.compare import (  # noqa: E402
     study_record,
     summarise,
 )
-from hlaid.plots import save_figure  # noqa: E402
 
 FIGURES = ("param_error.png", "replay_r.png", "wall_time.png", "failures.png")
 

@@ -37,9 +37,9 @@ from hlaid._fileio import write_json  # noqa: E402
 from hlaid.config import config_to_dict, load_config  # noqa: E402
 from hlaid.errors import InputError  # noqa: E402
 from hlaid.hla import HLAConfig  # noqa: E402
-from hlaid.studies.hla_accuracy import accuracy_study, summarise  # noqa: E402
 from hlaid.motions import GroundMotion, read_motion  # noqa: E402
 from hlaid.simulate import simulate  # noqa: E402
+from hlaid.studies.hla_accuracy import accuracy_study, summarise  # noqa: E402
 from hlaid.synthetic import load_simulation_config  # noqa: E402
 
 GROUND_MOTIONS = REPO.parent / "shared" / "data" / "ground_motions"

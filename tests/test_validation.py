@@ -30,7 +30,6 @@ from hlaid.errors import ConfigError, InputError
 from hlaid.hla import HLAConfig
 from hlaid.hla.config import ForceConfig
 from hlaid.identify import IdentifyConfig
-from hlaid.synthetic import simulate_measurement
 from hlaid.studies.validation import (
     ValidationConfig,
     format_tables,
@@ -40,6 +39,7 @@ from hlaid.studies.validation import (
     predict_event,
     run_validation,
 )
+from hlaid.synthetic import simulate_measurement
 
 CONFIG = REPO / "configs" / "validate_real.yaml"
 STEEL = DATA / "structural_response" / "shake_table_3story_steel_mrf_fixedbase"
