@@ -14,7 +14,7 @@ Layout::
      "diagnostics": {...}, "provenance": {...},
      "uncertainty": null | {...}}                          (version 2 only)
 
-Version 2 (written since issue 15) adds the optional ``uncertainty`` block: the identified
+Version 2 adds the optional ``uncertainty`` block: the identified
 parameters' Gaussian in log space (per parameter: name, story, transform, value, std and a
 90 % interval; the covariance), see :class:`hlaid.uncertainty.ParameterUncertainty`.
 Version 1 files (no ``uncertainty``) are still read.

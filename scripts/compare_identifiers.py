@@ -4,7 +4,7 @@ Every identifier of the config (HLA+SVM as in the paper, HLA+SVM with its replay
 refinement, least squares through the differentiable model, the unscented Kalman filter)
 fits the same simulated measurements: the Table 1 structure and random shear buildings,
 real records scaled to PGA 0.62 g, several noise levels and seeds (see
-:mod:`hlaid.identify.compare` for the metrics and what counts as a failure).
+:mod:`hlaid.studies.compare` for the metrics and what counts as a failure).
 
 Usage: python scripts/compare_identifiers.py --config configs/compare.yaml [-o OUT] [--force] [-q | -v]
 
@@ -38,7 +38,8 @@ from hlaid import _progress  # noqa: E402
 from hlaid._fileio import atomic_directory, atomic_write, write_json  # noqa: E402
 from hlaid.config import config_to_dict  # noqa: E402
 from hlaid.errors import InputError  # noqa: E402
-from hlaid.identify.compare import (  # noqa: E402
+from hlaid.plots import save_figure  # noqa: E402
+from hlaid.studies.compare import (  # noqa: E402
     LABELS,
     PARAMETERS,
     build_cases,
@@ -48,7 +49,6 @@ from hlaid.identify.compare import (  # noqa: E402
     study_record,
     summarise,
 )
-from hlaid.plots import save_figure  # noqa: E402
 
 FIGURES = ("param_error.png", "replay_r.png", "wall_time.png", "failures.png")
 

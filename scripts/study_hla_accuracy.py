@@ -9,7 +9,7 @@ E11140, FF08 SHI000, FF10 ARC000, FF12 CLW-LN, FF14 G03000, FF16 B-ICC000).
 Per record x seed: the signed k0 error per story, the median over half cycles of
 ``|ke / ke_true - 1|`` (``ke_true = alpha k0 + (1 - alpha) k0 / eta``, eq 11) and the force
 NRMSE (RMS error over the RMS of the true spring force), from
-:func:`hlaid.hla.accuracy.accuracy_study`; then the mean and the worst of each (absolute values)
+:func:`hlaid.studies.hla_accuracy.accuracy_study`; then the mean and the worst of each (absolute values)
 per story and over all stories, against the acceptance targets (k0 <= 2 % on every story,
 ke median <= 3 %, force NRMSE <= 5 %). ``mu`` is the peak ductility (peak drift / dy) per story.
 
@@ -37,9 +37,9 @@ from hlaid._fileio import write_json  # noqa: E402
 from hlaid.config import config_to_dict, load_config  # noqa: E402
 from hlaid.errors import InputError  # noqa: E402
 from hlaid.hla import HLAConfig  # noqa: E402
-from hlaid.hla.accuracy import accuracy_study, summarise  # noqa: E402
 from hlaid.motions import GroundMotion, read_motion  # noqa: E402
 from hlaid.simulate import simulate  # noqa: E402
+from hlaid.studies.hla_accuracy import accuracy_study, summarise  # noqa: E402
 from hlaid.synthetic import load_simulation_config  # noqa: E402
 
 GROUND_MOTIONS = REPO.parent / "shared" / "data" / "ground_motions"

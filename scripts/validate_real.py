@@ -3,13 +3,13 @@
     python scripts/validate_real.py --config configs/validate_real.yaml --out runs/validation \\
         --figures docs/figures/validation [--structures steel-frame,hotel] [--cache DIR | --no-cache] [--force]
 
-Per structure of the config (``hlaid.validation.ValidationConfig``): identify a clone from each
+Per structure of the config (``hlaid.studies.validation.ValidationConfig``): identify a clone from each
 identification event (the paper's method, or a labelled linear clone when no story yielded),
 save it and load it back, replay it under every prediction event, and compare with what was
 measured (R per floor, peak-drift error, stiffness evolution against HLA). Writes
 ``validation.json``, ``tables.md`` and ``clones/*.json`` into ``--out`` (a new folder, or
 replaced with ``--force``), figures into ``--figures`` (``''``: none), and prints the tables.
-The protocol is ``hlaid.validation.run_validation``; this script adds the figures.
+The protocol is ``hlaid.studies.validation.run_validation``; this script adds the figures.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from hlaid._fileio import atomic_directory, write_json
 from hlaid.errors import InputError
 from hlaid.hla.plots import plot_stiffness
 from hlaid.plots import plt, save_figure, story_axes
-from hlaid.validation import (
+from hlaid.studies.validation import (
     ValidationResult,
     format_tables,
     load_validation_config,

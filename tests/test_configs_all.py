@@ -23,8 +23,8 @@ LOADERS = {
     "ida.yaml": ("hlaid.ida", "IDAConfig"),
     "demo.yaml": ("hlaid.runner", "load_run_config"),
     "run_example.yaml": ("hlaid.runner", "load_run_config"),
-    "compare.yaml": ("hlaid.identify.compare", "CompareConfig"),
-    "validate_real.yaml": ("hlaid.validation", "ValidationConfig"),
+    "compare.yaml": ("hlaid.studies.compare", "CompareConfig"),
+    "validate_real.yaml": ("hlaid.studies.validation", "ValidationConfig"),
     "fleet_example.yaml": ("hlaid.fleet", "load_fleet_config"),
 }
 """Each config file and its schema (a dataclass) or loader (a function). A new config must

@@ -16,11 +16,11 @@ from conftest import paper_record, window
 from hlaid.cli.main import main
 from hlaid.errors import InputError
 from hlaid.hla import HLAConfig, hla
-from hlaid.hla.accuracy import accuracy_study, hla_errors, summarise
 from hlaid.hla.config import ForceConfig, StiffnessConfig
 from hlaid.hla.halfcycles import half_cycle_bounds, reversals
 from hlaid.hla.stiffness import degradation_trend, isotonic_decreasing, ls_slope, segment_slopes, sliding_slope
 from hlaid.measurement import Measurement
+from hlaid.studies.hla_accuracy import accuracy_study, hla_errors, summarise
 from hlaid.synthetic import simulate_measurement
 
 

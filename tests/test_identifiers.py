@@ -26,12 +26,13 @@ from scipy import signal
 from hlaid.clone import Clone
 from hlaid.errors import InputError
 from hlaid.identify import (
+    IDENTIFIERS,
     HLASVMIdentifier,
     IdentifyConfig,
     NotFittedError,
     OuterConfig,
     TrainingConfig,
-    compare,
+    get_identifier,
 )
 from hlaid.identify import _space as sp
 from hlaid.identify.gradient import (
@@ -44,6 +45,7 @@ from hlaid.identify.gradient import (
 from hlaid.identify.ukf import UKFIdentifier, sigma_weights
 from hlaid.model import Building, Damping
 from hlaid.simulate import simulate
+from hlaid.studies import compare
 from hlaid.synthetic import simulate_measurement
 
 TWO_STORY = {"mass": [20.0, 15.0], "k0": [2.0e4, 1.5e4], "alpha": [0.2, 0.15], "p": [2.0, 1.6], "dy": [6.0, 4.0],
@@ -114,6 +116,59 @@ def test_unfitted_and_params(name, short_meas):
     with pytest.raises(ValueError, match="no parameter"):
         est.set_params(not_a_setting=1)
     assert repr(est).startswith(type(est).__name__ + "(")
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_identifiers_are_sklearn_estimators(name, fitted):
+    """``BaseEstimator`` subclasses: a clone with changed parameters keeps them and is unfitted;
+    scikit-learn's ``check_is_fitted`` follows ``clone_``."""
+    from sklearn.base import BaseEstimator
+    from sklearn.base import clone as sk_clone
+    from sklearn.exceptions import NotFittedError as SkNotFittedError
+    from sklearn.utils.validation import check_is_fitted
+
+    est = factories("")[name]()
+    assert isinstance(est, BaseEstimator) and issubclass(NotFittedError, SkNotFittedError)
+    key = "tensorboard"
+    est.set_params(**{key: "runs/x"})
+    twin = sk_clone(est)
+    assert twin.get_params()[key] == "runs/x" and twin.get_params().keys() == est.get_params().keys()
+    with pytest.raises(SkNotFittedError):
+        check_is_fitted(twin)
+    check_is_fitted(fitted[name])
+    assert not any(k.endswith("_") for k in vars(twin))
+    assert all(k.endswith("_") for k in set(vars(fitted[name])) - set(est.get_params()))
+
+
+def test_registry_names_every_identifier():
+    assert set(IDENTIFIERS) == set(NAMES)
+    ukf = get_identifier("ukf", n_passes=2)
+    assert isinstance(ukf, UKFIdentifier) and ukf.n_passes == 2
+    assert get_identifier("hlasvm").refine == "none" and get_identifier("hlasvm_replay").refine == "replay"
+    with pytest.raises(InputError, match="unknown identifier 'svm'; expected one of .*'hlasvm'.*'gradient'.*'ukf'"):
+        get_identifier("svm")
+
+
+def test_cli_identify_method(two_story, short_meas, tmp_path, capsys):
+    """``hlaid identify --method ukf`` writes a clone file like the default method's."""
+    from hlaid.cli.main import main
+
+    meas = short_meas.save(tmp_path / "m.npz")
+    out = tmp_path / "clone.json"
+    assert main(["identify", str(meas), "-o", str(out), "--method", "ukf", "-q"]) == 0
+    clone = Clone.load(out)
+    assert clone.building.n_stories == 2 and clone.provenance["identifier"].startswith("UKFIdentifier(")
+    assert max_error(clone.building, two_story) < 0.05
+    assert main(["identify", str(meas), "-o", str(out), "--method", "ukf", "-q"]) == 2  # no overwrite
+    assert "--force" in capsys.readouterr().err
+    assert main(["identify", str(meas), "-o", str(tmp_path / "c2.json"), "--method", "ukf",
+                 "--config", str(REPO / "configs" / "identify.yaml")]) == 2
+    assert "--config configures --method hlasvm" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["identify", str(meas), "-o", str(tmp_path / "c3.json"), "--method", "svm"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "hlasvm" in err and "gradient" in err and "ukf" in err
+    assert not (tmp_path / "c2.json").exists() and not (tmp_path / "c3.json").exists()
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -272,7 +327,7 @@ def test_an_identifier_that_raises_is_a_failure_with_its_reason(monkeypatch, two
         def fit(self, measurement):
             raise RuntimeError("boom\nsecond line")
 
-    monkeypatch.setitem(compare.IDENTIFIERS, "broken", Broken)
+    monkeypatch.setitem(IDENTIFIERS, "broken", Broken)
     gm = window(paper_record("kocaeli-1999-dzc180"), 4.0)
     case = compare.Case(name="c", structure="two", building=two_story, motion=gm, noise=0.0, seed=0)
     (o,) = compare.run_case(case, ["broken"], {}, window(paper_record("elcentro-1940-ns"), 4.0))
@@ -312,7 +367,7 @@ groups:
 
 def test_default_study_config_loads():
     cfg = compare.load_compare_config(REPO / "configs" / "compare.yaml")
-    assert cfg.identifiers == list(compare.IDENTIFIERS) and {0.0, 0.05, 0.10, 0.20} <= {
+    assert cfg.identifiers == list(IDENTIFIERS) and {0.0, 0.05, 0.10, 0.20} <= {
         n for g in cfg.groups for n in g.noise}
     for name in cfg.identifiers:
         compare.make_identifier(name, cfg.settings.get(name), base_dir=REPO / "configs")

@@ -1,4 +1,4 @@
-"""Real-structure validation protocol (``hlaid.validation``, ``scripts/validate_real.py``).
+"""Real-structure validation protocol (``hlaid.studies.validation``, ``scripts/validate_real.py``).
 
 - The comparison itself against an independent reference: a clone that *is* the simulated
   building predicts its response with R = 1 and no peak-drift error; a wrong clone does not.
@@ -30,8 +30,7 @@ from hlaid.errors import ConfigError, InputError
 from hlaid.hla import HLAConfig
 from hlaid.hla.config import ForceConfig
 from hlaid.identify import IdentifyConfig
-from hlaid.synthetic import simulate_measurement
-from hlaid.validation import (
+from hlaid.studies.validation import (
     ValidationConfig,
     format_tables,
     identify_config_of,
@@ -40,6 +39,7 @@ from hlaid.validation import (
     predict_event,
     run_validation,
 )
+from hlaid.synthetic import simulate_measurement
 
 CONFIG = REPO / "configs" / "validate_real.yaml"
 STEEL = DATA / "structural_response" / "shake_table_3story_steel_mrf_fixedbase"

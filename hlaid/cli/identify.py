@@ -7,10 +7,14 @@ import numpy as np
 from .. import _progress
 from .._fileio import check_output_file
 from ..config import load_config
-from ..identify import IdentifyConfig, identify
+from ..errors import InputError
+from ..identify import HLASVMIdentifier, IdentifyConfig, get_identifier
 from ..io_dispatch import read_measurement_any
 from ..measurement import check_band
 from .main import subcommand
+
+METHODS = ("hlasvm", "gradient", "ukf")
+"""``--method`` choices: names of :data:`hlaid.identify.IDENTIFIERS`."""
 
 
 def register(sub) -> None:
@@ -18,7 +22,11 @@ def register(sub) -> None:
                    example="hlaid identify meas.npz -o clone.json --tensorboard runs/id1")
     p.add_argument("measurement", help="measurement file (.npz, .csv, or a format hlaid reads)")
     p.add_argument("-o", "--out", required=True, help="clone JSON to write")
-    p.add_argument("--config", help="identification config YAML (see configs/identify.yaml)")
+    p.add_argument("--method", choices=METHODS, default="hlasvm",
+                   help="hlasvm (default): the paper's HLA + SVM identification, refined as --config says; "
+                        "gradient: least squares through the differentiable model; ukf: unscented Kalman filter. "
+                        "Every method writes the same clone file format")
+    p.add_argument("--config", help="identification config YAML of --method hlasvm (see configs/identify.yaml)")
     p.add_argument("--tensorboard", metavar="DIR", help="write TensorBoard logs here")
     p.add_argument("--cache", metavar="DIR", help="classifier cache folder (default ~/.cache/hlaid/svm)")
     p.add_argument("--no-cache", action="store_true", help="train every classifier afresh and cache nothing")
@@ -28,13 +36,23 @@ def register(sub) -> None:
 
 def run_identify(args) -> int:
     out = check_output_file(args.out, force=args.force)  # fail before the identification, not after it
+    if args.config and args.method != "hlasvm":
+        raise InputError(f"--config configures --method hlasvm, not {args.method}")
     cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
     meas = read_measurement_any(args.measurement)
-    check_identify_bands(meas, cfg, args.config)
-    cache = "" if args.no_cache else args.cache
-    res = identify(meas, cfg, tensorboard=args.tensorboard, cache_dir=cache)
-    res.clone.save(out, force=args.force)
-    print_summary(res)
+    if args.method == "hlasvm":
+        check_identify_bands(meas, cfg, args.config)
+        cache = "" if args.no_cache else args.cache
+        est = HLASVMIdentifier(config=cfg, refine=None, cache_dir=cache, tensorboard=args.tensorboard)
+    else:
+        est = get_identifier(args.method, tensorboard=args.tensorboard)
+        check_band(meas, est.band_hz, f"band_hz (--method {args.method})")
+    est.fit(meas)
+    est.clone_.save(out, force=args.force)
+    if args.method == "hlasvm":
+        print_summary(est.result_)
+    else:
+        print_parameters(est)
     _progress.info(f"wrote {out}")
     return 0
 
@@ -55,4 +73,14 @@ def print_summary(res) -> None:
         lines.append(f"{i + 1:5d} {b.k0[i]:8.5g} {b.alpha[i]:8.3f} {b.p[i]:6.2f} {b.dy[i]:7.3f} {b.delta_eta[i]:10.3f}"
                      f" {res.replay.r_measured[i]:9.4f} {res.replay.stiffness_error[i]:13.2%}{flag}")
     lines.append(f"outer iterations {res.iterations}, wall time {res.timings.get('total', np.nan):.1f} s")
+    _progress.info("\n".join(lines))
+
+
+def print_parameters(est) -> None:
+    """The clone's story parameters and the fit time of an identifier other than HLA+SVM."""
+    b = est.clone_.building
+    lines = ["story      k0    alpha      p      dy  delta_eta"]
+    lines += [f"{i + 1:5d} {b.k0[i]:8.5g} {b.alpha[i]:8.3f} {b.p[i]:6.2f} {b.dy[i]:7.3f} {b.delta_eta[i]:10.3f}"
+              for i in range(b.n_stories)]
+    lines.append(f"{type(est).__name__}, wall time {est.fit_seconds_:.1f} s")
     _progress.info("\n".join(lines))

@@ -1,14 +1,20 @@
-"""Identifiers behind one scikit-learn style interface, for comparison studies.
+"""Identifiers behind one scikit-learn estimator interface.
 
 ``Identifier(**settings).fit(measurement)`` returns the identifier with ``clone_`` (a
-:class:`~hlaid.clone.Clone`) and ``fit_seconds_``; ``predict(motion)`` replays the clone.
+:class:`~hlaid.clone.Clone`) and ``fit_seconds_``; ``predict(motion)`` replays the clone and
+``score(measurement)`` rates it. Every identifier is a :class:`sklearn.base.BaseEstimator`:
+``__init__`` stores its keyword parameters and nothing else, so ``get_params``,
+``set_params`` and :func:`sklearn.base.clone` work, and fitted attributes end in ``_``.
 """
 
 from __future__ import annotations
 
+import inspect
 import time
 
 import numpy as np
+import sklearn.exceptions
+from sklearn.base import BaseEstimator
 
 from ..clone import Clone
 from ..measurement import Measurement
@@ -16,27 +22,30 @@ from ..motions import GroundMotion
 from ..simulate import SimulationResult, simulate
 
 
-class NotFittedError(ValueError, AttributeError):
-    """The identifier has not been fitted yet (scikit-learn's NotFittedError contract)."""
+class NotFittedError(sklearn.exceptions.NotFittedError):
+    """The identifier has not been fitted yet (a scikit-learn ``NotFittedError``)."""
 
 
-class BaseIdentifier:
+class BaseIdentifier(BaseEstimator):
     """Base class: ``__init__`` stores settings only; ``fit(measurement)`` sets ``clone_``."""
 
     def get_params(self, deep: bool = True) -> dict:
-        import inspect
+        """The ``__init__`` parameters, in the order of its signature (so that ``repr`` and the
+        clone's provenance read like the call)."""
+        params = super().get_params(deep=deep)
         names = [p for p in inspect.signature(type(self).__init__).parameters if p != "self"]
-        return {n: getattr(self, n) for n in names}
+        return {n: params.pop(n) for n in names} | params
 
-    def set_params(self, **params) -> "BaseIdentifier":
-        for k, v in params.items():
-            if k not in self.get_params():
-                raise ValueError(f"{type(self).__name__} has no parameter {k!r}; expected one of {list(self.get_params())}")
-            setattr(self, k, v)
+    def set_params(self, **params) -> BaseIdentifier:
+        known = self.get_params(deep=False)
+        for k in params:
+            if k not in known:
+                raise ValueError(f"{type(self).__name__} has no parameter {k!r}; expected one of {list(known)}")
+        super().set_params(**params)
         return self
 
-    def __repr__(self) -> str:
-        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
+    def __repr__(self, N_CHAR_MAX: int = 700) -> str:  # every parameter, not only those changed
+        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params(deep=False).items())
         return f"{type(self).__name__}({args})"
 
     def __sklearn_is_fitted__(self) -> bool:
@@ -46,7 +55,7 @@ class BaseIdentifier:
         if not hasattr(self, "clone_"):
             raise NotFittedError(f"this {type(self).__name__} is not fitted yet; call fit(measurement) first")
 
-    def fit(self, measurement: Measurement) -> "BaseIdentifier":  # pragma: no cover - abstract
+    def fit(self, measurement: Measurement) -> BaseIdentifier:  # pragma: no cover - abstract
         raise NotImplementedError
 
     def predict(self, motion: GroundMotion, *, scale: float = 1.0, substeps: int = 4) -> SimulationResult:
@@ -74,7 +83,8 @@ class HLASVMIdentifier(BaseIdentifier):
     Parameters
     ----------
     config : :class:`~hlaid.identify.IdentifyConfig` or None for the defaults
-    refine : ``"replay"`` or ``"none"`` (overrides ``config.refine.method``)
+    refine : ``"replay"`` or ``"none"`` (overrides ``config.refine.method``); None: as the
+        config says
     cache_dir : classifier cache (None: the default cache; ``""``: none)
     tensorboard : TensorBoard folder or None
 
@@ -83,20 +93,21 @@ class HLASVMIdentifier(BaseIdentifier):
     clone_ : the identified clone; result_ : the full IdentificationResult; fit_seconds_
     """
 
-    def __init__(self, *, config=None, refine: str = "replay", cache_dir: str | None = None,
+    def __init__(self, *, config=None, refine: str | None = "replay", cache_dir: str | None = None,
                  tensorboard: str | None = None):
         self.config = config
         self.refine = refine
         self.cache_dir = cache_dir
         self.tensorboard = tensorboard
 
-    def fit(self, measurement: Measurement) -> "HLASVMIdentifier":
+    def fit(self, measurement: Measurement) -> HLASVMIdentifier:
         import dataclasses
 
         from .config import IdentifyConfig
         from .pipeline import identify
         cfg = self.config or IdentifyConfig()
-        cfg = dataclasses.replace(cfg, refine=dataclasses.replace(cfg.refine, method=self.refine))
+        if self.refine is not None:
+            cfg = dataclasses.replace(cfg, refine=dataclasses.replace(cfg.refine, method=self.refine))
         t0 = time.perf_counter()
         self.result_ = identify(measurement, cfg, tensorboard=self.tensorboard, cache_dir=self.cache_dir)
         self.clone_: Clone = self.result_.clone

@@ -7,18 +7,17 @@ ones. Derivatives come from automatic differentiation through a fixed-step RK4 o
 (Gauss-Newton with Marquardt's damping), the standard for least squares.
 
 Method, and what makes it affordable (eager torch costs ~0.25 ms per right-hand-side call
-whatever the batch size, so the batch is used for everything that can run side by side).
-Figures below: noise-free Table 1, 14 s windows of three records at 0.62 g, 200 Hz.
+whatever the batch size, so the batch carries everything that can run side by side):
 
 1. **Screened starts.** ``n_candidates`` random parameter sets (``k0`` within
    ``+-k0_spread`` of HLA's, the others from the ranges) are screened by the compiled batch
    simulator (:func:`hlaid.simulate.simulate`, forward only, ~1 s for 256); the
-   ``n_starts`` with the lowest loss start the descent, the lowest final loss is kept.
-   Unscreened starts reached the truth on 2 of 3 records (Northridge: 0 of 4 starts, 60 %
-   error); screened ones on 3 of 3 (7 of 12 starts with 4 per record).
+   ``n_starts`` with the lowest loss start the descent, and the lowest final loss is kept.
+   The output-error loss has local minima in which unscreened random starts can all settle;
+   screening puts the starts in the basin of the global one.
 2. **Jacobians by forward-mode AD, tangents in the batch.** The ``P = 5 x story`` tangent
    directions are extra batch rows of one dual-number pass (``torch.autograd.forward_ad``),
-   so a Jacobian costs one pass, not ``P`` (``torch.func.vmap`` of ``jvp``: 1.6x slower).
+   so a Jacobian costs one pass, not ``P`` (``torch.func.vmap`` of ``jvp`` is 1.6x slower).
 3. **Segments in the batch.** The fit window is cut into segments of ``segment_s``; the
    compiled simulator gives every segment's initial state at the current parameters and
    torch integrates all segments of all starts as one batch, so a pass costs ``segment_s``
@@ -27,10 +26,10 @@ Figures below: noise-free Table 1, 14 s windows of three records at 0.62 g, 200 
    exact. State sensitivities at a segment's end seed the next segment's start in the next
    pass (waveform relaxation), so the Jacobian crosses segment boundaries and becomes the
    full-trajectory Jacobian as the iterates settle (``tests/test_identifiers.py`` checks both
-   against finite differences). Truncated sensitivities (zero seeds) left every start short
-   of the truth after 30 iterations (8-142 % error); carried, the best start converges in
-   10-17 iterations. Segments of 0.25, 0.5 and 1 s took the same number of iterations and
-   12, 17 and 29 s of CPU (10 % noise), hence the default 0.25 s.
+   against finite differences). Without the carried seeds the Jacobian is truncated and the
+   descent stalls short of the optimum; with them the best start converges in 10-17
+   iterations. The segment length hardly changes the number of iterations, so the default
+   is short (0.25 s: the least CPU time).
 4. **One RK4 step per sample** (``substeps=1``): at 200 Hz its accelerations differ from the
    16-sub-step integration by 2e-4 (relative RMS), far below the 1 % target (the recovered
    parameters are within 0.13 % of the truth); starts that are done leave the batch.
@@ -38,12 +37,12 @@ Figures below: noise-free Table 1, 14 s windows of three records at 0.62 g, 200 
    carry little information per second of integration. The response before the window
    starts is simulated, but its parameter sensitivity at the window start is left out (the
    ground has delivered 1 % of its Arias intensity 1 s later).
-6. **One thread** during ``fit``: intra-op threads on these small tensors only contend (a
-   batched pass took 14x longer with 2 threads on 2 busy cores).
+6. **One thread** during ``fit``: intra-op threads on these small tensors only contend
+   (see ``hlaid/_threads.py``).
 
-Adam on truncated reverse-mode gradients (the first design) needed hundreds of epochs and
-was still 13-98 % off after 40; Gauss-Newton steps need the Jacobian, which forward mode
-gives at the price of about three gradients.
+Levenberg-Marquardt rather than a first-order optimiser: Gauss-Newton steps converge in tens
+of iterations where Adam on truncated reverse-mode gradients needs hundreds of epochs, and
+forward mode gives the Jacobian at the price of about three gradients.
 
 The loss is the mean squared difference of the band-passed floor accelerations, each
 channel divided by its measured RMS (as :func:`hlaid.identify.refine_replay`; the zero-phase

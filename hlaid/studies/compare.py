@@ -1,8 +1,8 @@
-"""Comparison studies: every identifier on the same simulated cases (issue 9).
+"""Comparison studies: every identifier on the same simulated cases.
 
 A case is a structure (the paper's Table 1 or a random shear building), a real record
 scaled to a PGA and resampled, a noise level and a noise seed. Every identifier of
-:data:`IDENTIFIERS` fits the same simulated measurement; each outcome records the parameter
+:data:`hlaid.identify.IDENTIFIERS` fits the same simulated measurement; each outcome records the parameter
 errors against the truth, the replay correlation ``R`` of floor displacements with the
 truth on the identification record and on an unseen record, the peak-drift error on the
 unseen record, the wall and CPU time of ``fit``, and whether it failed (an exception, a
@@ -19,7 +19,6 @@ import dataclasses
 import os
 import resource
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -29,28 +28,15 @@ import numpy as np
 from .. import _progress
 from ..config import load_config
 from ..errors import InputError
+from ..identify import IDENTIFIERS, BaseIdentifier, IdentifyConfig, get_identifier
+from ..identify.replaycheck import corrcoef
 from ..model import Building
 from ..motions import GroundMotion
 from ..simulate import simulate
 from ..specs import MotionSpec
 from ..synthetic import load_simulation_config, simulate_measurement
-from .config import IdentifyConfig
-from .estimators import BaseIdentifier, HLASVMIdentifier
-from .gradient import GradientIdentifier
-from .replaycheck import corrcoef
-from .ukf import UKFIdentifier
 
 PARAMETERS = ("k0", "alpha", "p", "dy", "delta_eta")
-
-IDENTIFIERS: dict[str, Callable[..., BaseIdentifier]] = {
-    "hlasvm": lambda **kw: HLASVMIdentifier(refine="none", **kw),
-    "hlasvm_replay": lambda **kw: HLASVMIdentifier(refine="replay", **kw),
-    "gradient": GradientIdentifier,
-    "ukf": UKFIdentifier,
-}
-"""Identifiers by name: the paper's method alone (``hlasvm``), with its replay refinement
-(``hlasvm_replay``), least squares through the differentiable model (``gradient``) and the
-unscented Kalman filter (``ukf``)."""
 
 LABELS = {"hlasvm": "HLA+SVM (paper)", "hlasvm_replay": "HLA+SVM + replay LS", "gradient": "Gradient LS (AD)",
           "ukf": "UKF"}
@@ -111,7 +97,7 @@ class CompareConfig:
     Attributes
     ----------
     groups : the cases
-    identifiers : names in :data:`IDENTIFIERS`, run in this order on every case
+    identifiers : names in :data:`hlaid.identify.IDENTIFIERS`, run in this order on every case
     settings : per identifier, keyword arguments of its class (``hlasvm*``: ``config`` is an
         identification YAML, relative to the study config)
     table1 : simulation config whose ``building`` is the Table 1 structure
@@ -263,10 +249,9 @@ def build_cases(cfg: CompareConfig, base_dir: str | os.PathLike | None = None) -
 
 # ---------------------------------------------------------------------- identifiers
 def make_identifier(name: str, settings: dict | None = None, *, base_dir=None, cache_dir: str = "") -> BaseIdentifier:
-    """An identifier of :data:`IDENTIFIERS` with keyword ``settings`` (validated against its
+    """An identifier of :data:`hlaid.identify.IDENTIFIERS` with keyword ``settings`` (validated against its
     parameters); HLA+SVM gets ``cache_dir`` and a ``config`` path is loaded."""
-    if name not in IDENTIFIERS:
-        raise InputError(f"unknown identifier {name!r}; expected one of {list(IDENTIFIERS)}")
+    est = get_identifier(name)
     kw = dict(settings or {})
     if name.startswith("hlasvm"):
         if "refine" in kw:
@@ -275,12 +260,11 @@ def make_identifier(name: str, settings: dict | None = None, *, base_dir=None, c
         if isinstance(kw.get("config"), str):
             kw["config"] = load_config(Path(base_dir or ".") / kw["config"], IdentifyConfig)
         kw.setdefault("cache_dir", cache_dir)
-    est = IDENTIFIERS[name]()
     allowed = est.get_params()
     bad = [k for k in kw if k not in allowed]
     if bad:
         raise InputError(f"settings.{name}: unknown {bad}; expected some of {sorted(allowed)}")
-    return IDENTIFIERS[name](**kw)
+    return get_identifier(name, **kw)
 
 
 def _cpu() -> float:

@@ -1,4 +1,7 @@
-"""Accuracy of an HLA result against the truth of a simulated measurement."""
+"""Accuracy of hysteresis loop analysis against the truth of simulated measurements.
+
+``scripts/study_hla_accuracy.py`` runs the study and prints its table (``docs/hla.md``).
+"""
 
 from __future__ import annotations
 
@@ -6,8 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..hla import HLAResult
 from ..measurement import Truth
-from .result import HLAResult
 
 
 @dataclass(frozen=True)
@@ -47,8 +50,8 @@ def hla_errors(result: HLAResult, truth: Truth) -> HLAErrors:
 def accuracy_study(building, motions, seeds, *, noise_rms: float = 0.10, config=None, pga_g: float | None = 0.62,
                    rate_hz: float = 200.0) -> dict[tuple[str, int], HLAErrors]:
     """HLA errors on simulated measurements of ``building`` for every motion x noise seed."""
+    from ..hla import hla
     from ..synthetic import simulate_measurement
-    from .analysis import hla
 
     out = {}
     for gm in motions:
