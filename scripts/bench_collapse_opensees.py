@@ -19,25 +19,21 @@ from __future__ import annotations
 import argparse
 import io
 import os
-import sys
 import time
 from contextlib import redirect_stderr
 from pathlib import Path
 
 import numpy as np
+from reference_models import table1_stories
+
+from hlaid.ida import load_records
+from hlaid.ida.intensity import get_intensity_measure
+from hlaid.model import Building
+from hlaid.opensees import run_opensees
+from hlaid.simulate import simulate
+from hlaid.units import G_MM_S2
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "tests"))
-
-from reference_systems import table1_stories  # noqa: E402
-
-from hlaid.ida import load_records  # noqa: E402
-from hlaid.ida.intensity import get_intensity_measure  # noqa: E402
-from hlaid.model import Building  # noqa: E402
-from hlaid.opensees import run_opensees  # noqa: E402
-from hlaid.simulate import simulate  # noqa: E402
-from hlaid.units import G_MM_S2  # noqa: E402
 
 DRIFT_LIMIT = 0.10
 

@@ -33,7 +33,6 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 
 DEFAULT_RECORDS = REPO.parent / "shared" / "data" / "ground_motions" / "fema_p695_farfield"
 TABLE1 = dict(weight=(171.85, 171.85, 90.0), k0=(1.94e4, 1.65e4, 1.37e4), alpha=(0.23, 0.17, 0.12),

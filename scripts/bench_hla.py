@@ -25,14 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+from hlaid.hla import HLAConfig, hla
+from hlaid.hla.config import ForceConfig
+from hlaid.motions import GroundMotion, read_motion
+from hlaid.simulate import simulate
+from hlaid.synthetic import load_simulation_config, simulate_measurement
 
-from hlaid.hla import HLAConfig, hla  # noqa: E402
-from hlaid.hla.config import ForceConfig  # noqa: E402
-from hlaid.motions import GroundMotion, read_motion  # noqa: E402
-from hlaid.simulate import simulate  # noqa: E402
-from hlaid.synthetic import load_simulation_config, simulate_measurement  # noqa: E402
+REPO = Path(__file__).resolve().parents[1]
 
 DEFAULT_RECORD = REPO.parent / "shared" / "data" / "ground_motions" / "fema_p695_farfield" / \
     "FF19_RSN1244_CHICHI_CHY101-N.AT2"

@@ -23,15 +23,11 @@ from __future__ import annotations
 
 import argparse
 import resource
-import sys
 import time
 import tracemalloc
 from pathlib import Path
 
 import numpy as np
-
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 
 from hlaid import _progress
 from hlaid.ida import ida, load_records, prepare_building
@@ -39,6 +35,8 @@ from hlaid.ida.analysis import upsampled
 from hlaid.model import Building
 from hlaid.opensees import run_opensees_batch
 from hlaid.simulate import simulate
+
+REPO = Path(__file__).resolve().parents[1]
 
 DEFAULT_RECORDS = REPO.parent / "shared" / "data" / "ground_motions" / "fema_p695_farfield"
 TABLE1 = [{"weight_kN": w, "k0": k, "alpha": a, "p": p, "dy": d, "delta_eta": e, "height_mm": 3000.0} for w, k, a, p, d, e in
@@ -168,22 +166,23 @@ def main(argv=None):
 
 def figures(res, out: Path):
     """Docs figures: this IDA, and the V&C (2002) Fig. 4a SDOF against the bilinear reference."""
+    from reference_models import VC2002 as V  # the SDOF and its independent bilinear reference
+    from reference_models import bilinear_peak
+
     from hlaid.ida import intensity
     from hlaid.ida.plots import plot_exceedance, plot_fragility, plot_ida_curves
     from hlaid.motions import read_motion
     from hlaid.plots import plt, save_figure
-    sys.path.insert(0, str(REPO / "tests"))
-    import test_ida_verification as V  # the independent bilinear reference of the test
     out.mkdir(parents=True, exist_ok=True)
     save_figure(plot_ida_curves(res, title="IDA of the Table 1 clone (P-Delta), 44 far-field records"),
                 out / "ida_table1_curves.png")
     save_figure(plot_fragility(res), out / "ida_table1_fragility.png")
     save_figure(plot_exceedance(res), out / "ida_table1_exceedance.png")
-    gm = read_motion(V.GROUND_MOTIONS / "openseismomatlab" / "LomaPrietaHallsValley90.dat", units="m/s^2")
+    gm = read_motion(DEFAULT_RECORDS.parent / "openseismomatlab" / "LomaPrietaHallsValley90.dat", units="m/s^2")
     sa0 = intensity(gm, "sa_t1", period=V.T)[0]
     levels = np.round(np.arange(0.05, 3.51, 0.05), 3)
-    ref = np.array([V.bilinear_peak(gm.acc * (L / sa0), gm.dt, 50, V.M, V.K, V.ALPHA, V.UY,
-                                    2 * V.XI * (2 * np.pi / V.T) * V.M) for L in levels]) / V.UY
+    ref = np.array([bilinear_peak(gm.acc * (L / sa0), gm.dt, 50, V.M, V.K, V.ALPHA, V.UY,
+                                  2 * V.XI * (2 * np.pi / V.T) * V.M) for L in levels]) / V.UY
     b = Building(mass=[V.M], k0=[V.K], alpha=[V.ALPHA], p=[30.0], dy=[V.UY], delta_eta=[0.0], height=[1e5])
     r = ida(b, gm, levels=levels, refine=False, pdelta=False, max_step=0.002)
     g = np.argsort(np.where(r.point_stage == "grid", r.point_im, np.inf))[: levels.size]

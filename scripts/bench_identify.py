@@ -22,8 +22,7 @@ import time
 import numpy as np
 
 from hlaid import _progress
-from hlaid.identify import IdentifyConfig, TrainingConfig, identify
-from hlaid.identify import classify
+from hlaid.identify import IdentifyConfig, TrainingConfig, classify, identify
 from hlaid.motions import read_motion
 from hlaid.synthetic import load_simulation_config, simulate_measurement
 
@@ -76,13 +75,9 @@ def main(argv=None) -> int:
 
 
 def tall(n: int) -> int:
-    import sys as _sys
-    from pathlib import Path
+    from study_identification import scale_to_yield  # a sibling script (scripts/ is on sys.path)
 
     from hlaid.model import Building
-
-    _sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from study_identification import scale_to_yield
 
     u = np.linspace(0.0, 1.0, n)
     b = Building(mass=np.full(n, 20.0), k0=4e4 - 2.5e4 * u, alpha=0.1 + 0.2 * u, p=1.5 + u, dy=5.0 + 3.0 * u,

@@ -23,19 +23,17 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
 from hlaid.model import Building
 from hlaid.motions import GroundMotion, read_motion
 from hlaid.opensees import run_opensees_batch
 from hlaid.simulate import simulate
+
+REPO = Path(__file__).resolve().parents[1]
 
 DEFAULT_RECORDS = REPO.parent / "shared" / "data" / "ground_motions" / "fema_p695_farfield"
 TABLE1 = [{"weight_kN": w, "k0": k, "alpha": a, "p": p, "dy": d, "delta_eta": e} for w, k, a, p, d, e in

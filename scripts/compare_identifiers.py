@@ -32,7 +32,6 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 
 from hlaid import _progress  # noqa: E402
 from hlaid._fileio import atomic_directory, atomic_write, write_json  # noqa: E402

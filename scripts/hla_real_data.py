@@ -26,7 +26,6 @@ import numpy as np
 from scipy import signal
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 
 from hlaid.config import load_config  # noqa: E402
 from hlaid.errors import InputError  # noqa: E402

@@ -15,24 +15,20 @@ Usage: python scripts/study_collapse.py [--clone FILE] [--records builtin-suite|
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from reference_models import table1_stories
+
+from hlaid import _progress
+from hlaid.clone import Clone
+from hlaid.ida import ida, load_records
+from hlaid.model import Building
+from hlaid.model.collapse import COLLAPSE_MODELS
+from hlaid.simulate.path import drive_story
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "tests"))
-
-from reference_systems import table1_stories  # noqa: E402
-
-from hlaid import _progress  # noqa: E402
-from hlaid.clone import Clone  # noqa: E402
-from hlaid.ida import ida, load_records  # noqa: E402
-from hlaid.model import Building  # noqa: E402
-from hlaid.model.collapse import COLLAPSE_MODELS  # noqa: E402
-from hlaid.simulate.path import drive_story  # noqa: E402
 
 MODELS = ("none", "steel-mrf", "rc-frame", "rc-frame-nonductile")
 

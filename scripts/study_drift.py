@@ -19,15 +19,13 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from study_identification import RANDOM_RECORDS, TABLE1_RECORDS, random_building, scale_to_yield
 
 from hlaid.hla import hla
 from hlaid.hla import preprocess as pp
 from hlaid.identify.drift import hla_drift, reconstruct_drift
 from hlaid.motions import GroundMotion, read_motion
 from hlaid.synthetic import load_simulation_config, simulate_measurement
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from study_identification import RANDOM_RECORDS, TABLE1_RECORDS, random_building, scale_to_yield  # noqa: E402
 
 PARAMS = ("k0", "alpha", "p", "dy", "delta_eta")
 

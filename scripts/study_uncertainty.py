@@ -30,16 +30,14 @@ from pathlib import Path
 
 import numpy as np
 from scipy.stats import norm
+from study_identification import RANDOM_RECORDS, random_building, scale_to_yield
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from study_identification import RANDOM_RECORDS, random_building, scale_to_yield  # noqa: E402
-
-from hlaid import _progress  # noqa: E402
-from hlaid.identify import IdentifyConfig, identify  # noqa: E402
-from hlaid.motions import read_motion  # noqa: E402
-from hlaid.synthetic import load_simulation_config, simulate_measurement  # noqa: E402
-from hlaid.uncertainty import calibration_factor, parametric_bootstrap, zscores  # noqa: E402
-from hlaid.uncertainty.laplace import METHODS, MISFIT_LIMIT, from_refinement, noise_residual_rms  # noqa: E402
+from hlaid import _progress
+from hlaid.identify import IdentifyConfig, identify
+from hlaid.motions import read_motion
+from hlaid.synthetic import load_simulation_config, simulate_measurement
+from hlaid.uncertainty import calibration_factor, parametric_bootstrap, zscores
+from hlaid.uncertainty.laplace import METHODS, MISFIT_LIMIT, from_refinement, noise_residual_rms
 
 SET_SEEDS = {"heldout": 1515, "calibration": 2727}
 PARAMS = ("k0", "alpha", "p", "dy", "delta_eta")

@@ -3,6 +3,8 @@
 - ``DATA``: the real third-party data of the project (``../shared/data`` next to the repository,
   resolved from this file, never an absolute path). Tests that read it take the ``data_dir``
   fixture (or are marked ``requires_data``) and are skipped cleanly when it is absent.
+- Optional tools and data (:func:`requires`, :func:`skip_or_fail`): a test that needs one is
+  skipped when it is missing, except under ``CI=true``, where it fails (CI installs them all).
 - The paper's proof-of-concept structure (Table 1), built from the numbers in DESIGN.md
   (``tests/reference_systems.py``), not from the package's config file.
 - A few real records, scaled to PGA 0.62 g and resampled to 200 Hz (the paper's case). They are
@@ -11,18 +13,16 @@
 
 from __future__ import annotations
 
-import sys
+import os
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 import pytest
+from reference_systems import table1_stories  # tests/ is on sys.path (pytest's rootdir-relative import)
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # `import reference_systems` from any cwd
-
-from reference_systems import table1_stories  # noqa: E402
-
-from hlaid.model import Building  # noqa: E402
-from hlaid.motions import GroundMotion, load_builtin  # noqa: E402
+from hlaid.model import Building
+from hlaid.motions import GroundMotion, load_builtin
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data"
@@ -30,7 +30,30 @@ DATA = REPO.parent / "shared" / "data"
 
 GROUND_MOTIONS = DATA / "ground_motions"
 
-requires_data = pytest.mark.skipif(not GROUND_MOTIONS.is_dir(), reason=f"shared data not found at {DATA}")
+ON_CI = os.environ.get("CI", "").lower() == "true"
+"""Under ``CI=true`` a missing optional tool or ``../shared/data`` fails the tests that need it."""
+
+
+def skip_or_fail(reason: str) -> NoReturn:
+    """Skip the running test because ``reason``; under ``CI=true`` fail it instead."""
+    if ON_CI:
+        pytest.fail(f"{reason} (CI=true: every optional tool and the shared data must be there)", pytrace=False)
+    pytest.skip(reason)
+
+
+def requires(available: bool, reason: str) -> pytest.MarkDecorator:
+    """Marker: the test needs something optional; when not ``available`` it is skipped with
+    ``reason`` (failed under ``CI=true``, see :func:`skip_or_fail`)."""
+    return pytest.mark.requires(available=bool(available), reason=reason)
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    for mark in item.iter_markers("requires"):
+        if not mark.kwargs["available"]:
+            skip_or_fail(mark.kwargs["reason"])
+
+
+requires_data = requires(GROUND_MOTIONS.is_dir(), f"shared data not found at {DATA}")
 """Marker for tests that read ``../shared/data``."""
 
 RECORDS = ("elcentro-1940-ns", "kocaeli-1999-dzc180", "northridge-1994-mul009")
@@ -43,9 +66,9 @@ RATE_HZ = 200.0
 
 @pytest.fixture(scope="session")
 def data_dir() -> Path:
-    """``../shared/data``; skips the test when the folder is not there."""
+    """``../shared/data``; skips the test when the folder is not there (fails under ``CI=true``)."""
     if not GROUND_MOTIONS.is_dir():
-        pytest.skip(f"shared data not found at {DATA}")
+        skip_or_fail(f"shared data not found at {DATA}")
     return DATA
 
 

@@ -8,18 +8,18 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pytest
+from conftest import DATA, skip_or_fail
 from scipy import signal
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 STRUCT = DATA / "structural_response"
 
 
 def data_path(*parts: str) -> Path:
-    """A path under ``../shared/data/structural_response``; skips the test when it is absent."""
+    """A path under ``../shared/data/structural_response``; skips the test when it is absent
+    (fails under ``CI=true``)."""
     p = STRUCT.joinpath(*parts)
     if not p.exists():
-        pytest.skip(f"shared data not available: {p}")
+        skip_or_fail(f"shared data not available: {p}")
     return p
 
 

@@ -12,7 +12,7 @@ from contextlib import redirect_stderr
 
 import numpy as np
 import pytest
-from conftest import paper_record
+from conftest import paper_record, requires
 
 from hlaid.opensees import (
     OpenSeesUnavailable,
@@ -27,7 +27,7 @@ try:
     HAVE_OPENSEES = True
 except OpenSeesUnavailable:
     HAVE_OPENSEES = False
-needs_opensees = pytest.mark.skipif(not HAVE_OPENSEES, reason="openseespy not usable")
+needs_opensees = requires(HAVE_OPENSEES, "openseespy not usable")
 
 H = 3000.0
 

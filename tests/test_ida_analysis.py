@@ -236,10 +236,19 @@ def test_save_is_atomic_and_complete(result, tmp_path, monkeypatch):
     shutil.rmtree(out)
 
 
-def test_building_argument_kinds(table1, motions):
+def test_building_argument_kinds(table1, motions, tmp_path):
+    """A Building, a Clone, a clone file (path or str): the same building to analyse; else an InputError."""
     with pytest.raises(InputError, match="expected a Clone, a Building or a clone file"):
         ida(42, motions)
-    assert isinstance(table1, Building)
+    ref, _ = prepare_building(table1, heights=HEIGHTS)
+    assert isinstance(ref, Building) and ref.pdelta
+    path = Clone(building=table1).save(tmp_path / "clone.json")
+    for model in (Clone(building=table1), path, str(path)):
+        b, _ = prepare_building(model, heights=HEIGHTS)
+        for name in ("mass", "k0", "alpha", "p", "dy", "delta_eta", "height"):
+            np.testing.assert_array_equal(getattr(b, name), getattr(ref, name), err_msg=name)
+        assert b.pdelta == ref.pdelta
+        np.testing.assert_array_equal(b.rayleigh(), ref.rayleigh())
 
 
 @pytest.mark.parametrize("n", [1, 20, 99, 100, 200, 1000])

@@ -8,7 +8,7 @@ import re
 
 import numpy as np
 import pytest
-from conftest import GROUND_MOTIONS, requires_data
+from conftest import GROUND_MOTIONS, ON_CI, requires_data
 
 from hlaid.errors import InputError
 from hlaid.motions import GroundMotion, builtin_records, builtin_suite, load_builtin, read_motion
@@ -22,7 +22,7 @@ _TEXT_HINTS = {"newhall.txt": {"units": "cm/s^2", "dt": 0.005},
 
 def _all_record_files():
     if not GROUND_MOTIONS.is_dir():
-        return []
+        return [GROUND_MOTIONS] if ON_CI else []  # under CI one case, which requires_data fails
     return sorted(p for p in GROUND_MOTIONS.glob("*/*") if p.name != "records_farfield.csv")
 
 

@@ -16,7 +16,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import paper_record
+from conftest import paper_record, requires
 
 from hlaid.opensees import (
     OpenSeesUnavailable,
@@ -46,7 +46,7 @@ try:
     HAVE_OPENSEES = True
 except OpenSeesUnavailable:
     HAVE_OPENSEES = False
-needs_opensees = pytest.mark.skipif(not HAVE_OPENSEES, reason="openseespy not usable")
+needs_opensees = requires(HAVE_OPENSEES, "openseespy not usable")
 
 
 @needs_opensees
@@ -127,6 +127,6 @@ def test_batch_on_worker_processes_keeps_the_job_order(table1):
     jobs = [(gm, 0.3), (gm, 1.0), (gm, 0.6)]
     wall, cpu, peaks = run_opensees_batch(table1, jobs, dt_factor=1, workers=2)
     assert peaks.shape == (3, 3) and wall > 0 and cpu > 0
-    for (m, s), pk in zip(jobs, peaks):
+    for (m, s), pk in zip(jobs, peaks, strict=True):
         np.testing.assert_allclose(pk, run_opensees(table1, m, scale=s, dt_factor=1).peak_drift, rtol=1e-12)
     assert peaks[0, 0] < peaks[2, 0] < peaks[1, 0]

@@ -15,6 +15,7 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import requires
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -123,7 +124,7 @@ def _opensees_usable() -> bool:
     return True
 
 
-@pytest.mark.skipif(not _opensees_usable(), reason="openseespy is not importable here")
+@requires(_opensees_usable(), "openseespy is not importable here")
 @pytest.mark.parametrize("name", HOSTILE[:3])
 def test_hostile_names_run_in_opensees(table1, tmp_path, name):
     from hlaid.opensees import run_opensees

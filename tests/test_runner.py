@@ -4,11 +4,13 @@ embeds every figure and renders in a headless browser, and nothing is replaced w
 
 from __future__ import annotations
 
+import csv
 import json
 import shutil
 
 import numpy as np
 import pytest
+from conftest import requires
 
 from hlaid.clone import load_clone
 from hlaid.errors import InputError
@@ -63,6 +65,28 @@ def test_every_output_is_written(run_dir):
     for r in rows:
         assert r["error"] == pytest.approx(abs(r["identified"] / r["true"] - 1.0))
     assert np.isfinite([r["identified"] for r in rows]).all()
+    with open(out / "parameters.csv", newline="") as fh:  # the same table as parameters.json
+        table = list(csv.DictReader(fh))
+    assert [(r["parameter"], int(r["story"])) for r in table] == [(r["parameter"], r["story"]) for r in rows]
+    np.testing.assert_allclose([float(r["identified"]) for r in table], [r["identified"] for r in rows], rtol=1e-12)
+    written = json.loads((out / "summary.json").read_text())
+    assert written["name"] == "small run" and written["n_stories"] == 2
+    assert json.loads((out / "ida" / "summary.json").read_text()) == written["ida"]
+    assert [s["story"] for s in json.loads((out / "identification.json").read_text())["stories"]] == [1, 2]
+    assert len(json.loads((out / "hla" / "hla.json").read_text())["stories"]) == 2
+    with np.load(out / "hla" / "hla.npz") as h:
+        assert h["force"].shape == h["drift"].shape and h["drift"].shape[1] == 2
+    with np.load(out / "measurement.npz") as m:
+        assert m["floor_acc"].shape == (m["ground_acc"].shape[0], 2) and np.isfinite(m["floor_acc"]).all()
+    with np.load(out / "ida" / "ida.npz") as z:
+        assert list(z["record_names"]) == ["northridge-1994-mul009", "kobe-1995-nis000", "lomaprieta-1989-cap000"]
+        peak = z["peak_drift"][np.lexsort((z["point_scale"], z["point_record"]))]
+    with open(out / "ida" / "points.csv", newline="") as fh:  # one row per point of ida.npz
+        points = list(csv.DictReader(fh))
+    points.sort(key=lambda r: (int(r["record_index"]), float(r["scale"])))
+    assert len(points) == len(peak) > 0 and peak.shape[1] == 2
+    np.testing.assert_allclose([[float(r["peak_drift_mm_1"]), float(r["peak_drift_mm_2"])] for r in points], peak,
+                               rtol=1e-5)
     assert summary["ida"]["collapse_fragility"]["capacities"]["median_g"] > 0
     assert min(summary["replay"]["r_measured"]) > 0.9
 
@@ -117,8 +141,8 @@ def test_report_rebuilds_and_refuses_to_replace_a_run(run_dir, tmp_path):
     assert (copy / "clone.json").read_bytes() == before
 
 
-@pytest.mark.skipif(not any(shutil.which(b) for b in ("chromium", "chromium-browser", "google-chrome")),
-                    reason="no headless Chromium installed")
+@requires(any(shutil.which(b) for b in ("chromium", "chromium-browser", "google-chrome")),
+          "no headless Chromium installed")
 def test_report_renders_in_headless_chromium(run_dir, tmp_path):
     import matplotlib.image as mpimg
     out, _ = run_dir

@@ -200,7 +200,6 @@ def test_energy_balance(table1, records, pdelta):
 def test_design_sanity_figures(table1, records, record, drift, ke):
     r = simulate(table1, records[record], substeps=4)
     np.testing.assert_allclose(r.peak_drift[0], drift, rtol=0.05)
-    np.testing.assert_allclose(r.peak_drift[0] / table1.dy, np.array(drift) / table1.dy, rtol=0.05)
     final_eta = r.eta[0, r.n_time[0] - 1]
     np.testing.assert_allclose(table1.elastic_stiffness(final_eta) / table1.k0, ke, atol=0.015)
 

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import DATA, REPO, paper_record, window
+from conftest import DATA, REPO, paper_record, requires, window
 
 from hlaid.clone import Clone
 from hlaid.config import config_from_dict
@@ -137,7 +137,7 @@ def test_script_bad_input_is_one_line(tmp_path, capsys):
     assert "--force" in capsys.readouterr().err and (tmp_path / "o" / "keep.txt").exists()
 
 
-@pytest.mark.skipif(not STEEL.is_dir(), reason=f"steel-frame data not found at {STEEL}")
+@requires(STEEL.is_dir(), f"steel-frame data not found at {STEEL}")
 def test_steel_frame_end_to_end(tmp_path):
     """Real data, small settings: s1 stays elastic, so its clone is the labelled linear one;
     s4 yields, so the paper's method runs. Each clone goes through its JSON file and predicts a
