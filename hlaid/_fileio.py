@@ -21,7 +21,7 @@ from .errors import InputError
 from .limits import check_readable_file, file_limit_text, max_file_bytes
 
 
-def read_text(path: str | os.PathLike) -> str:
+def read_file_text(path: str | os.PathLike) -> str:
     """Text of a file, transparently gunzipped; a clear error for missing or binary files."""
     p = Path(path)
     if not p.exists():

@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ._fileio import read_text, write_json
+from ._fileio import read_file_text, write_json
 from .errors import InputError, kind_of
 from .model import Building, Damping
 from .units import UNITS_JSON
@@ -160,7 +160,7 @@ class Clone:
         """Read and validate a clone JSON file."""
         src = str(path)
         try:
-            d = json.loads(read_text(path))
+            d = json.loads(read_file_text(path))
         except json.JSONDecodeError as err:
             raise InputError(f"not valid JSON (line {err.lineno}: {err.msg})", source=src) from None
         return cls.from_dict(d, source=src)

@@ -36,6 +36,7 @@ from ._fileio import atomic_write
 from .errors import InputError
 from .model import Building
 from .motions import GroundMotion
+from .units import G_MM_S2
 
 __all__ = [
     "OpenSeesResult",
@@ -255,9 +256,9 @@ import tempfile
 import numpy as np
 '''
 
-_BODY = '''
-G_MM_S2 = 9806.65
-UNITS = {"g": G_MM_S2, "m/s^2": 1000.0, "m/s2": 1000.0, "cm/s^2": 10.0, "cm/s2": 10.0, "gal": 10.0,
+_BODY = f'''
+G_MM_S2 = {G_MM_S2!r}
+''' + '''UNITS = {"g": G_MM_S2, "m/s^2": 1000.0, "m/s2": 1000.0, "cm/s^2": 10.0, "cm/s2": 10.0, "gal": 10.0,
          "mm/s^2": 1.0, "mm/s2": 1.0}
 
 

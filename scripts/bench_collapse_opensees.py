@@ -32,7 +32,7 @@ sys.path.insert(0, str(REPO / "tests"))
 
 from reference_systems import table1_stories  # noqa: E402
 
-from hlaid.ida import load_records  # noqa: E402
+from hlaid.io import read  # noqa: E402
 from hlaid.ida.intensity import get_intensity_measure  # noqa: E402
 from hlaid.model import Building  # noqa: E402
 from hlaid.opensees import run_opensees  # noqa: E402
@@ -81,7 +81,7 @@ def main(argv=None):
     ap.add_argument("--dt-factor", type=int, default=10)
     args = ap.parse_args(argv)
     b = building(args.stories, args.collapse)
-    motions = load_records("builtin-suite")[: args.records]
+    motions = read("builtin-suite", "records")[: args.records]
     T1 = float(b.periods()[0])
     sa = get_intensity_measure("sa_t1").compute(motions, T1, 0.05) / G_MM_S2
     stop = DRIFT_LIMIT * b.height

@@ -30,7 +30,8 @@ sys.path.insert(0, str(REPO))
 
 from hlaid.hla import HLAConfig, hla  # noqa: E402
 from hlaid.hla.config import ForceConfig  # noqa: E402
-from hlaid.motions import GroundMotion, read_motion  # noqa: E402
+from hlaid.io import read  # noqa: E402
+from hlaid.motions import GroundMotion  # noqa: E402
 from hlaid.simulate import simulate  # noqa: E402
 from hlaid.synthetic import load_simulation_config, simulate_measurement  # noqa: E402
 
@@ -45,7 +46,7 @@ def record(spec: str | None, seconds: float) -> GroundMotion:
     """The benchmark record at 200 Hz and PGA 0.62 g, cut or padded (free vibration) to ``seconds``."""
     if spec is None:
         spec = str(DEFAULT_RECORD) if DEFAULT_RECORD.is_file() else FALLBACK
-    gm = read_motion(spec).scaled_to_pga(PGA_G).resampled(RATE_HZ)
+    gm = read(spec, "motion").scaled_to_pga(PGA_G).resampled(RATE_HZ)
     n = int(round(seconds * RATE_HZ)) + 1
     acc = np.zeros(n)
     acc[: min(n, gm.npts)] = gm.acc[:n]

@@ -29,7 +29,8 @@ from reference_systems import table1_stories  # noqa: E402
 
 from hlaid import _progress  # noqa: E402
 from hlaid.clone import Clone  # noqa: E402
-from hlaid.ida import ida, load_records  # noqa: E402
+from hlaid.ida import ida  # noqa: E402
+from hlaid.io import read  # noqa: E402
 from hlaid.model import Building  # noqa: E402
 from hlaid.model.collapse import COLLAPSE_MODELS  # noqa: E402
 from hlaid.simulate.path import drive_story  # noqa: E402
@@ -131,7 +132,7 @@ def main(argv=None):
             b = b.replace(height=[3000.0] * b.n_stories)
     else:
         b = Building.from_stories(table1_stories(), height=[3000.0] * 3, name="table1")
-    motions = load_records(args.records)
+    motions = read(args.records, "records")
     print(f"{b.name or 'clone'}: {b.n_stories} stories, {len(motions)} records ({args.records}), IDA defaults, "
           "P-Delta on\n")
     print("| collapse model | median collapse Sa(T1) [g] | beta | runs | time [s] |")

@@ -7,7 +7,7 @@ import pytest
 from io_checks import data_path
 
 from hlaid.errors import InputError
-from hlaid.io import MEASUREMENT_READERS, detect_format, read_any
+from hlaid.io import MEASUREMENT_READERS, detect_format, read
 from hlaid.measurement import Measurement
 
 CASES = [
@@ -24,7 +24,7 @@ CASES = [
 def test_each_dataset_is_detected_and_read(parts, fmt, kw):
     path = data_path(*parts)
     assert detect_format(path) == fmt
-    m = read_any(path, **kw)
+    m = read(path, "measurement", **kw)
     assert isinstance(m, Measurement) and m.n_floors >= 1 and m.source
 
 
@@ -38,7 +38,7 @@ def test_hlaid_measurement_files_round_trip_through_read_any(tmp_path):
     for ext, fmt in ((".npz", "npz"), (".csv", "csv")):
         p = m.save(tmp_path / f"m{ext}")
         assert detect_format(p) == fmt
-        np.testing.assert_allclose(read_any(p).floor_acc, m.floor_acc)
+        np.testing.assert_allclose(read(p, "measurement").floor_acc, m.floor_acc)
 
 
 def test_columns_yaml_is_detected(tmp_path):
@@ -46,20 +46,20 @@ def test_columns_yaml_is_detected(tmp_path):
     (tmp_path / "d.yaml").write_text("file: d.csv\ntime: t\nground: {column: a, units: g}\n"
                                      "floors: [{column: b, units: g}]\n")
     assert detect_format(tmp_path / "d.yaml") == "columns"
-    assert read_any(tmp_path / "d.yaml").n_floors == 1
+    assert read(tmp_path / "d.yaml", "measurement").n_floors == 1
 
 
 def test_unknown_files_and_formats(tmp_path):
     p = tmp_path / "mystery.dat"
     p.write_text("1 2 3\n4 5 6\n")
     with pytest.raises(InputError) as err:
-        read_any(p)
+        read(p, "measurement")
     assert "mystery.dat" in str(err.value) and "format=" in str(err.value) and "\n" not in str(err.value)
     with pytest.raises(InputError, match="unknown measurement format 'xml'"):
-        read_any(p, format="xml")
+        read(p, "measurement", format="xml")
     with pytest.raises(InputError, match="file not found"):
-        read_any(tmp_path / "nope.csv")
+        read(tmp_path / "nope.csv", "measurement")
     with pytest.raises(InputError, match="no .smc"):
-        read_any(tmp_path)
+        read(tmp_path, "measurement")
     with pytest.raises(InputError, match="unexpected keyword"):
-        read_any(data_path("mini_shake_table_3story_model", "flexible_3story_sine1p5.csv"), colour="red")
+        read(data_path("mini_shake_table_3story_model", "flexible_3story_sine1p5.csv"), "measurement", colour="red")

@@ -8,7 +8,7 @@ from .. import _progress
 from .._fileio import check_output_file
 from ..config import load_config
 from ..identify import IdentifyConfig, identify
-from ..io_dispatch import read_measurement_any
+from ..io import read
 from ..measurement import check_band
 from .main import subcommand
 
@@ -29,7 +29,7 @@ def register(sub) -> None:
 def run_identify(args) -> int:
     out = check_output_file(args.out, force=args.force)  # fail before the identification, not after it
     cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
-    meas = read_measurement_any(args.measurement)
+    meas = read(args.measurement, "measurement")
     check_identify_bands(meas, cfg, args.config)
     cache = "" if args.no_cache else args.cache
     res = identify(meas, cfg, tensorboard=args.tensorboard, cache_dir=cache)
