@@ -79,7 +79,7 @@ def test_sac_one_file_per_channel_and_a_late_channel(meas, tmp_path):
     np.testing.assert_allclose(got.floor_acc, meas.floor_acc[k:], rtol=1e-6, atol=1e-3)
 
 
-def test_yaml_mapping_through_read_any(meas, tmp_path):
+def test_yaml_mapping_through_read(meas, tmp_path):
     f = tmp_path / "b001.mseed"
     obspy.Stream(_traces(meas, scale=1e-3, dtype=np.float64)).write(str(f), format="MSEED", encoding="FLOAT64")
     (tmp_path / "b001.yaml").write_text(

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .. import __version__, _progress
-from .._fileio import _check_parent, write_json
+from .._fileio import check_parent, write_json
 from ..errors import InputError
 from ..io import read
 from .assess import ENGINE, POINT, default_assess, engine_label, point_assess
@@ -114,7 +114,7 @@ def check_output(out: Path, *, force: bool) -> Path:
         raise InputError("is not empty and is not an hlaid fleet output; use --force to write into it, or "
                          "choose another folder", source=str(out))
     if not out.exists():
-        _check_parent(out)
+        check_parent(out)
     return out
 
 

@@ -158,11 +158,11 @@ class Assessment:
 
     def to_dict(self) -> dict:
         """JSON-able mapping of every field (arrays as lists)."""
-        from ..clone import _jsonable
+        from ..clone import jsonable
 
         d = {k: getattr(self, k) for k in self.__dataclass_fields__}
         d["placard"] = self.placard
-        return _jsonable(d)
+        return jsonable(d)
 
     def plot(self, ax=None):
         """The fragility band with the experienced intensity marked; returns the figure."""
