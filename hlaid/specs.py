@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Literal
 
 from .errors import InputError
+from .io import read
 from .limits import check_count
 from .model import Building, Damping
 from .model.params import check_story_value
@@ -87,7 +88,6 @@ class MotionSpec:
         spec = self.file
         if not spec.startswith("builtin:") and base_dir is not None and not Path(spec).is_absolute():
             spec = str(Path(base_dir) / spec)
-        from .io import read  # here: hlaid.io imports hlaid.config, which imports this module
         gm = read(spec, "motion", units=self.units, dt=self.dt, column=self.column, format=self.format)
         if self.pga_g is not None:
             gm = gm.scaled_to_pga(self.pga_g)
