@@ -18,10 +18,10 @@ from .hla import HLAConfig, HLAResult, hla
 from .ida import IDAConfig, IDAResult, ida
 from .identify import (BaseIdentifier, GradientIdentifier, HLASVMIdentifier, IdentificationResult, IdentifyConfig,
                        NotFittedError, UKFIdentifier, identify, refine_replay)
-from .io import read_any
-from .measurement import Measurement, Truth, read_measurement
+from .io import read
+from .measurement import Measurement, Truth
 from .model import BoucWenBuilding, Building, BuildingTensors, Damping
-from .motions import GroundMotion, builtin_records, read_motion
+from .motions import GroundMotion, builtin_records
 from .runner import RunConfig, run_pipeline
 from .simulate import SimulationResult, replay, simulate
 from .svm import KernelSVC
@@ -32,7 +32,7 @@ __all__ = [
     # model and simulation
     "Building", "Damping", "BoucWenBuilding", "BuildingTensors", "simulate", "replay", "SimulationResult",
     # data
-    "GroundMotion", "read_motion", "builtin_records", "Measurement", "Truth", "read_measurement", "read_any",
+    "read", "GroundMotion", "builtin_records", "Measurement", "Truth",
     "simulate_measurement",
     # analysis and identification
     "hla", "HLAConfig", "HLAResult", "identify", "IdentifyConfig", "IdentificationResult", "refine_replay",

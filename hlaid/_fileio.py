@@ -21,7 +21,7 @@ from .errors import InputError
 from .limits import check_readable_file, file_limit_text, max_file_bytes
 
 
-def read_text(path: str | os.PathLike) -> str:
+def read_file_text(path: str | os.PathLike) -> str:
     """Text of a file, transparently gunzipped; a clear error for missing or binary files."""
     p = Path(path)
     if not p.exists():
@@ -66,7 +66,7 @@ def _creation_mode(directory: bool = False) -> int:
     return (0o777 if directory else 0o666) & ~umask
 
 
-def _check_parent(path: Path) -> Path:
+def check_parent(path: Path) -> Path:
     """The folder ``path`` will be written in; an InputError unless it is an existing, writable folder."""
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.exists():
@@ -86,7 +86,7 @@ def check_output_file(path: str | os.PathLike, *, force: bool = False) -> Path:
         raise InputError("is a folder; expected an output file name", source=str(path))
     if path.exists() and not force:
         raise InputError("already exists; use --force to overwrite", source=str(path))
-    _check_parent(path)
+    check_parent(path)
     return path
 
 
@@ -169,7 +169,7 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], None], *, forc
 def write_json(path, obj, *, force: bool = True) -> Path:
     """Atomically write ``obj`` as indented JSON."""
     def w(tmp: Path):
-        tmp.write_text(json.dumps(obj, indent=2, default=_json_default) + "\n")
+        tmp.write_text(json.dumps(obj, indent=2, default=json_default) + "\n")
     return atomic_write(path, w, force=force)
 
 
@@ -181,7 +181,8 @@ def write_npz(path, arrays: dict, *, force: bool = True) -> Path:
     return atomic_write(path, w, force=force)
 
 
-def _json_default(o):
+def json_default(o):
+    """``json.dumps`` ``default=``: numpy arrays and scalars as lists and numbers, paths as text."""
     if isinstance(o, np.ndarray):
         return o.tolist()
     if isinstance(o, (np.floating, np.integer, np.bool_)):
@@ -199,7 +200,7 @@ def check_output_folder(path: str | os.PathLike, *, force: bool = False) -> Path
         raise InputError("exists and is not a folder", source=str(path))
     if path.exists() and any(path.iterdir()) and not force:
         raise InputError("output folder exists and is not empty; use --force to replace it", source=str(path))
-    _check_parent(path)
+    check_parent(path)
     return path
 
 

@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ._fileio import read_text, write_json
+from ._fileio import read_file_text, write_json
 from .errors import InputError, kind_of
 from .model import Building, Damping
 from .units import UNITS_JSON
@@ -84,8 +84,8 @@ class Clone:
             stories.append(s)
         return {"format": FORMAT, "version": VERSION, "units": dict(UNITS_JSON), "name": b.name, "stories": stories,
                 "damping": b.damping.to_dict(), "pdelta": b.pdelta, "mass_normalised": self.mass_normalised,
-                "diagnostics": _jsonable(self.diagnostics), "provenance": _jsonable(self.provenance),
-                "uncertainty": None if self.uncertainty is None else _jsonable(self.uncertainty.to_dict()),
+                "diagnostics": jsonable(self.diagnostics), "provenance": jsonable(self.provenance),
+                "uncertainty": None if self.uncertainty is None else jsonable(self.uncertainty.to_dict()),
                 **({"collapse": b.collapse.to_dict()} if b.collapse is not None else {})}
 
     def save(self, path: str | os.PathLike, *, force: bool = True) -> Path:
@@ -160,7 +160,7 @@ class Clone:
         """Read and validate a clone JSON file."""
         src = str(path)
         try:
-            d = json.loads(read_text(path))
+            d = json.loads(read_file_text(path))
         except json.JSONDecodeError as err:
             raise InputError(f"not valid JSON (line {err.lineno}: {err.msg})", source=src) from None
         return cls.from_dict(d, source=src)
@@ -226,13 +226,14 @@ def load_clone(path: str | os.PathLike) -> Clone:
     return Clone.load(path)
 
 
-def _jsonable(o):
+def jsonable(o):
+    """``o`` with numpy arrays and scalars turned into lists and numbers (dict keys as text)."""
     if isinstance(o, dict):
-        return {str(k): _jsonable(v) for k, v in o.items()}
+        return {str(k): jsonable(v) for k, v in o.items()}
     if isinstance(o, (list, tuple)):
-        return [_jsonable(v) for v in o]
+        return [jsonable(v) for v in o]
     if isinstance(o, np.ndarray):
-        return _jsonable(o.tolist())
+        return jsonable(o.tolist())
     if isinstance(o, (np.floating, float)):
         return float(o) if math.isfinite(o) else None
     if isinstance(o, (np.integer, np.bool_)):

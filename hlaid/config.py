@@ -20,7 +20,7 @@ from typing import Any, Literal, TypeVar, Union
 
 import yaml
 
-from ._fileio import read_text
+from ._fileio import read_file_text
 from .errors import ConfigError, InputError, kind_of
 
 T = TypeVar("T")
@@ -271,7 +271,7 @@ def load_yaml(path: str | os.PathLike) -> _Node:
     source = str(path)
     if not Path(source).is_file():
         raise ConfigError("config file not found", source=source)
-    return parse_yaml(read_text(source), source)
+    return parse_yaml(read_file_text(source), source)
 
 
 def config_from_node(cls: type[T], node: _Node, source: str, where: str = "") -> T:

@@ -27,7 +27,7 @@ from .config import config_from_node, config_to_dict, load_yaml
 from .errors import InputError
 from .identify import IdentifyConfig, identify
 from .identify.replaycheck import corrcoef
-from .io_dispatch import read_measurement_any
+from .io import read
 from .measurement import Measurement, check_band
 from .model import Building
 from .plots import plot_time_histories, save_figure
@@ -93,7 +93,7 @@ def load_measurement(src: MeasurementSource, base_dir: Path | None) -> Measureme
         path = Path(src.file)
         if base_dir is not None and not path.is_absolute():
             path = Path(base_dir) / path
-        meas = read_measurement_any(path, format=src.format, **src.options)
+        meas = read(path, "measurement", format=src.format, **src.options)
     changes = {}
     if src.mass_t is not None:
         changes["mass"] = np.asarray(src.mass_t, float)
@@ -219,9 +219,9 @@ def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> di
 
 def _replay_figure(meas: Measurement, res):
     from .hla.analysis import floor_motion
-    from .hla import preprocess as pp
+    from .signal import bandpass
     _, _, _, disp = floor_motion(meas, res.hla.config)
-    rep = pp.bandpass(res.replay.disp, meas.dt, res.hla.band_hz)
+    rep = bandpass(res.replay.disp, meas.dt, res.hla.band_hz)
     series, labels = [disp, rep], ["measured (integrated)", "clone (replayed)"]
     if meas.truth is not None:
         series.insert(0, meas.truth.disp)

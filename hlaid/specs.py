@@ -10,10 +10,11 @@ from pathlib import Path
 from typing import Literal
 
 from .errors import InputError
+from .io import read
 from .limits import check_count
 from .model import Building, Damping
 from .model.params import check_story_value
-from .motions import GroundMotion, read_motion
+from .motions import GroundMotion
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -87,7 +88,7 @@ class MotionSpec:
         spec = self.file
         if not spec.startswith("builtin:") and base_dir is not None and not Path(spec).is_absolute():
             spec = str(Path(base_dir) / spec)
-        gm = read_motion(spec, units=self.units, dt=self.dt, column=self.column, format=self.format)
+        gm = read(spec, "motion", units=self.units, dt=self.dt, column=self.column, format=self.format)
         if self.pga_g is not None:
             gm = gm.scaled_to_pga(self.pga_g)
         elif self.scale is not None:

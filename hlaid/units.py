@@ -17,6 +17,9 @@ G_M_S2 = 9.80665
 INCH_MM = 25.4
 """One inch [mm]."""
 
+KN_N = 1000.0
+"""One kilonewton [N]."""
+
 # Factor that converts an acceleration in the named unit to mm/s^2.
 ACCELERATION_UNITS: dict[str, float] = {
     "g": G_MM_S2,
@@ -61,6 +64,16 @@ def length_factor(unit: str) -> float:
     return _lookup(LENGTH_UNITS, unit, "length")
 
 
+def kn_to_n(force_kn):
+    """Force [kN] to [N]; a number or an array."""
+    return force_kn * KN_N
+
+
+def n_to_kn(force_n):
+    """Force [N] to [kN]; a number or an array."""
+    return force_n / KN_N
+
+
 def weight_kn_to_mass_t(weight_kn: float) -> float:
     """Floor weight [kN] to mass [t] with standard gravity (171.85 kN -> 17.524 t)."""
-    return weight_kn * 1000.0 / G_MM_S2
+    return kn_to_n(weight_kn) / G_MM_S2

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from reference_models import table1_stories
 
-from hlaid.ida import load_records
+from hlaid.io import read
 from hlaid.ida.intensity import get_intensity_measure
 from hlaid.model import Building
 from hlaid.opensees import run_opensees
@@ -77,7 +77,7 @@ def main(argv=None):
     ap.add_argument("--dt-factor", type=int, default=10)
     args = ap.parse_args(argv)
     b = building(args.stories, args.collapse)
-    motions = load_records("builtin-suite")[: args.records]
+    motions = read("builtin-suite", "records")[: args.records]
     T1 = float(b.periods()[0])
     sa = get_intensity_measure("sa_t1").compute(motions, T1, 0.05) / G_MM_S2
     stop = DRIFT_LIMIT * b.height

@@ -27,7 +27,8 @@ import numpy as np
 
 from hlaid.hla import HLAConfig, hla
 from hlaid.hla.config import ForceConfig
-from hlaid.motions import GroundMotion, read_motion
+from hlaid.io import read
+from hlaid.motions import GroundMotion
 from hlaid.simulate import simulate
 from hlaid.synthetic import load_simulation_config, simulate_measurement
 
@@ -44,7 +45,7 @@ def record(spec: str | None, seconds: float) -> GroundMotion:
     """The benchmark record at 200 Hz and PGA 0.62 g, cut or padded (free vibration) to ``seconds``."""
     if spec is None:
         spec = str(DEFAULT_RECORD) if DEFAULT_RECORD.is_file() else FALLBACK
-    gm = read_motion(spec).scaled_to_pga(PGA_G).resampled(RATE_HZ)
+    gm = read(spec, "motion").scaled_to_pga(PGA_G).resampled(RATE_HZ)
     n = int(round(seconds * RATE_HZ)) + 1
     acc = np.zeros(n)
     acc[: min(n, gm.npts)] = gm.acc[:n]

@@ -30,7 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from hlaid import _progress
-from hlaid.ida import ida, load_records, prepare_building
+from hlaid.ida import ida, prepare_building
+from hlaid.io import read
 from hlaid.ida.analysis import upsampled
 from hlaid.model import Building
 from hlaid.opensees import run_opensees_batch
@@ -85,7 +86,7 @@ def main(argv=None):
     threads = numba.config.NUMBA_NUM_THREADS
     _progress.set_verbosity(0)
     clone = Building.from_stories(TABLE1, name="table1", pdelta=False)
-    motions = load_records(a.records)
+    motions = read(a.records, "records")
     b, _ = prepare_building(clone)
     R, L = len(motions), LEVELS.size
     print(f"# bench_ida: Table 1 clone (P-Delta on), {R} records x {L} levels = {R * L} runs, "
@@ -171,14 +172,13 @@ def figures(res, out: Path):
 
     from hlaid.ida import intensity
     from hlaid.ida.plots import plot_exceedance, plot_fragility, plot_ida_curves
-    from hlaid.motions import read_motion
     from hlaid.plots import plt, save_figure
     out.mkdir(parents=True, exist_ok=True)
     save_figure(plot_ida_curves(res, title="IDA of the Table 1 clone (P-Delta), 44 far-field records"),
                 out / "ida_table1_curves.png")
     save_figure(plot_fragility(res), out / "ida_table1_fragility.png")
     save_figure(plot_exceedance(res), out / "ida_table1_exceedance.png")
-    gm = read_motion(DEFAULT_RECORDS.parent / "openseismomatlab" / "LomaPrietaHallsValley90.dat", units="m/s^2")
+    gm = read(DEFAULT_RECORDS.parent / "openseismomatlab" / "LomaPrietaHallsValley90.dat", "motion", units="m/s^2")
     sa0 = intensity(gm, "sa_t1", period=V.T)[0]
     levels = np.round(np.arange(0.05, 3.51, 0.05), 3)
     ref = np.array([bilinear_peak(gm.acc * (L / sa0), gm.dt, 50, V.M, V.K, V.ALPHA, V.UY,

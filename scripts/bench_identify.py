@@ -23,7 +23,7 @@ import numpy as np
 
 from hlaid import _progress
 from hlaid.identify import IdentifyConfig, TrainingConfig, classify, identify
-from hlaid.motions import read_motion
+from hlaid.io import read
 from hlaid.synthetic import load_simulation_config, simulate_measurement
 
 
@@ -42,7 +42,7 @@ def main(argv=None) -> int:
         return tall(args.stories)
     _progress.set_verbosity(0)
     b = load_simulation_config("configs/poc_3story.yaml").building.build()
-    meas = simulate_measurement(b, read_motion("builtin:elcentro-1940-ns").scaled_to_pga(0.62), noise_rms=0.1, seed=0)
+    meas = simulate_measurement(b, read("builtin:elcentro-1940-ns", "motion").scaled_to_pga(0.62), noise_rms=0.1, seed=0)
     rows = []
     with tempfile.TemporaryDirectory() as d:
         t1, res = run(meas, d)
@@ -82,7 +82,7 @@ def tall(n: int) -> int:
     u = np.linspace(0.0, 1.0, n)
     b = Building(mass=np.full(n, 20.0), k0=4e4 - 2.5e4 * u, alpha=0.1 + 0.2 * u, p=1.5 + u, dy=5.0 + 3.0 * u,
                  delta_eta=0.5 + u, name=f"{n}-story")
-    gm = scale_to_yield(b, read_motion("builtin:elcentro-1940-ns").resampled(200.0))
+    gm = scale_to_yield(b, read("builtin:elcentro-1940-ns", "motion").resampled(200.0))
     meas = simulate_measurement(b, gm, noise_rms=0.1, seed=0)
     t, res = run(meas, "")
     e = {k: np.abs(getattr(res.clone.building, k) / getattr(b, k) - 1) for k in ("k0", "alpha", "p", "dy", "delta_eta")}

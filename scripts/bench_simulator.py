@@ -29,7 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from hlaid.model import Building
-from hlaid.motions import GroundMotion, read_motion
+from hlaid.io import read
+from hlaid.motions import GroundMotion
 from hlaid.opensees import run_opensees_batch
 from hlaid.simulate import simulate
 
@@ -80,7 +81,7 @@ def main(argv=None):
     threads = numba.config.NUMBA_NUM_THREADS
     b = Building.from_stories(TABLE1, name="table1", pdelta=False)
     files = sorted(Path(a.records).glob("FF*.AT2"))[::2][:20]
-    motions = [thirty_seconds(read_motion(f)) for f in files]
+    motions = [thirty_seconds(read(f, "motion")) for f in files]
     scales = np.linspace(0.1, 1.0, 10)
     rows = np.array([scales * G / m.pga for m in motions])  # each record to PGA 0.1 ... 1.0 g
     print(f"# bench_simulator: Table 1, {len(motions)} records x {scales.size} scales, 30 s at 200 Hz, "

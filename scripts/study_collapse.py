@@ -23,7 +23,8 @@ from reference_models import table1_stories
 
 from hlaid import _progress
 from hlaid.clone import Clone
-from hlaid.ida import ida, load_records
+from hlaid.ida import ida
+from hlaid.io import read
 from hlaid.model import Building
 from hlaid.model.collapse import COLLAPSE_MODELS
 from hlaid.simulate.path import drive_story
@@ -127,7 +128,7 @@ def main(argv=None):
             b = b.replace(height=[3000.0] * b.n_stories)
     else:
         b = Building.from_stories(table1_stories(), height=[3000.0] * 3, name="table1")
-    motions = load_records(args.records)
+    motions = read(args.records, "records")
     print(f"{b.name or 'clone'}: {b.n_stories} stories, {len(motions)} records ({args.records}), IDA defaults, "
           "P-Delta on\n")
     print("| collapse model | median collapse Sa(T1) [g] | beta | runs | time [s] |")

@@ -22,9 +22,9 @@ import numpy as np
 from study_identification import RANDOM_RECORDS, TABLE1_RECORDS, random_building, scale_to_yield
 
 from hlaid.hla import hla
-from hlaid.hla import preprocess as pp
+from hlaid.signal import measured_ground
 from hlaid.identify.drift import hla_drift, reconstruct_drift
-from hlaid.motions import GroundMotion, read_motion
+from hlaid.io import read
 from hlaid.synthetic import load_simulation_config, simulate_measurement
 
 PARAMS = ("k0", "alpha", "p", "dy", "delta_eta")
@@ -40,7 +40,7 @@ def errors(x: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def case(building, gm, noise: float, seed: int) -> dict:
     meas = simulate_measurement(building, gm, noise_rms=noise, seed=seed)
     res = hla(meas)
-    ground = GroundMotion(dt=meas.dt, acc=pp.bandpass(np.asarray(meas.ground_acc), meas.dt, (0.0, res.band_hz[1])))
+    ground = measured_ground(meas, res.band_hz[1], name="")
     rng = np.random.default_rng(seed + 100)
     off = building.replace(**{k: getattr(building, k) * rng.uniform(0.9, 1.1, building.n_stories) for k in PARAMS})
     truth = meas.truth.drift
@@ -60,12 +60,12 @@ def main(argv=None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     t1 = load_simulation_config("configs/poc_3story.yaml").building.build()
-    jobs = [("table1", t1, read_motion(r).scaled_to_pga(0.62)) for r in TABLE1_RECORDS]
+    jobs = [("table1", t1, read(r, "motion").scaled_to_pga(0.62)) for r in TABLE1_RECORDS]
     rng = np.random.default_rng(2026)
     n = 0
     while n < args.n_random:
         b = random_building(rng)
-        gm = scale_to_yield(b, read_motion(RANDOM_RECORDS[n % len(RANDOM_RECORDS)]))
+        gm = scale_to_yield(b, read(RANDOM_RECORDS[n % len(RANDOM_RECORDS)], "motion"))
         if gm is not None:
             jobs.append(("random", b, gm))
             n += 1

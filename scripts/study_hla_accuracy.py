@@ -36,7 +36,8 @@ from hlaid._fileio import write_json  # noqa: E402
 from hlaid.config import config_to_dict, load_config  # noqa: E402
 from hlaid.errors import InputError  # noqa: E402
 from hlaid.hla import HLAConfig  # noqa: E402
-from hlaid.motions import GroundMotion, read_motion  # noqa: E402
+from hlaid.io import read  # noqa: E402
+from hlaid.motions import GroundMotion  # noqa: E402
 from hlaid.simulate import simulate  # noqa: E402
 from hlaid.studies.hla_accuracy import accuracy_study, summarise  # noqa: E402
 from hlaid.synthetic import load_simulation_config  # noqa: E402
@@ -55,12 +56,12 @@ RATE_HZ = 200.0
 def find_record(token: str, root: Path = GROUND_MOTIONS) -> GroundMotion:
     """A record by path, ``builtin:NAME``, or a unique part of an AT2 file name under ``root``."""
     if token.startswith("builtin:") or Path(token).is_file():
-        return read_motion(token)
+        return read(token, "motion")
     hits = sorted(p for p in root.rglob("*.AT2") if token.lower() in p.name.lower()) if root.is_dir() else []
     if len(hits) != 1:
         found = ", ".join(p.name for p in hits[:6]) or "none"
         raise InputError(f"record '{token}': expected one AT2 file under {root} whose name contains it, found {found}")
-    return read_motion(hits[0])
+    return read(hits[0], "motion")
 
 
 def ductility(building, motions) -> dict[str, np.ndarray]:

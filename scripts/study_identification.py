@@ -24,7 +24,7 @@ import numpy as np
 from hlaid import _progress
 from hlaid.identify import IdentifyConfig, identify
 from hlaid.model import Building
-from hlaid.motions import read_motion
+from hlaid.io import read
 from hlaid.simulate import simulate
 from hlaid.synthetic import load_simulation_config, simulate_measurement
 
@@ -110,13 +110,13 @@ def main(argv=None) -> int:
     rows = []
     if args.part == "table1":
         truth = load_simulation_config("configs/poc_3story.yaml").building.build()
-        jobs = [(truth, read_motion(r).scaled_to_pga(0.62), s) for r in TABLE1_RECORDS for s in args.seeds]
+        jobs = [(truth, read(r, "motion").scaled_to_pga(0.62), s) for r in TABLE1_RECORDS for s in args.seeds]
     else:
         rng = np.random.default_rng(2026)
         jobs = []
         while len(jobs) < args.n_random:
             b = random_building(rng)
-            gm = scale_to_yield(b, read_motion(RANDOM_RECORDS[len(jobs) % len(RANDOM_RECORDS)]))
+            gm = scale_to_yield(b, read(RANDOM_RECORDS[len(jobs) % len(RANDOM_RECORDS)], "motion"))
             if gm is not None:
                 jobs.append((b, gm, len(jobs)))
     for j, (truth, gm, seed) in enumerate(jobs):

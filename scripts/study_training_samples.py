@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from hlaid.config import load_config
-from hlaid.hla import preprocess as pp
+from hlaid.signal import lowpass, measured_ground
 from hlaid.identify.classify import make_svc
 from hlaid.identify.svmtrain import TrainSVMConfig, pass_bins
 from hlaid.identify.tb import TBLogger
@@ -59,7 +59,7 @@ def main(argv=None) -> int:
         tcfg = dataclasses.replace(tcfg, spread=args.spread)
     b = cfg.building.build()
     gm = cfg.motion.load(Path(args.config).parent).resampled(200.0)
-    ground = strong_motion_window(GroundMotion(dt=gm.dt, acc=pp.bandpass(gm.acc, gm.dt, (0.0, 20.0))),
+    ground = strong_motion_window(GroundMotion(dt=gm.dt, acc=lowpass(gm.acc, gm.dt, 20.0)),
                                   tcfg.arias_fraction, tcfg.tail_s)
     bins = pass_bins(b, cfg.alpha_max, cfg.identify, "coarse")
     need = int(max(args.sizes) / (1 - tcfg.test_fraction)) + 1
@@ -149,7 +149,7 @@ def path_sets(cfg, noise: float, spread: float, n: int, seed: int):
     gm = cfg.motion.load(None)
     meas = simulate_measurement(b, gm, noise_rms=noise, seed=seed)
     res = hla(meas, cfg.identify.hla)
-    ground = GroundMotion(dt=meas.dt, acc=pp.bandpass(np.asarray(meas.ground_acc), meas.dt, (0.0, res.band_hz[1])))
+    ground = measured_ground(meas, res.band_hz[1], name="")
     paths = reconstruct_drift(res, ground, b, crossover_hz=cfg.identify.training.crossover_hz)
     bins = pass_bins(b, cfg.alpha_max, cfg.identify, "coarse")
     tc = cfg.identify.training

@@ -34,7 +34,7 @@ from study_identification import RANDOM_RECORDS, random_building, scale_to_yield
 
 from hlaid import _progress
 from hlaid.identify import IdentifyConfig, identify
-from hlaid.motions import read_motion
+from hlaid.io import read
 from hlaid.synthetic import load_simulation_config, simulate_measurement
 from hlaid.uncertainty import calibration_factor, parametric_bootstrap, zscores
 from hlaid.uncertainty.laplace import METHODS, MISFIT_LIMIT, from_refinement, noise_residual_rms
@@ -50,7 +50,7 @@ def cases(which: str, n: int):
     out = []
     while len(out) < n:
         b = random_building(rng)
-        gm = scale_to_yield(b, read_motion(RANDOM_RECORDS[len(out) % len(RANDOM_RECORDS)]))
+        gm = scale_to_yield(b, read(RANDOM_RECORDS[len(out) % len(RANDOM_RECORDS)], "motion"))
         if gm is not None:
             out.append((b, gm, SET_SEEDS[which] + len(out)))
     return out
@@ -205,7 +205,7 @@ def bootstrap(args) -> None:
     rows = []
     cfg = IdentifyConfig()
     truth = load_simulation_config("configs/poc_3story.yaml").building.build()
-    jobs = [(truth, read_motion(r).scaled_to_pga(0.62), 0) for r in BOOT_RECORDS[: args.n_boot_cases]]
+    jobs = [(truth, read(r, "motion").scaled_to_pga(0.62), 0) for r in BOOT_RECORDS[: args.n_boot_cases]]
     for j, (truth, gm, seed) in enumerate(jobs):
         meas = simulate_measurement(truth, gm, noise_rms=0.10, seed=seed)
         res = identify(meas, cfg, cache_dir=args.cache)

@@ -218,12 +218,12 @@ def test_hostile_clone_name_runs_no_code_in_the_exported_script(tmp_path, capsys
 
 def test_identify_names_the_clone_after_the_file_and_the_name_stays_data(tmp_path, meas_file):
     """``hlaid identify`` names the clone after the measurement file: a hostile file name is only data."""
-    from hlaid.io_dispatch import read_measurement_any
+    from hlaid.io import read
     from hlaid.opensees import opensees_script
     meas, _ = meas_file
     hostile = tmp_path / 'b""";import os;os.system("touch X");""".npz'
     hostile.write_bytes(meas.read_bytes())
-    m = read_measurement_any(hostile)
+    m = read(hostile, "measurement")
     assert m.name == 'b""";import os;os.system("touch X");"""'
     import ast
     tree = ast.parse(opensees_script(m.truth.building.replace(name=m.name)))
@@ -308,13 +308,13 @@ def test_input_at_fault_is_status_2(tmp_path, capsys, meas_file, clone_file):
 
 
 def test_unusual_sample_rate_warns(tmp_path, capsys, meas_file):
-    from hlaid.io_dispatch import read_measurement_any
+    from hlaid.io import read
     _, m = meas_file
     fast = _npz(tmp_path / "fast.npz", dt=1e-4, ground_acc=m.ground_acc, floor_acc=m.floor_acc, mass=m.mass)
-    read_measurement_any(fast)
+    read(fast, "measurement")
     err = capsys.readouterr().err
     assert "warning" in err and "10000 Hz" in err and "fast.npz" in err
-    read_measurement_any(_npz(tmp_path / "usual.npz", dt=0.005, ground_acc=m.ground_acc, floor_acc=m.floor_acc))
+    read(_npz(tmp_path / "usual.npz", dt=0.005, ground_acc=m.ground_acc, floor_acc=m.floor_acc), "measurement")
     assert capsys.readouterr().err == ""
 
 
@@ -562,9 +562,9 @@ def test_messages_do_not_echo_unrelated_files(tmp_path, capsys, clone_file):
             stderr.append(err.replace(str(tmp_path), "<tmp>"))
         for fmt in ("csv", "npz", "columns", "steel-frame", "mini-shake-table", "smc", "csmip"):
             from hlaid.errors import InputError
-            from hlaid.io import read_any
+            from hlaid.io import read
             try:
-                read_any(f, format=fmt)
+                read(f, "measurement", format=fmt)
             except InputError as err:
                 stderr.append(str(err).replace(str(tmp_path), "<tmp>"))
     seen = " ".join(stderr)

@@ -12,7 +12,7 @@ import pytest
 from conftest import REPO
 
 from hlaid.cli.main import main
-from hlaid.measurement import read_measurement
+from hlaid.io.native import read_native
 
 POC = REPO / "configs" / "poc_3story.yaml"
 
@@ -50,7 +50,7 @@ def test_simulate_writes_the_documented_keys(tmp_path, capsys):
             assert z[k].shape == (n, 3)
         params = json.loads(str(z["true_params"]))
     assert [s["k0"] for s in params["stories"]] == [1.94e4, 1.65e4, 1.37e4]
-    m = read_measurement(out)
+    m = read_native(out)
     assert m.truth is not None and m.noise_rms == 0.10
     assert np.abs(m.ground_acc).max() == pytest.approx(0.62 * 9806.65, rel=0.5)  # noisy 0.62 g record
     assert "wrote" in capsys.readouterr().err
@@ -70,7 +70,7 @@ def test_seed_controls_the_noise(tmp_path):
 def test_csv_output(tmp_path):
     out = tmp_path / "meas.csv"
     assert main(["simulate", _short_config(tmp_path), "-o", str(out), "-q"]) == 0
-    m = read_measurement(out)
+    m = read_native(out)
     assert m.n_floors == 3 and m.dt == 0.005 and m.truth is not None
 
 
@@ -83,7 +83,7 @@ def test_existing_output_needs_force(tmp_path, capsys):
     assert lines == [f"hlaid simulate: error: {out}: already exists; use --force to overwrite"]
     assert out.read_bytes() == b"precious"
     assert main(["simulate", cfg, "-o", str(out), "--force", "-q"]) == 0
-    assert read_measurement(out).n_floors == 3
+    assert read_native(out).n_floors == 3
 
 
 @pytest.mark.parametrize("replace,match", [

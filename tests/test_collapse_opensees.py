@@ -79,7 +79,7 @@ def _collapse_im(collapses, im=0.5, factor=1.5, n_bisect=5):
 @pytest.mark.slow
 def test_median_collapse_intensity_within_2_percent_of_opensees(table1):
     """5 records, collapse scale (drift > 10 % or no convergence) found by the same search in both."""
-    from hlaid.ida import load_records
+    from hlaid.io import read
     b = _clone(table1)
     stop = 0.1 * b.height
     ours, theirs = [], []
@@ -91,7 +91,7 @@ def test_median_collapse_intensity_within_2_percent_of_opensees(table1):
         r = _os(b, gm, s)
         return not r.ok or bool(np.any(r.peak_drift > stop))
 
-    for gm in load_records("builtin-suite")[:5]:
+    for gm in read("builtin-suite", "records")[:5]:
         ours.append(_collapse_im(lambda s, gm=gm: hlaid_collapses(gm, s)))
         theirs.append(_collapse_im(lambda s, gm=gm: opensees_collapses(gm, s)))
     ours, theirs = np.array(ours), np.array(theirs)

@@ -125,10 +125,10 @@ def test_strongly_hardening_degraded_story_is_yielded(record, delta_eta):
     """alpha = 0.42 at ductility ~12-20: the half cycles end near the *degraded* ke (which has fallen
     towards alpha k0), but far below the undegraded one; the yield test must see it. Half as strong
     (peak drift 0.5 dy), the same building is elastic."""
-    from hlaid import Building, read_motion, simulate
+    from hlaid import Building, read, simulate
     b = Building(mass=[20.0, 15.0], k0=[2.0e4, 1.6e4], alpha=[0.42, 0.42], p=[2.0, 2.0], dy=[4.0, 4.0],
                  delta_eta=[delta_eta, delta_eta])
-    gm = read_motion(record)
+    gm = read(record, "motion")
     mu = (simulate(b, gm, 1.0, outputs="peaks").peak_drift[0] / b.dy).max()
     strong = simulate_measurement(b, gm.scaled(12.0 / mu), noise_rms=0.10, seed=0)
     assert (np.abs(strong.truth.drift).max(axis=0) > 8 * b.dy).all()
@@ -199,11 +199,11 @@ def test_cli_bad_file(tmp_path, capsys):
 @pytest.mark.slow
 def test_hla_accuracy_study(table1, data_dir):
     """Issue 3: Table 1, 10 % noise, 5 real records x 3 seeds at 0.62 g."""
-    from hlaid.motions import read_motion
+    from hlaid.io import read
     ff = data_dir / "ground_motions" / "fema_p695_farfield"
     files = ["FF02_RSN960_NORTHR_LOS270.AT2", "FF05_RSN169_IMPVALL_H-DLT352.AT2", "FF07_RSN1111_KOBE_NIS090.AT2",
              "FF13_RSN752_LOMAP_CAP090.AT2", "FF22_RSN125_FRIULI_A-TMZ000.AT2"]
-    s = summarise(accuracy_study(table1, [read_motion(ff / f) for f in files], (0, 1, 2)))
+    s = summarise(accuracy_study(table1, [read(ff / f, "motion") for f in files], (0, 1, 2)))
     assert s["ke_median"]["mean"] < 0.03
     assert s["force_nrmse"]["worst"] < 0.05
     assert s["k0"]["mean"] < 0.05

@@ -16,7 +16,8 @@ import pytest
 
 from hlaid.clone import Clone
 from hlaid.errors import InputError
-from hlaid.ida import IDAResult, ida, load_records, prepare_building, scan_collapse
+from hlaid.ida import IDAResult, ida, prepare_building, scan_collapse
+from hlaid.io import read
 from hlaid.model import Building
 from hlaid.motions import GroundMotion, load_builtin
 from hlaid.simulate import simulate
@@ -170,12 +171,12 @@ def test_bad_input(table1, motions, tmp_path, capsys):
         with resources.as_file(resources.files("hlaid").joinpath("data/records/elcentro-1940-ns.AT2.gz")) as p:
             fh.write(gzip.decompress(p.read_bytes()).decode())
     (folder / "broken.AT2").write_text("not\nan\nAT2\nfile\n1 2 3\n")
-    recs = load_records(folder)
+    recs = read(folder, "records")
     err = capsys.readouterr().err
     assert [m.name for m in recs] == ["good"] and "skipped 1 unreadable record(s)" in err and "broken.AT2" in err
     (folder / "good.AT2").unlink()
     with pytest.raises(InputError, match="none of the 1 record file"):
-        load_records(folder)
+        read(folder, "records")
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"format": "something-else"}))
     with pytest.raises(InputError, match="not an hlaid clone"):

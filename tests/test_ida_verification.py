@@ -27,7 +27,7 @@ from conftest import GROUND_MOTIONS, requires_data
 
 from hlaid.ida import ida, intensity
 from hlaid.model import Building
-from hlaid.motions import read_motion
+from hlaid.io import read
 
 G = 9806.65
 T, XI, ALPHA, UY, M = 1.0, 0.05, 0.01, 250.0, 1.0
@@ -71,7 +71,7 @@ def bilinear_peak(ag, dt, nsub, m, k, alpha, uy, c):
 
 @pytest.fixture(scope="module")
 def curves():
-    gm = read_motion(GROUND_MOTIONS / "openseismomatlab" / "LomaPrietaHallsValley90.dat", units="m/s^2")
+    gm = read(GROUND_MOTIONS / "openseismomatlab" / "LomaPrietaHallsValley90.dat", "motion", units="m/s^2")
     sa0 = intensity(gm, "sa_t1", period=T)[0]
     ref = np.array([bilinear_peak(gm.acc * (L / sa0), gm.dt, 50, M, K, ALPHA, UY, 2 * XI * (2 * np.pi / T) * M)
                     for L in LEVELS]) / UY

@@ -18,7 +18,7 @@ from scipy import io as sio
 from scipy import signal
 
 from hlaid.errors import InputError
-from hlaid.io import hotel_events, read_any, read_hotel
+from hlaid.io import hotel_events, read, read_hotel
 from hlaid.io._common import spectral_second_derivative
 
 MAT = ("phycnn_6story_hotel", "data_exp.mat")
@@ -94,7 +94,7 @@ def test_first_mode_and_shape_ratio_are_the_same_in_every_event(events):
 def test_errors(tmp_path):
     path = data_path(*MAT)
     with pytest.raises(InputError, match="give event="):
-        read_any(path)
+        read(path, "measurement")
     with pytest.raises(InputError, match="no event 22"):
         read_hotel(path, 22)
     with pytest.raises(InputError, match="unknown length unit"):

@@ -21,7 +21,7 @@ from io_checks import smc_text, v2_text
 from hlaid.errors import InputError
 from hlaid.io import (read_columns, read_csmip_channels, read_hotel, read_mini_shake_table, read_smc_channel,
                       read_steel_frame)
-from hlaid.motions import read_at2, read_csv, read_text
+from hlaid.io.motion import read_at2, read_csv_record, read_text_record
 from hlaid.units import G_MM_S2
 
 SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -73,8 +73,8 @@ _TXT = "# dt=0.01 units g\n" + "\n".join(f"{i * 0.01:.2f} {0.01 * i:.4f}" for i 
 _CSV = "time,acc (g)\n" + "\n".join(f"{i * 0.01:.2f},{0.01 * i:.4f}" for i in range(20)) + "\n"
 MOTION_READERS = {
     "at2": ("f.at2", read_at2, _AT2),
-    "text": ("f.txt", lambda p: read_text(p), _TXT),
-    "csv": ("f.csv", lambda p: read_csv(p), _CSV),
+    "text": ("f.txt", lambda p: read_text_record(p), _TXT),
+    "csv": ("f.csv", lambda p: read_csv_record(p), _CSV),
 }
 
 _ALPHABET = "0123456789.-+eEdD ,\n\t=|#%()[]<>xX_:"
@@ -116,9 +116,9 @@ def test_motion_readers_garbage_gives_input_error(kind, data):
 
 @pytest.mark.parametrize("read, name, text", [
     (read_at2, "d.at2", _AT2.replace("DT=   .0100", "DT=   .01D00")),          # Fortran exponent in DT
-    (read_text, "d.txt", _TXT.replace("dt=0.01", "dt=0.1d-1")),                # ... in a dt= hint
-    (read_csv, "e.csv", _CSV + "0.20,\n"),                                     # empty last field
-    (read_csv, "s.csv", _CSV.replace("0.05,0.0500", "0.05,0.05 00")),          # blank inside a field
+    (read_text_record, "d.txt", _TXT.replace("dt=0.01", "dt=0.1d-1")),                # ... in a dt= hint
+    (read_csv_record, "e.csv", _CSV + "0.20,\n"),                                     # empty last field
+    (read_csv_record, "s.csv", _CSV.replace("0.05,0.0500", "0.05,0.05 00")),          # blank inside a field
 ], ids=["at2-D-exponent", "text-d-exponent", "csv-empty-field", "csv-space-in-field"])
 def test_motion_reader_cases_found_by_fuzzing(read, name, text):
     """Each of these once raised a bare ValueError from deep inside hlaid.motions."""
@@ -149,10 +149,10 @@ def test_motion_formats_round_trip(acc, dt):
     np.testing.assert_allclose(m.acc, a * G_MM_S2, rtol=1e-6, atol=1e-6)
     assert m.dt == dt
     t = np.arange(len(a)) * dt
-    m = read_text(_write("r.txt", "\n".join(f"{ti:.6f} {v:.8e}" for ti, v in zip(t, a))), units="m/s^2")
+    m = read_text_record(_write("r.txt", "\n".join(f"{ti:.6f} {v:.8e}" for ti, v in zip(t, a))), units="m/s^2")
     np.testing.assert_allclose(m.acc, a * 1000, rtol=1e-7)
     assert m.dt == pytest.approx(dt)
-    m = read_csv(_write("r.csv", "time,acc (cm/s^2)\n" + "\n".join(f"{ti:.6f},{v:.8e}" for ti, v in zip(t, a))))
+    m = read_csv_record(_write("r.csv", "time,acc (cm/s^2)\n" + "\n".join(f"{ti:.6f},{v:.8e}" for ti, v in zip(t, a))))
     np.testing.assert_allclose(m.acc, a * 10, rtol=1e-7)
 
 

@@ -24,7 +24,7 @@ from hlaid.clone import Clone
 from hlaid.errors import InputError
 from hlaid.identify.cache import MachineCache
 from hlaid.limits import DEFAULTS, check_archive, limit
-from hlaid.motions import read_motion
+from hlaid.io import read
 
 REPO = Path(__file__).resolve().parents[1]
 POC = (REPO / "configs" / "poc_3story.yaml").read_text()
@@ -138,7 +138,7 @@ def test_gzip_and_npz_are_limited_by_their_inflated_size(tmp_path, monkeypatch):
     rec.write_bytes(gzip.compress(b"# dt=0.01 units: g\n" + b"0.0\n" * 100_000))
     assert rec.stat().st_size < 2**20 * 0.05
     with pytest.raises(InputError, match="holds more than the limit of 0.05 MiB"):
-        read_motion(rec)
+        read(rec, "motion")
     npz = tmp_path / "m.npz"
     np.savez_compressed(npz, ground_acc=np.zeros(100_000))
     with pytest.raises(InputError, match="inflates to 0.763 MiB, over the limit of 0.05 MiB"):

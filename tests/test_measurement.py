@@ -8,7 +8,8 @@ import pytest
 from conftest import window
 
 from hlaid.errors import InputError
-from hlaid.measurement import TRUTH_FIELDS, Measurement, read_measurement
+from hlaid.io.native import read_native
+from hlaid.measurement import TRUTH_FIELDS, Measurement
 from hlaid.motions import load_builtin
 from hlaid.simulate import simulate
 from hlaid.synthetic import add_noise, simulate_measurement
@@ -94,7 +95,7 @@ def test_round_trip_simulated(tmp_path, table1, noisy, suffix):
                      height=np.array([3000.0, 3000.0, 3500.0]), pdelta=False, noise_rms=m.noise_rms,
                      truth=type(m.truth)(building=table1, **{k: getattr(m.truth, k)[:3000] for k in TRUTH_FIELDS}))
     path = m2.save(tmp_path / f"meas{suffix}")
-    back = read_measurement(path)
+    back = read_native(path)
     _assert_same(m2, back)
     assert back.source == str(path) and back.name == "meas"
 
@@ -105,7 +106,7 @@ def test_round_trip_real_layout(tmp_path, suffix):
     rng = np.random.default_rng(5)
     m = Measurement(dt=1 / 256, ground_acc=rng.normal(0, 500, 400), floor_acc=rng.normal(0, 900, (400, 2)),
                     floor_disp=rng.normal(0, 5, (400, 2)), source="lab")
-    back = read_measurement(m.save(tmp_path / f"lab{suffix}"))
+    back = read_native(m.save(tmp_path / f"lab{suffix}"))
     _assert_same(m, back)
     assert back.mass is None and not back.mass_known and back.truth is None
 
@@ -145,15 +146,15 @@ def test_measurement_validation(change, match):
 
 def test_unreadable_files(tmp_path):
     with pytest.raises(InputError, match="file not found"):
-        read_measurement(tmp_path / "none.npz")
+        read_native(tmp_path / "none.npz")
     bad = tmp_path / "bad.npz"
     bad.write_text("not a zip")
     with pytest.raises(InputError, match="not a readable NPZ"):
-        read_measurement(bad)
+        read_native(bad)
     partial = tmp_path / "partial.npz"
     np.savez(partial, dt=0.01, ground_acc=np.ones(100))
     with pytest.raises(InputError, match="missing field 'floor_acc'") as err:
-        read_measurement(partial)
+        read_native(partial)
     assert str(err.value).startswith(str(partial))
 
 
@@ -170,7 +171,7 @@ def test_malformed_csv(tmp_path, text, match):
     p = tmp_path / "m.csv"
     p.write_text(text)
     with pytest.raises(InputError, match=match) as err:
-        read_measurement(p)
+        read_native(p)
     assert str(err.value).startswith(str(p) + ": ") and "\n" not in str(err.value)
 
 

@@ -11,7 +11,8 @@ import pytest
 from conftest import GROUND_MOTIONS, ON_CI, requires_data
 
 from hlaid.errors import InputError
-from hlaid.motions import GroundMotion, builtin_records, builtin_suite, load_builtin, read_motion
+from hlaid.io import read
+from hlaid.motions import GroundMotion, builtin_records, builtin_suite, load_builtin
 from hlaid.units import G_MM_S2
 
 # Text files whose header does not state units or dt (README section 1d/1e): what the README says.
@@ -33,7 +34,7 @@ def test_every_real_record_parses(path):
     kw = _TEXT_HINTS.get(path.name, {})
     columns = [0, 1] if path.parent.name == "basei_benchmark_7records" else [None]
     for col in columns:
-        gm = read_motion(path, column=col, **kw)
+        gm = read(path, "motion", column=col, **kw)
         assert gm.npts > 500 and 0.002 <= gm.dt <= 0.02
         assert 0.02 < gm.pga_g < 1.5 and np.isfinite(gm.acc).all()
         assert gm.source == str(path) and gm.name == path.name.rsplit(".", 1)[0]
@@ -46,7 +47,7 @@ def test_text_reader_pga_against_readme():
     readme = {"elcentro.txt": (0.313, 0.215), "kobe.txt": (0.841, 0.631), "jiji.txt": (0.512, 0.369)}
     for name, pgas in readme.items():
         for col, pga in enumerate(pgas):
-            gm = read_motion(d / name, column=col)
+            gm = read(d / name, "motion", column=col)
             assert gm.dt == 0.005
             assert gm.pga_g == pytest.approx(pga, abs=1e-3)
 
@@ -59,7 +60,7 @@ def test_fema_p695_pga_npts_dt_match_the_table():
     assert len(rows) == 44
     errs = []
     for row in rows:
-        gm = read_motion(folder / row["file"])
+        gm = read(folder / row["file"], "motion")
         assert gm.npts == int(row["npts"]) and gm.dt == pytest.approx(float(row["dt"]), rel=1e-12)
         errs.append(abs(gm.pga_g / float(row["pga_g"]) - 1.0))
     assert max(errs) <= 0.005, max(errs)  # measured: worst 1.9e-4 (the table has 4 digits)
@@ -67,14 +68,14 @@ def test_fema_p695_pga_npts_dt_match_the_table():
 
 @requires_data
 def test_time_column_and_csv_readers():
-    osm = read_motion(GROUND_MOTIONS / "openseismomatlab" / "Northridge_Sylmar_County.dat", units="m/s^2")
+    osm = read(GROUND_MOTIONS / "openseismomatlab" / "Northridge_Sylmar_County.dat", "motion", units="m/s^2")
     assert osm.dt == pytest.approx(0.02) and osm.npts == 3000
     assert osm.pga == pytest.approx(8.268e3, rel=1e-3)  # README: 8.268 m/s^2
-    chopra = read_motion(GROUND_MOTIONS / "classic_peer_at2" / "elcentro_chopra_appendix6.csv")
+    chopra = read(GROUND_MOTIONS / "classic_peer_at2" / "elcentro_chopra_appendix6.csv", "motion")
     assert chopra.dt == pytest.approx(0.02) and chopra.npts == 1560
     assert chopra.pga_g == pytest.approx(0.3188, abs=1e-4)
     with pytest.raises(InputError, match="dt = 0.01 s given but the time column steps by 0.02"):
-        read_motion(GROUND_MOTIONS / "openseismomatlab" / "Northridge_Sylmar_County.dat", units="m/s^2", dt=0.01)
+        read(GROUND_MOTIONS / "openseismomatlab" / "Northridge_Sylmar_County.dat", "motion", units="m/s^2", dt=0.01)
 
 
 def test_builtin_records():
@@ -83,9 +84,9 @@ def test_builtin_records():
     assert len(suite) == 10 and len(recs) == 11
     for gm in suite + [load_builtin("elcentro-1940-ns")]:
         assert gm.source.startswith("builtin:") and gm.npts > 1000 and 0.1 < gm.pga_g < 1.0
-    assert read_motion("builtin:kocaeli-1999-dzc180").pga_g == pytest.approx(0.3121, abs=1e-4)
+    assert read("builtin:kocaeli-1999-dzc180", "motion").pga_g == pytest.approx(0.3121, abs=1e-4)
     with pytest.raises(InputError, match="unknown built-in record 'elcentro'"):
-        read_motion("builtin:elcentro")
+        read("builtin:elcentro", "motion")
 
 
 @requires_data
@@ -94,7 +95,7 @@ def test_builtin_records_are_the_real_files():
              "kocaeli-1999-dzc180": "fema_p695_farfield/FF09_RSN1158_KOCAELI_DZC180.AT2",
              "northridge-1994-mul009": "fema_p695_farfield/FF01_RSN953_NORTHR_MUL009.AT2"}
     for name, rel in pairs.items():
-        a, b = load_builtin(name), read_motion(GROUND_MOTIONS / rel)
+        a, b = load_builtin(name), read(GROUND_MOTIONS / rel, "motion")
         assert a.dt == b.dt
         np.testing.assert_array_equal(a.acc, b.acc)
 
@@ -186,14 +187,14 @@ def _at2(tmp_path, name, npts_line, values):
 def test_malformed_at2(tmp_path, name, npts_line, values, match):
     p = _at2(tmp_path, name, npts_line, values)
     with pytest.raises(InputError, match=match) as err:
-        read_motion(p)
+        read(p, "motion")
     msg = str(err.value)
     assert msg.startswith(str(p) + ": ") and "\n" not in msg
 
 
 def test_old_at2_layout(tmp_path):
     p = _at2(tmp_path, "old.AT2", "   10    0.0100    NPTS, DT", "1 2 3 4 5\n6 7 8 9 10")
-    gm = read_motion(p)
+    gm = read(p, "motion")
     assert gm.npts == 10 and gm.dt == 0.01 and gm.acc[-1] == pytest.approx(10 * G_MM_S2)
 
 
@@ -214,7 +215,7 @@ def test_malformed_text(tmp_path, content, kwargs, match):
     p = tmp_path / "rec.txt"
     p.write_text(content)
     with pytest.raises(InputError, match=match) as err:
-        read_motion(p, **kwargs)
+        read(p, "motion", **kwargs)
     assert str(err.value).startswith(str(p) + ": ") and "\n" not in str(err.value)
 
 
@@ -228,21 +229,21 @@ def test_malformed_csv(tmp_path, content, match):
     p = tmp_path / "rec.csv"
     p.write_text(content)
     with pytest.raises(InputError, match=match) as err:
-        read_motion(p)
+        read(p, "motion")
     assert str(err.value).startswith(str(p) + ": ")
 
 
 def test_fortran_exponents_and_header_hints(tmp_path):
     at2 = _at2(tmp_path, "d.AT2", "NPTS=   10, DT=   .1D-01 SEC", "1 2 3 4 5\n6 7 8 9 1.0D+01")
-    gm = read_motion(at2)
+    gm = read(at2, "motion")
     assert gm.dt == 0.01 and gm.acc[-1] == pytest.approx(10 * G_MM_S2)
     txt = tmp_path / "hint.txt"
     txt.write_text("% Acc. in cm/sec^2 and dt=0.5d-2 sec.\n" + "".join(f"{(-1) ** i * i} {-i}\n" for i in range(10)))
-    gm = read_motion(txt, column=1)  # two channels (no time column): dt and units from the comment
+    gm = read(txt, "motion", column=1)  # two channels (no time column): dt and units from the comment
     assert gm.dt == 0.005 and gm.acc[3] == pytest.approx(-30.0)  # cm/s^2 -> mm/s^2
     units = tmp_path / "units.txt"
     units.write_text("# units: g\n" + "".join(f"{5.0 + 0.02 * i:.2f} {0.01 * i}\n" for i in range(10)))
-    gm = read_motion(units)  # a time column that starts at 5 s: the record starts at its first sample
+    gm = read(units, "motion")  # a time column that starts at 5 s: the record starts at its first sample
     assert gm.dt == pytest.approx(0.02) and gm.npts == 10 and gm.acc[1] == pytest.approx(0.01 * G_MM_S2)
 
 
@@ -252,26 +253,26 @@ def test_csv_fields_must_be_numbers(tmp_path, row, match):
     p = tmp_path / "rec.csv"
     p.write_text("time,acc (g)\n" + "".join(f"{0.01 * i:.2f},{0.1 * i}\n" for i in range(5)) + row + "\n")
     with pytest.raises(InputError, match=re.escape(match)) as err:
-        read_motion(p)
+        read(p, "motion")
     assert str(err.value).startswith(str(p) + ": ")
 
 
 def test_missing_and_binary_files(tmp_path):
     with pytest.raises(InputError, match="file not found"):
-        read_motion(tmp_path / "nothing.AT2")
+        read(tmp_path / "nothing.AT2", "motion")
     p = tmp_path / "noise.AT2"
     p.write_bytes(bytes(range(256)) * 4)
     with pytest.raises(InputError, match="binary file"):
-        read_motion(p)
+        read(p, "motion")
     with pytest.raises(InputError, match="unknown record format 'mseed'"):
-        read_motion(tmp_path / "x.AT2", format="mseed")
+        read(tmp_path / "x.AT2", "motion", format="mseed")
 
 
 def test_gzipped_and_named_records(tmp_path):
     import gzip
     p = tmp_path / "RSN1.X_Y-Z180.AT2.gz"
     p.write_bytes(gzip.compress((_HEADER + "NPTS=   10, DT=   .0100 SEC\n1 2 3 4 5\n6 7 8 9 10\n").encode()))
-    gm = read_motion(p)
+    gm = read(p, "motion")
     assert gm.name == "RSN1.X_Y-Z180" and gm.npts == 10
 
 

@@ -78,8 +78,8 @@ def test_exported_script_runs_standalone(table1, tmp_path, data_dir):
                        capture_output=True, text=True, timeout=300, cwd=tmp_path, check=False)
     assert p.returncode == 0, p.stderr
     peaks = json.loads(out.read_text())
-    from hlaid.motions import read_motion
-    gm = read_motion(rec).scaled_to_pga(0.62)
+    from hlaid.io import read
+    gm = read(rec, "motion").scaled_to_pga(0.62)
     ref = run_opensees(b, gm, dt_factor=10)
     assert np.allclose(peaks["peak_drift_mm"], ref.peak_drift, rtol=1e-9)
     assert np.allclose(peaks["peak_drift_ratio"], ref.peak_drift / 3000.0, rtol=1e-9)
@@ -112,9 +112,10 @@ def _compare(res, motions):
 @pytest.mark.slow
 def test_ida_cross_check_full(table1, data_dir):
     """10 far-field records x 8 levels: median |difference| of the peak drifts below 2 %."""
-    from hlaid.ida import ida, load_records
+    from hlaid.ida import ida
+    from hlaid.io import read
     files = sorted((data_dir / "ground_motions" / "fema_p695_farfield").glob("FF*.AT2"))[::4][:10]
-    motions = load_records(files)
+    motions = read(files, "records")
     res = ida(table1, motions, levels=np.linspace(0.5, 4.0, 8), refine=False, heights=HEIGHTS)
     diffs = _compare(res, motions)
     assert np.median(diffs) < 0.02

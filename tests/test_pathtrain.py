@@ -11,7 +11,7 @@ import pytest
 from conftest import paper_record, random_building, window
 
 from hlaid.hla import hla
-from hlaid.hla import preprocess as pp
+from hlaid.signal import bandpass
 from hlaid.hla.halfcycles import half_cycle_bounds
 from hlaid.hla.stiffness import segment_slopes
 from hlaid.identify.drift import hla_drift, reconstruct_drift
@@ -108,7 +108,7 @@ def test_measured_and_simulated_features_through_one_function(table1):
     Sn = path_training_set(noisy, k0=table1.k0[i], dy=table1.dy[i], delta_eta=table1.delta_eta[i],
                            alpha_range=(table1.alpha[i],) * 2, p_range=(table1.p[i],) * 2, n_samples=400,
                            spread=0.0, seed=1)
-    direct = story_features(sp.operator, pp.bandpass(np.random.default_rng(2).standard_normal((sp.end, 400)) * 1e3,
+    direct = story_features(sp.operator, bandpass(np.random.default_rng(2).standard_normal((sp.end, 400)) * 1e3,
                                                        sp.dt, (0.0, 20.0)), sp.k0)
     sd_model, sd_direct = (Sn.X - S.X[0]).std(axis=0), direct.std(axis=0)
     assert np.median(np.abs(sd_model / sd_direct - 1)) < 0.15
@@ -119,7 +119,7 @@ def test_drift_reconstruction_beats_hla_and_falls_back(table1):
     than HLA's (10 % noise); without a building it is HLA's drift."""
     meas = simulate_measurement(table1, paper_record("kocaeli-1999-dzc180"), noise_rms=0.10, seed=0)
     res = hla(meas)
-    ground = GroundMotion(dt=meas.dt, acc=pp.bandpass(np.asarray(meas.ground_acc), meas.dt, (0.0, res.band_hz[1])))
+    ground = GroundMotion(dt=meas.dt, acc=bandpass(np.asarray(meas.ground_acc), meas.dt, (0.0, res.band_hz[1])))
     true = meas.truth.drift
 
     def rms(a):

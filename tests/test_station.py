@@ -10,7 +10,7 @@ import pytest
 obspy = pytest.importorskip("obspy")
 
 from hlaid.errors import InputError  # noqa: E402
-from hlaid.io import read_any  # noqa: E402
+from hlaid.io import read  # noqa: E402
 from hlaid.io.station import StationChannel, StationConfig, read_station  # noqa: E402
 from hlaid.synthetic import simulate_measurement  # noqa: E402
 from hlaid.units import G_MM_S2  # noqa: E402
@@ -79,14 +79,14 @@ def test_sac_one_file_per_channel_and_a_late_channel(meas, tmp_path):
     np.testing.assert_allclose(got.floor_acc, meas.floor_acc[k:], rtol=1e-6, atol=1e-3)
 
 
-def test_yaml_mapping_through_read_any(meas, tmp_path):
+def test_yaml_mapping_through_read(meas, tmp_path):
     f = tmp_path / "b001.mseed"
     obspy.Stream(_traces(meas, scale=1e-3, dtype=np.float64)).write(str(f), format="MSEED", encoding="FLOAT64")
     (tmp_path / "b001.yaml").write_text(
         "files: [b001.mseed]\nground: {channel: '*.B001.00.HN?', units: m/s^2}\n"
         "floors:\n  - {channel: XX.B001.01.HNE}\n  - {channel: XX.B001.02.HNE}\n  - {channel: XX.B001.03.HNE}\n"
         "offset: none\nheight_mm: [3000, 3000, 3000]\n")
-    got = read_any(tmp_path / "b001.yaml", format="station")
+    got = read(tmp_path / "b001.yaml", "measurement", format="station")
     np.testing.assert_allclose(got.floor_acc, meas.floor_acc, rtol=1e-12, atol=1e-9)
     assert list(got.height) == [3000.0] * 3
 
@@ -159,4 +159,4 @@ def test_a_bare_station_file_asks_for_the_mapping(tmp_path):
     f = tmp_path / "b001.mseed"
     f.write_bytes(b"\0" * 512)
     with pytest.raises(InputError, match=f"{f}: is seismic station data .*format 'station'"):
-        read_any(f)
+        read(f, "measurement")

@@ -9,7 +9,7 @@ from .._fileio import atomic_directory, check_output_folder
 from ..config import load_config
 from ..hla import HLAConfig, hla
 from ..hla.plots import plot_loops, plot_stiffness
-from ..io_dispatch import read_measurement_any
+from ..io import read
 from ..measurement import check_band
 from ..plots import save_figure
 from .main import subcommand
@@ -29,7 +29,7 @@ def register(sub) -> None:
 def run_hla(args) -> int:
     check_output_folder(args.out, force=args.force)  # fail before the analysis, not after it
     cfg = load_config(args.config, HLAConfig) if args.config else HLAConfig()
-    meas = read_measurement_any(args.measurement)
+    meas = read(args.measurement, "measurement")
     check_band(meas, cfg.preprocess.band_hz, f"preprocess.band_hz (in {args.config})")
     _progress.info(f"HLA of {meas.n_floors} stories, {meas.n_samples} samples at {1 / meas.dt:g} Hz")
     res = hla(meas, cfg)

@@ -9,7 +9,7 @@ from .._fileio import check_output_file
 from ..config import load_config
 from ..errors import InputError
 from ..identify import HLASVMIdentifier, IdentifyConfig, get_identifier
-from ..io_dispatch import read_measurement_any
+from ..io import read
 from ..measurement import check_band
 from .main import subcommand
 
@@ -39,7 +39,7 @@ def run_identify(args) -> int:
     if args.config and args.method != "hlasvm":
         raise InputError(f"--config configures --method hlasvm, not {args.method}")
     cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
-    meas = read_measurement_any(args.measurement)
+    meas = read(args.measurement, "measurement")
     if args.method == "hlasvm":
         check_identify_bands(meas, cfg, args.config)
         cache = "" if args.no_cache else args.cache

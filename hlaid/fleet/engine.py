@@ -25,9 +25,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .. import __version__, _progress
-from .._fileio import _check_parent, write_json
+from .._fileio import check_parent, write_json
 from ..errors import InputError
-from ..ida import load_records
+from ..io import read
 from .assess import ENGINE, POINT, default_assess, engine_label, point_assess
 from .config import ClusterConfig, FleetConfig, load_fleet_config
 from .report import build_fleet_report, table_rows, write_table
@@ -114,7 +114,7 @@ def check_output(out: Path, *, force: bool) -> Path:
         raise InputError("is not empty and is not an hlaid fleet output; use --force to write into it, or "
                          "choose another folder", source=str(out))
     if not out.exists():
-        _check_parent(out)
+        check_parent(out)
     return out
 
 
@@ -183,7 +183,7 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
     t0 = time.perf_counter()
     base = Path(base_dir) if base_dir is not None else None
     out = check_output(Path(out), force=force)
-    records = load_records(cfg.record_specs(base), units=cfg.ida.units)
+    records = read(cfg.record_specs(base), kind="records", units=cfg.ida.units)
     if assess is None and cfg.n_ensemble == 0:
         assess, engine = point_assess, POINT
     elif assess is None:

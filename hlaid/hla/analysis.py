@@ -19,7 +19,8 @@ from scipy import integrate
 
 from ..errors import InputError
 from ..measurement import Measurement
-from ..model import _structure
+from ..model import structure
+from ..signal import bandpass, integrate_twice
 from ..units import G_MM_S2
 from . import preprocess as pp
 from .config import HLAConfig
@@ -28,7 +29,9 @@ from .result import HalfCycleTable, HLAResult, StoryHLA
 from .stiffness import degradation_trend, elastic_window, isotonic_decreasing, slope_with_drift_check, sliding_slope
 
 
-def _masses(meas: Measurement, cfg: HLAConfig) -> tuple[np.ndarray, bool]:
+def floor_masses(meas: Measurement, cfg: HLAConfig) -> tuple[np.ndarray, bool]:
+    """Floor masses ``(floor,)`` [t] and whether they are normalised: the measurement's masses, or
+    ``force.mass_ratios`` (default equal) scaled to sum to 1 when it has none."""
     n = meas.n_floors
     if meas.mass is not None:
         return np.asarray(meas.mass, dtype=float), False
@@ -69,19 +72,19 @@ def floor_motion(meas: Measurement, cfg: HLAConfig):
     pp.check_record_length(meas.n_samples, meas.dt, band, p.order, meas.source or None)
     # force and drift pass through the same zero-phase filter, so whatever the filter takes
     # out of one it takes out of the other and the loops stay consistent
-    acc = pp.bandpass(np.asarray(meas.floor_acc), meas.dt, band, p.order)
-    ag = pp.bandpass(np.asarray(meas.ground_acc), meas.dt, band, p.order)
+    acc = bandpass(np.asarray(meas.floor_acc), meas.dt, band, p.order)
+    ag = bandpass(np.asarray(meas.ground_acc), meas.dt, band, p.order)
     # the reported force keeps its low frequencies (no integration, nothing drifts)
-    acc_full = pp.bandpass(np.asarray(meas.floor_acc), meas.dt, (0.0, band[1]), p.order)
+    acc_full = bandpass(np.asarray(meas.floor_acc), meas.dt, (0.0, band[1]), p.order)
     use_measured = p.displacement == "measured" or (p.displacement == "auto" and meas.floor_disp is not None)
     if use_measured:
         if meas.floor_disp is None:
             raise InputError("preprocess.displacement is 'measured' but the data hold no floor displacements",
                              source=meas.source)
-        disp = pp.bandpass(np.asarray(meas.floor_disp), meas.dt, band, p.order)
+        disp = bandpass(np.asarray(meas.floor_disp), meas.dt, band, p.order)
         vel = np.gradient(disp, meas.dt, axis=0)
     else:
-        vel, disp = pp.integrate_twice(acc - ag[:, None], meas.dt, band, p.order)
+        vel, disp = integrate_twice(acc - ag[:, None], meas.dt, band, p.order)
     return acc, acc_full, vel, disp
 
 
@@ -185,7 +188,7 @@ def hla(measurement: Measurement, config: HLAConfig | None = None) -> HLAResult:
     """
     cfg = config or HLAConfig()
     meas = measurement
-    m, normalised = _masses(meas, cfg)
+    m, normalised = floor_masses(meas, cfg)
     band = resolved_band(meas, cfg)
     acc, acc_full, vel, disp = floor_motion(meas, cfg)
     x = pp.story_drift(disp)
@@ -215,7 +218,7 @@ def hla(measurement: Measurement, config: HLAConfig | None = None) -> HLAResult:
                 bad = int(np.argmax(~(np.isfinite(k0) & (k0 > 0)))) + 1
                 raise InputError(f"story {bad}: no half cycle to estimate k0 from; the record is too short or too "
                                  "weak", source=meas.source)
-            a0, a1 = _structure.rayleigh_coefficients(torch.tensor(k0)[None], torch.tensor(m)[None], "rayleigh",
+            a0, a1 = structure.rayleigh_coefficients(torch.tensor(k0)[None], torch.tensor(m)[None], "rayleigh",
                                                       cfg.force.damping_ratio, cfg.force.damping_modes)
             damp = float(a0) * mv + float(a1) * k0[None, :] * dx
             f = f0 - damp

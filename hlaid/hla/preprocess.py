@@ -1,52 +1,18 @@
-"""Filtering and integration of accelerations into drift and drift velocity.
+"""HLA preprocessing: record-length checks, story differences and the automatic band.
 
-Accelerations are band-passed with a zero-phase Butterworth filter (``sosfiltfilt``), then
-integrated twice with the trapezoidal rule; the high-pass is applied again after each
-integration, so the low-frequency drift that integration creates from sensor offsets and
-noise never accumulates. Zero-phase filtering keeps force and drift in phase, which is what
-makes the force-drift loops meaningful.
+The filters and the double integration are in :mod:`hlaid.signal`: accelerations are
+band-passed with a zero-phase Butterworth filter, then integrated twice with the trapezoidal
+rule, high-passed again after each integration. Zero-phase filtering keeps force and drift in
+phase, which is what makes the force-drift loops meaningful.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy import integrate, signal
+from scipy import signal
 
 from ..errors import InputError
-
-
-def _sos(band_hz, order, dt, kind):
-    nyq = 0.5 / dt
-    lo, hi = band_hz
-    hi = min(hi, 0.95 * nyq)
-    if kind == "bandpass" and lo > 0:
-        return signal.butter(order, [lo / nyq, hi / nyq], btype="bandpass", output="sos")
-    if kind == "bandpass":
-        return signal.butter(order, hi / nyq, btype="lowpass", output="sos")
-    if lo <= 0:
-        return None
-    return signal.butter(order, lo / nyq, btype="highpass", output="sos")
-
-
-def bandpass(x: np.ndarray, dt: float, band_hz, order: int = 4) -> np.ndarray:
-    """Zero-phase band-pass along axis 0 of ``x`` ``(time, ...)``."""
-    return signal.sosfiltfilt(_sos(band_hz, order, dt, "bandpass"), x, axis=0)
-
-
-def highpass(x: np.ndarray, dt: float, band_hz, order: int = 4) -> np.ndarray:
-    """Zero-phase high-pass at ``band_hz[0]`` along axis 0 (identity when the corner is 0)."""
-    sos = _sos(band_hz, order, dt, "highpass")
-    return x - x.mean(axis=0) if sos is None else signal.sosfiltfilt(sos, x, axis=0)
-
-
-def integrate_twice(acc: np.ndarray, dt: float, band_hz, order: int = 4) -> tuple[np.ndarray, np.ndarray]:
-    """Velocity and displacement from band-passed acceleration ``(time, channel)``.
-
-    Returns ``(vel, disp)``, each high-passed after integration.
-    """
-    vel = highpass(integrate.cumulative_trapezoid(acc, dx=dt, axis=0, initial=0.0), dt, band_hz, order)
-    disp = highpass(integrate.cumulative_trapezoid(vel, dx=dt, axis=0, initial=0.0), dt, band_hz, order)
-    return vel, disp
+from ..signal import max_corner
 
 
 def check_record_length(n_samples: int, dt: float, band_hz, order: int, source: str | None) -> None:
@@ -81,4 +47,4 @@ def dominant_frequency(ground_acc: np.ndarray, roof_acc: np.ndarray, dt: float) 
 def auto_band(ground_acc: np.ndarray, roof_acc: np.ndarray, dt: float, highpass_ratio: float) -> tuple[float, float]:
     """Band-pass corners chosen from the record (see :class:`~hlaid.hla.PreprocessConfig`)."""
     f1 = dominant_frequency(ground_acc, roof_acc, dt)
-    return highpass_ratio * f1, min(max(20.0, 4.0 * f1), 0.45 / dt)
+    return highpass_ratio * f1, min(max(20.0, 4.0 * f1), max_corner(dt))

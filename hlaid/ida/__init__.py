@@ -23,7 +23,6 @@ from .intensity import (
            intensity,
            response_spectrum,
 )
-from .records import load_records
 from .results import IDAResult
 
 __all__ = [
@@ -41,7 +40,6 @@ __all__ = [
            "ida_from_config",
            "intensity",
            "load_ida_config",
-           "load_records",
            "prepare_building",
            "response_spectrum",
            "scan_collapse",

@@ -48,7 +48,7 @@ from ..simulate import simulate
 from ..units import G_MM_S2
 from .config import DEFAULT_EXCEEDANCE, IDAConfig, check_levels
 from .intensity import get_intensity_measure, period_for
-from .records import load_records
+from ..io.records import as_motions
 from .results import IDAResult
 
 PROBE_SCALE = 1e-4
@@ -266,7 +266,7 @@ def ida(model: Clone | Building | str | os.PathLike,
     ----------
     model : a :class:`~hlaid.clone.Clone`, a :class:`~hlaid.model.Building` or a clone file
     records : a folder of AT2/text records, ``"builtin-suite"``, files, or GroundMotions
-        (see :func:`hlaid.ida.load_records`; unreadable files are skipped with a warning)
+        (see :func:`hlaid.io.read` with ``kind="records"``; unreadable files are skipped with a warning)
     im : intensity measure, a name in :data:`hlaid.ida.INTENSITY_MEASURES`
     levels : (level,) strictly increasing IM levels [g]; None: ``n_levels`` equal steps up to
         the median (over records) equal-displacement estimate of the IM at the drift limit
@@ -298,8 +298,7 @@ def ida(model: Clone | Building | str | os.PathLike,
                     collapse=collapse if isinstance(collapse, (str, dict, type(None))) else collapse.to_dict())
     building, notes = prepare_building(model, pdelta=pdelta, heights=heights, gravity_load=gravity_load,
                                        collapse=collapse)
-    motions = records if _all_motions(records) else load_records(records, units=units)
-    motions = [motions] if isinstance(motions, GroundMotion) else list(motions)
+    motions = as_motions(records, units=units)
     measure = get_intensity_measure(im)
     T1 = period_for(measure, building, period)
     im0 = measure.compute(motions, T1, 0.05) / G_MM_S2
@@ -407,15 +406,6 @@ def _scan_all(runner: _Runner, slope_el: np.ndarray, slope_ratio: float) -> dict
     return out
 
 
-def _all_motions(records) -> bool:
-    if isinstance(records, GroundMotion):
-        return True
-    if isinstance(records, (str, Path, os.PathLike)):
-        return False
-    try:
-        return len(records) > 0 and all(isinstance(m, GroundMotion) for m in records)
-    except TypeError:
-        return False
 
 
 def _settings(cfg: IDAConfig) -> dict:

@@ -11,6 +11,7 @@ from typing import Literal
 from ..config import load_config
 from ..errors import InputError
 from ..limits import check_count
+from ..units import kn_to_n
 
 DEFAULT_EXCEEDANCE = (0.005, 0.01, 0.02, 0.04)
 """Drift-ratio limits whose probability of exceedance is reported (0.5, 1, 2, 4 %)."""
@@ -111,7 +112,7 @@ class IDAConfig:
             d.pop(k)
         d["heights"] = d.pop("heights_mm")
         g = d.pop("gravity_kN")
-        d["gravity_load"] = None if g is None else [v * 1000.0 for v in g]
+        d["gravity_load"] = None if g is None else [kn_to_n(v) for v in g]
         return d
 
     def record_specs(self, base_dir: str | Path | None = None) -> list[str] | None:

@@ -24,12 +24,10 @@ import numpy as np
 import torch
 
 from ..hla import HLAConfig, hla
-from ..hla.analysis import _masses
-from ..hla.preprocess import bandpass
+from ..hla.analysis import floor_masses
 from ..measurement import Measurement
 from ..model import Building, BuildingTensors, Damping
-from ..model import _structure as S
-from ..motions import GroundMotion
+from ..model import structure as S
 
 FIELDS = ("k0", "alpha", "p", "dy", "delta_eta")
 """Unknown story parameters, in the order of the unconstrained coordinates."""
@@ -81,20 +79,13 @@ class KnownPart:
 
 def known_part(meas: Measurement, damping_ratio: float = 0.05, hla_config: HLAConfig | None = None) -> KnownPart:
     """Masses (or HLA's mass ratios when unknown), heights, P-Delta and damping of ``meas``."""
-    mass, normalised = _masses(meas, hla_config or HLAConfig())
+    mass, normalised = floor_masses(meas, hla_config or HLAConfig())
     pdelta = meas.pdelta_active if meas.height is not None else None
     b = Building(mass=mass, k0=np.ones_like(mass), alpha=np.zeros_like(mass), p=np.ones_like(mass),
                  dy=np.ones_like(mass), delta_eta=np.zeros_like(mass), height=meas.height, pdelta=pdelta)
     return KnownPart(mass=np.asarray(mass, dtype=float), mass_normalised=bool(normalised), height=meas.height,
                      pdelta=pdelta, damping=Damping(ratio=damping_ratio), kg=b.geometric_stiffness(),
                      name=meas.name)
-
-
-def measured_ground(meas: Measurement, band_hz) -> GroundMotion:
-    """The measured ground acceleration low-passed at ``band_hz[1]`` (zero phase), the input
-    of every replay (as :func:`hlaid.identify.refine_replay`)."""
-    hi = min(band_hz[1], 0.45 / meas.dt)
-    return GroundMotion(dt=meas.dt, acc=bandpass(np.asarray(meas.ground_acc), meas.dt, (0.0, hi)), name="measured")
 
 
 # ---------------------------------------------------------------------- reparameterisation

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__, _progress
-from .._fileio import _json_default, write_json
+from .._fileio import json_default, write_json
 from ..svm import KernelSVC
 
 
@@ -139,7 +139,7 @@ class MachineCache:
                 if m is not None:
                     m.save(d / f"{name}.svm")
                     files[name] = _sha256_file(d / f"{name}.svm")
-            body = json.loads(json.dumps({**meta, "machines": list(machines)}, default=_json_default))
+            body = json.loads(json.dumps({**meta, "machines": list(machines)}, default=json_default))
             seal = {"key": key, "meta_sha256": _sha256_json(body), "files": files}
             write_json(d / "meta.json", {**body, "integrity": seal})
         except OSError:  # a read-only cache is not an error

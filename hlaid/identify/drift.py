@@ -22,8 +22,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..hla import HLAResult
-from ..hla.preprocess import highpass
 from ..model import Building
+from ..signal import highpass, max_corner
 from ..motions import GroundMotion
 from ..simulate import simulate
 
@@ -46,9 +46,9 @@ def reconstruct_drift(res: HLAResult, ground: GroundMotion, building: Building |
     building : the current estimate; None (or a replay that diverges): HLA's drift
     crossover_hz : the complementary filters' corner [Hz]
     """
-    if not 0 < crossover_hz < 0.45 / res.dt:
+    if not 0 < crossover_hz < max_corner(res.dt):
         raise InputError(f"crossover_hz = {crossover_hz:g} Hz; expected a frequency below 0.45 x the sampling rate "
-                         f"({0.45 / res.dt:g} Hz)", source=res.source)
+                         f"({max_corner(res.dt):g} Hz)", source=res.source)
     x = hla_drift(res)
     if building is None:
         return x

@@ -19,6 +19,7 @@ from sklearn.base import BaseEstimator
 from ..clone import Clone
 from ..measurement import Measurement
 from ..motions import GroundMotion
+from ..signal import bandpass, cap_corner, measured_ground
 from ..simulate import SimulationResult, simulate
 
 
@@ -66,12 +67,11 @@ class BaseIdentifier(BaseEstimator):
     def score(self, measurement: Measurement) -> float:
         """Mean correlation coefficient between the replayed and the measured floor
         accelerations (band 0.1-20 Hz)."""
-        from .refine import _filt
         self._check_fitted()
-        hi = min(20.0, 0.45 / measurement.dt)
-        g = GroundMotion(dt=measurement.dt, acc=_filt(np.asarray(measurement.ground_acc), measurement.dt, (0.0, hi), 0))
-        acc = _filt(self.predict(g).acc[0], measurement.dt, (0.1, hi), 0)
-        meas = _filt(np.asarray(measurement.floor_acc), measurement.dt, (0.1, hi), 0)
+        hi = cap_corner(20.0, measurement.dt)
+        g = measured_ground(measurement, hi, name="")
+        acc = bandpass(self.predict(g).acc[0], measurement.dt, (0.1, hi))
+        meas = bandpass(np.asarray(measurement.floor_acc), measurement.dt, (0.1, hi))
         from .replaycheck import corrcoef
         return float(np.mean(corrcoef(acc, meas)))
 

@@ -68,9 +68,9 @@ from .. import _progress
 from .._threads import one_thread
 from ..clone import Clone
 from ..errors import InputError, NotIdentifiableError
-from ..hla.preprocess import _sos
 from ..measurement import Measurement
 from ..model import BoucWenBuilding
+from ..signal import butter_sos, cap_corner, measured_ground
 from ..simulate import simulate
 from . import _space as sp
 from .estimators import BaseIdentifier
@@ -85,7 +85,7 @@ measurement, then ``+-k0_spread``; ``dy`` starts are fractions of HLA's peak dri
 def zero_phase_gain(n: int, dt: float, band_hz, order: int = 4) -> np.ndarray:
     """``|H(f)|^2`` of the Butterworth band-pass (low-pass when ``band_hz[0]`` is 0) at the
     ``rfft`` frequencies of ``n`` samples: the gain of forward-backward filtering."""
-    sos = _sos(band_hz, order, dt, "bandpass")
+    sos = butter_sos(band_hz, dt, order)
     _, h = signal.sosfreqz(sos, worN=np.fft.rfftfreq(n, dt), fs=1.0 / dt)
     return np.abs(h) ** 2
 
@@ -121,11 +121,11 @@ class OutputErrorProblem:
     def __init__(self, meas: Measurement, known: sp.KnownPart, band_hz, window: tuple[int, int],
                  segment_s: float = 1.0, substeps: int = 1):
         self.known, self.dt, self.substeps = known, meas.dt, int(substeps)
-        self.ground = sp.measured_ground(meas, band_hz)
+        self.ground = measured_ground(meas, cap_corner(band_hz[1], meas.dt))
         self.ag = torch.as_tensor(self.ground.acc.copy())
         self.i0, self.i1 = window
         n = self.i1 - self.i0
-        hi = min(band_hz[1], 0.45 / self.dt)
+        hi = cap_corner(band_hz[1], self.dt)
         nfft = 1 << math.ceil(math.log2(2 * n))
         self.gain = torch.as_tensor(zero_phase_gain(nfft, self.dt, (band_hz[0], hi)))
         self.target = filtered(torch.as_tensor(np.array(meas.floor_acc[self.i0:self.i1]))[None], self.gain)[0]
@@ -360,7 +360,7 @@ class GradientIdentifier(BaseIdentifier):
         with one_thread():  # tiny tensors: intra-op threads only add contention
             known = sp.known_part(meas, self.damping_ratio)
             cand = self._candidates(meas, known, np.random.default_rng(self.random_state))
-            window = arias_window(sp.measured_ground(meas, self.band_hz).acc, meas.dt, self.arias)
+            window = arias_window(measured_ground(meas, cap_corner(self.band_hz[1], meas.dt)).acc, meas.dt, self.arias)
             prob = OutputErrorProblem(meas, known, self.band_hz, window, self.segment_s, self.substeps)
             screened = prob.screen(cand)
             if not np.isfinite(screened).any():

@@ -25,7 +25,7 @@ import numpy as np
 import scipy.sparse as sps
 
 from ..hla.stiffness import segment_index
-from ..hla.preprocess import bandpass
+from ..signal import bandpass
 from ..simulate.path import drive_story
 from .training import TrainingSet
 

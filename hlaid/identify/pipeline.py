@@ -23,11 +23,10 @@ from ..clone import Clone
 from ..config import config_to_dict
 from ..errors import NotIdentifiableError
 from ..hla import HLAResult, hla, reanalyse_story
-from ..hla import preprocess as pp
 from ..hla.features import half_cycle_features
 from ..measurement import Measurement
 from ..model import Building, Damping
-from ..motions import GroundMotion
+from ..signal import measured_ground
 from .cache import MachineCache, default_cache_dir
 from .classify import Bins, pass_result, vote
 from .config import IdentifyConfig
@@ -137,8 +136,7 @@ class _Identifier:
         self.k0 = res.k0.copy()
         ke_min = np.array([np.nanmin(s.half_cycles.ke) / s.k0 for s in res.stories])
         self.alpha_max = np.clip(ke_min, 0.05, 0.95)
-        self.ground = GroundMotion(dt=meas.dt, acc=pp.bandpass(np.asarray(meas.ground_acc), meas.dt,
-                                                               (0.0, res.band_hz[1])), name="measured")
+        self.ground = measured_ground(meas, res.band_hz[1])
         self.noise = _noise_level(meas, cfg)
         self.training_motion = strong_motion_window(self.ground, cfg.training.arias_fraction, cfg.training.tail_s)
         alpha = np.where(self.identifiable, 0.5 * self.alpha_max, 0.1)

@@ -13,14 +13,12 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 from scipy.optimize import least_squares
 
-from ..hla.preprocess import _sos
 from .. import _progress
 from ..measurement import Measurement
 from ..model import Building, Damping
-from ..motions import GroundMotion
+from ..signal import bandpass, cap_corner, measured_ground
 from ..simulate import simulate
 
 _CHUNK = 8
@@ -61,10 +59,6 @@ class RefineResult:
     residuals: np.ndarray | None = None
 
 
-def _filt(x: np.ndarray, dt: float, band, axis: int) -> np.ndarray:
-    return signal.sosfiltfilt(_sos(band, 4, dt, "bandpass"), x, axis=axis)
-
-
 def refine_replay(building: Building, measurement: Measurement, *, parameters=("k0", "alpha", "p", "dy", "delta_eta"),
                   stories=None, damping: bool = False, band_hz=(0.1, 20.0), max_iterations: int = 40,
                   substeps: int = 4, upper_factor: float | None = 10.0, ftol: float = 1e-10,
@@ -90,9 +84,9 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
     """
     t0 = time.perf_counter()
     dt = measurement.dt
-    hi = min(band_hz[1], 0.45 / dt)
-    ground = GroundMotion(dt=dt, acc=_filt(np.asarray(measurement.ground_acc), dt, (0.0, hi), 0), name="measured")
-    target = _filt(np.asarray(measurement.floor_acc), dt, (band_hz[0], hi), 0)
+    hi = cap_corner(band_hz[1], dt)
+    ground = measured_ground(measurement, hi)
+    target = bandpass(np.asarray(measurement.floor_acc), dt, (band_hz[0], hi))
     scale = np.sqrt(np.mean(target**2, axis=0))
     stories = range(building.n_stories) if stories is None else stories
     slots = [(name, i) for i in range(building.n_stories) for name in parameters
@@ -130,7 +124,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         acc[r.status != 0] = 0.0  # only a stopped replay has NaN (after its stop); no copy of the rest
         res = np.empty((len(bs), acc[0].size))
         for i in range(0, len(bs), _CHUNK):  # filtered a few replays at a time: the same values,
-            part = _filt(acc[i:i + _CHUNK], dt, (band_hz[0], hi), 1)  # without fresh large temporaries
+            part = bandpass(acc[i:i + _CHUNK], dt, (band_hz[0], hi), axis=1)  # without fresh large temporaries
             part -= target[None]
             part /= scale
             res[i:i + _CHUNK] = part.reshape(len(part), -1)

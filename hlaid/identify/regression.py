@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import integrate
 
-from ..model._equations import ENERGY_SCALE
+from ..model import equations as eq
 
 
 @dataclass(frozen=True)
@@ -76,7 +76,7 @@ def fit_delta_eta(ke: np.ndarray, u_mm2: np.ndarray, *, k0: float, alpha: float,
     ke = np.asarray(ke, dtype=float)
     ok = ke > alpha * k0 * (1.0 + 1e-6)
     y = mass * (k0 - ke[ok]) / ((1.0 - alpha) * k0 * (ke[ok] - alpha * k0))
-    return through_origin(np.asarray(u_mm2, dtype=float)[ok] * ENERGY_SCALE, y)
+    return through_origin(np.asarray(u_mm2, dtype=float)[ok] * eq.ENERGY_SCALE, y)
 
 
 def fit_yield_displacement(ke: np.ndarray, k: np.ndarray, z_abs: np.ndarray, *, k0: float, alpha: float,
@@ -137,7 +137,7 @@ def plausible_limits(story, *, mass: float, alpha: float, k0: float) -> tuple[fl
     ``alpha k0`` (alpha over-estimated) would otherwise return a delta_eta thousands of times
     too large."""
     z = hysteretic_displacement(story.force, story.drift, alpha, k0)
-    u = float(np.max(np.abs(hysteretic_work(z, story.drift)))) * ENERGY_SCALE
+    u = float(np.max(np.abs(hysteretic_work(z, story.drift)))) * eq.ENERGY_SCALE
     eps = (1.0 - alpha) * (k0 / mass) * u
     de_max = (ETA_MAX - 1.0) / eps if eps > 0 else np.inf
     return de_max, float(np.max(np.abs(story.drift)))

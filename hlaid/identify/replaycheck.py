@@ -7,10 +7,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..hla import HLAResult
-from ..hla import preprocess as pp
 from ..measurement import Measurement
 from ..model import Building
-from ..motions import GroundMotion
+from ..signal import bandpass, measured_ground
 from ..simulate import simulate
 
 
@@ -53,12 +52,11 @@ def replay_check(building: Building, measurement: Measurement, hla_result: HLARe
 
     dt = measurement.dt
     band = hla_result.band_hz
-    ground = GroundMotion(dt=dt, acc=pp.bandpass(np.asarray(measurement.ground_acc), dt, (0.0, band[1])),
-                          name="measured")
+    ground = measured_ground(measurement, band[1])
     r = simulate(building, ground)
     disp = r.disp[0]
     _, _, _, meas_disp = floor_motion(measurement, hla_result.config)
-    r_meas = corrcoef(pp.bandpass(disp, dt, band), meas_disp)
+    r_meas = corrcoef(bandpass(disp, dt, band), meas_disp)
     r_true = None if measurement.truth is None else corrcoef(disp, measurement.truth.disp)
     ke = building.elastic_stiffness(r.eta[0])
     err = []

@@ -15,8 +15,8 @@ import numpy as np
 from .._fileio import write_json
 from ..config import config_to_dict, load_config
 from ..errors import InputError
-from ..hla import preprocess as pp
 from ..motions import GroundMotion
+from ..signal import lowpass
 from ..specs import BuildingSpec, MotionSpec
 from .cache import MachineCache
 from .classify import Bins
@@ -71,7 +71,7 @@ def train_from_config(config_path: str | Path, out: str | Path) -> tuple[Trained
     cfg = load_config(config_path, TrainSVMConfig)
     building = cfg.building.build(source=str(config_path))
     gm = cfg.motion.load(Path(config_path).parent).resampled(200.0)
-    ground = GroundMotion(dt=gm.dt, acc=pp.bandpass(gm.acc, gm.dt, (0.0, 20.0)), name=gm.name)
+    ground = GroundMotion(dt=gm.dt, acc=lowpass(gm.acc, gm.dt, 20.0), name=gm.name)
     bins = pass_bins(building, cfg.alpha_max, cfg.identify, cfg.stage)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -48,6 +48,7 @@ from ..clone import Clone
 from ..errors import InputError, NotIdentifiableError
 from ..measurement import Measurement
 from ..model import BoucWenBuilding
+from ..signal import cap_corner, measured_ground
 from . import _space as sp
 from .estimators import BaseIdentifier
 from .gradient import arias_window
@@ -174,7 +175,7 @@ class UKFIdentifier(BaseIdentifier):
             theta = torch.as_tensor(sp.to_unconstrained(prior, k0_ref, dy_ref))  # (5, n)
             std = torch.as_tensor(np.asarray(self.prior_std, dtype=float))[:, None].expand_as(theta)
             Ptheta = torch.diag(std.reshape(-1) ** 2)
-            ground = sp.measured_ground(meas, self.band_hz)
+            ground = measured_ground(meas, cap_corner(self.band_hz[1], meas.dt))
             _, i1 = arias_window(ground.acc, meas.dt, (0.0, self.arias_end))
             tb = TBLogger(self.tensorboard)
             history = []
@@ -207,7 +208,7 @@ class UKFIdentifier(BaseIdentifier):
         level = max(float(level), float(self.min_noise))
         floor = np.asarray(meas.floor_acc[:i1])
         rms = np.sqrt(np.mean(floor**2, axis=0))
-        hi = min(self.band_hz[1], 0.45 / meas.dt)
+        hi = cap_corner(self.band_hz[1], meas.dt)
         g_std = level * np.sqrt(np.mean(np.asarray(meas.ground_acc[:i1]) ** 2)) * np.sqrt(hi * 2 * meas.dt)
         return torch.as_tensor((level * rms) ** 2), g_std
 

@@ -32,7 +32,7 @@ from typing import Literal
 
 import numpy as np
 
-from .._fileio import read_text
+from .._fileio import read_file_text
 from ..config import load_config
 from ..errors import InputError
 from ..measurement import Measurement
@@ -160,7 +160,7 @@ def read_columns(config: str | os.PathLike | ColumnsConfig, *, base: str | os.Pa
     if not data_path.is_absolute():
         data_path = folder / data_path
     src = str(data_path)
-    table = parse_table(read_text(data_path), src, delimiter=_delimiter(cfg, data_path), comment=cfg.comment,
+    table = parse_table(read_file_text(data_path), src, delimiter=_delimiter(cfg, data_path), comment=cfg.comment,
                         header=cfg.header)
     specs = [cfg.ground, *cfg.floors]
     acc = np.stack([table.column(s.column, src) * s.sign * acceleration_factor(s.units) for s in specs], axis=1)

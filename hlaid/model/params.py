@@ -11,7 +11,7 @@ import numpy as np
 import torch
 
 from ..errors import InputError
-from ..units import G_MM_S2, weight_kn_to_mass_t
+from ..units import G_MM_S2, kn_to_n, n_to_kn, weight_kn_to_mass_t
 from . import _structure as S
 from .collapse import CollapseModel, get_collapse_model, no_collapse
 
@@ -186,7 +186,7 @@ class Building:
         if heights[0] is not None:
             kwargs.setdefault("height", heights)
         if gravity[0] is not None:
-            kwargs.setdefault("gravity_load", np.asarray(gravity, dtype=float) * 1000.0)
+            kwargs.setdefault("gravity_load", kn_to_n(np.asarray(gravity, dtype=float)))
         return cls(**cols, **kwargs)
 
     @classmethod
@@ -206,7 +206,7 @@ class Building:
             if self.height is not None:
                 s["height_mm"] = float(self.height[i])
             if self.gravity_load is not None:
-                s["gravity_kN"] = float(self.gravity_load[i]) / 1000.0
+                s["gravity_kN"] = n_to_kn(float(self.gravity_load[i]))
             stories.append(s)
         out = {"stories": stories, "damping": self.damping.to_dict(), "pdelta": self.pdelta}
         if self.collapse is not None:

@@ -19,7 +19,7 @@ import types
 import numba as nb
 import numpy as np
 
-from ..model import _equations as eq
+from ..model import equations as eq
 
 # fused multiply-add and reciprocal multiplication only (no 'nnan'/'ninf': the divergence check
 # needs isfinite): results move by a few ulps (tested to 1e-8 against the torch module), ~20 %

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from ..model import _equations as eq
+from ..model import equations as eq
 from ..model.collapse import N_COLLAPSE
 from ._kernel import _FASTMATH, _degradation, _hysteretic_rate, _spring_force
 

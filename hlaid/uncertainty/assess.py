@@ -158,11 +158,11 @@ class Assessment:
 
     def to_dict(self) -> dict:
         """JSON-able mapping of every field (arrays as lists)."""
-        from ..clone import _jsonable
+        from ..clone import jsonable
 
         d = {k: getattr(self, k) for k in self.__dataclass_fields__}
         d["placard"] = self.placard
-        return _jsonable(d)
+        return jsonable(d)
 
     def plot(self, ax=None):
         """The fragility band with the experienced intensity marked; returns the figure."""
@@ -228,8 +228,8 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
     Assessment
     """
     from ..clone import Clone
-    from ..ida import IDAConfig, get_intensity_measure, ida_from_config, intensity, load_records, prepare_building
-    from ..ida.analysis import _all_motions
+    from ..ida import IDAConfig, get_intensity_measure, ida_from_config, intensity, prepare_building
+    from ..io.records import as_motions
     from ..ida.intensity import period_for
     from ..motions import GroundMotion
     from ..simulate import simulate
@@ -242,14 +242,13 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
     if isinstance(ci, bool) or not isinstance(ci, (int, float)) or not 0 < ci < 1:
         raise InputError(f"ci = {ci!r}; expected a confidence level in (0, 1), e.g. 0.9")
     if own_motion is not None and not isinstance(own_motion, GroundMotion):
-        raise InputError(f"own_motion must be a GroundMotion (hlaid.motions.read_motion), got "
+        raise InputError(f"own_motion must be a GroundMotion (hlaid.read(path, kind='motion')), got "
                          f"{type(own_motion).__name__}")
     thr = thresholds or ReoccupancyThresholds()
     cfg = IDAConfig(n_levels=10) if ida_config is None else ida_config
     if not isinstance(cfg, IDAConfig):
         raise InputError(f"ida_config must be an hlaid.ida.IDAConfig, got {type(cfg).__name__}")
-    motions = records if _all_motions(records) else load_records(records, units=cfg.units)
-    motions = [motions] if isinstance(motions, GroundMotion) else list(motions)
+    motions = as_motions(records, units=cfg.units)
     if len(motions) < 2:
         raise InputError(f"assess needs at least 2 records for a fragility; got {len(motions)}")
     kw = cfg.ida_kwargs()

@@ -35,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..signal import cap_corner
 from ._params import BOUNDS, ParameterUncertainty
 
 METHODS = ("sandwich", "neff", "naive")
@@ -166,7 +167,7 @@ def noise_residual_rms(noise_rms: float, band_hz, dt: float) -> float:
     ``noise_rms`` x channel RMS, band-passed to ``band_hz`` (the ground sensor's noise, seen
     through the structure, adds to it)."""
     lo, hi = band_hz
-    hi = min(hi, 0.45 / dt)
+    hi = cap_corner(hi, dt)
     return float(noise_rms * np.sqrt(max(2.0 * (hi - lo) * dt, 0.0)))
 
 

@@ -13,7 +13,7 @@ from ...clone import Clone
 from ...config import config_to_dict
 from ...errors import InputError, NotIdentifiableError
 from ...hla import hla
-from ...hla import preprocess as pp
+from ... import signal as sg
 from ...identify import IdentifyConfig, identify, refine_replay
 from ...measurement import Measurement
 from ...model import Building, Damping
@@ -106,9 +106,9 @@ def _fit_scale_damping(b: Building, meas: Measurement, band_hz, max_iterations: 
     from scipy.optimize import least_squares
 
     dt = meas.dt
-    hi = min(band_hz[1], 0.45 / dt)
-    ground = GroundMotion(dt=dt, acc=pp.bandpass(np.asarray(meas.ground_acc), dt, (0.0, hi)), name=meas.name)
-    target = pp.bandpass(np.asarray(meas.floor_acc), dt, (band_hz[0], hi))
+    hi = sg.cap_corner(band_hz[1], dt)
+    ground = GroundMotion(dt=dt, acc=sg.bandpass(np.asarray(meas.ground_acc), dt, (0.0, hi)), name=meas.name)
+    target = sg.bandpass(np.asarray(meas.floor_acc), dt, (band_hz[0], hi))
     rms = np.sqrt(np.mean(target**2, axis=0))
     d = b.damping
 
@@ -119,7 +119,7 @@ def _fit_scale_damping(b: Building, meas: Measurement, band_hz, max_iterations: 
         r = simulate(make(x), ground)
         if r.status[0] != 0:
             return np.full(target.size, 1e3)
-        return ((pp.bandpass(np.nan_to_num(r.acc[0]), dt, (band_hz[0], hi)) - target) / rms).ravel()
+        return ((sg.bandpass(np.nan_to_num(r.acc[0]), dt, (band_hz[0], hi)) - target) / rms).ravel()
 
     sol = least_squares(fun, [0.0, d.ratio], bounds=([-1.0, 0.0], [1.0, 0.5]), x_scale=[0.05, 0.01],
                         max_nfev=max_iterations)

@@ -11,7 +11,9 @@ from ... import _progress
 from ...clone import Clone
 from ...errors import InputError
 from ...hla import HLAConfig, HLAResult, hla
+from ... import signal as sg
 from ...hla import preprocess as pp
+from ...units import G_MM_S2
 from ...hla.analysis import floor_motion, resolved_band
 from ...identify.replaycheck import corrcoef
 from ...measurement import Measurement
@@ -109,8 +111,8 @@ def predict_event(clone: Clone, meas: Measurement, hla_config: HLAConfig, *, com
         _progress.warn(f"{labels[0]}/{labels[2]}: HLA failed ({err}); no stiffness comparison")
         res, band = None, tuple(resolved_band(meas, cfg))
         cfg = _with_band(cfg, band)
-    hi_in = min(input_lowpass_hz or band[1], 0.45 / dt)
-    ground = GroundMotion(dt=dt, acc=pp.bandpass(np.asarray(meas.ground_acc), dt, (0.0, hi_in), cfg.preprocess.order),
+    hi_in = sg.cap_corner(input_lowpass_hz or band[1], dt)
+    ground = GroundMotion(dt=dt, acc=sg.bandpass(np.asarray(meas.ground_acc), dt, (0.0, hi_in), cfg.preprocess.order),
                           name=meas.name)
     sim = simulate(clone.building, ground)
     # the clone's response goes through what the measured one went through: its displacement
@@ -123,12 +125,12 @@ def predict_event(clone: Clone, meas: Measurement, hla_config: HLAConfig, *, com
     def compare(b):
         c = _with_band(cfg, b)
         _, _, _, dm = floor_motion(meas, c)
-        dp = floor_motion(twin, c)[3] if integrated else pp.bandpass(np.nan_to_num(sim.disp[0]), dt, b, c.preprocess.order)
+        dp = floor_motion(twin, c)[3] if integrated else sg.bandpass(np.nan_to_num(sim.disp[0]), dt, b, c.preprocess.order)
         return dm, dp
 
     disp_meas, dp = compare(band)
     r = corrcoef(dp, disp_meas)
-    r_broad = corrcoef(*compare((band[0], max(band[1], min(20.0, 0.45 / dt)))))
+    r_broad = corrcoef(*compare((band[0], max(band[1], sg.cap_corner(20.0, dt)))))
     xm, xp = pp.story_drift(disp_meas), pp.story_drift(dp)
     pm, pk = np.max(np.abs(xm), axis=0), np.max(np.abs(xp), axis=0)
     ke = clone.building.elastic_stiffness(np.nan_to_num(sim.eta[0], nan=1.0))
@@ -139,7 +141,7 @@ def predict_event(clone: Clone, meas: Measurement, hla_config: HLAConfig, *, com
             if len(hc):
                 err[i] = float(np.mean(np.abs(ke[hc.start, i] / hc.ke - 1.0)))
     return Prediction(structure=labels[0], identified_from=labels[1], event=labels[2], kind=labels[3],
-                      self_replay=self_replay, pga_g=float(np.max(np.abs(meas.ground_acc)) / 9806.65), band_hz=band,
+                      self_replay=self_replay, pga_g=float(np.max(np.abs(meas.ground_acc)) / G_MM_S2), band_hz=band,
                       r=r, r_broadband=r_broad, peak_drift_measured=pm, peak_drift_predicted=pk, peak_drift_error=pk / pm - 1.0,
                       stiffness_error=err, status=int(sim.status[0]), time=meas.time, disp_measured=disp_meas,
                       disp_predicted=dp, drift_predicted=xp, force_predicted=np.nan_to_num(sim.force[0]), ke_clone=ke,

@@ -10,7 +10,8 @@ from typing import Any, Literal
 from ...config import config_from_dict, config_to_dict, load_config
 from ...errors import InputError
 from ...identify import IdentifyConfig
-from ...io import MEASUREMENT_READERS, read_any
+from ...io import MEASUREMENT_READERS
+from ...io.formats import read_by_format
 from ...measurement import Measurement
 
 
@@ -170,4 +171,4 @@ def identify_config_of(spec: StructureSpec, *, source: str = "<validation>") -> 
 def read_event(spec: StructureSpec, event: str, data_dir: str) -> Measurement:
     """The measurement of ``event`` (reader options: the structure's, then the event's)."""
     ev = spec.event(event)
-    return read_any(Path(data_dir) / ev.path, spec.reader, **{**spec.options, **ev.options})
+    return read_by_format(Path(data_dir) / ev.path, spec.reader, **{**spec.options, **ev.options})

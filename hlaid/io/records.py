@@ -1,4 +1,4 @@
-"""Record sets for IDA: a folder of AT2/text files, the built-in suite, or a list of files.
+"""Record suites (e.g. for IDA): a folder of AT2/text files, the built-in suite, or a list of files.
 
 An unreadable record is skipped with a warning that lists every skipped file and why;
 nothing is skipped silently, and a set that ends up empty is an error.
@@ -13,7 +13,11 @@ from pathlib import Path
 from .. import _progress
 from ..errors import InputError
 from ..limits import check_count
-from ..motions import SUITE, GroundMotion, builtin_suite, read_motion
+from ..motions.builtin import SUITE, builtin_suite
+from ..motions.record import GroundMotion
+from .motion import read_record
+
+__all__ = ["RECORD_SUFFIXES", "RecordSpec", "read_records", "as_motions", "is_record_file"]
 
 RECORD_SUFFIXES = (".at2", ".txt", ".dat", ".acc", ".csv")
 """File endings taken as records in a folder (optionally followed by ``.gz``)."""
@@ -21,7 +25,8 @@ RECORD_SUFFIXES = (".at2", ".txt", ".dat", ".acc", ".csv")
 RecordSpec = str | os.PathLike | GroundMotion
 
 
-def _is_record_file(p: Path) -> bool:
+def is_record_file(p: Path) -> bool:
+    """Whether ``p`` is a visible file whose name ends in one of :data:`RECORD_SUFFIXES`."""
     name = p.name.lower().removesuffix(".gz")
     return p.is_file() and not p.name.startswith(".") and name.endswith(RECORD_SUFFIXES)
 
@@ -37,7 +42,7 @@ def _expand(spec) -> tuple[list, str | None]:
         return [s], None
     p = Path(s)
     if p.is_dir():
-        files = sorted(f for f in p.iterdir() if _is_record_file(f))
+        files = sorted(f for f in p.iterdir() if is_record_file(f))
         if not files:
             raise InputError(f"no record files in the folder (expected names ending in "
                              f"{', '.join(RECORD_SUFFIXES)}, optionally .gz)", source=s)
@@ -47,9 +52,9 @@ def _expand(spec) -> tuple[list, str | None]:
     return [p], None
 
 
-def load_records(records: RecordSpec | Sequence[RecordSpec], *, units: str | None = None,
+def read_records(records: RecordSpec | Sequence[RecordSpec], *, units: str | None = None,
                  dt: float | None = None) -> list[GroundMotion]:
-    """Read a record set.
+    """Read a record set (what ``hlaid.io.read(records, kind="records")`` does).
 
     Parameters
     ----------
@@ -74,7 +79,7 @@ def load_records(records: RecordSpec | Sequence[RecordSpec], *, units: str | Non
                 motions.append(item)
                 continue
             try:
-                motions.append(read_motion(item, units=units, dt=dt))
+                motions.append(read_record(item, units=units, dt=dt))
             except InputError as err:
                 skipped.append(f"{item} ({str(err).removeprefix(f'{item}: ')})")
     if skipped:
@@ -83,6 +88,24 @@ def load_records(records: RecordSpec | Sequence[RecordSpec], *, units: str | Non
         raise InputError(f"none of the {len(skipped)} record file(s) could be read; see the warning above"
                          if skipped else "no records given")
     return _unique_names(motions)
+
+
+def as_motions(records, *, units: str | None = None, dt: float | None = None) -> list[GroundMotion]:
+    """``records`` as a list of :class:`~hlaid.motions.GroundMotion`: kept as given when they
+    already are motions (one or a non-empty sequence), else read with :func:`read_records`."""
+    motions = records if _all_motions(records) else read_records(records, units=units, dt=dt)
+    return [motions] if isinstance(motions, GroundMotion) else list(motions)
+
+
+def _all_motions(records) -> bool:
+    if isinstance(records, GroundMotion):
+        return True
+    if isinstance(records, (str, Path, os.PathLike)):
+        return False
+    try:
+        return len(records) > 0 and all(isinstance(m, GroundMotion) for m in records)
+    except TypeError:
+        return False
 
 
 def _unique_names(motions: list[GroundMotion]) -> list[GroundMotion]:

@@ -1,4 +1,4 @@
-"""Readers for ground motion files: PEER NGA ``.AT2``, one- or two-column text, CSV.
+"""Ground motion records: PEER NGA ``.AT2``, one- or two-column text, CSV, and ``builtin:NAME``.
 
 Every reader returns a :class:`GroundMotion` in mm/s^2 and raises
 :class:`~hlaid.errors.InputError` naming the file and what is wrong, and where (line, column),
@@ -15,10 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .._fileio import read_text as _read_file_text
+from .._fileio import read_file_text
 from ..errors import InputError, columns_text, quotable
+from ..motions.record import GroundMotion
 from ..units import acceleration_factor
-from .record import GroundMotion
+
+__all__ = ["MOTION_READERS", "motion_format", "read_record", "read_at2", "read_text_record", "read_csv_record"]
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][-+]?\d+)?"
 
@@ -66,7 +68,7 @@ def read_at2(path: str | os.PathLike, *, name: str | None = None) -> GroundMotio
     must equal NPTS.
     """
     src = str(path)
-    lines = _read_file_text(path).splitlines()
+    lines = read_file_text(path).splitlines()
     if len(lines) < 5:
         raise InputError(f"has {len(lines)} lines; an AT2 file has 4 header lines and data", source=src)
     header = lines[3]
@@ -110,7 +112,7 @@ def _header_hints(comments: list[str]) -> dict:
     return hints
 
 
-def read_text(path: str | os.PathLike, *, units: str | None = None, dt: float | None = None,
+def read_text_record(path: str | os.PathLike, *, units: str | None = None, dt: float | None = None,
               column: int | None = None, name: str | None = None) -> GroundMotion:
     """Read a whitespace-separated text record.
 
@@ -127,7 +129,7 @@ def read_text(path: str | os.PathLike, *, units: str | None = None, dt: float | 
     column : which acceleration column to read (0-based, not counting a time column)
     """
     src = str(path)
-    text = _read_file_text(path)
+    text = read_file_text(path)
     comments = [ln.strip()[1:] for ln in text.splitlines() if ln.strip()[:1] in ("#", "%")]
     numbered = [(i + 1, ln.replace(",", " ")) for i, ln in enumerate(text.splitlines())
                 if ln.strip() and ln.strip()[:1] not in ("#", "%")]
@@ -176,7 +178,7 @@ def _is_uniform_time(t: np.ndarray) -> bool:
     return bool(step > 0 and np.all(np.abs(d - step) <= 1e-3 * step + 1e-9))
 
 
-def read_csv(path: str | os.PathLike, *, units: str | None = None, dt: float | None = None,
+def read_csv_record(path: str | os.PathLike, *, units: str | None = None, dt: float | None = None,
              column: int | str | None = None, name: str | None = None) -> GroundMotion:
     """Read a CSV record with a header row, e.g. ``time,acc (g)``.
 
@@ -185,14 +187,14 @@ def read_csv(path: str | os.PathLike, *, units: str | None = None, dt: float | N
     may be given in the header in parentheses or brackets.
     """
     src = str(path)
-    text = _read_file_text(path)
+    text = read_file_text(path)
     numbered = [(i + 1, ln) for i, ln in enumerate(text.splitlines()) if ln.strip() and not ln.lstrip().startswith("#")]
     lines = [ln for _, ln in numbered]
     if len(lines) < 2:
         raise InputError("holds no data rows", source=src)
     header = [h.strip() for h in lines[0].split(",")]
     if all(re.fullmatch(_NUM, h) for h in header):
-        return read_text(path, units=units, dt=dt, column=column if isinstance(column, int) else None, name=name)
+        return read_text_record(path, units=units, dt=dt, column=column if isinstance(column, int) else None, name=name)
     rows = [ln.split(",") for ln in lines[1:]]
     if any(len(r) != len(header) for r in rows):
         bad = next(i for i, r in enumerate(rows) if len(r) != len(header))
@@ -235,11 +237,13 @@ def read_csv(path: str | os.PathLike, *, units: str | None = None, dt: float | N
     return GroundMotion(dt=dt, acc=data[:, col] * factor, name=name or _default_name(src), source=src)
 
 
-READERS: dict[str, Callable[..., GroundMotion]] = {"at2": read_at2, "text": read_text, "csv": read_csv}
-"""Record formats by name; :func:`read_motion` picks one from the file extension."""
+MOTION_READERS: dict[str, Callable[..., GroundMotion]] = {"at2": read_at2, "text": read_text_record,
+                                                          "csv": read_csv_record}
+"""Record formats by name; :func:`read_record` picks one from the file extension."""
 
 
-def _format_of(path: str) -> str:
+def motion_format(path: str) -> str:
+    """The :data:`MOTION_READERS` name for ``path``, from its extension (``text`` when not AT2 or CSV)."""
     name = path.lower()
     if name.endswith(".gz"):
         name = name[:-3]
@@ -250,9 +254,10 @@ def _format_of(path: str) -> str:
     return "text"
 
 
-def read_motion(spec: str | os.PathLike, *, units: str | None = None, dt: float | None = None,
+def read_record(spec: str | os.PathLike, *, units: str | None = None, dt: float | None = None,
                 column: int | str | None = None, format: str | None = None) -> GroundMotion:
-    """Read a record from a path, or ``builtin:NAME`` for a record shipped with hlaid.
+    """Read a record from a path, or ``builtin:NAME`` for a record shipped with hlaid
+    (what ``hlaid.io.read(spec, kind="motion")`` does).
 
     Parameters
     ----------
@@ -262,11 +267,11 @@ def read_motion(spec: str | os.PathLike, *, units: str | None = None, dt: float 
     """
     spec = str(spec)
     if spec.startswith("builtin:"):
-        from .builtin import load_builtin
+        from ..motions.builtin import load_builtin
         return load_builtin(spec[len("builtin:"):])
-    fmt = format or _format_of(spec)
-    if fmt not in READERS:
-        raise InputError(f"unknown record format {fmt!r}; expected one of {sorted(READERS)}", source=spec)
+    fmt = format or motion_format(spec)
+    if fmt not in MOTION_READERS:
+        raise InputError(f"unknown record format {fmt!r}; expected one of {sorted(MOTION_READERS)}", source=spec)
     if fmt == "at2":
         return read_at2(spec)
-    return READERS[fmt](spec, units=units, dt=dt, column=column)
+    return MOTION_READERS[fmt](spec, units=units, dt=dt, column=column)

@@ -1,0 +1,110 @@
+"""Zero-phase filtering and integration of sampled records.
+
+Every filter is a Butterworth design in second-order sections applied forward and backward
+(:func:`scipy.signal.sosfiltfilt`): no phase shift, so filtered force and drift stay in phase,
+and the magnitude response is the design's squared (the effective order doubles). All
+functions work along the time axis (axis 0 unless ``axis`` says otherwise) of arrays such as
+``(time,)`` or ``(time, channel)`` and return arrays of the same shape.
+
+The Nyquist rule
+----------------
+A corner used for analysis is at most :func:`max_corner` (``0.45 / dt``, i.e. 0.9 x the
+Nyquist frequency); :func:`cap_corner` applies the rule. The filter design itself only guards
+against unrealisable corners (above 0.95 x Nyquist it designs at 0.95 x Nyquist), so a corner
+given explicitly is used as given when it is realisable.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy import integrate
+from scipy import signal as _scipy_signal
+
+from .motions.record import GroundMotion
+
+if TYPE_CHECKING:
+    from .measurement import Measurement
+
+MAX_CORNER_RATIO = 0.45
+"""Highest analysis corner as a fraction of the sample rate (0.9 x Nyquist)."""
+
+DESIGN_GUARD = 0.95
+"""Fraction of the Nyquist frequency above which a corner cannot be designed and is lowered to it."""
+
+__all__ = ["MAX_CORNER_RATIO", "max_corner", "cap_corner", "butter_sos", "bandpass", "lowpass", "highpass",
+           "integrate_twice", "measured_ground"]
+
+
+def max_corner(dt: float) -> float:
+    """The highest corner [Hz] used for analysis at sample interval ``dt`` [s]: ``0.45 / dt``."""
+    return MAX_CORNER_RATIO / dt
+
+
+def cap_corner(hi_hz: float, dt: float) -> float:
+    """``hi_hz`` lowered to :func:`max_corner` when above it (the one Nyquist rule)."""
+    return min(hi_hz, max_corner(dt))
+
+
+def butter_sos(band_hz, dt: float, order: int = 4, kind: str = "bandpass") -> np.ndarray | None:
+    """Butterworth second-order sections for the corners ``band_hz = (lo, hi)`` [Hz].
+
+    Parameters
+    ----------
+    band_hz : (lo, hi) corners [Hz]; ``lo <= 0`` means no high-pass
+    dt : sample interval [s]
+    order : order of the design (forward-backward filtering doubles it)
+    kind : ``"bandpass"`` (a low-pass when ``lo <= 0``) or ``"highpass"`` (at ``lo``)
+
+    Returns
+    -------
+    (section, 6) array, or None for a high-pass whose corner is 0 (nothing to remove)
+    """
+    nyq = 0.5 / dt
+    lo, hi = band_hz
+    hi = min(hi, DESIGN_GUARD * nyq)
+    if kind == "bandpass" and lo > 0:
+        return _scipy_signal.butter(order, [lo / nyq, hi / nyq], btype="bandpass", output="sos")
+    if kind == "bandpass":
+        return _scipy_signal.butter(order, hi / nyq, btype="lowpass", output="sos")
+    if lo <= 0:
+        return None
+    return _scipy_signal.butter(order, lo / nyq, btype="highpass", output="sos")
+
+
+def bandpass(x: np.ndarray, dt: float, band_hz, order: int = 4, *, axis: int = 0) -> np.ndarray:
+    """Zero-phase band-pass of ``x`` between ``band_hz = (lo, hi)`` [Hz] (a low-pass when ``lo`` is 0)."""
+    return _scipy_signal.sosfiltfilt(butter_sos(band_hz, dt, order), x, axis=axis)
+
+
+def lowpass(x: np.ndarray, dt: float, hi_hz: float, order: int = 4, *, axis: int = 0) -> np.ndarray:
+    """Zero-phase low-pass of ``x`` at ``hi_hz`` [Hz]."""
+    return bandpass(x, dt, (0.0, hi_hz), order, axis=axis)
+
+
+def highpass(x: np.ndarray, dt: float, band_hz, order: int = 4) -> np.ndarray:
+    """Zero-phase high-pass at ``band_hz[0]`` [Hz] along axis 0; only the mean is removed when
+    that corner is 0."""
+    sos = butter_sos(band_hz, dt, order, "highpass")
+    return x - x.mean(axis=0) if sos is None else _scipy_signal.sosfiltfilt(sos, x, axis=0)
+
+
+def integrate_twice(acc: np.ndarray, dt: float, band_hz, order: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """Velocity and displacement ``(time, channel)`` from a band-passed acceleration.
+
+    Trapezoidal integration, each result high-passed at ``band_hz[0]`` (so the drift that
+    integration makes of offsets and noise never accumulates). Returns ``(vel, disp)``.
+    """
+    vel = highpass(integrate.cumulative_trapezoid(acc, dx=dt, axis=0, initial=0.0), dt, band_hz, order)
+    disp = highpass(integrate.cumulative_trapezoid(vel, dx=dt, axis=0, initial=0.0), dt, band_hz, order)
+    return vel, disp
+
+
+def measured_ground(meas: Measurement, hi_hz: float, *, name: str = "measured") -> GroundMotion:
+    """The ground acceleration of ``meas`` low-passed (zero phase, order 4) at ``hi_hz`` [Hz]:
+    the input under which a clone is replayed against the measured floors.
+
+    ``hi_hz`` is used as given; pass ``cap_corner(band[1], meas.dt)`` for the Nyquist rule.
+    """
+    return GroundMotion(dt=meas.dt, acc=lowpass(np.asarray(meas.ground_acc), meas.dt, hi_hz), name=name)
