@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import _progress
-from .._fileio import check_output_file, check_output_folder
 from ..errors import InputError
 from ..limits import check_count
 from .main import subcommand
@@ -76,6 +75,7 @@ def register(sub) -> None:
 
 
 def run_ida(args) -> int:
+    from .._fileio import check_output_folder
     from ..ida import IDAConfig, ida_from_config, load_ida_config, prepare_building
 
     out = check_output_folder(args.out, force=args.force)  # fail before the analysis, not after it
@@ -106,6 +106,7 @@ def run_ida(args) -> int:
 
 
 def run_export(args) -> int:
+    from .._fileio import check_output_file
     from ..ida import prepare_building
     from ..opensees import export_opensees
 

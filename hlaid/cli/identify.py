@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-import numpy as np
+from typing import TYPE_CHECKING
 
 from .. import _progress
-from .._fileio import check_output_file
-from ..config import load_config
-from ..identify import IdentifyConfig, identify
-from ..io_dispatch import read_measurement_any
-from ..measurement import check_band
 from .main import subcommand
+
+if TYPE_CHECKING:
+    from ..identify import IdentifyConfig
 
 
 def register(sub) -> None:
@@ -27,6 +25,11 @@ def register(sub) -> None:
 
 
 def run_identify(args) -> int:
+    from .._fileio import check_output_file
+    from ..config import load_config
+    from ..identify import IdentifyConfig, identify
+    from ..io_dispatch import read_measurement_any
+
     out = check_output_file(args.out, force=args.force)  # fail before the identification, not after it
     cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
     meas = read_measurement_any(args.measurement)
@@ -41,12 +44,16 @@ def run_identify(args) -> int:
 
 def check_identify_bands(meas, cfg: IdentifyConfig, config: str | None) -> None:
     """The band-pass corners of an identification config must suit the measurement's sample rate."""
+    from ..measurement import check_band
+
     where = f" (in {config})" if config else " (default)"
     check_band(meas, cfg.hla.preprocess.band_hz, "hla.preprocess.band_hz" + where)
     check_band(meas, cfg.refine.band_hz, "refine.band_hz" + where)
 
 
 def print_summary(res) -> None:
+    import numpy as np
+
     b = res.clone.building
     lines = ["story      k0    alpha      p      dy  delta_eta   R(meas)  stiffness err"]
     for i in range(b.n_stories):

@@ -2,7 +2,8 @@
 
 Exit status: 0 success, 2 bad input (one line on stderr, no traceback), 1 internal error,
 130 interrupted. Each subcommand lives in its own module with a ``register(subparsers)``
-function, listed in :data:`COMMANDS`.
+function, listed in :data:`COMMANDS`; registering imports nothing heavy (torch, numba, scipy,
+matplotlib, scikit-learn, dask): the command functions import what they run.
 """
 
 from __future__ import annotations
@@ -65,6 +66,12 @@ def build_parser() -> Parser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the command line with ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
+    with _progress.cli_warnings():
+        return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
     prog, verbose = "hlaid", False
     try:  # Ctrl-C while the subcommands are imported is an interruption too
         parser = build_parser()
