@@ -1,6 +1,6 @@
 """Messages of the library: ``logging.getLogger("hlaid")`` and :mod:`warnings`.
 
-The library logs progress lines at INFO and details at DEBUG, and warns (:class:`HlaidWarning`)
+The library logs progress lines at INFO and details at DEBUG, and warns (:class:`hlaid.errors.HlaidWarning`)
 about legal but suspicious input; it prints nothing itself. An application chooses what is shown:
 the command line calls :func:`set_verbosity` (``-q``/``-v``) and :func:`cli_warnings`, which put
 every message on stderr as one plain line (warnings as ``warning: ...``).
@@ -16,6 +16,8 @@ import warnings
 from collections.abc import Iterable, Iterator
 from typing import TypeVar
 
+from .errors import HlaidWarning
+
 T = TypeVar("T")
 
 LOGGER = logging.getLogger("hlaid")
@@ -23,10 +25,6 @@ LOGGER = logging.getLogger("hlaid")
 
 LEVELS = {0: logging.WARNING, 1: logging.INFO, 2: logging.DEBUG}
 """Verbosity (0 quiet, 1 normal, 2 verbose) -> logging level."""
-
-
-class HlaidWarning(UserWarning):
-    """Legal but suspicious input (an unusual sample rate, a skipped record file, ...)."""
 
 
 class _StderrHandler(logging.StreamHandler):

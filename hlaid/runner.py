@@ -26,6 +26,7 @@ from ._fileio import atomic_directory, write_json
 from .config import config_from_node, config_to_dict, load_yaml
 from .errors import InputError
 from .identify import IdentifyConfig, identify
+from .ida import IDAConfig
 from .identify.replaycheck import corrcoef
 from .io_dispatch import read_measurement_any
 from .measurement import Measurement, check_band
@@ -61,7 +62,7 @@ class RunConfig:
 
     measurement: MeasurementSource
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
-    ida: Any = None  # IDAConfig (validated when loaded, see load_run_config)
+    ida: IDAConfig | None = None
     assess: Any = None  # hlaid.uncertainty.AssessConfig (validated when loaded)
     name: str = "hlaid run"
 
@@ -69,13 +70,9 @@ class RunConfig:
 def load_run_config(path) -> RunConfig:
     """Load a run config; its ``ida`` block is validated against :class:`hlaid.ida.IDAConfig`
     (errors there give the line of the offending value in the run config, like any other)."""
-    from .ida import IDAConfig
     source = str(path)
     root = load_yaml(source)
     cfg = config_from_node(RunConfig, root, source)
-    if cfg.ida is not None:
-        ida = config_from_node(IDAConfig, root.value["ida"], source, where="ida")
-        cfg = dataclasses.replace(cfg, ida=ida)
     if cfg.assess is not None:
         from .uncertainty import AssessConfig
         if cfg.ida is None:

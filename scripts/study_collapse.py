@@ -29,7 +29,7 @@ from reference_systems import table1_stories  # noqa: E402
 
 from hlaid import _progress  # noqa: E402
 from hlaid.clone import Clone  # noqa: E402
-from hlaid.ida import ida, load_records  # noqa: E402
+from hlaid.ida import IDAConfig, ida, load_records  # noqa: E402
 from hlaid.model import Building  # noqa: E402
 from hlaid.model.collapse import COLLAPSE_MODELS  # noqa: E402
 from hlaid.simulate.path import drive_story  # noqa: E402
@@ -139,7 +139,7 @@ def main(argv=None):
     results = {}
     for name in MODELS:
         t0 = time.perf_counter()
-        r = ida(b, motions, collapse=name)
+        r = ida(b, motions, IDAConfig(collapse=name))
         f = r.collapse_fragility()
         results[name] = r
         print(f"| {name} | {f.median:.3g} | {f.beta:.2f} | {r.point_im.size} | "

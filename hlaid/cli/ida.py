@@ -89,7 +89,7 @@ def run_ida(args) -> int:
                       collapse=args.collapse)
     # fail on a bad clone before reading records
     prepare_building(args.clone, pdelta=cfg.pdelta, heights=cfg.heights_mm, collapse=cfg.collapse,
-                     gravity_load=None if cfg.gravity_kN is None else [v * 1000.0 for v in cfg.gravity_kN])
+                     gravity_load=cfg.gravity_load_n())
     base = Path(args.config).parent if args.config else None
     res = ida_from_config(args.clone, cfg, records=args.records, base_dir=base)
     res.save(out, force=args.force, plots=not args.no_plots, n_boot=cfg.bootstrap, ci=cfg.ci, seed=cfg.seed)
