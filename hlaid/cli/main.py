@@ -31,6 +31,9 @@ COMMANDS = [
 class Parser(argparse.ArgumentParser):
     """argparse with one-line errors and exit status 2."""
 
+    commands: tuple[str, ...] = ()
+    """The subcommand names (set on the top-level parser by :func:`build_parser`)."""
+
     def error(self, message):  # noqa: D401
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
@@ -62,6 +65,7 @@ def build_parser() -> Parser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     for mod in COMMANDS:
         importlib.import_module(mod).register(sub)
+    parser.commands = tuple(sub.choices)
     return parser
 
 
