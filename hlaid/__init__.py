@@ -26,8 +26,17 @@ if TYPE_CHECKING:  # what type checkers and IDEs see; at run time the names load
     from .errors import ConfigError, InputError, NotIdentifiableError
     from .hla import HLAConfig, HLAResult, hla
     from .ida import IDAConfig, IDAResult, ida
-    from .identify import (BaseIdentifier, GradientIdentifier, HLASVMIdentifier, IdentificationResult,
-                           IdentifyConfig, NotFittedError, UKFIdentifier, identify, refine_replay)
+    from .identify import (
+        BaseIdentifier,
+        GradientIdentifier,
+        HLASVMIdentifier,
+        IdentificationResult,
+        IdentifyConfig,
+        NotFittedError,
+        UKFIdentifier,
+        identify,
+        refine_replay,
+    )
     from .io import read_any
     from .measurement import Measurement, Truth, read_measurement
     from .model import BoucWenBuilding, Building, BuildingTensors, Damping

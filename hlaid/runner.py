@@ -11,7 +11,6 @@ complete.
 from __future__ import annotations
 
 import csv
-import dataclasses
 import io
 import json
 import time
@@ -25,14 +24,15 @@ from . import __version__, _progress
 from ._fileio import atomic_directory, write_json
 from .config import config_from_node, config_to_dict, load_yaml
 from .errors import InputError
-from .identify import IdentifyConfig, identify
 from .ida import IDAConfig
+from .identify import IdentifyConfig, identify
 from .identify.replaycheck import corrcoef
 from .io_dispatch import read_measurement_any
 from .measurement import Measurement, check_band
 from .model import Building
 from .plots import plot_time_histories, save_figure
 from .synthetic import SimulationConfig, measurement_from_config
+from .uncertainty import AssessConfig
 
 PARAMS = ("alpha", "p", "delta_eta", "dy", "k0")
 
@@ -63,7 +63,7 @@ class RunConfig:
     measurement: MeasurementSource
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
     ida: IDAConfig | None = None
-    assess: Any = None  # hlaid.uncertainty.AssessConfig (validated when loaded)
+    assess: AssessConfig | None = None
     name: str = "hlaid run"
 
 
@@ -73,12 +73,8 @@ def load_run_config(path) -> RunConfig:
     source = str(path)
     root = load_yaml(source)
     cfg = config_from_node(RunConfig, root, source)
-    if cfg.assess is not None:
-        from .uncertainty import AssessConfig
-        if cfg.ida is None:
-            raise InputError(f"{source}: the assess block needs an ida block (records and IDA settings)")
-        cfg = dataclasses.replace(cfg, assess=config_from_node(AssessConfig, root.value["assess"], source,
-                                                               where="assess"))
+    if cfg.assess is not None and cfg.ida is None:
+        raise InputError(f"{source}: the assess block needs an ida block (records and IDA settings)")
     return cfg
 
 

@@ -26,7 +26,7 @@ for name in parser.commands:
             main([name, "--help"])
         except SystemExit:
             pass
-print(json.dumps({"commands": list(parser.commands), "heavy": sorted(m for m in %r if m in sys.modules)}))
+print(json.dumps({"commands": list(parser.commands), "heavy": sorted(m for m in HEAVY if m in sys.modules)}))
 """
 
 
@@ -38,15 +38,15 @@ def _fresh(code: str) -> str:
 
 
 def test_parser_and_every_help_import_nothing_heavy():
-    out = json.loads(_fresh(PROBE % (HEAVY,)).strip().splitlines()[-1])
+    out = json.loads(_fresh(f"HEAVY = {HEAVY!r}\n" + PROBE).strip().splitlines()[-1])
     assert {"simulate", "hla", "identify", "ida", "run", "demo", "fleet", "report"} <= set(out["commands"])
     assert out["heavy"] == []
 
 
 def test_import_hlaid_is_light_and_names_load_on_use():
-    code = ("import sys, hlaid; light = not any(m in sys.modules for m in %r); "
+    code = (f"import sys, hlaid; light = not any(m in sys.modules for m in {HEAVY!r}); "
             "from hlaid.ida.analysis import ida as f; from hlaid import Building, ida; "
-            "print(light, hlaid.ida is ida is f, Building.__module__)" % (HEAVY,))
+            "print(light, hlaid.ida is ida is f, Building.__module__)")
     assert _fresh(code).split() == ["True", "True", "hlaid.model.params"]
 
 
