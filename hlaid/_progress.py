@@ -13,7 +13,7 @@ import logging
 import sys
 import time
 import warnings
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sized
 from typing import TypeVar
 
 from .errors import HlaidWarning
@@ -101,7 +101,7 @@ def warn(msg: str, *, stacklevel: int = 2) -> None:
 def progress(items: Iterable[T], total: int | None = None, desc: str = "") -> Iterator[T]:
     """Iterate with a one-line progress bar on stderr (when progress is logged and stderr is a
     terminal, or details are logged)."""
-    total = total if total is not None else (len(items) if hasattr(items, "__len__") else None)
+    total = total if total is not None else (len(items) if isinstance(items, Sized) else None)
     level = verbosity()
     show = LOGGER.hasHandlers() and level >= 1 and (sys.stderr.isatty() or level >= 2)
     t0 = time.perf_counter()

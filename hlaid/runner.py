@@ -160,8 +160,7 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
             _progress.info("[4/4] incremental dynamic analysis of the clone")
             from .ida import ida_from_config
             ir = ida_from_config(res.clone, cfg.ida, base_dir=base_dir)
-            boot = {"n_boot": cfg.ida.bootstrap, "ci": cfg.ida.ci, "seed": cfg.ida.seed}
-            ir.save(tmp / "ida", plots=True, **boot)
+            ir.save(tmp / "ida", plots=True, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
             ida_summary = json.loads((tmp / "ida" / "summary.json").read_text())
             timings["ida"] = time.perf_counter() - t
         assessment = None
@@ -191,12 +190,14 @@ def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> di
     if clone.uncertainty is None:
         _progress.warn("no identification uncertainty (refinement off): the ensemble assessment is skipped")
         return None
-    a = cfg.assess
+    a, ida_cfg = cfg.assess, cfg.ida
+    if a is None or ida_cfg is None:  # load_run_config allows an assess block only with an ida block
+        return None
     _progress.info(f"[4/4] ensemble assessment: IDA of {a.n_ensemble} clones drawn from the identification "
                    "uncertainty")
-    recs = cfg.ida.record_specs(base_dir)
+    recs = ida_cfg.record_specs(base_dir)
     own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name="measured")
-    res = assess(clone, recs, n_ensemble=a.n_ensemble, ida_config=cfg.ida, own_motion=own, seed=a.seed,
+    res = assess(clone, recs, n_ensemble=a.n_ensemble, ida_config=ida_cfg, own_motion=own, seed=a.seed,
                  n_boot=a.n_boot, ci=a.ci)
     d = res.to_dict()
     write_json(tmp / "assessment.json", d)
