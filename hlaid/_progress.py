@@ -1,44 +1,109 @@
-"""Progress and messages on stderr, honouring the command line's --quiet / --verbose."""
+"""Messages of the library: ``logging.getLogger("hlaid")`` and :mod:`warnings`.
+
+The library logs progress lines at INFO and details at DEBUG, and warns (:class:`hlaid.errors.HlaidWarning`)
+about legal but suspicious input; it prints nothing itself. An application chooses what is shown:
+the command line calls :func:`set_verbosity` (``-q``/``-v``) and :func:`cli_warnings`, which put
+every message on stderr as one plain line (warnings as ``warning: ...``).
+"""
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import sys
 import time
-from collections.abc import Iterable, Iterator
+import warnings
+from collections.abc import Iterable, Iterator, Sized
 from typing import TypeVar
+
+from .errors import HlaidWarning
 
 T = TypeVar("T")
 
-VERBOSITY = 1
-"""0 quiet, 1 normal, 2 verbose. Set by the command line; the library default is normal."""
+LOGGER = logging.getLogger("hlaid")
+"""The package's logger; modules log through it (progress at INFO, details at DEBUG)."""
+
+LEVELS = {0: logging.WARNING, 1: logging.INFO, 2: logging.DEBUG}
+"""Verbosity (0 quiet, 1 normal, 2 verbose) -> logging level."""
+
+
+class _StderrHandler(logging.StreamHandler):
+    """Plain message lines on the *current* ``sys.stderr`` (which tests and pipes may replace)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.setFormatter(logging.Formatter("%(message)s"))
+
+    @property  # type: ignore[override]
+    def stream(self):
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value) -> None:
+        pass
 
 
 def set_verbosity(level: int) -> None:
-    global VERBOSITY
-    VERBOSITY = int(level)
+    """Show the package's messages on stderr: 0 warnings only, 1 progress, 2 details.
+
+    For applications (the command line, scripts); installs one plain stderr handler on the
+    ``hlaid`` logger (messages do not propagate to the root logger then).
+    """
+    if not any(isinstance(h, _StderrHandler) for h in LOGGER.handlers):
+        LOGGER.addHandler(_StderrHandler())
+    LOGGER.setLevel(LEVELS[max(0, min(2, int(level)))])
+    LOGGER.propagate = False
+
+
+def verbosity() -> int:
+    """The current verbosity (0, 1, 2) of the ``hlaid`` logger."""
+    level = LOGGER.getEffectiveLevel()
+    return 2 if level <= logging.DEBUG else 1 if level <= logging.INFO else 0
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    LOGGER.warning(f"warning: {message}")
+
+
+@contextlib.contextmanager
+def cli_warnings() -> Iterator[None]:
+    """Within the block, each :class:`HlaidWarning` is shown as one ``warning: ...`` line (every
+    time, through the logger); other warnings keep Python's defaults."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", HlaidWarning)
+        default = warnings.showwarning
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            if issubclass(category, HlaidWarning):
+                _show_warning(message, category, filename, lineno)
+            else:
+                default(message, category, filename, lineno, file, line)
+
+        warnings.showwarning = show
+        yield
 
 
 def info(msg: str) -> None:
-    """A progress message (suppressed by --quiet)."""
-    if VERBOSITY >= 1:
-        print(msg, file=sys.stderr, flush=True)
+    """A progress message (INFO)."""
+    LOGGER.info(msg)
 
 
 def debug(msg: str) -> None:
-    """A detail shown with --verbose."""
-    if VERBOSITY >= 2:
-        print(msg, file=sys.stderr, flush=True)
+    """A detail (DEBUG)."""
+    LOGGER.debug(msg)
 
 
-def warn(msg: str) -> None:
-    """A warning (always shown)."""
-    print(f"warning: {msg}", file=sys.stderr, flush=True)
+def warn(msg: str, *, stacklevel: int = 2) -> None:
+    """Warn about legal but suspicious input (:class:`HlaidWarning`, attributed to the caller)."""
+    warnings.warn(msg, HlaidWarning, stacklevel=stacklevel + 1)
 
 
 def progress(items: Iterable[T], total: int | None = None, desc: str = "") -> Iterator[T]:
-    """Iterate with a one-line progress bar on stderr (only when stderr is a terminal or verbose)."""
-    total = total if total is not None else (len(items) if hasattr(items, "__len__") else None)
-    show = VERBOSITY >= 1 and (sys.stderr.isatty() or VERBOSITY >= 2)
+    """Iterate with a one-line progress bar on stderr (when progress is logged and stderr is a
+    terminal, or details are logged)."""
+    total = total if total is not None else (len(items) if isinstance(items, Sized) else None)
+    level = verbosity()
+    show = LOGGER.hasHandlers() and level >= 1 and (sys.stderr.isatty() or level >= 2)
     t0 = time.perf_counter()
     for i, item in enumerate(items):
         yield item

@@ -88,8 +88,9 @@ class Clone:
                 "uncertainty": None if self.uncertainty is None else jsonable(self.uncertainty.to_dict()),
                 **({"collapse": b.collapse.to_dict()} if b.collapse is not None else {})}
 
-    def save(self, path: str | os.PathLike, *, force: bool = True) -> Path:
-        """Write the clone JSON atomically (never a half-written file)."""
+    def save(self, path: str | os.PathLike, *, force: bool = False) -> Path:
+        """Write the clone JSON atomically (never a half-written file); an existing file is
+        replaced only with ``force``."""
         return write_json(path, self.to_dict(), force=force)
 
     @classmethod

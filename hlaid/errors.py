@@ -28,6 +28,11 @@ class NotIdentifiableError(InputError):
     """The record does not hold enough information to identify what was asked."""
 
 
+class HlaidWarning(UserWarning):
+    """Legal but suspicious input (an unusual sample rate, a skipped record file, ...); the
+    command line shows each as one ``warning: ...`` line on stderr."""
+
+
 _LABEL = re.compile(r"[A-Za-z0-9_ .()\[\]/^*%+-]{1,32}")
 
 

@@ -182,8 +182,9 @@ class Measurement:
             d["true_params"] = np.array(json.dumps(self.truth.building.to_dict()))
         return d
 
-    def save(self, path: str | os.PathLike, *, force: bool = True) -> Path:
-        """Write NPZ or CSV (by extension), atomically."""
+    def save(self, path: str | os.PathLike, *, force: bool = False) -> Path:
+        """Write NPZ or CSV (by extension), atomically; an existing file is replaced only with
+        ``force``."""
         path = Path(path)
         if path.suffix.lower() == ".csv":
             return atomic_write(path, lambda tmp: tmp.write_text(self._csv_text()), force=force)

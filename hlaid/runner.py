@@ -11,7 +11,6 @@ complete.
 from __future__ import annotations
 
 import csv
-import dataclasses
 import io
 import json
 import time
@@ -25,6 +24,7 @@ from . import __version__, _progress
 from ._fileio import atomic_directory, write_json
 from .config import config_from_node, config_to_dict, load_yaml
 from .errors import InputError
+from .ida import IDAConfig
 from .identify import IdentifyConfig, identify
 from .identify.replaycheck import corrcoef
 from .io import read
@@ -32,6 +32,7 @@ from .measurement import Measurement, check_band
 from .model import Building
 from .plots import plot_time_histories, save_figure
 from .synthetic import SimulationConfig, measurement_from_config
+from .uncertainty import AssessConfig
 
 PARAMS = ("alpha", "p", "delta_eta", "dy", "k0")
 
@@ -61,27 +62,19 @@ class RunConfig:
 
     measurement: MeasurementSource
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
-    ida: Any = None  # IDAConfig (validated when loaded, see load_run_config)
-    assess: Any = None  # hlaid.uncertainty.AssessConfig (validated when loaded)
+    ida: IDAConfig | None = None
+    assess: AssessConfig | None = None
     name: str = "hlaid run"
 
 
 def load_run_config(path) -> RunConfig:
     """Load a run config; its ``ida`` block is validated against :class:`hlaid.ida.IDAConfig`
     (errors there give the line of the offending value in the run config, like any other)."""
-    from .ida import IDAConfig
     source = str(path)
     root = load_yaml(source)
     cfg = config_from_node(RunConfig, root, source)
-    if cfg.ida is not None:
-        ida = config_from_node(IDAConfig, root.value["ida"], source, where="ida")
-        cfg = dataclasses.replace(cfg, ida=ida)
-    if cfg.assess is not None:
-        from .uncertainty import AssessConfig
-        if cfg.ida is None:
-            raise InputError(f"{source}: the assess block needs an ida block (records and IDA settings)")
-        cfg = dataclasses.replace(cfg, assess=config_from_node(AssessConfig, root.value["assess"], source,
-                                                               where="assess"))
+    if cfg.assess is not None and cfg.ida is None:
+        raise InputError(f"{source}: the assess block needs an ida block (records and IDA settings)")
     return cfg
 
 
@@ -167,8 +160,7 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
             _progress.info("[4/4] incremental dynamic analysis of the clone")
             from .ida import ida_from_config
             ir = ida_from_config(res.clone, cfg.ida, base_dir=base_dir)
-            boot = {"n_boot": cfg.ida.bootstrap, "ci": cfg.ida.ci, "seed": cfg.ida.seed}
-            ir.save(tmp / "ida", plots=True, **boot)
+            ir.save(tmp / "ida", plots=True, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
             ida_summary = json.loads((tmp / "ida" / "summary.json").read_text())
             timings["ida"] = time.perf_counter() - t
         assessment = None
@@ -198,12 +190,14 @@ def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> di
     if clone.uncertainty is None:
         _progress.warn("no identification uncertainty (refinement off): the ensemble assessment is skipped")
         return None
-    a = cfg.assess
+    a, ida_cfg = cfg.assess, cfg.ida
+    if a is None or ida_cfg is None:  # load_run_config allows an assess block only with an ida block
+        return None
     _progress.info(f"[4/4] ensemble assessment: IDA of {a.n_ensemble} clones drawn from the identification "
                    "uncertainty")
-    recs = cfg.ida.record_specs(base_dir)
+    recs = ida_cfg.record_specs(base_dir)
     own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name="measured")
-    res = assess(clone, recs, n_ensemble=a.n_ensemble, ida_config=cfg.ida, own_motion=own, seed=a.seed,
+    res = assess(clone, recs, n_ensemble=a.n_ensemble, ida_config=ida_cfg, own_motion=own, seed=a.seed,
                  n_boot=a.n_boot, ci=a.ci)
     d = res.to_dict()
     write_json(tmp / "assessment.json", d)

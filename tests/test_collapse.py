@@ -270,19 +270,19 @@ def test_clone_file_collapse_block(table1, tmp_path):
 
 
 def test_ida_flatlines_at_a_lower_intensity_with_a_collapse_model(table1):
-    from hlaid.ida import ida
+    from hlaid.ida import IDAConfig, ida
     b = table1.replace(height=[H] * 3)
     recs = ["builtin:elcentro-1940-ns", "builtin:kocaeli-1999-dzc180", "builtin:northridge-1994-mul009"]
-    kw = {"levels": [0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0], "tolerance": 0.05}
-    none = ida(b, recs, **kw)
-    steel = ida(b, recs, collapse="steel-mrf", **kw)
+    cfg = IDAConfig(levels=[0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0], tolerance=0.05)
+    none = ida(b, recs, cfg)
+    steel = ida(b, recs, cfg.replace(collapse="steel-mrf"))
     assert any("collapse model 'none'" in n for n in none.notes)
     assert any("steel-mrf" in n for n in steel.notes)
     m0 = none.collapse_fragility().median
     m1 = steel.collapse_fragility().median
     assert m1 < 0.8 * m0
     with pytest.raises(InputError, match="unknown collapse model"):
-        ida(b, recs, collapse="steel")
+        ida(b, recs, cfg.replace(collapse="steel"))
 
 
 def test_ida_command_collapse_flag(table1, tmp_path, capsys):

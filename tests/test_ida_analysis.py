@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from hlaid.clone import Clone
-from hlaid.errors import InputError
-from hlaid.ida import IDAResult, ida, prepare_building, scan_collapse
+from hlaid.errors import HlaidWarning, InputError
+from hlaid.ida import IDAConfig, IDAResult, ida, prepare_building, scan_collapse
 from hlaid.io import read
 from hlaid.model import Building
 from hlaid.motions import GroundMotion, load_builtin
@@ -34,7 +34,7 @@ def motions():
 @pytest.fixture(scope="module")
 def result(table1, motions) -> IDAResult:
     # a 3 % drift limit keeps collapse intensities low (short runs)
-    return ida(table1, motions, levels=[0.5, 1.0, 1.5, 2.0, 3.0], drift_limit=0.03, heights=HEIGHTS)
+    return ida(table1, motions, IDAConfig(levels=[0.5, 1.0, 1.5, 2.0, 3.0], drift_limit=0.03, heights_mm=HEIGHTS))
 
 
 def test_every_point_matches_a_direct_simulation(result, motions):
@@ -122,7 +122,7 @@ def test_integration_blow_up_is_rerun_not_taken_for_collapse(table1, monkeypatch
         return r
     monkeypatch.setattr(A, "simulate", flaky)
     gm = load_builtin("landers-1992-yer270")
-    res = ida(table1, gm, im="pga", levels=[0.5], refine=False, heights=HEIGHTS, max_step=0.02)
+    res = ida(table1, gm, IDAConfig(im="pga", levels=[0.5], refine=False, heights_mm=HEIGHTS, max_step=0.02))
     k = np.flatnonzero(res.point_stage == "grid")[0]
     assert calls == [1, 4, 1, 4]  # probe and grid point, each re-run once
     assert res.point_substeps[k] == 4 and res.point_status[k] == 0 and res.peak_drift[k].max() < 100.0
@@ -157,11 +157,11 @@ def test_pdelta_and_heights_rules(table1, tmp_path, capsys):
 
 def test_bad_input(table1, motions, tmp_path, capsys):
     with pytest.raises(InputError, match="strictly increasing; level 3 .0.5 g. is not above level 2"):
-        ida(table1, motions, levels=[0.2, 0.8, 0.5], heights=HEIGHTS)
+        ida(table1, motions, IDAConfig(levels=[0.2, 0.8, 0.5], heights_mm=HEIGHTS))
     empty = tmp_path / "empty"
     empty.mkdir()
     with pytest.raises(InputError, match="no record files in the folder"):
-        ida(table1, empty, heights=HEIGHTS)
+        ida(table1, empty, IDAConfig(heights_mm=HEIGHTS))
     folder = tmp_path / "recs"
     folder.mkdir()
     src = load_builtin(RECS[0]).source
@@ -171,11 +171,12 @@ def test_bad_input(table1, motions, tmp_path, capsys):
         with resources.as_file(resources.files("hlaid").joinpath("data/records/elcentro-1940-ns.AT2.gz")) as p:
             fh.write(gzip.decompress(p.read_bytes()).decode())
     (folder / "broken.AT2").write_text("not\nan\nAT2\nfile\n1 2 3\n")
-    recs = read(folder, "records")
-    err = capsys.readouterr().err
+    with pytest.warns(HlaidWarning) as seen:
+        recs = read(folder, "records")
+    err = " ".join(str(w.message) for w in seen)
     assert [m.name for m in recs] == ["good"] and "skipped 1 unreadable record(s)" in err and "broken.AT2" in err
     (folder / "good.AT2").unlink()
-    with pytest.raises(InputError, match="none of the 1 record file"):
+    with pytest.raises(InputError, match="none of the 1 record file"), pytest.warns(HlaidWarning, match="skipped"):
         read(folder, "records")
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"format": "something-else"}))

@@ -141,7 +141,10 @@ def test_identifiers_are_sklearn_estimators(name, fitted):
 
 
 def test_registry_names_every_identifier():
+    from hlaid.cli.identify import METHODS
+
     assert set(IDENTIFIERS) == set(NAMES)
+    assert set(METHODS) <= set(IDENTIFIERS)  # the CLI's --method choices are registered identifiers
     ukf = get_identifier("ukf", n_passes=2)
     assert isinstance(ukf, UKFIdentifier) and ukf.n_passes == 2
     assert get_identifier("hlasvm").refine == "none" and get_identifier("hlasvm_replay").refine == "replay"

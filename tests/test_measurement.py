@@ -117,6 +117,8 @@ def test_save_does_not_overwrite_without_force(tmp_path, noisy):
     before = p.read_bytes()
     with pytest.raises(InputError, match="already exists"):
         noisy[1].save(p, force=False)
+    with pytest.raises(InputError, match="already exists"):  # the default
+        noisy[1].save(p)
     assert p.read_bytes() == before
     assert [q.name for q in tmp_path.iterdir()] == ["m.npz"]  # no temporary file left behind
 

@@ -91,10 +91,10 @@ def test_ida_points_agree_with_opensees(table1):
     """A small IDA of the Table 1 clone (P-Delta on): every point re-run in OpenSees at dt/10;
     median difference of the peak drifts below 2 % (the full 10 records x 8 levels check is
     ``test_ida_cross_check_full`` / scripts/bench_ida.py)."""
-    from hlaid.ida import ida
+    from hlaid.ida import IDAConfig, ida
     from hlaid.motions import load_builtin
     motions = [load_builtin(n) for n in ("northridge-1994-mul009", "kobe-1995-nis000")]
-    res = ida(table1, motions, levels=[1.0, 4.0], refine=False, heights=HEIGHTS)
+    res = ida(table1, motions, IDAConfig(levels=[1.0, 4.0], refine=False, heights_mm=HEIGHTS))
     diffs = _compare(res, motions)
     assert np.median(diffs) < 0.02 and diffs.size >= 9
 
@@ -112,11 +112,11 @@ def _compare(res, motions):
 @pytest.mark.slow
 def test_ida_cross_check_full(table1, data_dir):
     """10 far-field records x 8 levels: median |difference| of the peak drifts below 2 %."""
-    from hlaid.ida import ida
+    from hlaid.ida import IDAConfig, ida
     from hlaid.io import read
     files = sorted((data_dir / "ground_motions" / "fema_p695_farfield").glob("FF*.AT2"))[::4][:10]
     motions = read(files, "records")
-    res = ida(table1, motions, levels=np.linspace(0.5, 4.0, 8), refine=False, heights=HEIGHTS)
+    res = ida(table1, motions, IDAConfig(levels=np.linspace(0.5, 4.0, 8), refine=False, heights_mm=HEIGHTS))
     diffs = _compare(res, motions)
     assert np.median(diffs) < 0.02
 

@@ -195,8 +195,10 @@ def test_save_load_roundtrip(tmp_path, iris_model):
     np.testing.assert_array_equal(est.predict(X_IRIS), iris_model.predict(X_IRIS))
     np.testing.assert_array_equal(est.decision_function(X_IRIS),
                                   iris_model.decision_function(X_IRIS))
-    # overwrite in place (atomic replace) works too
-    iris_model.save(path)
+    # an existing file is kept unless asked; overwrite in place (atomic replace) with force
+    with pytest.raises(ValueError, match="already exists"):
+        iris_model.save(path)
+    iris_model.save(path, force=True)
     assert sorted(os.listdir(tmp_path)) == ["model.pt"]
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hlaid.clone import Clone, load_clone
-from hlaid.errors import InputError
+from hlaid.errors import HlaidWarning, InputError
 from hlaid.model import Building
 from hlaid.uncertainty import (ParameterUncertainty, calibration_factor, clone_ensemble, coverage, covariance,
                                zscores)
@@ -306,7 +306,8 @@ def test_inconsistent_fit_is_never_green(small_assessment):
     weak = own.scaled(0.01 / max(a.own_im, 1e-9))
     u = dataclasses.replace(c.uncertainty, info={"misfit_ratio": 4.0, "fit_consistent": False})
     bad = Clone(building=c.building, uncertainty=u)
-    ab = assess(bad, _motions(), n_ensemble=3, ida_config=cfg, own_motion=weak, seed=1, n_boot=5)
+    with pytest.warns(HlaidWarning, match="misfit above the noise level"):
+        ab = assess(bad, _motions(), n_ensemble=3, ida_config=cfg, own_motion=weak, seed=1, n_boot=5)
     assert ab.indicator == "yellow" and "misfit ratio 4" in ab.reasons[-1]
     assert any("misfit" in n for n in ab.notes)
 

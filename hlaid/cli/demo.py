@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from .._fileio import check_output_folder
-from ..demo import run_demo
 from .main import subcommand
 
 
@@ -18,6 +16,9 @@ def register(sub) -> None:
 
 
 def run_demo_command(args) -> int:
+    from .._fileio import check_output_folder
+    from ..demo import run_demo
+
     check_output_folder(args.out, force=args.force)  # fail before the pipeline, not after it
     run_demo(args.out, force=args.force, cache_dir=args.cache)
     return 0

@@ -5,13 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import _progress
-from .._fileio import atomic_directory, check_output_folder
-from ..config import load_config
-from ..hla import HLAConfig, hla
-from ..hla.plots import plot_loops, plot_stiffness
-from ..io import read
-from ..measurement import check_band
-from ..plots import save_figure
 from .main import subcommand
 
 
@@ -27,6 +20,14 @@ def register(sub) -> None:
 
 
 def run_hla(args) -> int:
+    from .._fileio import atomic_directory, check_output_folder
+    from ..config import load_config
+    from ..hla import HLAConfig, hla
+    from ..hla.plots import plot_loops, plot_stiffness
+    from ..io import read
+    from ..measurement import check_band
+    from ..plots import save_figure
+
     check_output_folder(args.out, force=args.force)  # fail before the analysis, not after it
     cfg = load_config(args.config, HLAConfig) if args.config else HLAConfig()
     meas = read(args.measurement, "measurement")

@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import _progress
-from .._fileio import check_output_file, check_output_folder
 from ..errors import InputError
 from ..limits import check_count
 from .main import subcommand
@@ -76,6 +75,7 @@ def register(sub) -> None:
 
 
 def run_ida(args) -> int:
+    from .._fileio import check_output_folder
     from ..ida import IDAConfig, ida_from_config, load_ida_config, prepare_building
 
     out = check_output_folder(args.out, force=args.force)  # fail before the analysis, not after it
@@ -89,7 +89,7 @@ def run_ida(args) -> int:
                       collapse=args.collapse)
     # fail on a bad clone before reading records
     prepare_building(args.clone, pdelta=cfg.pdelta, heights=cfg.heights_mm, collapse=cfg.collapse,
-                     gravity_load=None if cfg.gravity_kN is None else [v * 1000.0 for v in cfg.gravity_kN])
+                     gravity_load=cfg.gravity_load_n())
     base = Path(args.config).parent if args.config else None
     res = ida_from_config(args.clone, cfg, records=args.records, base_dir=base)
     res.save(out, force=args.force, plots=not args.no_plots, n_boot=cfg.bootstrap, ci=cfg.ci, seed=cfg.seed)
@@ -106,14 +106,16 @@ def run_ida(args) -> int:
 
 
 def run_export(args) -> int:
+    from .._fileio import check_output_file
     from ..ida import prepare_building
     from ..opensees import export_opensees
+    from ..units import kn_to_n
 
     check_output_file(args.out, force=args.force)
     b, _ = prepare_building(args.clone, pdelta=args.pdelta, require_heights=False,
-                                heights=_numbers(args.heights, "--heights") if args.heights else None,
-                                gravity_load=[v * 1000.0 for v in _numbers(args.gravity_kN, "--gravity-kN")]
-                                if args.gravity_kN else None)
+                            heights=_numbers(args.heights, "--heights") if args.heights else None,
+                            gravity_load=[kn_to_n(v) for v in _numbers(args.gravity_kN, "--gravity-kN")]
+                            if args.gravity_kN else None)
     path = export_opensees(b, args.out, force=args.force)
     _progress.info(f"wrote {path} ({b.n_stories} stories, P-Delta {'on' if b.pdelta_active else 'off'}); "
                    f"run it with: python {path} RECORD.AT2 [--pga-g 0.5] [--out peaks.json]")

@@ -2,19 +2,17 @@
 
 from __future__ import annotations
 
-import numpy as np
+from typing import TYPE_CHECKING
 
 from .. import _progress
-from .._fileio import check_output_file
-from ..config import load_config
-from ..errors import InputError
-from ..identify import HLASVMIdentifier, IdentifyConfig, get_identifier
-from ..io import read
-from ..measurement import check_band
 from .main import subcommand
 
+if TYPE_CHECKING:
+    from ..identify import IdentifyConfig
+
 METHODS = ("hlasvm", "gradient", "ukf")
-"""``--method`` choices: names of :data:`hlaid.identify.IDENTIFIERS`."""
+"""``--method`` choices: names of :data:`hlaid.identify.IDENTIFIERS` (kept here so that ``--help``
+imports no identifier; a test checks the two agree)."""
 
 
 def register(sub) -> None:
@@ -35,6 +33,13 @@ def register(sub) -> None:
 
 
 def run_identify(args) -> int:
+    from .._fileio import check_output_file
+    from ..config import load_config
+    from ..errors import InputError
+    from ..identify import HLASVMIdentifier, IdentifyConfig, get_identifier
+    from ..io import read
+    from ..measurement import check_band
+
     out = check_output_file(args.out, force=args.force)  # fail before the identification, not after it
     if args.config and args.method != "hlasvm":
         raise InputError(f"--config configures --method hlasvm, not {args.method}")
@@ -59,12 +64,16 @@ def run_identify(args) -> int:
 
 def check_identify_bands(meas, cfg: IdentifyConfig, config: str | None) -> None:
     """The band-pass corners of an identification config must suit the measurement's sample rate."""
+    from ..measurement import check_band
+
     where = f" (in {config})" if config else " (default)"
     check_band(meas, cfg.hla.preprocess.band_hz, "hla.preprocess.band_hz" + where)
     check_band(meas, cfg.refine.band_hz, "refine.band_hz" + where)
 
 
 def print_summary(res) -> None:
+    import numpy as np
+
     b = res.clone.building
     lines = ["story      k0    alpha      p      dy  delta_eta   R(meas)  stiffness err"]
     for i in range(b.n_stories):

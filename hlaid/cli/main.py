@@ -2,7 +2,8 @@
 
 Exit status: 0 success, 2 bad input (one line on stderr, no traceback), 1 internal error,
 130 interrupted. Each subcommand lives in its own module with a ``register(subparsers)``
-function, listed in :data:`COMMANDS`.
+function, listed in :data:`COMMANDS`; registering imports nothing heavy (torch, numba, scipy,
+matplotlib, scikit-learn, dask): the command functions import what they run.
 """
 
 from __future__ import annotations
@@ -29,6 +30,9 @@ COMMANDS = [
 
 class Parser(argparse.ArgumentParser):
     """argparse with one-line errors and exit status 2."""
+
+    commands: tuple[str, ...] = ()
+    """The subcommand names (set on the top-level parser by :func:`build_parser`)."""
 
     def error(self, message):  # noqa: D401
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
@@ -61,10 +65,17 @@ def build_parser() -> Parser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     for mod in COMMANDS:
         importlib.import_module(mod).register(sub)
+    parser.commands = tuple(sub.choices)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the command line with ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
+    with _progress.cli_warnings():
+        return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
     prog, verbose = "hlaid", False
     try:  # Ctrl-C while the subcommands are imported is an interruption too
         parser = build_parser()

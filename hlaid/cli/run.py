@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-from .._fileio import check_output_folder
-from ..report import build_report
-from ..runner import run_from_file
 from .main import subcommand
 
 
@@ -20,10 +17,20 @@ def register(sub) -> None:
     r = subcommand(sub, "report", help="rebuild report.html of a run folder from its saved results",
                    example="hlaid report hlaid-demo")
     r.add_argument("run_dir", help="a folder written by hlaid run or hlaid demo")
-    r.set_defaults(func=lambda a: build_report(a.run_dir) and 0)
+    r.set_defaults(func=run_report)
 
 
 def run_run(args) -> int:
+    from .._fileio import check_output_folder
+    from ..runner import run_from_file
+
     check_output_folder(args.out, force=args.force)  # fail before the pipeline, not after it
     run_from_file(args.config, args.out, force=args.force, cache_dir=args.cache)
+    return 0
+
+
+def run_report(args) -> int:
+    from ..report import build_report
+
+    build_report(args.run_dir)
     return 0

@@ -5,9 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import _progress
-from .._fileio import check_output_file
-from ..motions import builtin_records, load_builtin
-from ..synthetic import load_simulation_config, measurement_from_config
 from .main import subcommand
 
 
@@ -26,6 +23,9 @@ def register(sub) -> None:
 
 
 def run_simulate(args) -> int:
+    from .._fileio import check_output_file
+    from ..synthetic import load_simulation_config, measurement_from_config
+
     out = check_output_file(args.out, force=args.force)  # fail before the simulation, not after it
     cfg = load_simulation_config(args.config)
     _progress.info(f"simulating {cfg.building.name or 'building'} under {cfg.motion.file}")
@@ -36,6 +36,8 @@ def run_simulate(args) -> int:
 
 
 def run_records(args) -> int:
+    from ..motions import builtin_records, load_builtin
+
     for name, rec in builtin_records().items():
         gm = load_builtin(name)
         suite = " [suite]" if rec.suite else ""

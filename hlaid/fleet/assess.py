@@ -133,7 +133,7 @@ def point_assess(clone, records, *, n_ensemble: int = 0, ida_config: IDAConfig |
                  own_motion: GroundMotion | None = None, seed: int = 0) -> PointAssessment:
     """IDA of the point clone alone (``n_ensemble`` is ignored): the fallback of :func:`assess_clone`."""
     cfg = ida_config or IDAConfig()
-    res = ida(clone, records, **cfg.ida_kwargs())
+    res = ida(clone, records, cfg)
     notes = list(res.notes)
     try:
         frag = res.collapse_fragility("capacities", n_boot=cfg.bootstrap, ci=cfg.ci, seed=seed)

@@ -120,7 +120,7 @@ def make_jobs(cfg: FleetConfig, base_dir: Path | None, records_sha: str, engine:
                "n_ensemble": cfg.n_ensemble, "seed": job.seed, "engine": engine, "hlaid": __version__,
                "records": records_sha, "files": {str(p): _file_digest(p) for p in input_files(m, base)}}
         digest = hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()
-        jobs.append(dataclasses.replace(job, digest=digest, verbosity=_progress.VERBOSITY, driver_pid=os.getpid()))
+        jobs.append(dataclasses.replace(job, digest=digest, verbosity=_progress.verbosity(), driver_pid=os.getpid()))
     return jobs
 
 

@@ -165,8 +165,9 @@ class HLAResult:
                 "units": self.units, "stories": [s.summary() for s in self.stories],
                 "config": config_to_dict(self.config)}
 
-    def save(self, out_dir: str | os.PathLike, *, force: bool = True) -> dict[str, Path]:
-        """Write ``hla.npz`` (time series and half-cycle tables) and ``hla.json`` (summary)."""
+    def save(self, out_dir: str | os.PathLike, *, force: bool = False) -> dict[str, Path]:
+        """Write ``hla.npz`` (time series and half-cycle tables) and ``hla.json`` (summary);
+        existing files are replaced only with ``force``."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         arrays: dict[str, np.ndarray] = {"dt": np.float64(self.dt), "mass": self.mass}

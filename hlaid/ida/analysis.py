@@ -30,6 +30,7 @@ Stages (each a few batched simulator calls):
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 from collections.abc import Sequence
@@ -254,57 +255,51 @@ def _auto_levels(elastic_slope: np.ndarray, drift_limit: float, n: int) -> list[
 
 # ---------------------------------------------------------------------------- the analysis
 def ida(model: Clone | Building | str | os.PathLike,
-        records: str | os.PathLike | GroundMotion | Sequence[str | os.PathLike | GroundMotion], *,
-        im: str = "sa_t1", levels: Sequence[float] | None = None, n_levels: int = 20, drift_limit: float = 0.10,
-        slope_ratio: float = 0.20, exceedance_limits: Sequence[float] | None = None,
-        refine: bool = True, hunt_factor: float = 1.5, max_hunt: int = 10, tolerance: float = 0.02,
-        max_fill: int = 12, max_step: float = 0.0025, pdelta: bool | None = None, heights=None,
-        gravity_load=None, period: float | None = None, units: str | None = None, collapse=None) -> IDAResult:
+        records: str | os.PathLike | GroundMotion | Sequence[str | os.PathLike | GroundMotion],
+        config: IDAConfig | None = None) -> IDAResult:
     """Incremental dynamic analysis of a clone (or building) over a record set.
 
     Parameters
     ----------
     model : a :class:`~hlaid.clone.Clone`, a :class:`~hlaid.model.Building` or a clone file
     records : a folder of AT2/text records, ``"builtin-suite"``, files, or GroundMotions
-        (see :func:`hlaid.io.read` with ``kind="records"``; unreadable files are skipped with a warning)
-    im : intensity measure, a name in :data:`hlaid.ida.INTENSITY_MEASURES`
-    levels : (level,) strictly increasing IM levels [g]; None: ``n_levels`` equal steps up to
-        the median (over records) equal-displacement estimate of the IM at the drift limit
-    drift_limit : collapse drift ratio (0.10 = 10 %); also where the simulator stops a run
-    slope_ratio : collapse when the IDA slope falls below this fraction of the elastic slope
-    exceedance_limits : drift ratios whose probability of exceedance is summarised; None: 0.5, 1,
-        2 and 4 % (those below ``drift_limit``)
-    refine : hunt and bisect (fill) each record's collapse intensity
-    hunt_factor, max_hunt, tolerance, max_fill : refinement settings (see the module doc)
-    max_step : largest RK4 step [s] (sub-steps per record: ``ceil(dt / max_step)``); peaks and
-        the drift stop are checked at every step
-    pdelta, heights, gravity_load : see :func:`prepare_building`; ``heights`` [mm] and
-        ``gravity_load`` [N per floor] replace the clone's
-    period : period [s] of Sa(T1) instead of the clone's first elastic period
-    units : acceleration units of text records
-    collapse : strength-loss model (see :func:`prepare_building`); None: the clone's, else none
+        (see :func:`hlaid.io.read` with ``kind="records"``; unreadable files are skipped with a warning);
+        ``config.records`` is not used (see :func:`ida_from_config`)
+    config : the settings (:class:`IDAConfig`; None: its defaults). Of its fields, ``im``,
+        ``levels`` ((level,) strictly increasing IM levels [g]; None: ``n_levels`` equal steps up
+        to the median equal-displacement estimate of the IM at the drift limit), ``drift_limit``
+        (also where the simulator stops a run), ``slope_ratio``, ``exceedance_limits``, the
+        refinement (``refine``, ``hunt_factor``, ``max_hunt``, ``tolerance``, ``max_fill``; see the
+        module doc), ``max_step`` (largest RK4 step [s]; peaks and the drift stop are checked at
+        every step), ``pdelta``, ``heights_mm``, ``gravity_kN`` and ``collapse`` (see
+        :func:`prepare_building`), ``period`` and ``units`` (of text records) are used here; the
+        bootstrap settings are for :meth:`IDAResult.save`
 
     Returns
     -------
     IDAResult
     """
     t0 = time.perf_counter()
+    cfg = IDAConfig() if config is None else config
+    if not isinstance(cfg, IDAConfig):
+        raise InputError(f"config: expected an IDAConfig, got {type(cfg).__name__}")
+    drift_limit, max_step = cfg.drift_limit, cfg.max_step
+    exceedance_limits = cfg.exceedance_limits
     if exceedance_limits is None:
         exceedance_limits = [d for d in DEFAULT_EXCEEDANCE if d < drift_limit]
-    cfg = IDAConfig(im=im, levels=None if levels is None else list(levels), n_levels=n_levels,
-                    drift_limit=drift_limit, slope_ratio=slope_ratio, exceedance_limits=list(exceedance_limits),
-                    refine=refine, hunt_factor=hunt_factor, max_hunt=max_hunt, tolerance=tolerance,
-                    max_fill=max_fill, max_step=max_step, pdelta=pdelta, period=period,
-                    collapse=collapse if isinstance(collapse, (str, dict, type(None))) else collapse.to_dict())
-    building, notes = prepare_building(model, pdelta=pdelta, heights=heights, gravity_load=gravity_load,
-                                       collapse=collapse)
-    motions = as_motions(records, units=units)
-    measure = get_intensity_measure(im)
-    T1 = period_for(measure, building, period)
+    cfg = dataclasses.replace(cfg, levels=None if cfg.levels is None else list(cfg.levels),
+                              exceedance_limits=list(exceedance_limits))
+    building, notes = prepare_building(model, pdelta=cfg.pdelta, heights=cfg.heights_mm,
+                                       gravity_load=cfg.gravity_load_n(), collapse=cfg.collapse)
+    motions = as_motions(records, units=cfg.units)
+    measure = get_intensity_measure(cfg.im)
+    T1 = period_for(measure, building, cfg.period)
     im0 = measure.compute(motions, T1, 0.05) / G_MM_S2
     if np.any(~(im0 > 0)):
         bad = [m.name for m, v in zip(motions, im0) if not v > 0]
         raise InputError(f"record(s) with zero {measure.label}: {', '.join(bad)}")
+    levels, n_levels, slope_ratio, refine = cfg.levels, cfg.n_levels, cfg.slope_ratio, cfg.refine
+    hunt_factor, max_hunt, tolerance, max_fill = cfg.hunt_factor, cfg.max_hunt, cfg.tolerance, cfg.max_fill
     R = len(motions)
     runner = _Runner(building, motions, im0, drift_limit, max_step)
     _progress.info(f"IDA of {building.name or 'the clone'}: {R} records, IM {measure.label}"
@@ -417,9 +412,10 @@ def _settings(cfg: IDAConfig) -> dict:
 
 
 def ida_from_config(model, cfg: IDAConfig, records=None, *, base_dir: str | Path | None = None) -> IDAResult:
-    """Run :func:`ida` with the settings of an :class:`IDAConfig` (``records`` overrides the config's)."""
+    """Run :func:`ida` on the config's own records (relative paths from ``base_dir``) unless
+    ``records`` are given."""
     recs = records if records is not None else cfg.record_specs(base_dir)
     if recs is None:
         raise InputError("no records: give them in the config ('records:') or on the command line (--records)")
-    return ida(model, recs, **cfg.ida_kwargs())
+    return ida(model, recs, cfg)
 

@@ -105,15 +105,9 @@ class IDAConfig:
         """A copy with the given fields changed (None values are ignored)."""
         return dataclasses.replace(self, **{k: v for k, v in changes.items() if v is not None})
 
-    def ida_kwargs(self) -> dict:
-        """Keyword arguments of :func:`hlaid.ida.ida`."""
-        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
-        for k in ("records", "bootstrap", "ci", "seed"):
-            d.pop(k)
-        d["heights"] = d.pop("heights_mm")
-        g = d.pop("gravity_kN")
-        d["gravity_load"] = None if g is None else [kn_to_n(v) for v in g]
-        return d
+    def gravity_load_n(self) -> list[float] | None:
+        """The floor gravity loads [N] (``gravity_kN`` converted), or None."""
+        return None if self.gravity_kN is None else [kn_to_n(v) for v in self.gravity_kN]
 
     def record_specs(self, base_dir: str | Path | None = None) -> list[str] | None:
         """The records, relative paths resolved against ``base_dir``."""

@@ -137,7 +137,7 @@ class MachineCache:
             files = {}
             for name, m in machines.items():
                 if m is not None:
-                    m.save(d / f"{name}.svm")
+                    m.save(d / f"{name}.svm", force=True)  # replaces a stale entry's file
                     files[name] = _sha256_file(d / f"{name}.svm")
             body = json.loads(json.dumps({**meta, "machines": list(machines)}, default=json_default))
             seal = {"key": key, "meta_sha256": _sha256_json(body), "files": files}

@@ -332,7 +332,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         return tags
 
     # --------------------------------------------------------------- save/load
-    def save(self, path: str | os.PathLike) -> None:
+    def save(self, path: str | os.PathLike, *, force: bool = False) -> None:
         """Write the fitted model to one file (atomically).
 
         The file is a ``torch.save`` dictionary of tensors, strings and
@@ -343,6 +343,8 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         Parameters
         ----------
         path : str or os.PathLike
+        force : bool, default False
+            Replace an existing file (otherwise an existing ``path`` is an error).
         """
         check_is_fitted(self)
         params = self.get_params()
@@ -372,7 +374,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
             "fit_status_": int(self.fit_status_),
             "shape_fit_": list(self.shape_fit_),
         }
-        atomic_write(path, lambda tmp: torch.save(state, tmp))
+        atomic_write(path, lambda tmp: torch.save(state, tmp), force=force)
 
     @classmethod
     def load(cls, path: str | os.PathLike, *,

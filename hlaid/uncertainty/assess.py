@@ -251,9 +251,8 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
     motions = as_motions(records, units=cfg.units)
     if len(motions) < 2:
         raise InputError(f"assess needs at least 2 records for a fragility; got {len(motions)}")
-    kw = cfg.ida_kwargs()
-    nominal, notes = prepare_building(clone, pdelta=kw["pdelta"], heights=kw["heights"],
-                                      gravity_load=kw["gravity_load"])
+    nominal, notes = prepare_building(clone, pdelta=cfg.pdelta, heights=cfg.heights_mm,
+                                      gravity_load=cfg.gravity_load_n())
     measure = get_intensity_measure(cfg.im)
     period = period_for(measure, nominal, cfg.period)
     if measure.needs_period:
@@ -307,8 +306,8 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
         hit = np.array(hit, dtype=float)
         exceed = hit.mean(axis=1)
         ex_all = np.concatenate([exceed] + [hit[:, idx].mean(axis=1) for idx in boots])
-        bs = [prepare_building(Clone(building=b, mass_normalised=clone.mass_normalised), pdelta=kw["pdelta"],
-                               heights=kw["heights"], gravity_load=kw["gravity_load"])[0] for b in members]
+        bs = [prepare_building(Clone(building=b, mass_normalised=clone.mass_normalised), pdelta=cfg.pdelta,
+                               heights=cfg.heights_mm, gravity_load=cfg.gravity_load_n())[0] for b in members]
         sub = max(1, int(np.ceil(own_motion.dt / cfg.max_step)))
         h = np.array([np.asarray(b.height, dtype=float) for b in bs])
         sim = simulate(bs, own_motion, substeps=sub, outputs="peaks", stop_drift=cfg.drift_limit * h)

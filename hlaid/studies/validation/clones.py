@@ -147,7 +147,7 @@ def identify_event(spec: StructureSpec, event: str, meas: Measurement, cfg: Iden
         kind = "linear"
         clone = linear_clone(meas, cfg, fit=spec.fallback_fit, reason=reason)
     path = out_dir / f"{spec.name}_{event}.json"
-    clone.save(path)
+    clone.save(path, force=True)  # clone_dir is rewritten on every run
     loaded = Clone.load(path)
     return IdentifiedClone(structure=spec.name, event=event, clone=loaded, kind=kind, reason=reason, path=path.name,
                            seconds=time.perf_counter() - t0)

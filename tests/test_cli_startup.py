@@ -1,0 +1,60 @@
+"""The command line starts fast: building the parser and printing any help imports none of the
+heavy libraries (checked by module, in a fresh interpreter; ``scripts/bench_cli.py`` times it),
+and ``hlaid`` re-exports its public API lazily."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+HEAVY = ("torch", "numba", "matplotlib", "sklearn", "scipy", "dask", "distributed")
+
+PROBE = """
+import contextlib, io, json, sys
+from hlaid.cli.main import build_parser, main
+parser = build_parser()
+parser.format_help()
+for name in parser.commands:
+    with contextlib.redirect_stdout(io.StringIO()):
+        try:
+            main([name, "--help"])
+        except SystemExit:
+            pass
+print(json.dumps({"commands": list(parser.commands), "heavy": sorted(m for m in HEAVY if m in sys.modules)}))
+"""
+
+
+def _fresh(code: str) -> str:
+    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=REPO, timeout=120)
+    assert r.returncode == 0, r.stderr
+    return r.stdout
+
+
+def test_parser_and_every_help_import_nothing_heavy():
+    out = json.loads(_fresh(f"HEAVY = {HEAVY!r}\n" + PROBE).strip().splitlines()[-1])
+    assert {"simulate", "hla", "identify", "ida", "run", "demo", "fleet", "report"} <= set(out["commands"])
+    assert out["heavy"] == []
+
+
+def test_import_hlaid_is_light_and_names_load_on_use():
+    code = (f"import sys, hlaid; light = not any(m in sys.modules for m in {HEAVY!r}); "
+            "from hlaid.ida.analysis import ida as f; from hlaid import Building, ida; "
+            "print(light, hlaid.ida is ida is f, Building.__module__)")
+    assert _fresh(code).split() == ["True", "True", "hlaid.model.params"]
+
+
+def test_public_api_is_complete():
+    import hlaid
+
+    for name in hlaid.__all__:
+        assert getattr(hlaid, name) is not None, name
+    assert set(hlaid.__all__) <= set(dir(hlaid))
+    with pytest.raises(AttributeError, match="no attribute 'nothing'"):
+        hlaid.nothing  # noqa: B018
