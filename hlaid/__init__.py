@@ -42,7 +42,7 @@ if TYPE_CHECKING:  # what type checkers and IDEs see; at run time the names load
     from .model import BoucWenBuilding, Building, BuildingTensors, Damping
     from .motions import GroundMotion, builtin_records
     from .runner import RunConfig, run_pipeline
-    from .simulate import SimulationResult, replay, simulate
+    from .simulate import SimulationResult, replay, simulate  # type: ignore[no-redef]  # replay: also a submodule
     from .svm import KernelSVC
     from .synthetic import simulate_measurement
 

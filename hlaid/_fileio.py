@@ -141,7 +141,7 @@ def remove_stale(parent: Path, name: str) -> list[str]:
     return removed
 
 
-def atomic_write(path: str | os.PathLike, write: Callable[[Path], None], *, force: bool = True) -> Path:
+def atomic_write(path: str | os.PathLike, write: Callable[[Path], object], *, force: bool = True) -> Path:
     """Write ``path`` through ``write(tmp_path)`` and rename it into place.
 
     The temporary file lives in the same folder, so the rename is atomic: a reader sees the

@@ -70,7 +70,7 @@ class Clone:
     mass_normalised: bool = False
     diagnostics: dict = field(default_factory=dict)
     provenance: dict = field(default_factory=dict)
-    uncertainty: "ParameterUncertainty | None" = None
+    uncertainty: ParameterUncertainty | None = None
 
     def to_dict(self) -> dict:
         b = self.building
@@ -94,7 +94,7 @@ class Clone:
         return write_json(path, self.to_dict(), force=force)
 
     @classmethod
-    def from_dict(cls, d: dict, *, source: str | None = None) -> "Clone":
+    def from_dict(cls, d: dict, *, source: str | None = None) -> Clone:
         """Validate a clone mapping strictly: unknown fields, a ``units`` block other than hlaid's,
         and fields of the wrong type (``pdelta: "yes"``) are each an :class:`InputError` naming the field."""
         if not isinstance(d, dict) or d.get("format") != FORMAT:
@@ -157,7 +157,7 @@ class Clone:
                    diagnostics=d.get("diagnostics") or {}, provenance=d.get("provenance") or {}, uncertainty=unc)
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "Clone":
+    def load(cls, path: str | os.PathLike) -> Clone:
         """Read and validate a clone JSON file."""
         src = str(path)
         try:

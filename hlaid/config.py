@@ -217,7 +217,8 @@ def _show(v) -> str:
 def _build_dataclass(cls, node: _Node, where: str, source: str):
     if not isinstance(node.value, dict):
         if not where:  # the whole file: perhaps not a config at all, so quote none of it
-            raise ConfigError(f"{source}:{node.line}: top level: expected a mapping, got {kind_of(node.value, none='an empty document')} "
+            got = kind_of(node.value, none='an empty document')
+            raise ConfigError(f"{source}:{node.line}: top level: expected a mapping, got {got} "
                               "(settings are 'key: value' lines); is this an hlaid YAML config?")
         raise ConfigError(f"{source}:{node.line}: {where}: expected a mapping, got {_show(node.value)}")
     hints = typing.get_type_hints(cls)

@@ -22,9 +22,11 @@ from ._fileio import atomic_write
 from .errors import InputError, kind_of
 
 _CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;\
+margin:2em auto;padding:0 1em;color:#222}
 h1{font-size:1.6em;border-bottom:2px solid #2a6;padding-bottom:.2em}h2{font-size:1.25em;margin-top:1.6em;color:#175}
-table{border-collapse:collapse;margin:.6em 0;font-size:.92em}th,td{border:1px solid #ccc;padding:.25em .6em;text-align:right}
+table{border-collapse:collapse;margin:.6em 0;font-size:.92em}\
+th,td{border:1px solid #ccc;padding:.25em .6em;text-align:right}
 th{background:#eef6f0}td.l,th.l{text-align:left}.ok{color:#176d2c}.bad{color:#b3261e}
 figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}figcaption{font-size:.9em;color:#555}
 .kpi{display:inline-block;margin:.3em 1em .3em 0;padding:.5em .8em;background:#f4f8f5;border-radius:6px}

@@ -47,6 +47,8 @@ def simulate_measurement(building: Building, motion: GroundMotion, *, rate_hz: f
     r = simulate(building, gm, substeps=substeps)
     if r.status[0] != 0:
         raise InputError(f"the simulation diverged under {motion.name or motion.source}")
+    assert (r.disp is not None and r.drift is not None and r.force is not None and r.z is not None
+            and r.eta is not None and r.acc is not None)  # simulate keeps the histories by default
     rng = np.random.default_rng(seed)
     truth = Truth(building=building, disp=r.disp[0], drift=r.drift[0], force=r.force[0], z=r.z[0], eta=r.eta[0])
     ground = add_noise(gm.acc[:, None], noise_rms, rng)[:, 0]

@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 from reference_models import table1_stories
 
-from hlaid.io import read
 from hlaid.ida.intensity import get_intensity_measure
+from hlaid.io import read
 from hlaid.model import Building
 from hlaid.opensees import run_opensees
 from hlaid.simulate import simulate

@@ -64,7 +64,8 @@ def make_fleet(work: Path, n: int, records: list[str], ensemble: int, identify: 
         gm = GroundMotion(dt=gm.dt, acc=gm.acc[i0:i0 + 4000], name=ev, source=gm.source)
         t = TABLE1
         b = Building(mass=np.array([weight_kn_to_mass_t(w) for w in t["weight"]]),
-                     k0=np.array(t["k0"]) * rng.uniform(0.6, 1.6), alpha=np.array(t["alpha"]) * rng.uniform(0.8, 1.2, 3),
+                     k0=np.array(t["k0"]) * rng.uniform(0.6, 1.6),
+                     alpha=np.array(t["alpha"]) * rng.uniform(0.8, 1.2, 3),
                      p=np.clip(np.array(t["p"]) * rng.uniform(0.85, 1.15, 3), 1.0, 3.0),
                      dy=np.array(t["dy"]) * rng.uniform(0.8, 1.25, 3),
                      delta_eta=np.array(t["delta_eta"]) * rng.uniform(0.8, 1.25, 3), height=np.full(3, 3000.0),

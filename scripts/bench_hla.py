@@ -85,7 +85,7 @@ def main(argv=None) -> int:
     rows = []
     for damping in ("rayleigh", "none", "regression"):
         cfg = HLAConfig(force=ForceConfig(damping=damping))
-        first, t = timed(lambda: hla(meas, cfg), a.repeat)
+        first, t = timed(lambda cfg=cfg: hla(meas, cfg), a.repeat)
         n_hc = [len(s.half_cycles) for s in hla(meas, cfg).stories]
         rows.append((f"`hla`, damping: {damping}" + (" (default)" if damping == "rayleigh" else ""), first, t, n_hc))
 

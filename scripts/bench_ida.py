@@ -31,8 +31,8 @@ import numpy as np
 
 from hlaid import _progress
 from hlaid.ida import IDAConfig, ida, prepare_building
-from hlaid.io import read
 from hlaid.ida.analysis import upsampled
+from hlaid.io import read
 from hlaid.model import Building
 from hlaid.opensees import run_opensees_batch
 from hlaid.simulate import simulate
@@ -40,9 +40,9 @@ from hlaid.simulate import simulate
 REPO = Path(__file__).resolve().parents[1]
 
 DEFAULT_RECORDS = REPO.parent / "shared" / "data" / "ground_motions" / "fema_p695_farfield"
-TABLE1 = [{"weight_kN": w, "k0": k, "alpha": a, "p": p, "dy": d, "delta_eta": e, "height_mm": 3000.0} for w, k, a, p, d, e in
-          zip((171.85, 171.85, 90.0), (1.94e4, 1.65e4, 1.37e4), (0.23, 0.17, 0.12), (2.5, 1.5, 1.9), (7.0, 6.0, 3.0),
-              (0.7, 0.66, 1.54))]
+TABLE1 = [{"weight_kN": w, "k0": k, "alpha": a, "p": p, "dy": d, "delta_eta": e, "height_mm": 3000.0}
+          for w, k, a, p, d, e in zip((171.85, 171.85, 90.0), (1.94e4, 1.65e4, 1.37e4), (0.23, 0.17, 0.12),
+                                      (2.5, 1.5, 1.9), (7.0, 6.0, 3.0), (0.7, 0.66, 1.54))]
 LEVELS = np.round(np.arange(1, 21) * 0.4, 3)
 MAX_STEP = 0.0025
 
@@ -122,11 +122,13 @@ def main(argv=None):
 
     print()
     print("Wall times on this machine (shared with other jobs) and CPU time summed over threads/processes;")
-    print(f"errors: peak drift, worst story of each run, vs the converged reference, on {e_ida[2]} runs below 10 % drift.")
+    print(f"errors: peak drift, worst story of each run, vs the converged reference, "
+          f"on {e_ida[2]} runs below 10 % drift.")
     print()
     print("| case | runs | wall time | CPU time | peak-drift error (median / worst run) |")
     print("|---|---|---|---|---|")
-    print(f"| `hlaid.ida`, grid only (stops at collapse) | {int(res.timing['runs'])} | {w_grid:.1f} s | {c_grid:.1f} s | |")
+    print(f"| `hlaid.ida`, grid only (stops at collapse) | {int(res.timing['runs'])} | "
+          f"{w_grid:.1f} s | {c_grid:.1f} s | |")
     print(f"| `hlaid.ida`, with hunt-and-fill | {int(res_full.timing['runs'])} | {w_full:.1f} s | {c_full:.1f} s | |")
     print(f"| hlaid, the full {R}x{L} grid, every run to the record's end | {R * L} | {w_raw:.1f} s | {c_raw:.1f} s | "
           f"{100 * e_ida[0]:.3f} % / {100 * e_ida[1]:.3f} % |")

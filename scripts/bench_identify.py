@@ -42,7 +42,8 @@ def main(argv=None) -> int:
         return tall(args.stories)
     _progress.set_verbosity(0)
     b = load_simulation_config("configs/poc_3story.yaml").building.build()
-    meas = simulate_measurement(b, read("builtin:elcentro-1940-ns", "motion").scaled_to_pga(0.62), noise_rms=0.1, seed=0)
+    gm = read("builtin:elcentro-1940-ns", "motion").scaled_to_pga(0.62)
+    meas = simulate_measurement(b, gm, noise_rms=0.1, seed=0)
     rows = []
     with tempfile.TemporaryDirectory() as d:
         t1, res = run(meas, d)

@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hlaid.model import Building
 from hlaid.io import read
+from hlaid.model import Building
 from hlaid.motions import GroundMotion
 from hlaid.opensees import run_opensees_batch
 from hlaid.simulate import simulate

@@ -62,8 +62,9 @@ def summary_tables(rows: list[dict]) -> list[str]:
     """Markdown: one table per noise level, one row per structure kind and identifier."""
     lines = []
     head = (["structure", "identifier", "cases", "failures", "mean error %", "worst error %"]
-            + [f"{p} %" for p in PARAMETERS] + ["R ident mean (min)", "R unseen mean (min)",
-                                                 "unseen drift error % mean (worst)", "wall s mean (max)", "CPU s mean"])
+            + [f"{p} %" for p in PARAMETERS]
+            + ["R ident mean (min)", "R unseen mean (min)", "unseen drift error % mean (worst)",
+               "wall s mean (max)", "CPU s mean"])
     for noise in sorted({r["noise"] for r in rows}):
         lines += [f"\n### Noise {100 * noise:g} % RMS\n", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for r in (r for r in rows if r["noise"] == noise):

@@ -111,7 +111,8 @@ def steel_frame(data: Path, figures: Path | None, force: bool) -> None:
               f"largest run-to-run rise {', '.join(f'{100 * r:+.1f} %' for r in rise)}; "
               f"s4/s1 {', '.join(f'{v:.2f}' for v in k0[-1] / k0[0])}")
     ok = np.all(np.diff(frf, axis=0) < 0, axis=0)
-    print(f"- reference Re(F/X) at f1 strictly decreasing s1->s4 per story: {', '.join('yes' if o else 'NO' for o in ok)}")
+    print("- reference Re(F/X) at f1 strictly decreasing s1->s4 per story: "
+          f"{', '.join('yes' if o else 'NO' for o in ok)}")
     if figures is None:
         return
     best = res_f
@@ -171,7 +172,8 @@ def main(argv=None) -> int:
             figures.mkdir(parents=True, exist_ok=True)
             existing = [n for n in FIGURES if (figures / n).exists()]
             if existing and not a.force:
-                raise InputError(f"holds figures ({', '.join(existing)}); use --force to overwrite", source=str(figures))
+                raise InputError(f"holds figures ({', '.join(existing)}); use --force to overwrite",
+                                 source=str(figures))
         steel_frame(data, figures, a.force)
         mini_shake_table(data, figures)
     except InputError as e:

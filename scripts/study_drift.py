@@ -22,9 +22,9 @@ import numpy as np
 from study_identification import RANDOM_RECORDS, TABLE1_RECORDS, random_building, scale_to_yield
 
 from hlaid.hla import hla
-from hlaid.signal import measured_ground
 from hlaid.identify.drift import hla_drift, reconstruct_drift
 from hlaid.io import read
+from hlaid.signal import measured_ground
 from hlaid.synthetic import load_simulation_config, simulate_measurement
 
 PARAMS = ("k0", "alpha", "p", "dy", "delta_eta")

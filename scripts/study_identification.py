@@ -23,8 +23,8 @@ import numpy as np
 
 from hlaid import _progress
 from hlaid.identify import IdentifyConfig, identify
-from hlaid.model import Building
 from hlaid.io import read
+from hlaid.model import Building
 from hlaid.simulate import simulate
 from hlaid.synthetic import load_simulation_config, simulate_measurement
 
@@ -85,7 +85,8 @@ def scale_to_yield(b: Building, gm, ductility: float = 1.5):
 def summarise(rows, key) -> dict:
     out = {}
     for p in PARAMS:
-        v = np.abs(np.concatenate([np.asarray(r[key][p])[np.asarray(r["identifiable"])] for r in rows if "failed" not in r]))
+        v = np.abs(np.concatenate([np.asarray(r[key][p])[np.asarray(r["identifiable"])]
+                                   for r in rows if "failed" not in r]))
         out[p] = {"mean": float(v.mean()), "median": float(np.median(v)), "p90": float(np.quantile(v, 0.9)),
                   "worst": float(v.max())}
     allv = np.abs(np.concatenate([np.concatenate([np.asarray(r[key][p])[np.asarray(r["identifiable"])]

@@ -28,13 +28,13 @@ from pathlib import Path
 import numpy as np
 
 from hlaid.config import load_config
-from hlaid.signal import lowpass, measured_ground
 from hlaid.identify.classify import make_svc
 from hlaid.identify.svmtrain import TrainSVMConfig, pass_bins
 from hlaid.identify.tb import TBLogger
 from hlaid.identify.training import Ranges, simulate_training_sets, strong_motion_window
 from hlaid.motions import GroundMotion
 from hlaid.plots import plt, save_figure
+from hlaid.signal import lowpass, measured_ground
 
 
 def main(argv=None) -> int:
@@ -99,7 +99,8 @@ def main(argv=None) -> int:
                     v = np.bincount(pred[sel], minlength=bb.n).argmax()
                     resp.append(v == yt[sel][0])
                     near.append(abs(v - yt[sel][0]) <= 1)
-                row = {"story": s + 1, "param": param, "n": n, "classes": bb.n, "acc_half_cycle": float(np.mean(pred == yt)),
+                row = {"story": s + 1, "param": param, "n": n, "classes": bb.n,
+                       "acc_half_cycle": float(np.mean(pred == yt)),
                        "within_one_bin": float(np.mean(np.abs(pred - yt) <= 1)), "acc_response": float(np.mean(resp)),
                        "response_within_one_bin": float(np.mean(near)), "fit_seconds": fit_s}
                 rows.append(row)
@@ -140,9 +141,9 @@ def path_sets(cfg, noise: float, spread: float, n: int, seed: int):
     """Path-driven training sets of every story around the config's building, along the drift
     path reconstructed from a simulated measurement of it; ``(sets, bins)``."""
     from hlaid.hla import hla
+    from hlaid.hla.features import half_cycle_features
     from hlaid.identify.drift import reconstruct_drift
     from hlaid.identify.pathtrain import path_training_set, story_paths
-    from hlaid.hla.features import half_cycle_features
     from hlaid.synthetic import simulate_measurement
 
     b = cfg.building.build()

@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import importlib
 import os
 from pathlib import Path
 from typing import NoReturn
@@ -39,6 +40,14 @@ def skip_or_fail(reason: str) -> NoReturn:
     if ON_CI:
         pytest.fail(f"{reason} (CI=true: every optional tool and the shared data must be there)", pytrace=False)
     pytest.skip(reason)
+
+
+def import_optional(name: str):
+    """``pytest.importorskip(name)`` for an optional dependency; under ``CI=true`` the import must
+    succeed (an ImportError fails the test module instead of skipping it)."""
+    if ON_CI:
+        return importlib.import_module(name)
+    return pytest.importorskip(name)
 
 
 def requires(available: bool, reason: str) -> pytest.MarkDecorator:

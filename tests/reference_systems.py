@@ -122,8 +122,8 @@ class ShearBuildingRef:
         out[0] = y
         for k in range(ag.size - 1):
             a0, slope = ag[k], (ag[k + 1] - ag[k]) / dt
-            sol = integrate.solve_ivp(lambda t, s: self.rhs(s, a0 + slope * t), (0.0, dt), y, method=method,
-                                      rtol=rtol, atol=atol)
+            sol = integrate.solve_ivp(lambda t, s, a0=a0, slope=slope: self.rhs(s, a0 + slope * t), (0.0, dt), y,
+                                      method=method, rtol=rtol, atol=atol)
             y = sol.y[:, -1]
             out[k + 1] = y
         return out

@@ -17,7 +17,8 @@ from hlaid.cli.main import main
 from hlaid.errors import HlaidWarning
 from hlaid.synthetic import simulate_measurement
 
-AT2_HEAD = "PEER NGA STRONG MOTION DATABASE RECORD\nTest, 1/1/2000, Nowhere, 0\nACCELERATION TIME SERIES IN UNITS OF G\n"
+AT2_HEAD = ("PEER NGA STRONG MOTION DATABASE RECORD\nTest, 1/1/2000, Nowhere, 0\n"
+            "ACCELERATION TIME SERIES IN UNITS OF G\n")
 
 
 @pytest.fixture(scope="module")

@@ -16,10 +16,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import import_optional, window
 
-pytest.importorskip("dask.distributed")
-
-from conftest import window  # noqa: E402
+import_optional("dask.distributed")
 
 from hlaid.errors import ConfigError, InputError  # noqa: E402
 from hlaid.fleet import POINT, load_fleet_config, point_assess, run_fleet  # noqa: E402
@@ -146,8 +145,7 @@ def test_three_buildings_on_an_in_process_cluster(fleet_dir, tmp_path):
 
 
 def test_three_buildings_with_the_ensemble(fleet_dir, tmp_path):
-    """With hlaid.uncertainty (after the merge of its branch): its assess through the seam."""
-    pytest.importorskip("hlaid.uncertainty")
+    """With the ensemble: hlaid.uncertainty's assess through the fleet's seam."""
     cfg = load_fleet_config(fleet_dir / "fleet.yaml")
     cfg = dataclasses.replace(cfg, n_ensemble=2, identify=dataclasses.replace(
         cfg.identify, refine=dataclasses.replace(cfg.identify.refine, method="replay", max_iterations=10)))
@@ -228,7 +226,8 @@ def test_output_folder_is_protected(fleet_dir, tmp_path):
      ":5: unknown key 'buildings\\[0\\].masses'"),
     ("events: [{name: e1}]\nbuildings:\n  - name: A\n    measurements:\n      e2: {file: a.npz}\n",
      ":5: buildings.A.measurements: event 'e2' is not in events"),
-    ("buildings:\n  - name: A\n    measurements: {e: {file: a.npz}}\n  - name: A\n    measurements: {e: {file: b.npz}}\n",
+    ("buildings:\n  - name: A\n    measurements: {e: {file: a.npz}}\n"
+     "  - name: A\n    measurements: {e: {file: b.npz}}\n",
      ":4: buildings: building name 'A' appears twice"),
     ("buildings:\n  - name: A\n    measurements: {e: {file: a.npz, simulate: null, station: null}}\n"
      "ida: {n_levels: 1}\n", ":4: ida: n_levels = 1"),

@@ -163,7 +163,7 @@ def mini():
 def test_mini_shake_table_reported_elastic(mini):
     """The lab models stay linear: every story is reported elastic (one stiffness, ke = k0),
     not failed, with many half cycles."""
-    for name, (m, r) in mini.items():
+    for name, (_m, r) in mini.items():
         assert r.mass_normalised and r.units["stiffness"].startswith("N/mm/t"), name
         for s in r.stories:
             assert not s.yielded, (name, s.story)

@@ -26,8 +26,8 @@ import pytest
 from conftest import GROUND_MOTIONS, requires_data
 
 from hlaid.ida import IDAConfig, ida, intensity
-from hlaid.model import Building
 from hlaid.io import read
+from hlaid.model import Building
 
 G = 9806.65
 T, XI, ALPHA, UY, M = 1.0, 0.05, 0.01, 250.0, 1.0

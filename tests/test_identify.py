@@ -19,8 +19,7 @@ from hlaid.clone import Clone
 from hlaid.errors import NotIdentifiableError
 from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig, identify, refine_replay
 from hlaid.identify.classify import Bins, pass_result
-from hlaid.identify.regression import (fit_delta_eta, fit_yield_displacement, hysteretic_displacement,
-                                       hysteretic_work)
+from hlaid.identify.regression import fit_delta_eta, fit_yield_displacement, hysteretic_displacement, hysteretic_work
 from hlaid.synthetic import simulate_measurement
 
 

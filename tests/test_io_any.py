@@ -77,7 +77,8 @@ def test_read_infers_the_kind(tmp_path):
     rec = tmp_path / "recs"
     rec.mkdir()
     (rec / "a.txt").write_text("# dt=0.01, units: g\n" + "\n".join(f"{0.01 * np.sin(i):.5f}" for i in range(100)))
-    (rec / "b.csv").write_text("time,acc (g)\n" + "\n".join(f"{i * 0.01:.2f},{0.01 * np.cos(i):.5f}" for i in range(100)))
+    (rec / "b.csv").write_text("time,acc (g)\n"
+                               + "\n".join(f"{i * 0.01:.2f},{0.01 * np.cos(i):.5f}" for i in range(100)))
     assert [infer_kind(rec / n) for n in ("a.txt", "b.csv")] == ["motion", "motion"]
     assert isinstance(read(rec / "a.txt"), GroundMotion) and isinstance(read(rec / "b.csv"), GroundMotion)
     assert infer_kind(rec) == "records" and [g.name for g in read(rec)] == ["a", "b"]

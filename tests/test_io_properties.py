@@ -19,8 +19,14 @@ from hypothesis import strategies as st
 from io_checks import smc_text, v2_text
 
 from hlaid.errors import InputError
-from hlaid.io import (read_columns, read_csmip_channels, read_hotel, read_mini_shake_table, read_smc_channel,
-                      read_steel_frame)
+from hlaid.io import (
+    read_columns,
+    read_csmip_channels,
+    read_hotel,
+    read_mini_shake_table,
+    read_smc_channel,
+    read_steel_frame,
+)
 from hlaid.io.motion import read_at2, read_csv_record, read_text_record
 from hlaid.units import G_MM_S2
 
@@ -46,7 +52,8 @@ def _only_input_errors(read, path):
 
 # ------------------------------------------------------------------ good files to start from
 def _steel(n=1200):
-    rows = ("\t".join(f"{v:.5g}" for v in (i / 256, 0.01 * np.sin(i), 0.01 * i, 0.02 * i, 0.03, 0.04)) for i in range(n))
+    rows = ("\t".join(f"{v:.5g}" for v in (i / 256, 0.01 * np.sin(i), 0.01 * i, 0.02 * i, 0.03, 0.04))
+            for i in range(n))
     return "# c\nTime\taextx\ts2\ts3\ts4\ts5\n" + "\n".join(rows) + "\n"
 
 

@@ -23,8 +23,8 @@ from hlaid.cli import main
 from hlaid.clone import Clone
 from hlaid.errors import HlaidWarning, InputError
 from hlaid.identify.cache import MachineCache
-from hlaid.limits import DEFAULTS, check_archive, limit
 from hlaid.io import read
+from hlaid.limits import DEFAULTS, check_archive, limit
 
 REPO = Path(__file__).resolve().parents[1]
 POC = (REPO / "configs" / "poc_3story.yaml").read_text()

@@ -50,8 +50,9 @@ def test_arrays_are_frozen(table1):
 
 
 _BAD = [("mass", 0.0, "mass > 0"), ("mass", -1.0, "mass > 0"), ("k0", 0.0, "k0 > 0"),
-        ("alpha", -0.1, "0 <= alpha <= 1"), ("alpha", 1.2, "0 <= alpha <= 1"), ("p", 0.9, "p >= 1"), ("dy", 0.0, "dy > 0"),
-        ("delta_eta", -0.01, "delta_eta >= 0"), ("k0", np.nan, "k0 > 0"), ("dy", np.inf, "dy > 0")]
+        ("alpha", -0.1, "0 <= alpha <= 1"), ("alpha", 1.2, "0 <= alpha <= 1"), ("p", 0.9, "p >= 1"),
+        ("dy", 0.0, "dy > 0"), ("delta_eta", -0.01, "delta_eta >= 0"), ("k0", np.nan, "k0 > 0"),
+        ("dy", np.inf, "dy > 0")]
 
 
 @pytest.mark.parametrize("field,value,form", _BAD)

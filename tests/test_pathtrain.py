@@ -11,13 +11,13 @@ import pytest
 from conftest import paper_record, random_building, window
 
 from hlaid.hla import hla
-from hlaid.signal import bandpass
 from hlaid.hla.halfcycles import half_cycle_bounds
 from hlaid.hla.stiffness import segment_slopes
 from hlaid.identify.drift import hla_drift, reconstruct_drift
 from hlaid.identify.loopfit import fit_story_loop
 from hlaid.identify.pathtrain import StoryPath, path_training_set, segment_operator, story_features
 from hlaid.motions import GroundMotion
+from hlaid.signal import bandpass
 from hlaid.simulate import simulate
 from hlaid.simulate.path import drive_story
 from hlaid.synthetic import simulate_measurement

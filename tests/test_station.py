@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import import_optional
 
-obspy = pytest.importorskip("obspy")
+obspy = import_optional("obspy")
 
 from hlaid.errors import InputError  # noqa: E402
 from hlaid.io import read  # noqa: E402

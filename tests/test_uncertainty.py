@@ -10,8 +10,7 @@ import pytest
 from hlaid.clone import Clone, load_clone
 from hlaid.errors import HlaidWarning, InputError
 from hlaid.model import Building
-from hlaid.uncertainty import (ParameterUncertainty, calibration_factor, clone_ensemble, coverage, covariance,
-                               zscores)
+from hlaid.uncertainty import ParameterUncertainty, calibration_factor, clone_ensemble, covariance, coverage, zscores
 
 
 # ---------------------------------------------------------------------------- linear-Gaussian toy
@@ -27,7 +26,6 @@ def _ar1(rng, n, c, phi):
 
 def _toy(n=3000, c=2, P=3, seed=0):
     """A design J (n*c, P), rows time-major, smooth in time like a response's sensitivities."""
-    rng = np.random.default_rng(seed)
     t = np.arange(n) / 100.0
     cols = [np.stack([np.sin(2 * np.pi * (0.3 + 0.4 * j + 0.2 * k) * t + j) for k in range(c)], axis=1)
             for j in range(P)]

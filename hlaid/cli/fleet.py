@@ -18,7 +18,8 @@ def register(sub) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="address of an existing dask scheduler (e.g. tcp://10.0.0.5:8786); default: an embedded "
                         "LocalCluster. The workers must see the config's files at the same paths")
-    p.add_argument("--workers", type=int, metavar="N", help="workers of the embedded cluster (config: cluster.n_workers)")
+    p.add_argument("--workers", type=int, metavar="N",
+                   help="workers of the embedded cluster (config: cluster.n_workers)")
     p.add_argument("--threads", type=int, metavar="N",
                    help="threads per worker of the embedded cluster (config: cluster.threads_per_worker)")
     p.add_argument("--cache", metavar="DIR", help="classifier cache folder (default ~/.cache/hlaid/svm)")

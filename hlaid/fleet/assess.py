@@ -156,7 +156,8 @@ def point_assess(clone, records, *, n_ensemble: int = 0, ida_config: IDAConfig |
     return PointAssessment(
         n_records=res.n_records, ci=cfg.ci, im=res.im, period=_num(res.period),
         collapse_median=None if frag is None else _num(frag.median),
-        collapse_median_band=None if frag is None or frag.median_ci is None else tuple(float(v) for v in frag.median_ci),
+        collapse_median_band=(None if frag is None or frag.median_ci is None
+                              else tuple(float(v) for v in frag.median_ci)),
         beta=None if frag is None else _num(frag.beta), own_im=own, p_collapse=p_col,
         drift_limits=tuple(res.exceedance_limits) if own is not None else (), p_exceed=tuple(p_exc),
         indicator=indicator, notes=tuple(notes))

@@ -37,8 +37,8 @@ from typing import Any
 
 from ..config import config_from_node, load_yaml
 from ..errors import ConfigError, InputError
-from ..identify import IdentifyConfig
 from ..ida import IDAConfig
+from ..identify import IdentifyConfig
 from ..io.station import StationConfig
 from ..synthetic import SimulationConfig
 

@@ -28,7 +28,7 @@ from .. import __version__, _progress
 from .._fileio import check_parent, write_json
 from ..errors import InputError
 from ..io import read
-from .assess import ENGINE, POINT, default_assess, engine_label, point_assess
+from .assess import POINT, default_assess, engine_label, point_assess
 from .config import ClusterConfig, FleetConfig, load_fleet_config
 from .report import build_fleet_report, table_rows, write_table
 from .task import RESULT_FORMAT, UnitJob, make_jobs, records_digest, run_unit

@@ -169,7 +169,8 @@ def plot_margin(rows: list[dict], top: int = 40):
                    for r, m in zip(ok, med)], dtype=float)
     hi = np.array([r.get("collapse_median_band_hi") if r.get("collapse_median_band_hi") is not None else m
                    for r, m in zip(ok, med)], dtype=float)
-    ax.errorbar(med, y, xerr=[med - lo, hi - med], fmt="o", color="#34495e", capsize=3, label="median collapse IM, band")
+    ax.errorbar(med, y, xerr=[med - lo, hi - med], fmt="o", color="#34495e", capsize=3,
+                label="median collapse IM, band")
     own = [_get(r, OWN_KEYS) for r in ok]
     ax.plot([v if v is not None else np.nan for v in own], y, "x", color="#c0392b", ms=8, label="own record's IM")
     ax.set_yticks(y, [_label(r) for r in ok], fontsize=8)
@@ -207,7 +208,7 @@ def build_fleet_report(out: Path, rows: list[dict], meta: dict) -> Path:
     e = html.escape
     ok = [r for r in rows if r["status"] == "ok"]
     failed = [r for r in rows if r["status"] != "ok"]
-    decisions = {}
+    decisions: dict[str, int] = {}
     for r in ok:
         decisions[str(r.get("indicator"))] = decisions.get(str(r.get("indicator")), 0) + 1
     parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>{e(meta['name'])}</title>"
@@ -232,7 +233,8 @@ def build_fleet_report(out: Path, rows: list[dict], meta: dict) -> Path:
     for r in ok:
         cls = e(str(r.get("indicator", "")))
         parts.append(f"<tr class='{cls}'>" + "".join(
-            f"<td class='l'>{e(str(r.get(c, '')))}</td>" if isinstance(r.get(c), str) else f"<td>{e(_short(r.get(c)))}</td>"
+            f"<td class='l'>{e(str(r.get(c, '')))}</td>" if isinstance(r.get(c), str)
+            else f"<td>{e(_short(r.get(c)))}</td>"
             for c in cols) + "</tr>")
     parts.append("</table>")
     if failed:

@@ -116,7 +116,8 @@ def make_jobs(cfg: FleetConfig, base_dir: Path | None, records_sha: str, engine:
                       seed=unit_seed(cfg.seed, uid), base_dir=base, cache_dir=cache_dir,
                       task_threads=cfg.cluster.task_threads, engine=engine)
         key = {"unit": uid, "measurement": config_to_dict(m), "mass_t": job.mass_t, "height_mm": job.height_mm,
-               "identify": config_to_dict(job.identify), "ida": config_to_dict(dataclasses.replace(cfg.ida, records=None)),
+               "identify": config_to_dict(job.identify),
+               "ida": config_to_dict(dataclasses.replace(cfg.ida, records=None)),
                "n_ensemble": cfg.n_ensemble, "seed": job.seed, "engine": engine, "hlaid": __version__,
                "records": records_sha, "files": {str(p): _file_digest(p) for p in input_files(m, base)}}
         digest = hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import torch
@@ -26,7 +27,7 @@ from . import preprocess as pp
 from .config import HLAConfig
 from .halfcycles import half_cycle_bounds
 from .result import HalfCycleTable, HLAResult, StoryHLA
-from .stiffness import degradation_trend, elastic_window, isotonic_decreasing, slope_with_drift_check, sliding_slope
+from .stiffness import degradation_trend, elastic_window, isotonic_decreasing, sliding_slope, slope_with_drift_check
 
 
 def floor_masses(meas: Measurement, cfg: HLAConfig) -> tuple[np.ndarray, bool]:
@@ -92,7 +93,7 @@ def resolved_band(meas: Measurement, cfg: HLAConfig) -> tuple[float, float]:
     """The band-pass corners used for ``meas``: the config's, or chosen from the record."""
     p = cfg.preprocess
     if p.band_hz is not None:
-        return tuple(p.band_hz)
+        return cast("tuple[float, float]", tuple(p.band_hz))
     return pp.auto_band(np.asarray(meas.ground_acc), np.asarray(meas.floor_acc)[:, -1], meas.dt, p.highpass_ratio)
 
 
@@ -198,6 +199,7 @@ def hla(measurement: Measurement, config: HLAConfig | None = None) -> HLAResult:
     share = np.zeros_like(f)  # what is added to the inertia force: P-Delta, minus damping
     pdelta = _pdelta_active(meas, cfg)
     if pdelta:
+        assert meas.height is not None  # _pdelta_active: no P-Delta without story heights
         P = np.cumsum((m * G_MM_S2)[::-1])[::-1]
         share = share + x * (P / meas.height)[None, :]
         f = f + share
@@ -246,8 +248,9 @@ def hla(measurement: Measurement, config: HLAConfig | None = None) -> HLAResult:
         ke_t = np.full(meas.n_samples, np.nan)
         for (s, e), ke in zip(r.bounds, r.table.ke):
             ke_t[s:e + 1] = ke
-        stories.append(StoryHLA(story=i + 1, force=f_out[:, i], force_fit=f[:, i], drift=x[:, i], drift_velocity=dx[:, i], k=r.k,
-                                ke=ke_t, k0=r.k0, yielded=r.yielded, half_cycles=r.table))
+        stories.append(StoryHLA(story=i + 1, force=f_out[:, i], force_fit=f[:, i], drift=x[:, i],
+                                drift_velocity=dx[:, i], k=r.k, ke=ke_t, k0=r.k0, yielded=r.yielded,
+                                half_cycles=r.table))
     return HLAResult(dt=meas.dt, stories=tuple(stories), mass=m, mass_normalised=normalised, damping=damping,
                      pdelta_corrected=pdelta, config=cfg, band_hz=band, source=meas.source)
 

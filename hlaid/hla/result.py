@@ -60,10 +60,10 @@ class HalfCycleTable:
         """``(half_cycle, 2)`` inclusive start and end sample indices."""
         return np.stack([self.start, self.end], axis=1)
 
-    def select(self, mask: np.ndarray) -> "HalfCycleTable":
+    def select(self, mask: np.ndarray) -> HalfCycleTable:
         return HalfCycleTable(**{c: getattr(self, c)[mask] for c in HALF_CYCLE_COLUMNS})
 
-    def replace(self, **kw) -> "HalfCycleTable":
+    def replace(self, **kw) -> HalfCycleTable:
         return dataclasses.replace(self, **kw)
 
     def rows(self) -> list[dict]:
@@ -182,5 +182,5 @@ class HLAResult:
         return {"npz": write_npz(out / "hla.npz", arrays, force=force),
                 "json": write_json(out / "hla.json", summary, force=force)}
 
-    def replace(self, **kw) -> "HLAResult":
+    def replace(self, **kw) -> HLAResult:
         return dataclasses.replace(self, **kw)

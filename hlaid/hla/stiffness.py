@@ -145,9 +145,9 @@ def segment_slopes(x: np.ndarray, f: np.ndarray, start: int, end: int, n_segment
             if den > 0:
                 out[j] = float(xm @ (ff - ff.mean())) / den
     if np.isnan(out).any() and (~np.isnan(out)).sum() >= 2:
-        j = np.arange(n_segments)
+        seg_idx = np.arange(n_segments)
         ok = ~np.isnan(out)
-        out = np.interp(j, j[ok], out[ok])
+        out = np.interp(seg_idx, seg_idx[ok], out[ok])
     return out
 
 

@@ -41,6 +41,7 @@ import numpy as np
 from .. import _progress
 from ..clone import Clone
 from ..errors import InputError
+from ..io.records import as_motions
 from ..limits import check_count
 from ..model import Building
 from ..model.collapse import get_collapse_model
@@ -49,7 +50,6 @@ from ..simulate import simulate
 from ..units import G_MM_S2
 from .config import DEFAULT_EXCEEDANCE, IDAConfig, check_levels
 from .intensity import get_intensity_measure, period_for
-from ..io.records import as_motions
 from .results import IDAResult
 
 PROBE_SCALE = 1e-4

@@ -109,7 +109,7 @@ class MachineCache:
         files = seal.get("files")
         if not isinstance(files, dict) or not isinstance(meta.get("machines"), list):
             raise _Untrusted("meta.json lists no machines")
-        machines = {}
+        machines: dict[str, KernelSVC | None] = {}
         for name in meta["machines"]:
             if name not in files:  # stored as None (nothing trained)
                 machines[name] = None

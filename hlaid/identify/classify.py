@@ -21,7 +21,7 @@ class Bins:
     edges: np.ndarray
 
     @classmethod
-    def regular(cls, lo: float, hi: float, width: float) -> "Bins":
+    def regular(cls, lo: float, hi: float, width: float) -> Bins:
         n = max(1, int(np.ceil((hi - lo) / width - 1e-9)))
         return cls(lo + width * np.arange(n + 1))
 
@@ -41,7 +41,7 @@ class Bins:
         """Bin index of each value (values outside are put in the nearest end bin)."""
         return np.clip(np.searchsorted(self.edges, values, side="right") - 1, 0, self.n - 1)
 
-    def refine(self, index: int, width: float, limits: tuple[float, float]) -> "Bins":
+    def refine(self, index: int, width: float, limits: tuple[float, float]) -> Bins:
         """Finer bins over bin ``index`` and its two neighbours (boundary crossing), within ``limits``."""
         lo = max(self.edges[max(index - 1, 0)], limits[0])
         hi = min(self.edges[min(index + 2, self.n)], limits[1])

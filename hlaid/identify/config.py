@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from ..errors import InputError
-from ..limits import check_count
 from ..hla import HLAConfig
+from ..limits import check_count
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -23,8 +23,8 @@ import numpy as np
 from ..errors import InputError
 from ..hla import HLAResult
 from ..model import Building
-from ..signal import highpass, max_corner
 from ..motions import GroundMotion
+from ..signal import highpass, max_corner
 from ..simulate import simulate
 
 __all__ = ["hla_drift", "reconstruct_drift"]
@@ -55,5 +55,6 @@ def reconstruct_drift(res: HLAResult, ground: GroundMotion, building: Building |
     r = simulate(building, ground, substeps=4)
     if r.status[0] != 0:
         return x
+    assert r.drift is not None  # simulate keeps the histories by default
     xm = r.drift[0][: x.shape[0]]
     return highpass(x - xm, res.dt, (crossover_hz, np.inf), order) + xm

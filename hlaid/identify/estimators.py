@@ -70,7 +70,9 @@ class BaseIdentifier(BaseEstimator):
         self._check_fitted()
         hi = cap_corner(20.0, measurement.dt)
         g = measured_ground(measurement, hi, name="")
-        acc = bandpass(self.predict(g).acc[0], measurement.dt, (0.1, hi))
+        replayed = self.predict(g).acc
+        assert replayed is not None  # predict keeps the histories
+        acc = bandpass(replayed[0], measurement.dt, (0.1, hi))
         meas = bandpass(np.asarray(measurement.floor_acc), measurement.dt, (0.1, hi))
         from .replaycheck import corrcoef
         return float(np.mean(corrcoef(acc, meas)))

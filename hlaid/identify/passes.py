@@ -18,8 +18,8 @@ from ..motions import GroundMotion
 from .cache import MachineCache, array_digest, cache_key
 from .classify import Bins, fit_ensemble, fit_machine
 from .config import IdentifyConfig
-from .tb import TBLogger
 from .pathtrain import path_training_set
+from .tb import TBLogger
 from .training import Ranges, TrainingSet, simulate_training_sets
 
 PARAMS = ("alpha", "p")

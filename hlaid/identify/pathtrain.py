@@ -127,13 +127,14 @@ def story_paths(stories, selected, *, mass: np.ndarray, k0: np.ndarray, floor_ac
     """
     acc = np.asarray(floor_acc)
     rms = np.sqrt(np.mean((acc - acc.mean(axis=0)) ** 2, axis=0))
-    out = []
+    out: list[StoryPath | None] = []
     for i, (s, F) in enumerate(zip(stories, selected)):
         if identifiable is not None and not identifiable[i]:
             out.append(None)
             continue
         hc = s.half_cycles
-        out.append(StoryPath(drift=s.drift, force=s.force, bounds=np.stack([hc.start[F.index], hc.end[F.index]], axis=1),
+        out.append(StoryPath(drift=s.drift, force=s.force,
+                             bounds=np.stack([hc.start[F.index], hc.end[F.index]], axis=1),
                              k0=float(k0[i]), mass=float(mass[i]),
                              noise_std=noise_rms * float(np.sqrt(np.sum((mass[i:] * rms[i:]) ** 2))), dt=dt,
                              cutoff_hz=cutoff_hz, n_segments=n_segments))

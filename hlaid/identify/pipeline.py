@@ -27,18 +27,18 @@ from ..hla.features import half_cycle_features
 from ..measurement import Measurement
 from ..model import Building, Damping
 from ..signal import measured_ground
+from ..uncertainty.laplace import uncertainty_of_refinement
 from .cache import MachineCache, default_cache_dir
 from .classify import Bins, pass_result, vote
 from .config import IdentifyConfig
-from .refine import refine_replay
-from ..uncertainty.laplace import uncertainty_of_refinement
-from .regression import plausible_limits, story_delta_eta, story_yield_displacement
-from .replaycheck import ReplayCheck, replay_check
-from .tb import TBLogger
 from .drift import reconstruct_drift
 from .loopfit import fit_story_loop
 from .passes import PARAMS, machines_of, path_pass, train_pass
 from .pathtrain import story_paths
+from .refine import refine_replay
+from .regression import plausible_limits, story_delta_eta, story_yield_displacement
+from .replaycheck import ReplayCheck, replay_check
+from .tb import TBLogger
 from .training import strong_motion_window
 
 

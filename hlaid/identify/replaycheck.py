@@ -54,6 +54,7 @@ def replay_check(building: Building, measurement: Measurement, hla_result: HLARe
     band = hla_result.band_hz
     ground = measured_ground(measurement, band[1])
     r = simulate(building, ground)
+    assert r.disp is not None and r.eta is not None  # simulate keeps the histories by default
     disp = r.disp[0]
     _, _, _, meas_disp = floor_motion(measurement, hla_result.config)
     r_meas = corrcoef(bandpass(disp, dt, band), meas_disp)

@@ -118,6 +118,7 @@ def simulate_training_sets(estimate: Building, motion: GroundMotion, ranges: Ran
             buildings, a, p = draw_buildings(estimate, ranges, nb, spread, rng)
             r = simulate(buildings, motion, substeps=4)
             ok = r.status == 0
+            assert r.acc is not None and r.disp is not None  # simulate keeps the histories by default
             seeds = rng.integers(0, 2**63 - 1, size=nb)
             # HLA told to use measured floor displacements gets the simulated ones (same code path)
             with_disp = hla_config.preprocess.displacement == "measured"

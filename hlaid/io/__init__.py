@@ -32,7 +32,7 @@ import os
 from pathlib import Path
 
 from ..errors import InputError
-from ..measurement import Measurement, warn_unusual_rate
+from ..measurement import warn_unusual_rate
 from ..motions.builtin import SUITE
 from .columns import ChannelSpec, ColumnsConfig, load_columns_config, read_columns
 from .csmip import CsmipChannel, csmip_measurement, read_csmip, read_csmip_channels

@@ -110,8 +110,8 @@ def read_by_format(path: str | os.PathLike, format: str | None = None, **kw) -> 
     src = str(path)
     fmt = format or detect_format(path)
     if fmt not in MEASUREMENT_READERS:
-        raise InputError(f"unknown measurement format {fmt!r}; expected one of {', '.join(sorted(MEASUREMENT_READERS))}",
-                         source=src)
+        raise InputError(f"unknown measurement format {fmt!r}; "
+                         f"expected one of {', '.join(sorted(MEASUREMENT_READERS))}", source=src)
     if fmt == "hotel" and "event" not in kw:
         raise InputError(f"holds one record per earthquake; give event= (one of {hotel_events(path)})", source=src)
     if fmt == "csmip" and ("ground" not in kw or "floors" not in kw):

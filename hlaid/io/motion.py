@@ -99,7 +99,7 @@ def read_at2(path: str | os.PathLike, *, name: str | None = None) -> GroundMotio
 def _header_hints(comments: list[str]) -> dict:
     """dt and units mentioned in comment lines, e.g. 'Acc. in cm/sec^2 and dt=0.005 sec.'."""
     text = " ".join(comments).lower()
-    hints = {}
+    hints: dict[str, float | str] = {}
     m = re.search(rf"\bdt\s*=\s*({_NUM})", text)
     if m:
         hints["dt"] = _number(m.group(1))
@@ -209,6 +209,7 @@ def read_csv_record(path: str | os.PathLike, *, units: str | None = None, dt: fl
                 raise InputError(f"line {numbered[i + 1][0]}, {_col(header, j)}: not a number", source=src) from None
     base = [re.sub(r"[\(\[].*", "", h).strip().lower() for h in header]
     tcol = next((i for i, b in enumerate(base) if b in ("t", "time", "t_s", "time_s")), None)
+    col: int | None
     if isinstance(column, str):
         if column not in header and column.lower() not in base:
             raise InputError(f"no column {column!r}; columns are {columns_text(header)}", source=src)

@@ -70,8 +70,8 @@ def _read_npz(p: Path) -> Measurement:
     except (TypeError, ValueError):
         raise InputError(f"dt must be one number, got an array of shape {np.shape(d['dt'])} and type "
                          f"{np.asarray(d['dt']).dtype.kind!r}", source=src) from None
-    extra = {k: v for k, v in d.items() if k not in {"dt", "ground_acc", "floor_acc", "mass", "height", "noise_rms",
-                                                      "pdelta", "floor_disp", "true_params"} and not k.startswith("true_")}
+    known = {"dt", "ground_acc", "floor_acc", "mass", "height", "noise_rms", "pdelta", "floor_disp", "true_params"}
+    extra = {k: v for k, v in d.items() if k not in known and not k.startswith("true_")}
     return Measurement(dt=dt, ground_acc=d["ground_acc"], floor_acc=d["floor_acc"], mass=d.get("mass"),
                        height=d.get("height"), pdelta=bool(d["pdelta"]) if "pdelta" in d else None, truth=truth,
                        floor_disp=d.get("floor_disp"),

@@ -195,7 +195,7 @@ def read_station(config: str | os.PathLike | StationConfig, *, base: str | os.Pa
     check_count(len(cfg.floors), "STORIES", "floor channels", source=where)
     picked = [(role, spec, *_pick(traces, spec, role, where)) for role, spec in specs]
     rate = float(picked[0][2].stats.sampling_rate)
-    for role, spec, tr, src in picked[1:]:
+    for role, _spec, tr, src in picked[1:]:
         if abs(float(tr.stats.sampling_rate) / rate - 1) > 1e-9:
             raise InputError(f"{role}: channel {_id(tr)} is sampled at {tr.stats.sampling_rate:g} Hz but the ground "
                              f"channel at {rate:g} Hz; resample first", source=src)

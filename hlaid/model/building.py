@@ -66,7 +66,7 @@ class BoucWenBuilding(nn.Module):
 
     @classmethod
     def from_buildings(cls, buildings: Building | Sequence[Building], ground_acc=None, dt: float = 0.01,
-                       dtype=torch.float64, device=None) -> "BoucWenBuilding":
+                       dtype=torch.float64, device=None) -> BoucWenBuilding:
         if isinstance(buildings, Building):
             buildings = [buildings]
         return cls(BuildingTensors.stack(buildings, dtype=dtype, device=device), ground_acc, dt)

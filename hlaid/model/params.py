@@ -158,7 +158,7 @@ class Building:
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_stories(cls, stories: Sequence[Mapping[str, float]], **kwargs) -> "Building":
+    def from_stories(cls, stories: Sequence[Mapping[str, float]], **kwargs) -> Building:
         """Build from per-story mappings, bottom to top.
 
         Each story gives ``mass_t`` (or ``weight_kN``), ``k0``, ``alpha``, ``p``, ``dy``,
@@ -190,7 +190,7 @@ class Building:
         return cls(**cols, **kwargs)
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any], *, source: str | None = None) -> "Building":
+    def from_dict(cls, d: Mapping[str, Any], *, source: str | None = None) -> Building:
         """Inverse of :meth:`to_dict`."""
         d = dict(d)
         stories = d.pop("stories")
@@ -215,7 +215,7 @@ class Building:
             out["name"] = self.name
         return out
 
-    def replace(self, **changes) -> "Building":
+    def replace(self, **changes) -> Building:
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
 
@@ -297,7 +297,7 @@ class BuildingTensors:
     collapse: torch.Tensor | None = None
 
     @classmethod
-    def stack(cls, buildings: Sequence[Building], dtype=torch.float64, device=None) -> "BuildingTensors":
+    def stack(cls, buildings: Sequence[Building], dtype=torch.float64, device=None) -> BuildingTensors:
         buildings = list(buildings)
         if not buildings:
             raise InputError("no buildings given")
@@ -330,7 +330,7 @@ class BuildingTensors:
     def batch_size(self) -> int:
         return int(self.mass.shape[0])
 
-    def index(self, idx) -> "BuildingTensors":
+    def index(self, idx) -> BuildingTensors:
         """Select (or repeat) batch rows: ``idx`` is a 1-D index tensor or array."""
         idx = torch.as_tensor(idx, dtype=torch.long, device=self.mass.device)
         return BuildingTensors(**{f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[idx]

@@ -81,11 +81,11 @@ class GroundMotion:
         return self.pga / G_MM_S2
 
     # ------------------------------------------------------------------ transformations
-    def scaled(self, factor: float) -> "GroundMotion":
+    def scaled(self, factor: float) -> GroundMotion:
         """The record multiplied by ``factor``."""
         return replace(self, acc=self.acc * float(factor))
 
-    def scaled_to_pga(self, pga_g: float) -> "GroundMotion":
+    def scaled_to_pga(self, pga_g: float) -> GroundMotion:
         """The record scaled so that its PGA is ``pga_g`` [g]."""
         if not pga_g > 0:
             raise InputError(f"target PGA = {pga_g} g; expected a positive value", source=self.source or None)
@@ -93,7 +93,7 @@ class GroundMotion:
             raise InputError("the record is all zeros; it cannot be scaled to a PGA", source=self.source or None)
         return self.scaled(pga_g * G_MM_S2 / self.pga)
 
-    def resampled(self, rate_hz: float) -> "GroundMotion":
+    def resampled(self, rate_hz: float) -> GroundMotion:
         """The record at ``rate_hz`` samples per second.
 
         Uses polyphase resampling (:func:`scipy.signal.resample_poly`), whose FIR low-pass
@@ -110,7 +110,7 @@ class GroundMotion:
         acc = signal.resample_poly(self.acc, up, down)
         return replace(self, dt=1.0 / rate_hz, acc=acc)
 
-    def padded(self, seconds: float) -> "GroundMotion":
+    def padded(self, seconds: float) -> GroundMotion:
         """The record followed by ``seconds`` of zeros (free vibration)."""
         n = int(round(seconds / self.dt))
         return replace(self, acc=np.concatenate([self.acc, np.zeros(max(n, 0))])) if n > 0 else self

@@ -73,6 +73,7 @@ def integrate_module(model: BoucWenBuilding, motion: GroundMotion, *, method: st
     dtype, device = model.params.mass.dtype, model.params.mass.device
     t = torch.arange(motion.npts, dtype=dtype, device=device) * motion.dt
     y0 = model.initial_state() if y0 is None else y0
+    options: dict[str, float | torch.Tensor]
     if method in FIXED_STEP:
         options = {"step_size": motion.dt / substeps}
     else:

@@ -353,7 +353,8 @@ def summarise(outcomes: list[Outcome]) -> list[dict]:
         ok = [o for o in sel if not o.failed]
         row = {"identifier": name, "noise": noise, "structure": kind, "cases": len(sel), "failures": len(sel) - len(ok),
                "reasons": sorted({o.reason for o in sel if o.failed}),
-               "wall_mean_s": float(np.mean([o.wall_s for o in sel])), "wall_max_s": float(np.max([o.wall_s for o in sel])),
+               "wall_mean_s": float(np.mean([o.wall_s for o in sel])),
+               "wall_max_s": float(np.max([o.wall_s for o in sel])),
                "cpu_mean_s": float(np.mean([o.cpu_s for o in sel]))}
         if ok:
             per = {k: np.abs(np.concatenate([o.errors[k] for o in ok])) for k in PARAMETERS}

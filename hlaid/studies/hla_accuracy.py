@@ -58,6 +58,7 @@ def accuracy_study(building, motions, seeds, *, noise_rms: float = 0.10, config=
         g = gm.scaled_to_pga(pga_g) if pga_g else gm
         for seed in seeds:
             meas = simulate_measurement(building, g, rate_hz=rate_hz, noise_rms=noise_rms, seed=seed)
+            assert meas.truth is not None  # a simulated measurement carries its truth
             out[(gm.name, seed)] = hla_errors(hla(meas, config), meas.truth)
     return out
 

@@ -54,8 +54,9 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
     trained together as one batched SMO problem (second-order working-set
     selection of Fan, Chen & Lin 2005, libsvm's stopping rule and intercept;
     problems that SMO has brought near their optimum are finished by a
-    batched active-set solve, checked with the same stopping rule), and combined by a Decision Directed Acyclic Graph (Platt et al. 2000) or
-    by libsvm's one-vs-one voting.  Fitted attributes follow the layout of
+    batched active-set solve, checked with the same stopping rule), and combined
+    by a Decision Directed Acyclic Graph (Platt et al. 2000) or by libsvm's
+    one-vs-one voting.  Fitted attributes follow the layout of
     :class:`sklearn.svm.SVC`, so the two can be compared directly.
 
     Parameters

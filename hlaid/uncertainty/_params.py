@@ -56,7 +56,7 @@ class ParameterUncertainty:
         if c.shape != (P,) or S.shape != (P, P) or len(self.transform) != P:
             raise InputError(f"uncertainty: {P} slots need a centre of {P} values, a {P}x{P} covariance and {P} "
                              f"transforms; got {c.shape}, {S.shape}, {len(self.transform)}")
-        for n, i in self.slots:
+        for n, _ in self.slots:
             if n not in BOUNDS:
                 raise InputError(f"uncertainty: unknown parameter {n!r}; expected one of {', '.join(BOUNDS)}")
         bad = [t for t in self.transform if t not in TRANSFORMS]
@@ -135,7 +135,7 @@ class ParameterUncertainty:
                 "covariance": self.covariance.tolist(), "info": dict(self.info or {})}
 
     @classmethod
-    def from_dict(cls, d, *, source: str | None = None) -> "ParameterUncertainty":
+    def from_dict(cls, d, *, source: str | None = None) -> ParameterUncertainty:
         """Inverse of :meth:`to_dict` (strict: unknown fields are an :class:`InputError`)."""
         def bad(msg):
             return InputError(f"uncertainty.{msg}", source=source)

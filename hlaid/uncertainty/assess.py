@@ -229,8 +229,8 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
     """
     from ..clone import Clone
     from ..ida import IDAConfig, get_intensity_measure, ida_from_config, intensity, prepare_building
-    from ..io.records import as_motions
     from ..ida.intensity import period_for
+    from ..io.records import as_motions
     from ..motions import GroundMotion
     from ..simulate import simulate
 
@@ -298,12 +298,12 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
         pm = _fragility(own_im, fits[ok, 0], fits[ok, 1])
         p_all = _fragility(own_im, par[:, 0], par[:, 1])  # members x record resamples
         limits = np.array(results[0].exceedance_limits)
-        hit = []  # (member, record, limit)
+        hits = []  # (member, record, limit)
         for r in results:
             e = r.edp_at([own_im])[:, 0]
             e = np.where(np.isnan(e), np.inf, e)  # above the highest level run: counted as exceeding
-            hit.append(e[:, None] > limits[None, :])
-        hit = np.array(hit, dtype=float)
+            hits.append(e[:, None] > limits[None, :])
+        hit = np.array(hits, dtype=float)
         exceed = hit.mean(axis=1)
         ex_all = np.concatenate([exceed] + [hit[:, idx].mean(axis=1) for idx in boots])
         bs = [prepare_building(Clone(building=b, mass_normalised=clone.mass_normalised), pdelta=cfg.pdelta,

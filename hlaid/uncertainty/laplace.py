@@ -184,9 +184,11 @@ def uncertainty_of_refinement(refinement, n_floors: int, *, noise_rms: float | N
     if noise_rms and band_hz is not None and dt:
         s0 = noise_residual_rms(noise_rms, band_hz, dt)
         if s0 > 0:
+            assert u.info is not None  # from_refinement fills info
             ratio = u.info["sigma"] / s0
             if ratio > MISFIT_LIMIT:
                 u = from_refinement(refinement, n_floors, method="sandwich", scale=CALIBRATION_MISFIT)
+            assert u.info is not None
             u.info.update(misfit_ratio=float(ratio), fit_consistent=bool(ratio <= MISFIT_LIMIT),
                           noise_rms=float(noise_rms))
     return u

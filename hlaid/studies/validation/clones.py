@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 
 from ... import _progress
+from ... import signal as sg
 from ...clone import Clone
 from ...config import config_to_dict
 from ...errors import InputError, NotIdentifiableError
 from ...hla import hla
-from ... import signal as sg
 from ...identify import IdentifyConfig, identify, refine_replay
 from ...measurement import Measurement
 from ...model import Building, Damping

@@ -8,17 +8,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ... import _progress
+from ... import signal as sg
 from ...clone import Clone
 from ...errors import InputError
 from ...hla import HLAConfig, HLAResult, hla
-from ... import signal as sg
 from ...hla import preprocess as pp
-from ...units import G_MM_S2
 from ...hla.analysis import floor_motion, resolved_band
 from ...identify.replaycheck import corrcoef
 from ...measurement import Measurement
 from ...motions import GroundMotion
 from ...simulate import simulate
+from ...units import G_MM_S2
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,7 +125,10 @@ def predict_event(clone: Clone, meas: Measurement, hla_config: HLAConfig, *, com
     def compare(b):
         c = _with_band(cfg, b)
         _, _, _, dm = floor_motion(meas, c)
-        dp = floor_motion(twin, c)[3] if integrated else sg.bandpass(np.nan_to_num(sim.disp[0]), dt, b, c.preprocess.order)
+        if integrated:
+            dp = floor_motion(twin, c)[3]
+        else:
+            dp = sg.bandpass(np.nan_to_num(sim.disp[0]), dt, b, c.preprocess.order)
         return dm, dp
 
     disp_meas, dp = compare(band)
@@ -142,7 +145,8 @@ def predict_event(clone: Clone, meas: Measurement, hla_config: HLAConfig, *, com
                 err[i] = float(np.mean(np.abs(ke[hc.start, i] / hc.ke - 1.0)))
     return Prediction(structure=labels[0], identified_from=labels[1], event=labels[2], kind=labels[3],
                       self_replay=self_replay, pga_g=float(np.max(np.abs(meas.ground_acc)) / G_MM_S2), band_hz=band,
-                      r=r, r_broadband=r_broad, peak_drift_measured=pm, peak_drift_predicted=pk, peak_drift_error=pk / pm - 1.0,
+                      r=r, r_broadband=r_broad, peak_drift_measured=pm, peak_drift_predicted=pk,
+                      peak_drift_error=pk / pm - 1.0,
                       stiffness_error=err, status=int(sim.status[0]), time=meas.time, disp_measured=disp_meas,
                       disp_predicted=dp, drift_predicted=xp, force_predicted=np.nan_to_num(sim.force[0]), ke_clone=ke,
                       hla=res)

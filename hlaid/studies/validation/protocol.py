@@ -6,6 +6,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -15,6 +16,9 @@ from ...errors import InputError
 from .clones import IdentifiedClone, identify_event
 from .predict import Prediction, _nanmean, predict_event
 from .schema import PaperTargets, ValidationConfig, identify_config_of, read_event
+
+if TYPE_CHECKING:
+    from ...measurement import Measurement
 
 
 @dataclass(frozen=True, eq=False)
@@ -41,7 +45,7 @@ class ValidationResult:
         predictions (and the self-replays apart)."""
         out = []
         for name in dict.fromkeys(p.structure for p in self.predictions):
-            row = {"structure": name}
+            row: dict[str, Any] = {"structure": name}
             for tag, sel in (("cross", False), ("self", True)):
                 ps = [p for p in self.predictions if p.structure == name and p.self_replay == sel]
                 if not ps:
@@ -89,7 +93,7 @@ def run_validation(cfg: ValidationConfig, *, clone_dir: str | None = None, struc
             if (structures and spec.name not in structures) or (not structures and spec.optional):
                 continue
             icfg = identify_config_of(spec, source=cfg.source or "<validation>")
-            meas = {}
+            meas: dict[str, Measurement] = {}
 
             def get(ev, spec=spec, meas=meas):
                 if ev not in meas:

@@ -89,7 +89,8 @@ class StructureSpec:
         for what, lst in (("identify_from", self.identify_from), ("predict", self.predict or [])):
             bad = [n for n in lst if n not in names]
             if bad:
-                raise InputError(f"structure {self.name!r}: {what} names unknown events {bad}; expected some of {names}")
+                raise InputError(f"structure {self.name!r}: {what} names unknown events {bad}; "
+                                 f"expected some of {names}")
         if not self.identify_from:
             raise InputError(f"structure {self.name!r}: identify_from is empty")
         if self.reader is not None and self.reader not in MEASUREMENT_READERS:

@@ -53,7 +53,8 @@ def _prediction_table(ps: list[Prediction], tg: PaperTargets) -> list[str]:
     rt = tg.r_per_floor if n == len(tg.r_per_floor) else None
     against = f" against the paper's {' / '.join(map(str, rt))}" if rt else ""
     out = [(f"Band {ps[0].band_hz[0]:.3g}-{ps[0].band_hz[1]:.3g} Hz. R per floor{against}, mean against {tg.r_mean}; "
-            f"stiffness error against {100 * tg.stiffness_error:.1f} %. Peak-drift and stiffness errors in % per story."),
+            f"stiffness error against {100 * tg.stiffness_error:.1f} %. "
+            "Peak-drift and stiffness errors in % per story."),
            "", _row("clone from", "event", "PGA [g]", *[f"R {i + 1}" for i in range(n)], "R mean", "floors met",
                     "mean met", "R broadband", "peak drift error", "stiffness error", "mean", "met"),
            _rule(n + 11)]
@@ -72,7 +73,8 @@ def _prediction_table(ps: list[Prediction], tg: PaperTargets) -> list[str]:
 def _summary_rows(name: str, ps: list[Prediction], tg: PaperTargets) -> list[str]:
     """One row per clone, and with several clones: all of them, and the predictions of
     stronger events (PGA above the clone's own event) only."""
-    groups = [(src, [p for p in ps if p.identified_from == src]) for src in dict.fromkeys(p.identified_from for p in ps)]
+    groups = [(src, [p for p in ps if p.identified_from == src])
+              for src in dict.fromkeys(p.identified_from for p in ps)]
     own_pga = {p.identified_from: p.pga_g for p in ps if p.self_replay}
     cross_all = [p for p in ps if not p.self_replay]
     stronger = [p for p in cross_all if p.pga_g > own_pga.get(p.identified_from, np.inf)]
