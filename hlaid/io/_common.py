@@ -172,6 +172,22 @@ def pre_event_mean(x: np.ndarray, dt: float, seconds: float, source: str) -> np.
     return x[:n].mean(axis=0)
 
 
+def remove_offset(values: np.ndarray, dt: float, mode: str, pre_event_s: float, source: str
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """``values`` (time, channel) less each channel's static offset, and the offsets (channel,).
+
+    ``mode``: ``"mean"`` (the whole record's mean), ``"pre-event"`` (the mean of the first
+    ``pre_event_s`` seconds, :func:`pre_event_mean`) or anything else (none removed).
+    """
+    if mode == "mean":
+        bias = values.mean(axis=0)
+    elif mode == "pre-event":
+        bias = pre_event_mean(values, dt, pre_event_s, source)
+    else:
+        bias = np.zeros(values.shape[1])
+    return values - bias, bias
+
+
 def lowpass(x: np.ndarray, dt: float, corner_hz: float, *, order: int = 4) -> np.ndarray:
     """Zero-phase Butterworth low-pass along axis 0 (``sosfiltfilt``, so the order doubles)."""
     nyq = 0.5 / dt

@@ -37,7 +37,7 @@ from ..config import load_config
 from ..errors import InputError
 from ..measurement import Measurement
 from ..units import acceleration_factor, length_factor, weight_kn_to_mass_t
-from ._common import parse_table, pre_event_mean, uniform_time
+from ._common import parse_table, remove_offset, uniform_time
 
 _DELIMITERS = {"csv": ",", "tsv": "\t", "whitespace": None}
 
@@ -178,13 +178,7 @@ def read_columns(config: str | os.PathLike | ColumnsConfig, *, base: str | os.Pa
         dt, extra = axis.dt, {"time_jitter_s": axis.jitter, "resampled": axis.resampled}
     else:
         dt, extra = float(cfg.dt), {}
-    if cfg.offset == "mean":
-        bias = values.mean(axis=0)
-    elif cfg.offset == "pre-event":
-        bias = pre_event_mean(values, dt, cfg.pre_event_s, src)
-    else:
-        bias = np.zeros(values.shape[1])
-    values = values - bias
+    values, bias = remove_offset(values, dt, cfg.offset, cfg.pre_event_s, src)
     extra["offset_removed"] = bias
     mass = cfg.mass_t if cfg.mass_t is not None else (
         [weight_kn_to_mass_t(w) for w in cfg.weight_kN] if cfg.weight_kN is not None else None)

@@ -161,13 +161,19 @@ def read_text_record(path: str | os.PathLike, *, units: str | None = None, dt: f
             raise InputError(f"dt = {dt} s given but the time column steps by {step:g} s", source=src)
         dt = step
     dt = dt if dt is not None else hints.get("dt")
+    return _motion(channels[:, col], dt, units, name, src)
+
+
+def _motion(acc: np.ndarray, dt: float | None, units: str, name: str | None, src: str) -> GroundMotion:
+    """The record ``acc`` (time,) in ``units``, converted to mm/s^2 (a clear error when ``dt`` is
+    unknown or the units are not an acceleration)."""
     if dt is None:
         raise InputError("no time column and no dt; give dt", source=src)
     try:
         factor = acceleration_factor(units)
     except ValueError as err:
         raise InputError(str(err), source=src) from None
-    return GroundMotion(dt=dt, acc=channels[:, col] * factor, name=name or _default_name(src), source=src)
+    return GroundMotion(dt=dt, acc=acc * factor, name=name or _default_name(src), source=src)
 
 
 def _is_uniform_time(t: np.ndarray) -> bool:
@@ -229,13 +235,7 @@ def read_csv_record(path: str | os.PathLike, *, units: str | None = None, dt: fl
             raise InputError("the time column is not uniformly increasing", source=src)
         tt = data[:, tcol]
         dt = float(np.round((tt[-1] - tt[0]) / (len(tt) - 1), 12))
-    if dt is None:
-        raise InputError("no time column and no dt; give dt", source=src)
-    try:
-        factor = acceleration_factor(units)
-    except ValueError as err:
-        raise InputError(str(err), source=src) from None
-    return GroundMotion(dt=dt, acc=data[:, col] * factor, name=name or _default_name(src), source=src)
+    return _motion(data[:, col], dt, units, name, src)
 
 
 MOTION_READERS: dict[str, Callable[..., GroundMotion]] = {"at2": read_at2, "text": read_text_record,

@@ -35,7 +35,7 @@ from ..errors import InputError, quotable
 from ..limits import check_count, check_readable_file
 from ..measurement import Measurement
 from ..units import acceleration_factor
-from ._common import pre_event_mean
+from ._common import remove_offset
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -221,13 +221,7 @@ def read_station(config: str | os.PathLike | StationConfig, *, base: str | os.Pa
             raise InputError(f"{role}: channel {_id(tr)} has NaN or inf samples", source=src)
         cols.append(data * spec.factor())
     values = np.stack(cols, axis=1)
-    if cfg.offset == "mean":
-        bias = values.mean(axis=0)
-    elif cfg.offset == "pre-event":
-        bias = pre_event_mean(values, dt, cfg.pre_event_s, where)
-    else:
-        bias = np.zeros(values.shape[1])
-    values = values - bias
+    values, bias = remove_offset(values, dt, cfg.offset, cfg.pre_event_s, where)
     mass = mass_t if mass_t is not None else cfg.mass_t
     height = height_mm if height_mm is not None else cfg.height_mm
     extra = {"channels": [tr.id for _, _, tr, _ in picked], "starttime": str(t0), "offset_removed": bias}
