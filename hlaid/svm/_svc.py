@@ -12,11 +12,11 @@ from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.multiclass import check_classification_targets
 from sklearn.utils.validation import check_is_fitted, column_or_1d
 
-from .._fileio import atomic_write
 from .._threads import one_thread
 from ..errors import InputError
 from ._ddag import PairwiseMachines, ovr_decision, resolve_multiclass
 from ._kernels import KERNELS, make_kernel, resolve_gamma
+from ._persist import read_state, write_state
 from ._smo import smo_ovo
 
 try:  # scikit-learn >= 1.6
@@ -27,8 +27,6 @@ except ImportError:  # pragma: no cover - older scikit-learn
 
 __all__ = ["KernelSVC"]
 
-_FORMAT = "hlaid.svm.KernelSVC"
-_FORMAT_VERSION = 1
 _DTYPES = {"float64": torch.float64, "float32": torch.float32}
 
 
@@ -351,16 +349,9 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         params = self.get_params()
         params["dtype"] = str(params["dtype"]).replace("torch.", "")
         params["device"] = None if params["device"] is None else str(params["device"])
-        classes = self.classes_
-        if classes.dtype.kind not in "biufU":
-            raise ValueError("save() supports integer, float, boolean or string class labels; "
-                             f"got classes_ of dtype {classes.dtype}.")
-        state = {
-            "format": _FORMAT,
-            "version": _FORMAT_VERSION,
+        write_state(path, {
             "params": params,
-            "classes": classes.tolist(),
-            "classes_dtype": classes.dtype.str,
+            "classes": self.classes_,
             "gamma_": float(self.gamma_),
             "n_features_in_": int(self.n_features_in_),
             "feature_names_in_": (self.feature_names_in_.tolist()
@@ -374,8 +365,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
             "dual_objective_": torch.from_numpy(np.asarray(self.dual_objective_)),
             "fit_status_": int(self.fit_status_),
             "shape_fit_": list(self.shape_fit_),
-        }
-        atomic_write(path, lambda tmp: torch.save(state, tmp), force=force)
+        }, force=force)
 
     @classmethod
     def load(cls, path: str | os.PathLike, *,
@@ -403,19 +393,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
             message starts with the file name.
         """
         src = os.fspath(path)
-        if not os.path.exists(src):
-            raise FileNotFoundError(f"{src}: file not found")
-        try:
-            state = torch.load(src, map_location="cpu", weights_only=True)
-        except Exception as exc:
-            raise InputError(f"not a KernelSVC model file (torch.load failed: "
-                             f"{type(exc).__name__})", source=src) from None
-        if not isinstance(state, dict) or state.get("format") != _FORMAT:
-            raise InputError(f"not a KernelSVC model file (expected format {_FORMAT!r})",
-                             source=src)
-        if state.get("version") != _FORMAT_VERSION:
-            raise InputError(f"KernelSVC model format version {state.get('version')!r}; "
-                             f"this version reads {_FORMAT_VERSION}", source=src)
+        state = read_state(src)
         try:
             params = dict(state["params"])
             params["dtype"] = _resolve_dtype(params["dtype"])
