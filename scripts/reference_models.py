@@ -26,7 +26,6 @@ TABLE1 = {
 """Table 1 of the paper, bottom to top: weights [kN], k0 [N/mm], alpha, p, dy [mm], delta_eta [s^2/m^2]."""
 
 
-
 class VC2002:
     """The SDOF of Vamvatsikos & Cornell (2002), Fig. 4a: period ``T`` [s], damping ratio ``XI``,
     hardening ratio ``ALPHA``, yield displacement ``UY`` [mm], mass ``M`` [t], stiffness ``K`` [N/mm]."""
