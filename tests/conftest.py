@@ -56,6 +56,20 @@ def requires(available: bool, reason: str) -> pytest.MarkDecorator:
     return pytest.mark.requires(available=bool(available), reason=reason)
 
 
+def _opensees_usable() -> bool:
+    from hlaid.opensees import OpenSeesUnavailable, import_opensees
+
+    try:
+        import_opensees()
+    except OpenSeesUnavailable:
+        return False
+    return True
+
+
+needs_opensees = requires(_opensees_usable(), "openseespy not usable")
+"""Marker of the tests that run OpenSeesPy."""
+
+
 def pytest_runtest_setup(item: pytest.Item) -> None:
     for mark in item.iter_markers("requires"):
         if not mark.kwargs["available"]:

@@ -12,22 +12,13 @@ from contextlib import redirect_stderr
 
 import numpy as np
 import pytest
-from conftest import paper_record, requires
+from conftest import needs_opensees, paper_record
 
 from hlaid.opensees import (
-    OpenSeesUnavailable,
-    import_opensees,
     opensees_script,
     run_opensees,
 )
 from hlaid.simulate import simulate
-
-try:
-    import_opensees()
-    HAVE_OPENSEES = True
-except OpenSeesUnavailable:
-    HAVE_OPENSEES = False
-needs_opensees = requires(HAVE_OPENSEES, "openseespy not usable")
 
 H = 3000.0
 

@@ -16,12 +16,10 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import paper_record, requires
+from conftest import needs_opensees, paper_record
 
 from hlaid.opensees import (
-    OpenSeesUnavailable,
     export_opensees,
-    import_opensees,
     opensees_script,
     run_opensees,
     run_opensees_batch,
@@ -41,12 +39,6 @@ def test_script_is_written_without_opensees(table1, tmp_path):
         export_opensees(table1, path)
 
 
-try:
-    import_opensees()
-    HAVE_OPENSEES = True
-except OpenSeesUnavailable:
-    HAVE_OPENSEES = False
-needs_opensees = requires(HAVE_OPENSEES, "openseespy not usable")
 
 
 @needs_opensees

@@ -15,13 +15,13 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import requires
+from conftest import needs_opensees
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hlaid.clone import Clone
 from hlaid.motions import GroundMotion
-from hlaid.opensees import OpenSeesUnavailable, export_opensees, import_opensees, opensees_script
+from hlaid.opensees import export_opensees, opensees_script
 
 HOSTILE = [
     'b""";import os;os.system("touch SENTINEL");"""',
@@ -116,15 +116,7 @@ def test_hostile_names_round_trip_through_the_files(table1, reference, tmp_path,
     assert not (tmp_path / "SENTINEL").exists()
 
 
-def _opensees_usable() -> bool:
-    try:
-        import_opensees()
-    except OpenSeesUnavailable:
-        return False
-    return True
-
-
-@requires(_opensees_usable(), "openseespy is not importable here")
+@needs_opensees
 @pytest.mark.parametrize("name", HOSTILE[:3])
 def test_hostile_names_run_in_opensees(table1, tmp_path, name):
     from hlaid.opensees import run_opensees
