@@ -16,7 +16,7 @@ from conftest import RECORDS, random_building, rel_err, story_drift, window
 from reference_systems import ShearBuildingRef, energy_terms
 
 from hlaid.errors import InputError
-from hlaid.model import Building
+from hlaid.model import Building, Damping
 from hlaid.motions import GroundMotion
 from hlaid.simulate import HISTORY_FIELDS, simulate
 
@@ -246,6 +246,26 @@ def test_peaks_output_equals_full_output(table1, records):
     for name in ("peak_drift", "peak_acc", "residual_drift", "final_state", "status", "n_time"):
         np.testing.assert_array_equal(getattr(full, name), getattr(peaks, name))
     np.testing.assert_allclose(full.peak_acc, np.abs(full.acc).max(axis=1))
+
+
+def test_damping_band_gives_the_full_product(records, monkeypatch):
+    """The kernel sums the damping force over C's band only (a shear building's C is
+    tridiagonal): bit for bit the full product's response, and the band is found right."""
+    from hlaid.simulate import _kernel
+
+    C = np.zeros((3, 5, 5))
+    C[0] = np.diag(np.ones(5))
+    C[1] = np.diag(np.ones(5)) + np.diag(np.ones(4), 1)
+    C[2, 0, 4] = 2.0
+    np.testing.assert_array_equal(_kernel.damping_bandwidth(C), [0, 1, 4])
+    rng = np.random.default_rng(3)
+    bs = [random_building(rng, 6) for _ in range(3)]
+    bs.append(bs[0].replace(damping=Damping(kind="mass", ratio=0.05)))
+    gm = window(records["elcentro-1940-ns"], 4.0).scaled_to_pga(0.8)
+    band = simulate(bs, gm, outputs="acc")
+    monkeypatch.setattr(_kernel, "damping_bandwidth", lambda C: np.full(len(C), C.shape[-1] - 1, dtype=np.int64))
+    full = simulate(bs, gm, outputs="acc")
+    assert np.array_equal(band.acc, full.acc) and np.isfinite(band.acc).all()
 
 
 @pytest.mark.parametrize("backend", ["numba", "torch"])

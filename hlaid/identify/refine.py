@@ -9,7 +9,9 @@ displacements. Jacobians are finite differences computed as one batch of the sim
 
 from __future__ import annotations
 
+import os
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -123,11 +125,19 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         acc = r.acc
         acc[r.status != 0] = 0.0  # only a stopped replay has NaN (after its stop); no copy of the rest
         res = np.empty((len(bs), acc[0].size))
-        for i in range(0, len(bs), _CHUNK):  # filtered a few replays at a time: the same values,
-            part = bandpass(acc[i:i + _CHUNK], dt, (band_hz[0], hi), axis=1)  # without fresh large temporaries
+
+        def chunk(i):  # a few replays at a time: the same values, without fresh large temporaries
+            part = bandpass(acc[i:i + _CHUNK], dt, (band_hz[0], hi), axis=1)
             part -= target[None]
             part /= scale
             res[i:i + _CHUNK] = part.reshape(len(part), -1)
+
+        starts = range(0, len(bs), _CHUNK)
+        if len(starts) == 1:
+            chunk(0)
+        else:  # scipy's filter releases the GIL: the chunks share the cores (disjoint rows of res)
+            with ThreadPoolExecutor(min(len(starts), os.cpu_count() or 1)) as ex:
+                list(ex.map(chunk, starts))
         res[r.status != 0] = 1e3  # a diverged trial is far from the data
         return res
 

@@ -51,8 +51,9 @@ COLLAPSE = False
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
-def _rhs(y, ag, n, m, k0, al, p, dy, de, kg, C, f, out):
-    """``out = dy/dt`` for one building; ``f`` is scratch ``(n,)``. See BoucWenBuilding.rates."""
+def _rhs(y, ag, n, m, k0, al, p, dy, de, kg, C, bw, f, out):
+    """``out = dy/dt`` for one building; ``f`` is scratch ``(n,)``; ``C`` is zero beyond ``bw``
+    off its diagonal (see :func:`damping_bandwidth`). See BoucWenBuilding.rates."""
     u_below = 0.0
     v_below = 0.0
     for i in range(n):
@@ -70,14 +71,14 @@ def _rhs(y, ag, n, m, k0, al, p, dy, de, kg, C, f, out):
         v_below = v
     for j in range(n):
         fd = 0.0
-        for k in range(n):
+        for k in range(max(0, j - bw), min(n, j + bw + 1)):
             fd += C[j, k] * y[n + k]
         f_above = f[j + 1] if j + 1 < n else 0.0
         out[n + j] = -(f[j] - f_above + fd) / m[j] - ag
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
-def _absolute_acc(y, n, m, al, k0, kg, C, f, acc):
+def _absolute_acc(y, n, m, al, k0, kg, C, bw, f, acc):
     """Absolute floor accelerations ``-(R + C v)/m`` at state ``y``."""
     u_below = 0.0
     for i in range(n):
@@ -86,7 +87,7 @@ def _absolute_acc(y, n, m, al, k0, kg, C, f, acc):
         u_below = y[i]
     for j in range(n):
         fd = 0.0
-        for k in range(n):
+        for k in range(max(0, j - bw), min(n, j + bw + 1)):
             fd += C[j, k] * y[n + k]
         f_above = f[j + 1] if j + 1 < n else 0.0
         acc[j] = -(f[j] - f_above + fd) / m[j]
@@ -128,7 +129,17 @@ def _update_peaks(y, n):
         u_below = y[i]
 
 
-def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, cpar, y0, stop_drift,
+def damping_bandwidth(C: np.ndarray) -> np.ndarray:
+    """``(building,)`` largest ``|j - k|`` with ``C[b, j, k] != 0`` for ``C`` of shape
+    ``(building, story, story)`` (0 for a zero or diagonal matrix). Leaving out exact zeros
+    changes no sum: ``fd + 0.0 * v`` is ``fd``."""
+    C = np.asarray(C)
+    n = C.shape[-1]
+    off = np.abs(np.subtract.outer(np.arange(n), np.arange(n)))
+    return np.where(C != 0.0, off[None], 0).reshape(C.shape[0], -1).max(axis=1, initial=0).astype(np.int64)
+
+
+def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, bw, cpar, y0, stop_drift,
               save, states, save_acc, acc_hist, peak_drift, peak_acc, final, n_done, status):
     """Integrate every batch element; results are written into the output arrays.
 
@@ -140,6 +151,9 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, cpar, y
     nsub : RK4 sub-steps per sample; a sample whose step lets |z| overshoot dy (or the
         state blow up) is redone with 2x, 4x, ... up to 16x the sub-steps
     m, k0, al, p, dy, de, kg : (building, story) parameters; C : (building, story, story)
+    bw : (building,) bandwidth of ``C`` (:func:`damping_bandwidth`): the damping force sums
+        only the band, which gives the full product's values bit for bit, n/3 times faster for
+        the tridiagonal C of a shear building
     cpar : (building, story, 8) collapse gap springs ``x1, dk1, ..., x4, dk4`` (hlaid.model.collapse),
         used when the state has the collapse memory
     y0 : (batch, 4*story) initial states, or (batch, 6*story) with the collapse memory
@@ -159,7 +173,7 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, cpar, y
         g = ag[mi[b]]
         s_b = sc[b]
         w = bi[b]
-        mb, k0b, alb, pb, dyb, deb, kgb, Cb = m[w], k0[w], al[w], p[w], dy[w], de[w], kg[w], C[w]
+        mb, k0b, alb, pb, dyb, deb, kgb, Cb, bwb = m[w], k0[w], al[w], p[w], dy[w], de[w], kg[w], C[w], bw[w]
         y = y0[b].copy()
         y_prev = np.empty(S)
         yt = np.empty(S)
@@ -173,7 +187,7 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, cpar, y
         T = nt[mi[b]]
         if save:
             states[b, 0, :] = y
-        _absolute_acc(y, n, mb, alb, k0b, kgb, Cb, f, acc)
+        _absolute_acc(y, n, mb, alb, k0b, kgb, Cb, bwb, f, acc)
         if col:
             _add_collapse(y, n, mb, cpb, f, acc, False)
         if save_acc:
@@ -196,22 +210,22 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, cpar, y
                     g0 = lo + da * (s / ns)
                     gm = lo + da * ((s + 0.5) / ns)
                     g1 = lo + da * ((s + 1.0) / ns)
-                    _rhs(y, g0, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k1)
+                    _rhs(y, g0, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, bwb, f, k1)
                     if col:
                         _add_collapse(y, n, mb, cpb, f, k1, True)
                     for j in range(S):
                         yt[j] = y[j] + 0.5 * hs * k1[j]
-                    _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k2)
+                    _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, bwb, f, k2)
                     if col:
                         _add_collapse(yt, n, mb, cpb, f, k2, True)
                     for j in range(S):
                         yt[j] = y[j] + 0.5 * hs * k2[j]
-                    _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k3)
+                    _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, bwb, f, k3)
                     if col:
                         _add_collapse(yt, n, mb, cpb, f, k3, True)
                     for j in range(S):
                         yt[j] = y[j] + hs * k3[j]
-                    _rhs(yt, g1, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, f, k4)
+                    _rhs(yt, g1, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, bwb, f, k4)
                     if col:
                         _add_collapse(yt, n, mb, cpb, f, k4, True)
                     for j in range(S):
@@ -233,7 +247,7 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, cpar, y
             k += 1
             if save:
                 states[b, k, :] = y
-            _absolute_acc(y, n, mb, alb, k0b, kgb, Cb, f, acc)
+            _absolute_acc(y, n, mb, alb, k0b, kgb, Cb, bwb, f, acc)
             if col:
                 _add_collapse(y, n, mb, cpb, f, acc, False)
             if save_acc:

@@ -147,8 +147,8 @@ def _run_numba(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, outputs):
     status = np.zeros(B, dtype=np.int64)
     kernel = _kernel.integrate_collapse if S == 6 * n else _kernel.integrate
     kernel(ag, dt, nt, mi, bi, sc, int(nsub), P["mass"], P["k0"], P["alpha"], P["p"], P["dy"],
-           P["delta_eta"], P["kg"], P["damping"], P["collapse"], y0, stop, save, states, save_acc, acc, peak_drift,
-           peak_acc, final, n_done, status)
+           P["delta_eta"], P["kg"], P["damping"], _kernel.damping_bandwidth(P["damping"]), P["collapse"], y0, stop,
+           save, states, save_acc, acc, peak_drift, peak_acc, final, n_done, status)
     return (states if save else None), (acc if save_acc else None), peak_drift, peak_acc, final, n_done, status
 
 
