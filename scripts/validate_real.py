@@ -173,6 +173,10 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     try:
         cfg = load_validation_config(args.config)
+        if args.figures and not args.force and any(Path(args.figures).glob("*.png")):
+            # before any work: the figures are only known once the clones are identified
+            raise InputError("already holds figures; use --force to overwrite them, or another --figures",
+                             source=args.figures)
         out = Path(args.out)
         out.parent.mkdir(parents=True, exist_ok=True)
         with atomic_directory(out, force=args.force) as tmp:

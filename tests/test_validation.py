@@ -135,6 +135,12 @@ def test_script_bad_input_is_one_line(tmp_path, capsys):
     (tmp_path / "o" / "keep.txt").write_text("x")
     assert main(["--config", str(CONFIG), "--out", str(tmp_path / "o"), "--figures", "", "--structures", "nope"]) == 2
     assert "--force" in capsys.readouterr().err and (tmp_path / "o" / "keep.txt").exists()
+    figs = tmp_path / "figs"  # existing figures: refused before any identification, nothing written
+    figs.mkdir()
+    (figs / "old.png").write_bytes(b"png")
+    assert main(["--config", str(CONFIG), "--out", str(tmp_path / "new"), "--figures", str(figs)]) == 2
+    err = capsys.readouterr().err
+    assert "figs" in err and "--force" in err and not (tmp_path / "new").exists()
 
 
 @requires(STEEL.is_dir(), f"steel-frame data not found at {STEEL}")
