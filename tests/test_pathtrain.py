@@ -70,6 +70,21 @@ def test_drive_story_batches_parameters_and_paths(table1):
         lean.elastic_stiffness(1.9e4, alphas, 0.5, 17.5)
 
 
+def test_drive_story_stays_on_the_law_when_a_sample_spans_many_dy():
+    """A drift increment of up to 100 dy per sample (a coarse-pass draw of a small dy): the
+    sub-step redo and the law's limit keep |z| <= dy and the force bounded by the
+    elastic-perfectly-plastic envelope (it was 1e105-1e169 N, or NaN). Paths the plain RK4
+    integrates well are left as they were (the test above against the batch simulator)."""
+    t = np.arange(400) * 0.01
+    x = 80.0 * np.sin(2 * np.pi * t) * np.minimum(t, 1.0)
+    dy = np.array([0.05, 0.1, 0.3, 1.0, 5.0])
+    for p in (1.2, 2.0, 3.0):
+        r = drive_story(x, k0=1e4, alpha=0.1, p=p, dy=dy, delta_eta=0.5, mass=20.0, dt=0.01, substeps=1)
+        assert np.isfinite(r.force).all() and np.isfinite(r.energy).all()
+        assert np.all(np.abs(r.z) <= dy[:, None] * (1 + 1e-5))
+        assert np.all(np.abs(r.force) <= 0.1e4 * 80.0 + 0.9e4 * dy[:, None] * (1 + 1e-5))
+
+
 def test_segment_operator_equals_segment_slopes():
     """W @ f is exactly the least-squares segment slopes of hlaid.hla.stiffness."""
     rng = np.random.default_rng(3)

@@ -198,7 +198,7 @@ def degradation_trend(ke: np.ndarray, energy: np.ndarray, weights: np.ndarray,
         return w[:, None] * np.stack([r + (1.0 - r) * d, k0 * (1.0 - d), -k0 * (1.0 - r) * E * d * d], axis=1)
 
     iso = isotonic_decreasing(y, weights[ok])
-    k_first = max(float(iso[0]), 1e-3)
+    k_first = min(max(float(iso[0]), 1e-3), 20.0)  # inside the bounds below (an outlier can start above)
     q0 = [k_first, min(max(float(iso[-1]) / k_first, 0.0), 1.0), 1.0]
     sol = least_squares(lambda q: w * (model(q, E) - y), q0, jac=jac,
                         bounds=([1e-3, 0.0, 0.0], [20.0, 1.0, max_rate]), loss="soft_l1", f_scale=0.05)

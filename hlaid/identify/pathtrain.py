@@ -24,6 +24,7 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sps
 
+from .. import _progress
 from ..hla.stiffness import segment_index
 from ..signal import bandpass
 from ..simulate.path import drive_story
@@ -182,5 +183,11 @@ def path_training_set(sp: StoryPath, *, k0: float, dy: float, delta_eta: float, 
                        dt=sp.dt, substeps=substeps, state=False)
     op = sp.operator
     X = story_features(op, resp.force.T, sp.k0) + _noise_features(sp, op, n_samples, rng)
-    return TrainingSet(X=X, alpha=a, p=p, sim=np.arange(n_samples))
+    # a draw whose story law blows up along this path (a dy far below the path's sample-to-sample
+    # increments overshoots the yield surface in one step) is no sample of the class: left out
+    ok = np.isfinite(X).all(axis=1)
+    if not ok.all():
+        _progress.debug(f"  path-driven training: {int(np.sum(~ok))} of {n_samples} samples diverged along the "
+                        "path and are left out")
+    return TrainingSet(X=X[ok], alpha=a[ok], p=p[ok], sim=np.flatnonzero(ok))
 

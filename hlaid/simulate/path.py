@@ -57,6 +57,8 @@ def _hermite_rate(tau, x0, x1, v0, v1, dt):
 @nb.njit(cache=True, parallel=True, fastmath=_FASTMATH, error_model="numpy")
 def _drive(x, v, dt, hermite, k0, al, p, dy, de, m, nsub, state, force, z_out, e_out):
     """Integrate every parameter set ``b`` along path ``x[b % n_paths]``; see :func:`drive_story`.
+    A sample whose step lets ``|z|`` overshoot ``dy`` is redone with up to 16x the sub-steps (as
+    the batch simulator does); beyond that it takes the law's limit (elastic to ``|z| = dy``).
     ``z_out`` and ``e_out`` are written only with ``state`` (the force alone halves the memory
     traffic of a large batch)."""
     B = k0.shape[0]
@@ -73,16 +75,31 @@ def _drive(x, v, dt, hermite, k0, al, p, dy, de, m, nsub, state, force, z_out, e
         for k in range(T - 1):
             x0 = xb[k]
             x1 = xb[k + 1]
-            h = dt / nsub
-            for s in range(nsub):
-                if hermite:
-                    r0 = _hermite_rate((s + 0.0) / nsub, x0, x1, vb[k], vb[k + 1], dt)
-                    r1 = _hermite_rate((s + 0.5) / nsub, x0, x1, vb[k], vb[k + 1], dt)
-                    r2 = _hermite_rate((s + 1.0) / nsub, x0, x1, vb[k], vb[k + 1], dt)
-                    z, e = _rk4_step(z, e, r0, r1, r2, h, al[b], k0[b], m, p[b], dy[b], de[b])
-                else:
-                    d = (x1 - x0) / dt
-                    z, e = _rk4_step(z, e, d, d, d, h, al[b], k0[b], m, p[b], dy[b], de[b])
+            ns = nsub
+            while True:  # a step that lets |z| overshoot dy is redone with 2x, 4x, ... 16x the sub-steps
+                zs = z
+                es = e
+                h = dt / ns
+                for s in range(ns):
+                    if hermite:
+                        r0 = _hermite_rate((s + 0.0) / ns, x0, x1, vb[k], vb[k + 1], dt)
+                        r1 = _hermite_rate((s + 0.5) / ns, x0, x1, vb[k], vb[k + 1], dt)
+                        r2 = _hermite_rate((s + 1.0) / ns, x0, x1, vb[k], vb[k + 1], dt)
+                        zs, es = _rk4_step(zs, es, r0, r1, r2, h, al[b], k0[b], m, p[b], dy[b], de[b])
+                    else:
+                        d = (x1 - x0) / dt
+                        zs, es = _rk4_step(zs, es, d, d, d, h, al[b], k0[b], m, p[b], dy[b], de[b])
+                if abs(zs) <= dy[b] * (1.0 + 1e-5) or ns >= 16 * nsub:
+                    break
+                ns *= 2
+            if not abs(zs) <= dy[b] * (1.0 + 1e-5):
+                # still over (a drift increment of many dy in one sample): the law's limit for such a
+                # step, elastic to the yield surface and no further (|z| <= dy holds for the exact law)
+                eta = _degradation(e, al[b], k0[b], m, de[b])
+                zs = min(max(z + (x1 - x0) / eta, -dy[b]), dy[b])
+                es = e + 0.5 * (z + zs) * (x1 - x0)
+            z = zs
+            e = es
             force[b, k + 1] = _spring_force(x1, z, al[b], k0[b])
             if state:
                 z_out[b, k + 1] = z
