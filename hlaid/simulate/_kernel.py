@@ -152,8 +152,8 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, bw, cpa
         state blow up) is redone with 2x, 4x, ... up to 16x the sub-steps
     m, k0, al, p, dy, de, kg : (building, story) parameters; C : (building, story, story)
     bw : (building,) bandwidth of ``C`` (:func:`damping_bandwidth`): the damping force sums
-        only the band, which gives the full product's values bit for bit, n/3 times faster for
-        the tridiagonal C of a shear building
+        only the band (3 products per floor for a shear building's tridiagonal C instead of n),
+        bit for bit the full product's values
     cpar : (building, story, 8) collapse gap springs ``x1, dk1, ..., x4, dk4`` (hlaid.model.collapse),
         used when the state has the collapse memory
     y0 : (batch, 4*story) initial states, or (batch, 6*story) with the collapse memory
