@@ -208,6 +208,13 @@ class RefineConfig:
         so 2 sub-steps here cut the refinement of a 20-story building by a third and left the
         Table 1 and random-building studies as they were. One sub-step was faster still but
         moved two random buildings to worse optima (docs/identification.md, "Speed")
+    ground_noise : ``"ignore"`` (default): plain least squares of the normalised residuals;
+        ``"whiten"``: the residuals whitened per frequency by their covariance with the measured
+        ground's noise carried to the floors by the linear (initial-stiffness) building being
+        evaluated, ``Sigma(w) = diag(s_f^2) + s_g^2 |L h|^2`` (the frequency-domain
+        errors-in-variables criterion, :mod:`hlaid.identify.eiv`; every channel's noise taken as
+        a common fraction of its RMS). Both refinement stages; the clone's uncertainty is then
+        of the whitened fit. Measured on Table 1 in docs/identification.md
     """
 
     method: Literal["replay", "none"] = "replay"
@@ -219,8 +226,11 @@ class RefineConfig:
     ftol: float = 1e-10
     substeps: int = 4
     jac_substeps: int = 2
+    ground_noise: Literal["ignore", "whiten"] = "ignore"
 
     def __post_init__(self):
+        if self.ground_noise not in ("ignore", "whiten"):
+            raise InputError(f"refine.ground_noise = {self.ground_noise!r}; expected 'ignore' or 'whiten'")
         if not 0 < self.ftol < 1:
             raise InputError(f"refine.ftol = {self.ftol}; expected a fraction in (0, 1), e.g. 1e-10")
         if not 1 <= self.substeps <= 64:

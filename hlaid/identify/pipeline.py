@@ -215,7 +215,7 @@ class _Identifier:
         ident = [i for i in range(self.res.n_stories) if self.identifiable[i]]
         rc = cfg.refine
         common = {"band_hz": rc.band_hz, "max_iterations": rc.max_iterations, "upper_factor": rc.upper_factor,
-                  "substeps": rc.substeps, "jac_substeps": rc.jac_substeps}
+                  "substeps": rc.substeps, "jac_substeps": rc.jac_substeps, "ground_noise": rc.ground_noise}
         info = {}
         start = paper
         if "k0" in rc.parameters:

@@ -18,10 +18,12 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .. import _progress
+from ..errors import InputError
 from ..measurement import Measurement
 from ..model import Building, Damping
 from ..signal import bandpass, cap_corner, measured_ground
 from ..simulate import simulate
+from .eiv import ground_transfer, lowpass_gain, whiten
 
 _CHUNK = 8
 """Replays band-passed together in the refinement: filtering a whole Jacobian batch at once
@@ -64,7 +66,7 @@ class RefineResult:
 def refine_replay(building: Building, measurement: Measurement, *, parameters=("k0", "alpha", "p", "dy", "delta_eta"),
                   stories=None, damping: bool = False, band_hz=(0.1, 20.0), max_iterations: int = 40,
                   substeps: int = 4, upper_factor: float | None = 10.0, ftol: float = 1e-10,
-                  jac_substeps: int | None = None) -> RefineResult:
+                  jac_substeps: int | None = None, ground_noise: str = "ignore") -> RefineResult:
     """Refine ``building`` so that its replay matches ``measurement``'s floor accelerations.
 
     Parameters
@@ -83,6 +85,11 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         (default: ``substeps``). The Jacobian only steers the search; the residuals, and so the
         optimum, keep ``substeps``. Its base point is replayed with the same sub-steps as its
         columns, so the difference quotient carries no discretisation offset.
+    ground_noise : ``"ignore"`` (least squares of the residuals); ``"whiten"``: the residuals
+        whitened per frequency by their covariance with the measured ground's noise propagated
+        through the linear building being evaluated (:mod:`hlaid.identify.eiv`; every channel's
+        noise a common fraction of its RMS, as :func:`hlaid.synthetic.simulate_measurement`
+        adds it). ``cost_*`` and ``residuals`` are then of the whitened residuals.
     """
     t0 = time.perf_counter()
     dt = measurement.dt
@@ -90,6 +97,9 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
     ground = measured_ground(measurement, hi)
     target = bandpass(np.asarray(measurement.floor_acc), dt, (band_hz[0], hi))
     scale = np.sqrt(np.mean(target**2, axis=0))
+    if ground_noise not in ("ignore", "whiten"):
+        raise InputError(f"ground_noise = {ground_noise!r}; expected 'ignore' or 'whiten'")
+    transfer = _ground_noise_transfer(measurement, hi, scale) if ground_noise == "whiten" else None
     stories = range(building.n_stories) if stories is None else stories
     slots = [(name, i) for i in range(building.n_stories) for name in parameters
              if i in stories or name == "k0"]
@@ -126,10 +136,15 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         acc[r.status != 0] = 0.0  # only a stopped replay has NaN (after its stop); no copy of the rest
         res = np.empty((len(bs), acc[0].size))
 
+        v = [] if transfer is None else transfer.of(bs)
+
         def chunk(i):  # a few replays at a time: the same values, without fresh large temporaries
             part = bandpass(acc[i:i + _CHUNK], dt, (band_hz[0], hi), axis=1)
             part -= target[None]
             part /= scale
+            if transfer is not None:
+                for k in range(len(part)):
+                    part[k] = whiten(part[k], v[i + k], transfer.floor_std)
             res[i:i + _CHUNK] = part.reshape(len(part), -1)
 
         starts = range(0, len(bs), _CHUNK)
@@ -176,3 +191,44 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
     return RefineResult(building=make(sol.x), cost_initial=cost0, cost_final=float(sol.cost), nfev=int(sol.nfev),
                         seconds=time.perf_counter() - t0, message=str(sol.message), slots=tuple(slots),
                         x=np.array(sol.x), jacobian=np.array(sol.jac), residuals=np.array(sol.fun))
+
+
+class _GroundNoise:
+    """The ground noise's spectrum relative to the floor noise, ``v(w)`` of
+    :func:`hlaid.identify.eiv.whiten`, per building (cached on k0 and damping: the other
+    parameters leave the linear building as it is).
+
+    Attributes
+    ----------
+    gain : ``s_g L(w) / s_f`` per frequency and floor, shape ``(n_freq, n_floors)``
+    freq : the ``rfft`` frequencies [Hz], shape ``(n_freq,)``
+    floor_std : floor noise std in units of the normalised residuals (up to the common noise
+        fraction), shape ``(n_floors,)``
+    """
+
+    def __init__(self, gain: np.ndarray, freq: np.ndarray, floor_std: np.ndarray):
+        self.gain, self.freq, self.floor_std = gain, freq, floor_std
+        self._cache: dict = {}
+
+    def of(self, buildings) -> list[np.ndarray]:
+        out = []
+        for b in buildings:
+            key = np.asarray(b.k0, dtype=float).tobytes() + repr(b.damping).encode()
+            if key not in self._cache:
+                if len(self._cache) > 64:
+                    self._cache.clear()
+                self._cache[key] = self.gain * ground_transfer(b, self.freq)
+            out.append(self._cache[key])
+        return out
+
+
+def _ground_noise_transfer(meas: Measurement, hi_hz: float, scale: np.ndarray) -> _GroundNoise:
+    """:class:`_GroundNoise` of ``meas``: every channel's noise std a common fraction of its RMS
+    (the fraction cancels), the replay's ground low-passed at ``hi_hz``, residuals divided by ``scale``."""
+    floor = np.asarray(meas.floor_acc)
+    n, dt = floor.shape[0], meas.dt
+    rms_f = np.sqrt(np.mean(floor**2, axis=0))
+    rms_g = float(np.sqrt(np.mean(np.asarray(meas.ground_acc) ** 2)))
+    gain = lowpass_gain(n, dt, hi_hz)[:, None] * (rms_g / rms_f)[None, :]
+    return _GroundNoise(gain, np.fft.rfftfreq(n, dt), rms_f / scale)
+
