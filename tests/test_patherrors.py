@@ -4,6 +4,8 @@ sample by sample, the identification with the option, its validation."""
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 from conftest import paper_record, window
@@ -120,3 +122,24 @@ def test_identify_with_path_errors(table1):
         return [[{k: v["votes"] for k, v in s.items()} for s in p["stories"]] for p in res.passes]
 
     assert votes(plain) != votes(eiv)
+
+
+def test_failed_pseudo_measurements_are_left_out(table1, measured, monkeypatch):
+    """A pseudo-measurement whose HLA fails (ValueError) is left out; none left: an empty bank."""
+    pe = sys.modules[path_error_bank.__module__]
+    meas, res, ground = measured
+    real_hla = pe.hla
+    calls = []
+
+    def flaky(m, cfg):
+        calls.append(1)
+        if len(calls) == 2:
+            raise ValueError("Initial guess is outside of provided bounds")
+        return real_hla(m, cfg)
+
+    monkeypatch.setattr(pe, "hla", flaky)
+    kw = {"noise_rms": 0.10, "seed": 11, "reconstruct": False, "crossover_hz": 1.0, "hla_config": HLAConfig()}
+    bank = path_error_bank(res, ground, table1, n=3, **kw)
+    assert bank.shape[0] == 2
+    monkeypatch.setattr(pe, "hla", lambda m, cfg: (_ for _ in ()).throw(ValueError("no")))
+    assert path_error_bank(res, ground, table1, n=2, **kw).shape == (0,) + res.stories[0].drift.shape + (3,)
