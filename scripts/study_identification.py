@@ -22,7 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from hlaid import _progress
-from hlaid.identify import IdentifyConfig, RefineConfig, identify
+from hlaid.config import load_config
+from hlaid.identify import IdentifyConfig, identify
 from hlaid.io import read
 from hlaid.model import Building
 from hlaid.simulate import simulate
@@ -103,13 +104,12 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--n-random", type=int, default=30)
     ap.add_argument("--cache", default="", help="classifier cache ('' = none)")
-    ap.add_argument("--ground-noise", choices=["ignore", "whiten"], default="ignore",
-                    help="refine.ground_noise of the identification")
+    ap.add_argument("--config", default=None, help="identification settings (YAML; default: IdentifyConfig())")
     args = ap.parse_args(argv)
     out = Path(args.out or f"runs/study_{args.part}")
     out.mkdir(parents=True, exist_ok=True)
     _progress.set_verbosity(0)
-    cfg = IdentifyConfig(refine=RefineConfig(ground_noise=args.ground_noise))
+    cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
     rows = []
     if args.part == "table1":
         truth = load_simulation_config("configs/poc_3story.yaml").building.build()

@@ -98,7 +98,7 @@ def train_pass(estimate: Building, motion: GroundMotion, bins: list[tuple[Bins, 
 
 def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], identifiable: np.ndarray, *,
               cfg: IdentifyConfig, stage: str, seed: int, cache: MachineCache, tb: TBLogger | None = None,
-              step: int = 0, chosen_C: dict | None = None) -> TrainedPass:
+              step: int = 0, chosen_C: dict | None = None, path_errors: np.ndarray | None = None) -> TrainedPass:
     """Train (or load) the alpha and p classifiers of every identifiable story on path-driven
     training sets (:mod:`hlaid.identify.pathtrain`): one feature vector per sample.
 
@@ -109,6 +109,8 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
     bins : per story ``(alpha bins, p bins)``
     chosen_C : ``{machine name: C}`` cross-validated in an earlier pass of the same run: reused
         instead of a new cross-validation (updated with this pass's choices)
+    path_errors : ``(history, time, story)`` simulated errors of the paths
+        (:func:`hlaid.identify.patherrors.path_error_bank`), or None
     """
     tc = cfg.training
     chosen_C = {} if chosen_C is None else chosen_C
@@ -143,7 +145,8 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
                                   delta_eta=float(estimate.delta_eta[i]), alpha_range=bins[i][0].range,
                                   p_range=bins[i][1].range, n_samples=tc.samples, spread=tc.spread,
                                   seed=seed + 7919 * i, substeps=tc.substeps,
-                                  wide=tc.coarse_factor if stage == "coarse" else None)
+                                  wide=tc.coarse_factor if stage == "coarse" else None,
+                                  path_errors=None if path_errors is None else path_errors[:, :, i])
             t_sim += time.perf_counter() - t
             sets.append(S)
             for param, b in zip(PARAMS, bins[i]):

@@ -34,6 +34,7 @@ from .config import IdentifyConfig
 from .drift import reconstruct_drift
 from .loopfit import fit_story_loop
 from .passes import PARAMS, machines_of, path_pass, train_pass
+from .patherrors import path_error_bank
 from .pathtrain import story_paths
 from .refine import refine_replay
 from .regression import plausible_limits, story_delta_eta, story_yield_displacement
@@ -303,6 +304,21 @@ class _Identifier:
                            cutoff_hz=res.band_hz[1], n_segments=self.cfg.training.n_segments,
                            identifiable=self.identifiable)
 
+    def _path_errors(self, est: Building, seed: int) -> np.ndarray | None:
+        """``(history, time, story)`` simulated errors of the stories' current paths around
+        ``est`` (``training.path_errors``), or None."""
+        tc = self.cfg.training
+        if tc.path_errors == 0:
+            return None
+        res = self.res
+        rec = np.array([self.stories[i].drift is not res.stories[i].drift for i in range(res.n_stories)])
+        t = time.perf_counter()
+        bank = path_error_bank(res, self.ground, est, noise_rms=self.noise, n=tc.path_errors,
+                               seed=7_000_000 + 100 * seed, reconstruct=rec, crossover_hz=tc.crossover_hz,
+                               hla_config=self.cfg.hla)
+        self.timings["path_errors"] = self.timings.get("path_errors", 0.0) + time.perf_counter() - t
+        return bank if len(bank) else None
+
     def _ranges(self, stage: str, centre):
         """Per-story (alpha Bins, p Bins) of a pass: the coarse bins, or fine bins over the
         coarse bin holding the current value and its two neighbours."""
@@ -326,7 +342,7 @@ class _Identifier:
             paths = self._story_paths()
             measured = [None if sp is None else sp.measured_features()[None, :] for sp in paths]
             tp = path_pass(paths, est, bins, self.identifiable, cfg=cfg, stage=stage, seed=seed, cache=self.cache,
-                           tb=self.tb, step=it + 1, chosen_C=self.chosen_C)
+                           tb=self.tb, step=it + 1, chosen_C=self.chosen_C, path_errors=self._path_errors(est, seed))
         else:
             measured = [F.values for F in self.features]
             tp = train_pass(est, self.training_motion, bins, self.identifiable, noise=self.noise, cfg=cfg,

@@ -138,7 +138,8 @@ def drive_story(drift: np.ndarray, *, k0, alpha, p, dy, delta_eta, mass: float, 
     Parameters
     ----------
     drift : ``(time,)`` or ``(path, time)`` drift [mm]; parameter set ``b`` follows path
-        ``b % path`` (one path for all, or one per parameter set)
+        ``b % path`` (one path for all, one per parameter set, or any number that divides the
+        parameter sets)
     k0, alpha, p, dy, delta_eta : scalars or ``(batch,)`` story parameters
     mass : floor mass above the story [t] (enters the degradation energy, eq 8)
     dt : sample interval [s]
@@ -164,8 +165,8 @@ def drive_story(drift: np.ndarray, *, k0, alpha, p, dy, delta_eta, mass: float, 
                                                                                           delta_eta)))
     B = max(pars[0].shape[0], x.shape[0])
     k0_, al_, p_, dy_, de_ = (np.ascontiguousarray(np.broadcast_to(a, (B,))) for a in pars)
-    if x.shape[0] not in (1, B):
-        raise ValueError(f"{x.shape[0]} paths for {B} parameter sets; expected 1 or {B}")
+    if B % x.shape[0]:
+        raise ValueError(f"{x.shape[0]} paths for {B} parameter sets; expected a number that divides {B}")
     if substeps < 1:
         raise ValueError(f"substeps = {substeps}; expected >= 1")
     T = x.shape[1]
@@ -177,7 +178,7 @@ def drive_story(drift: np.ndarray, *, k0, alpha, p, dy, delta_eta, mass: float, 
            int(substeps), bool(state or collapse is not None), force, z, e)
     if collapse is not None:
         c = np.broadcast_to(np.asarray(collapse, dtype=np.float64), (B, N_COLLAPSE))[:, :, None]
-        xb = np.broadcast_to(x, (B, T))
+        xb = x[np.arange(B) % x.shape[0]]
         xp = np.maximum.accumulate(np.maximum(xb, 0.0), axis=1)
         xn = np.maximum.accumulate(np.maximum(-xb, 0.0), axis=1)
         force = eq.collapse_spring_force(xb, z, xp, xn, al_[:, None], k0_[:, None], *(c[:, j] for j in
