@@ -41,9 +41,7 @@ def ground_transfer(building: Building, freq_hz: np.ndarray) -> np.ndarray:
     -------
     complex array, shape ``(n_freq, n_floors)``
     """
-    kg = building.geometric_stiffness()
-    K = building.stiffness_matrix() - (np.diag(kg + np.append(kg[1:], 0.0)) - np.diag(kg[1:], 1)
-                                       - np.diag(kg[1:], -1))
+    K = building.stiffness_matrix(pdelta=True)
     M = np.diag(np.asarray(building.mass, dtype=float))
     C = building.damping_matrix()
     w = 2.0 * np.pi * np.asarray(freq_hz, dtype=float)[:, None, None]

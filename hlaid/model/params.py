@@ -260,9 +260,13 @@ class Building:
         return S.damping_matrix(self._t("k0"), self._t("mass"), torch.tensor([a0], dtype=torch.float64),
                                 torch.tensor([a1], dtype=torch.float64))[0].numpy()
 
-    def stiffness_matrix(self) -> np.ndarray:
-        """Initial elastic stiffness matrix ``K0`` [N/mm], ``(story, story)``."""
-        return S.stiffness_matrix(self._t("k0"))[0].numpy()
+    def stiffness_matrix(self, pdelta: bool = False) -> np.ndarray:
+        """Initial elastic stiffness matrix ``K0`` [N/mm], ``(story, story)``; with ``pdelta``
+        less the P-Delta stiffness (:meth:`geometric_stiffness`, zero when inactive)."""
+        k = self._t("k0")
+        if pdelta:
+            k = k - torch.as_tensor(self.geometric_stiffness(), dtype=torch.float64)[None]
+        return S.stiffness_matrix(k)[0].numpy()
 
     def periods(self) -> np.ndarray:
         """Initial elastic periods [s], longest first, ``(story,)``."""
