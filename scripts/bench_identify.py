@@ -54,7 +54,8 @@ def main(argv=None) -> int:
     if not args.no_peer:
         from sklearn.svm import SVC
         orig = classify.make_svc
-        classify.make_svc = lambda cfg, C=None: SVC(C=cfg.C if C is None else C, kernel=cfg.kernel, gamma=cfg.gamma)
+        classify.make_svc = lambda cfg, C=None, gamma=None: SVC(C=cfg.C if C is None else C, kernel=cfg.kernel,
+                                                                gamma=cfg.gamma if gamma is None else gamma)
         try:  # no cache: scikit-learn's SVC cannot be stored in hlaid's classifier cache
             t3, _ = run(meas, "")
         finally:

@@ -183,7 +183,7 @@ def per_half_cycle_votes(S, y, idx, test, n_classes: int, cfg) -> float:
 
 
 def path_mode(args, cfg) -> int:
-    from hlaid.identify.classify import apply_scaler, choose_C, scaler_of
+    from hlaid.identify.classify import apply_scaler, choose_hyper, scaler_of
 
     noise = cfg.noise_rms if args.noise is None else args.noise
     tcfg = cfg.identify.training
@@ -208,13 +208,13 @@ def path_mode(args, cfg) -> int:
                 t = time.perf_counter()
                 sc = scaler_of(S.X[idx])
                 X = apply_scaler(S.X, sc)
-                C, _ = choose_C(X[idx], y[idx], cfg.identify.svm)
-                m = make_svc(cfg.identify.svm, C).fit(X[idx], y[idx])
+                h = choose_hyper(X[idx], y[idx], cfg.identify.svm)
+                m = make_svc(cfg.identify.svm, h.C, h.gamma).fit(X[idx], y[idx])
                 fit_s = time.perf_counter() - t
                 pred = m.predict(X[test])
                 yt = y[test]
-                row = {"story": s + 1, "param": param, "n": n, "classes": bb.n, "C": C,
-                       "accuracy": float(np.mean(pred == yt)),
+                row = {"story": s + 1, "param": param, "n": n, "classes": bb.n, "C": h.C,
+                       "gamma_factor": h.gamma_factor, "accuracy": float(np.mean(pred == yt)),
                        "within_one_bin": float(np.mean(np.abs(pred - yt) <= 1)), "fit_seconds": fit_s}
                 if args.per_half_cycle and n == args.per_half_cycle:
                     row["accuracy_per_half_cycle_votes"] = per_half_cycle_votes(S, y, idx, test, bb.n, cfg)
@@ -223,7 +223,8 @@ def path_mode(args, cfg) -> int:
                 extra = (f" | per-half-cycle machines, votes: {row['accuracy_per_half_cycle_votes']:.3f}"
                          if "accuracy_per_half_cycle_votes" in row else "")
                 print(f"story {s + 1} {param:5s} n={n:5d} accuracy {row['accuracy']:.3f} "
-                      f"(+-1 bin {row['within_one_bin']:.3f}) C {C:g} fit {fit_s:.2f} s{extra}", flush=True)
+                      f"(+-1 bin {row['within_one_bin']:.3f}) C {h.C:g} gamma {h.gamma_factor:g}x "
+                      f"fit {fit_s:.2f} s{extra}", flush=True)
     tb.close()
     (out / "fig2.json").write_text(json.dumps({"mode": "path", "noise_rms": noise, "spread": spread,
                                                "n_test": n_test, "rows": rows}, indent=1))

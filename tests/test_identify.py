@@ -151,6 +151,21 @@ def test_worker_processes_give_the_same_clone(table1, record):
     assert votes(one) == votes(two)
 
 
+def test_first_fine_pass_can_be_left_to_the_reconstructed_paths(table1, record):
+    """``outer.first_fine: false``: the first iteration runs the coarse pass only, the fine
+    passes follow along the reconstructed paths; the default runs coarse and fine first."""
+    meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
+    cfg = _small_config(refine=RefineConfig(method="none"))
+    stages = {}
+    for first in (True, False):
+        c = dataclasses.replace(cfg, outer=OuterConfig(max_iterations=2, tol=1e-9, first_fine=first))
+        res = identify(meas, c, cache_dir="")
+        stages[first] = [(p["iteration"], p["stage"]) for p in res.passes]
+        assert res.iterations == 2 and np.all(np.isfinite(res.paper_estimate.alpha))
+    assert stages[True] == [(1, "coarse"), (1, "fine"), (2, "fine")]
+    assert stages[False] == [(1, "coarse"), (2, "fine")]
+
+
 def test_no_yield_is_not_identifiable(table1, record):
     meas = simulate_measurement(table1, record.scaled(0.03 / 0.62), noise_rms=0.02)
     with pytest.raises(NotIdentifiableError, match="no story yielded"):

@@ -159,11 +159,12 @@ def test_loop_fit_recovers_k0_along_the_true_path(table1):
 
 
 def test_cross_validated_C_and_bagged_ensemble_match_scikit_learn():
-    """choose_C's fold accuracies are scikit-learn SVC's on the same folds; the ensemble has
-    n_bags machines whose votes sum to n_bags per measured vector, standardised features."""
+    """choose_hyper's fold accuracies are scikit-learn SVC's on the same folds, for every C and
+    every factor of gamma = "scale"; the ensemble has n_bags machines whose votes sum to n_bags
+    per measured vector, standardised features."""
     from sklearn.svm import SVC
 
-    from hlaid.identify.classify import Bins, apply_scaler, choose_C, fit_ensemble, scaler_of, vote
+    from hlaid.identify.classify import Bins, apply_scaler, choose_hyper, fit_ensemble, scaler_of, vote
     from hlaid.identify.config import SVMConfig
     from hlaid.identify.training import TrainingSet
 
@@ -171,20 +172,45 @@ def test_cross_validated_C_and_bagged_ensemble_match_scikit_learn():
     n = 300
     a = rng.uniform(0.0, 0.3, n)
     X = np.column_stack([a * 40 + rng.normal(0, 1.0, n), rng.normal(0, 1, (n, 4)) * [1, 10, 100, 1000]]) + 5.0
-    cfg = SVMConfig(C_grid=(1.0, 100.0), cv_folds=2, n_bags=5, bag_fraction=0.5)
+    cfg = SVMConfig(C_grid=(1.0, 100.0), gamma_grid=(0.1, 1.0), cv_folds=2, n_bags=5, bag_fraction=0.5)
     bins = Bins.regular(0.0, 0.3, 0.1)
     y = bins.label(a)
     Z = apply_scaler(X, scaler_of(X))
     assert np.allclose(Z.mean(axis=0), 0, atol=1e-12) and np.allclose(Z.std(axis=0), 1)
-    C, scores = choose_C(Z, y, cfg)
+    h = choose_hyper(Z, y, cfg)
     folds = np.arange(n) % 2
-    for c, got in scores.items():
-        ref = np.mean([np.mean(SVC(C=c, gamma="scale").fit(Z[folds != k], y[folds != k]).predict(Z[folds == k])
-                               == y[folds == k]) for k in (0, 1)])
-        assert abs(got - ref) <= 0.01
-    assert scores[C] == max(scores.values())
+    assert {(r["C"], r["gamma_factor"]) for r in h.cv_accuracy} == {(1.0, 0.1), (1.0, 1.0), (100.0, 0.1), (100.0, 1.0)}
+    for r in h.cv_accuracy:  # "scale" on standardised features is 1 / n_features
+        svc = SVC(C=r["C"], gamma=r["gamma_factor"] / Z.shape[1])
+        ref = np.mean([np.mean(svc.fit(Z[folds != k], y[folds != k]).predict(Z[folds == k]) == y[folds == k])
+                       for k in (0, 1)])
+        assert abs(r["accuracy"] - ref) <= 0.01
+    best = max(r["accuracy"] for r in h.cv_accuracy)
+    assert [r["accuracy"] for r in h.cv_accuracy if (r["C"], r["gamma_factor"]) == (h.C, h.gamma_factor)] == [best]
+    assert h.gamma == pytest.approx(h.gamma_factor / Z.shape[1])
     machines, st = fit_ensemble(TrainingSet(X=X, alpha=a, p=a, sim=np.arange(n)), "alpha", bins, cfg, 0.2, seed=1)
-    assert len(machines) == 5 and st["bags"] == 5 and st["C"] in cfg.C_grid and set(st["cv_accuracy"]) == {1.0, 100.0}
+    assert len(machines) == 5 and st["bags"] == 5 and st["C"] in cfg.C_grid and len(st["cv_accuracy"]) == 4
+    assert st["gamma_factor"] in cfg.gamma_grid and all(m.gamma == st["gamma"] for m in machines)
     assert st["test_accuracy"] > 0.8
     v = vote(machines, X[:1], bins, scaler=st["scaler"])
     assert v.sum() == 5 and v.argmax() == y[0]
+
+
+def test_hyper_parameters_without_grids_and_reused_choice():
+    """Without grids the configured C and gamma are used as they are (no cross-validation);
+    a later pass reuses an earlier choice as one (C, gamma factor) pair, gamma resolved on its
+    own features; an empty or non-positive gamma grid is refused."""
+    from hlaid.errors import InputError
+    from hlaid.identify.classify import choose_hyper
+    from hlaid.identify.config import SVMConfig
+    from hlaid.identify.passes import _chosen
+
+    rng = np.random.default_rng(0)
+    X, y = rng.normal(size=(40, 8)), np.arange(40) % 3
+    h = choose_hyper(X, y, SVMConfig(C=7.0, C_grid=None, gamma_grid=None))
+    assert (h.C, h.gamma, h.cv_accuracy) == (7.0, "scale", [])
+    again = choose_hyper(2.0 * X, y, _chosen(SVMConfig(), 1000.0, 0.1))
+    assert again.C == 1000.0 and again.cv_accuracy == [] and again.gamma == pytest.approx(0.1 / (8 * (2.0 * X).var()))
+    for bad in ((), (0.0, 1.0)):
+        with pytest.raises(InputError, match="gamma_grid"):
+            SVMConfig(gamma_grid=bad)

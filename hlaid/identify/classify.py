@@ -1,4 +1,4 @@
-"""Alpha and p by RBF kernel SVMs on half-cycle features (standardised, C cross-validated),
+"""Alpha and p by RBF kernel SVMs on half-cycle features (standardised, C and gamma cross-validated),
 combined over a story's samples by vote; class bins as the paper's Tables 2-3."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import NotIdentifiableError
-from ..svm import KernelSVC
+from ..svm import KernelSVC, resolve_gamma
 from .config import SVMConfig
 from .training import TrainingSet
 
@@ -83,8 +83,9 @@ class PassResult:
                 "n_test": self.n_test, "seconds": self.seconds, "cached": self.cached}
 
 
-def make_svc(cfg: SVMConfig, C: float | None = None) -> KernelSVC:
-    return KernelSVC(C=cfg.C if C is None else C, kernel=cfg.kernel, gamma=cfg.gamma, multiclass=cfg.multiclass)
+def make_svc(cfg: SVMConfig, C: float | None = None, gamma: float | str | None = None) -> KernelSVC:
+    return KernelSVC(C=cfg.C if C is None else C, kernel=cfg.kernel, gamma=cfg.gamma if gamma is None else gamma,
+                     multiclass=cfg.multiclass)
 
 
 def split(train: TrainingSet, test_fraction: float) -> np.ndarray:
@@ -106,31 +107,67 @@ def apply_scaler(X: np.ndarray, scaler: dict | None) -> np.ndarray:
     return (X - np.asarray(scaler["mean"])) / np.asarray(scaler["scale"])
 
 
-def choose_C(X: np.ndarray, y: np.ndarray, cfg: SVMConfig) -> tuple[float, dict]:
-    """C from ``cfg.C_grid`` by ``cfg.cv_folds``-fold cross-validated accuracy (the smallest
-    of the best on ties); returns the choice and the accuracy of every value."""
-    if cfg.C_grid is None:
-        return cfg.C, {}
+@dataclass(frozen=True)
+class Hyper:
+    """The C and gamma of a classifier's machines.
+
+    Attributes
+    ----------
+    C : box constraint
+    gamma : the kernel's gamma as given to the machines (a number, or ``cfg.gamma`` as is when
+        there is no ``gamma_grid``)
+    gamma_factor : the factor of ``cfg.gamma`` (resolved on the training features) it is
+        (1.0 without ``gamma_grid``); a later pass reuses the factor, as its features differ
+    cv_accuracy : ``[{"C", "gamma_factor", "accuracy"}]`` of every pair cross-validated
+    """
+
+    C: float
+    gamma: float | str
+    gamma_factor: float
+    cv_accuracy: list
+
+
+def choose_hyper(X: np.ndarray, y: np.ndarray, cfg: SVMConfig) -> Hyper:
+    """C from ``cfg.C_grid`` and gamma from ``cfg.gamma_grid`` (factors of ``cfg.gamma``
+    resolved on ``X``) by ``cfg.cv_folds``-fold cross-validated accuracy on at most
+    ``cfg.cv_samples`` evenly spaced samples; on ties the smallest C, then the smallest gamma
+    (the smoothest machine). Without grids, ``cfg.C`` and ``cfg.gamma``; a grid of one pair is
+    taken without cross-validation."""
+    if cfg.C_grid is None and cfg.gamma_grid is None:
+        return Hyper(cfg.C, cfg.gamma, 1.0, [])
+    base = resolve_gamma(cfg.gamma, X) if cfg.gamma_grid is not None else None
+    pairs = [(float(C), float(g)) for C in (cfg.C_grid or (cfg.C,)) for g in (cfg.gamma_grid or (1.0,))]
+
+    def gamma_of(factor):
+        return cfg.gamma if base is None else factor * base
+
+    if len(pairs) == 1:
+        return Hyper(pairs[0][0], gamma_of(pairs[0][1]), pairs[0][1], [])
     if len(y) > cfg.cv_samples:  # every k-th sample: the cross-validation costs ~n^2
         keep = np.linspace(0, len(y) - 1, cfg.cv_samples).astype(int)
         X, y = X[keep], y[keep]
     folds = np.arange(len(y)) % cfg.cv_folds
-    scores = {}
-    for C in cfg.C_grid:
+    scores = []
+    for C, g in pairs:
         acc = []
         for k in range(cfg.cv_folds):
             tr, te = folds != k, folds == k
             if len(np.unique(y[tr])) < 2 or not te.any():
                 continue
-            acc.append(float(np.mean(make_svc(cfg, C).fit(X[tr], y[tr]).predict(X[te]) == y[te])))
-        scores[float(C)] = float(np.mean(acc)) if acc else 0.0
-    best = max(scores.values())
-    return min(c for c, v in scores.items() if v >= best - 1e-12), scores
+            acc.append(float(np.mean(make_svc(cfg, C, gamma_of(g)).fit(X[tr], y[tr]).predict(X[te]) == y[te])))
+        scores.append({"C": C, "gamma_factor": g, "accuracy": float(np.mean(acc)) if acc else 0.0})
+    best = max(r["accuracy"] for r in scores)
+    C, g = min((r["C"], r["gamma_factor"]) for r in scores if r["accuracy"] >= best - 1e-12)
+    return Hyper(C, gamma_of(g), g, scores)
+
+
+def _hyper_stats(h: Hyper) -> dict:
+    return {"C": h.C, "gamma": h.gamma, "gamma_factor": h.gamma_factor, "cv_accuracy": h.cv_accuracy}
 
 
 def fit_machine(train: TrainingSet, param: str, bins: Bins, cfg: SVMConfig, test_fraction: float):
     """Train one classifier; returns ``(machine, stats)`` with accuracies and confusion
-    (and the feature scaler and the cross-validated C when configured)."""
+    (and the feature scaler and the cross-validated C and gamma when configured)."""
     t0 = time.perf_counter()
     if len(train) == 0:
         raise NotIdentifiableError(f"no simulated half cycle of this story yielded, so the {param} classifier has "
@@ -145,9 +182,9 @@ def fit_machine(train: TrainingSet, param: str, bins: Bins, cfg: SVMConfig, test
         acc_tr = acc_te = 1.0
         conf = np.zeros((bins.n, bins.n))
     else:
-        C, scores = choose_C(X[~test], y[~test], cfg)
-        extra.update({"C": C, "cv_accuracy": scores})
-        machine = make_svc(cfg, C).fit(X[~test], y[~test])
+        h = choose_hyper(X[~test], y[~test], cfg)
+        extra.update(_hyper_stats(h))
+        machine = make_svc(cfg, h.C, h.gamma).fit(X[~test], y[~test])
         acc_tr = float(np.mean(machine.predict(X[~test]) == y[~test]))
         pred = machine.predict(X[test]) if test.any() else np.zeros(0, int)
         acc_te = float(np.mean(pred == y[test])) if test.any() else np.nan
@@ -180,13 +217,13 @@ def fit_ensemble(train: TrainingSet, param: str, bins: Bins, cfg: SVMConfig, tes
     if len(np.unique(y[idx])) < 2:
         return None, {**base, "train_accuracy": 1.0, "test_accuracy": 1.0, "confusion": np.zeros((bins.n, bins.n)),
                       "seconds": time.perf_counter() - t0, "single": int(y[0])}
-    C, scores = choose_C(X[idx], y[idx], cfg)
+    h = choose_hyper(X[idx], y[idx], cfg)
     rng = np.random.default_rng(seed)
     machines = []
     for _ in range(cfg.n_bags):
         sub = rng.choice(idx, size=max(int(cfg.bag_fraction * idx.size), 2), replace=False)
         if len(np.unique(y[sub])) >= 2:
-            machines.append(make_svc(cfg, C).fit(X[sub], y[sub]))
+            machines.append(make_svc(cfg, h.C, h.gamma).fit(X[sub], y[sub]))
 
     def predict(rows):
         votes = np.stack([m.predict(X[rows]).astype(int) for m in machines])
@@ -198,7 +235,7 @@ def fit_ensemble(train: TrainingSet, param: str, bins: Bins, cfg: SVMConfig, tes
     tr = idx[:: max(1, idx.size // 300)]  # training accuracy on a subset (it costs predictions)
     return machines, {**base, "train_accuracy": float(np.mean(predict(tr) == y[tr])),
                       "test_accuracy": float(np.mean(pred == y[test])) if test.any() else np.nan, "confusion": conf,
-                      "C": C, "cv_accuracy": scores, "bags": len(machines), "single": -1,
+                      **_hyper_stats(h), "bags": len(machines), "single": -1,
                       "seconds": time.perf_counter() - t0}
 
 

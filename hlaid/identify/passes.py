@@ -107,8 +107,8 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
     paths : per story a :class:`~hlaid.identify.pathtrain.StoryPath` (None where not identifiable)
     estimate : current building estimate (k0, dy, delta_eta the draws are centred on)
     bins : per story ``(alpha bins, p bins)``
-    chosen_C : ``{machine name: C}`` cross-validated in an earlier pass of the same run: reused
-        instead of a new cross-validation (updated with this pass's choices)
+    chosen_C : ``{machine name: (C, gamma factor)}`` cross-validated in an earlier pass of the
+        same run: reused instead of a new cross-validation (updated with this pass's choices)
     path_errors : ``(history, time, story)`` simulated errors of the paths
         (:func:`hlaid.identify.patherrors.path_error_bank`), or None
     """
@@ -126,7 +126,7 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
         _progress.info(f"[identify] {stage} pass: classifiers from the cache")
         for name, st in meta["stats"].items():  # later passes reuse the same C as in a cold run
             if "C" in st:
-                chosen_C.setdefault(name, st["C"])
+                chosen_C.setdefault(name, (st["C"], st.get("gamma_factor", 1.0)))
         return TrainedPass(machines, meta["stats"], True, 0.0, None)
     _progress.info(f"[identify] {stage} pass: path-driven training sets and {2 * int(np.sum(identifiable))} "
                    "kernel machines")
@@ -151,7 +151,7 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
             sets.append(S)
             for param, b in zip(PARAMS, bins[i]):
                 name = f"story{i + 1}_{param}"
-                svm = cfg.svm if name not in chosen_C else dataclasses.replace(cfg.svm, C=chosen_C[name], C_grid=None)
+                svm = cfg.svm if name not in chosen_C else _chosen(cfg.svm, *chosen_C[name])
                 args, kw = (S, param, b, svm, tc.test_fraction), {"seed": seed + 31 * i + len(param)}
                 job = pool.apply_async(fit_ensemble, args, kw) if pool else fit_ensemble(*args, **kw)
                 jobs.append((i, param, b, S, job))
@@ -161,7 +161,7 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
             for k, m in enumerate(ms or []):
                 machines[f"{name}#{k}"] = m
             if "C" in st:
-                chosen_C[name] = st["C"]
+                chosen_C[name] = (st["C"], st.get("gamma_factor", 1.0))
             stats[name] = _jsonable(st)
             _log_machine(tb, stage, i, param, st, S, b, step)
             _progress.debug(f"  story {i + 1} {param}: test accuracy {st['test_accuracy']:.3f} (C {st.get('C')})")
@@ -169,6 +169,12 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
         tb.scalar(f"{stage}/simulate_seconds", t_sim, step)
     cache.store(key, machines, {"stats": stats})
     return TrainedPass(machines, stats, False, t_sim, sets)
+
+
+def _chosen(svm, C: float, gamma_factor: float):
+    """``svm`` with an earlier pass's choice: no cross-validation, the same C and the same
+    factor of ``svm.gamma`` (resolved on this pass's features)."""
+    return dataclasses.replace(svm, C=C, C_grid=None, gamma_grid=None if svm.gamma_grid is None else (gamma_factor,))
 
 
 def _jsonable(st: dict) -> dict:

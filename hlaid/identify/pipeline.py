@@ -127,7 +127,7 @@ class _Identifier:
         self.path_mode = cfg.training.mode == "path"
         self.stories = list(res.stories)  # the stories the regressions see (drift = the path)
         self._path_features: dict = {}  # story -> its yielding half cycles along the path
-        self.chosen_C: dict = {}  # machine -> C cross-validated in this run's first pass
+        self.chosen_C: dict = {}  # machine -> (C, gamma factor) cross-validated in this run's first pass
         self.identifiable = np.array([s.yielded and len(F) >= 3 for s, F in zip(res.stories, self.features)])
         if not self.identifiable.any():
             peaks = ", ".join(f"{np.max(np.abs(s.drift)):.3g}" for s in res.stories)
@@ -163,10 +163,13 @@ class _Identifier:
                     est = self._building(centre[0], centre[1], dy, de)
             else:
                 centre = (alpha, p)
-            fine = self._pass(est, "fine", it, centre)
+            if it == 0 and not cfg.outer.first_fine:  # fine passes only along reconstructed paths
+                a_new, p_new = centre
+            else:
+                fine = self._pass(est, "fine", it, centre)
+                a_new = np.array([f["alpha"].value if f else a for f, a in zip(fine, alpha)])
+                p_new = np.array([f["p"].value if f else q for f, q in zip(fine, p)])
             self.timings[f"classifiers_{it + 1}"] = time.perf_counter() - t
-            a_new = np.array([f["alpha"].value if f else a for f, a in zip(fine, alpha)])
-            p_new = np.array([f["p"].value if f else q for f, q in zip(fine, p)])
             de_new, dy_new, reg = self._regressions(a_new, p_new)
             change = max(_rel_change(a_new, alpha), _rel_change(p_new, p), _rel_change(de_new, de),
                          _rel_change(dy_new, dy))
