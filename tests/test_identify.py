@@ -166,6 +166,21 @@ def test_first_fine_pass_can_be_left_to_the_reconstructed_paths(table1, record):
     assert stages[False] == [(1, "coarse"), (2, "fine")]
 
 
+def test_coarse_pass_draws_coarse_samples(table1, record):
+    """``training.coarse_samples`` caps the coarse pass's training set; the fine pass keeps
+    ``samples``; null gives the coarse pass ``samples`` too."""
+    meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
+    sizes = {}
+    for coarse in (40, None):
+        cfg = IdentifyConfig(training=TrainingConfig(samples=60, coarse_samples=coarse, n_segments=8),
+                             outer=OuterConfig(max_iterations=1), refine=RefineConfig(method="none"))
+        res = identify(meas, cfg, cache_dir="")
+        sizes[coarse] = {p["stage"]: {s["alpha"]["n_train"] + s["alpha"]["n_test"] for s in p["stories"] if s}
+                         for p in res.passes}
+    assert sizes[40] == {"coarse": {40}, "fine": {60}}
+    assert sizes[None] == {"coarse": {60}, "fine": {60}}
+
+
 def test_no_yield_is_not_identifiable(table1, record):
     meas = simulate_measurement(table1, record.scaled(0.03 / 0.62), noise_rms=0.02)
     with pytest.raises(NotIdentifiableError, match="no story yielded"):

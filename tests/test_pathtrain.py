@@ -15,7 +15,7 @@ from hlaid.hla.halfcycles import half_cycle_bounds
 from hlaid.hla.stiffness import segment_slopes
 from hlaid.identify.drift import hla_drift, reconstruct_drift
 from hlaid.identify.loopfit import fit_story_loop
-from hlaid.identify.pathtrain import StoryPath, path_training_set, segment_operator, story_features
+from hlaid.identify.pathtrain import StoryPath, noise_bank, path_training_set, segment_operator, story_features
 from hlaid.motions import GroundMotion
 from hlaid.signal import bandpass
 from hlaid.simulate import simulate
@@ -127,6 +127,17 @@ def test_measured_and_simulated_features_through_one_function(table1):
                                                        sp.dt, (0.0, 20.0)), sp.k0)
     sd_model, sd_direct = (Sn.X - S.X[0]).std(axis=0), direct.std(axis=0)
     assert np.median(np.abs(sd_model / sd_direct - 1)) < 0.15
+    # a run's shared bank, longer than this path, carries the same covariance; a shorter one is refused
+    bank = noise_bank(sp.end + 500, sp.dt, 20.0, seed=3)
+    Sb = path_training_set(noisy, k0=table1.k0[i], dy=table1.dy[i], delta_eta=table1.delta_eta[i],
+                           alpha_range=(table1.alpha[i],) * 2, p_range=(table1.p[i],) * 2, n_samples=400,
+                           spread=0.0, seed=1, noise=bank)
+    assert np.median(np.abs((Sb.X - S.X[0]).std(axis=0) / sd_direct - 1)) < 0.15
+    assert not np.allclose(Sb.X, Sn.X)
+    with pytest.raises(ValueError, match="noise bank"):
+        path_training_set(noisy, k0=table1.k0[i], dy=table1.dy[i], delta_eta=table1.delta_eta[i],
+                          alpha_range=(0.1, 0.2), p_range=(1.5, 2.0), n_samples=4, spread=0.0, seed=1,
+                          noise=bank[: sp.end - 1])
 
 
 def test_drift_reconstruction_beats_hla_and_falls_back(table1):

@@ -98,7 +98,8 @@ def train_pass(estimate: Building, motion: GroundMotion, bins: list[tuple[Bins, 
 
 def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], identifiable: np.ndarray, *,
               cfg: IdentifyConfig, stage: str, seed: int, cache: MachineCache, tb: TBLogger | None = None,
-              step: int = 0, chosen_C: dict | None = None, path_errors: np.ndarray | None = None) -> TrainedPass:
+              step: int = 0, chosen_C: dict | None = None, path_errors: np.ndarray | None = None,
+              noise: np.ndarray | None = None) -> TrainedPass:
     """Train (or load) the alpha and p classifiers of every identifiable story on path-driven
     training sets (:mod:`hlaid.identify.pathtrain`): one feature vector per sample.
 
@@ -111,6 +112,8 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
         same run: reused instead of a new cross-validation (updated with this pass's choices)
     path_errors : ``(history, time, story)`` simulated errors of the paths
         (:func:`hlaid.identify.patherrors.path_error_bank`), or None
+    noise : ``(time, histories)`` low-passed unit white noise shared by the stories
+        (:func:`hlaid.identify.pathtrain.noise_bank`), or None (drawn per story)
     """
     tc = cfg.training
     chosen_C = {} if chosen_C is None else chosen_C
@@ -130,6 +133,8 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
         return TrainedPass(machines, meta["stats"], True, 0.0, None)
     _progress.info(f"[identify] {stage} pass: path-driven training sets and {2 * int(np.sum(identifiable))} "
                    "kernel machines")
+    coarse = stage == "coarse"
+    n_samples = min(tc.samples, tc.coarse_samples) if coarse and tc.coarse_samples is not None else tc.samples
     machines, stats, sets = {}, {}, []
     t_sim = 0.0
     # the story law runs here (compiled, both cores); the machines of a story train on the worker
@@ -143,10 +148,10 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
             t = time.perf_counter()
             S = path_training_set(sp, k0=float(estimate.k0[i]), dy=float(estimate.dy[i]),
                                   delta_eta=float(estimate.delta_eta[i]), alpha_range=bins[i][0].range,
-                                  p_range=bins[i][1].range, n_samples=tc.samples, spread=tc.spread,
+                                  p_range=bins[i][1].range, n_samples=n_samples, spread=tc.spread,
                                   seed=seed + 7919 * i, substeps=tc.substeps,
-                                  wide=tc.coarse_factor if stage == "coarse" else None,
-                                  path_errors=None if path_errors is None else path_errors[:, :, i])
+                                  wide=tc.coarse_factor if coarse else None,
+                                  path_errors=None if path_errors is None else path_errors[:, :, i], noise=noise)
             t_sim += time.perf_counter() - t
             sets.append(S)
             for param, b in zip(PARAMS, bins[i]):

@@ -30,7 +30,7 @@ from ..signal import bandpass
 from ..simulate.path import drive_story
 from .training import TrainingSet
 
-__all__ = ["StoryPath", "story_paths", "segment_operator", "story_features", "path_training_set"]
+__all__ = ["StoryPath", "story_paths", "segment_operator", "story_features", "noise_bank", "path_training_set"]
 
 
 def segment_operator(drift: np.ndarray, bounds: np.ndarray, n_segments: int) -> sps.csr_matrix:
@@ -142,23 +142,37 @@ def story_paths(stories, selected, *, mass: np.ndarray, k0: np.ndarray, floor_ac
     return out
 
 
-def _noise_features(sp: StoryPath, op, n: int, rng: np.random.Generator, bank: int = 256) -> np.ndarray:
+def noise_bank(n_time: int, dt: float, cutoff_hz: float, *, size: int = 256, seed: int = 0) -> np.ndarray:
+    """``(n_time, size)`` unit-variance white-noise histories low-passed at ``cutoff_hz``, as
+    the measured force is. One bank serves every story and pass of a run
+    (:func:`path_training_set` takes the first ``end`` samples and scales them by the story's
+    noise std): filtering it once instead of per story and pass saves ~0.6 s per identification."""
+    white = np.random.default_rng(seed).standard_normal((int(n_time), int(size)))
+    return bandpass(white, dt, (0.0, cutoff_hz))
+
+
+def _noise_features(sp: StoryPath, op, n: int, rng: np.random.Generator, bank: np.ndarray | None = None) -> np.ndarray:
     """``(n, feature)`` Gaussian noise features with the covariance of ``W @ lowpass(white) / k0``.
 
-    ``bank`` low-passed white-noise histories go through the operator once; each sample is a
-    random unit-variance combination of them (Gaussian, same covariance as one history).
+    The histories of ``bank`` (:func:`noise_bank`; None: 256 drawn here from ``rng``) go through
+    the operator once; each sample is a random unit-variance combination of them (Gaussian,
+    same covariance as one history).
     """
     if sp.noise_std <= 0:
         return np.zeros((n, op.shape[0]))
-    white = rng.standard_normal((op.shape[1], bank)) * sp.noise_std
-    feats = story_features(op, bandpass(white, sp.dt, (0.0, sp.cutoff_hz)), sp.k0)  # (bank, feature)
-    w = rng.standard_normal((n, bank)) / np.sqrt(bank)
+    if bank is None:
+        bank = noise_bank(op.shape[1], sp.dt, sp.cutoff_hz, seed=int(rng.integers(2**32)))
+    elif bank.shape[0] < op.shape[1]:
+        raise ValueError(f"noise bank of {bank.shape[0]} samples for a path of {op.shape[1]}")
+    feats = story_features(op, bank[: op.shape[1]] * sp.noise_std, sp.k0)  # (size, feature)
+    w = rng.standard_normal((n, bank.shape[1])) / np.sqrt(bank.shape[1])
     return w @ feats
 
 
 def path_training_set(sp: StoryPath, *, k0: float, dy: float, delta_eta: float, alpha_range, p_range,
                       n_samples: int, spread: float, seed: int, substeps: int = 4,
-                      wide: float | None = None, path_errors: np.ndarray | None = None) -> TrainingSet:
+                      wide: float | None = None, path_errors: np.ndarray | None = None,
+                      noise: np.ndarray | None = None) -> TrainingSet:
     """``n_samples`` simulated feature vectors of one story along its path.
 
     alpha and p are drawn uniformly from their ranges (the class targets); k0, dy and
@@ -170,6 +184,9 @@ def path_training_set(sp: StoryPath, *, k0: float, dy: float, delta_eta: float, 
     path (:func:`hlaid.identify.patherrors.path_error_bank`); sample ``b`` is then driven along
     ``path - path_errors[b % history]`` and its features are still taken with the path's own
     operator ``W``, as the measured ones are. None (or no history): along the path itself.
+
+    ``noise``: a :func:`noise_bank` at least ``sp.end`` long, shared by the passes of a run
+    (None: one is drawn for this set).
     """
     rng = np.random.default_rng(seed)
     a = rng.uniform(alpha_range[0], alpha_range[1], n_samples)
@@ -191,7 +208,7 @@ def path_training_set(sp: StoryPath, *, k0: float, dy: float, delta_eta: float, 
     resp = drive_story(x, k0=jitter(k0), alpha=a, p=p, dy=draw(dy), delta_eta=draw(max(delta_eta, 0.1)), mass=sp.mass,
                        dt=sp.dt, substeps=substeps, state=False)
     op = sp.operator
-    X = story_features(op, resp.force.T, sp.k0) + _noise_features(sp, op, n_samples, rng)
+    X = story_features(op, resp.force.T, sp.k0) + _noise_features(sp, op, n_samples, rng, noise)
     # a draw whose story law blows up along this path (a dy far below the path's sample-to-sample
     # increments overshoots the yield surface in one step) is no sample of the class: left out
     ok = np.isfinite(X).all(axis=1)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
+import functools
 import hashlib
 import time
 from dataclasses import dataclass
@@ -35,7 +36,7 @@ from .drift import reconstruct_drift
 from .loopfit import fit_story_loop
 from .passes import PARAMS, machines_of, path_pass, train_pass
 from .patherrors import path_error_bank
-from .pathtrain import story_paths
+from .pathtrain import noise_bank, story_paths
 from .refine import refine_replay
 from .regression import plausible_limits, story_delta_eta, story_yield_displacement
 from .replaycheck import ReplayCheck, replay_check
@@ -307,6 +308,13 @@ class _Identifier:
                            cutoff_hz=res.band_hz[1], n_segments=self.cfg.training.n_segments,
                            identifiable=self.identifiable)
 
+    @functools.cached_property
+    def noise_histories(self) -> np.ndarray:
+        """``(time, 256)`` low-passed unit white noise shared by every pass's training sets
+        (:func:`hlaid.identify.pathtrain.noise_bank`)."""
+        seed = 9_000_000 + self.cfg.training.seed
+        return noise_bank(self.meas.n_samples, self.res.dt, self.res.band_hz[1], seed=seed)
+
     def _path_errors(self, est: Building, seed: int) -> np.ndarray | None:
         """``(history, time, story)`` simulated errors of the stories' current paths around
         ``est`` (``training.path_errors``), or None."""
@@ -345,7 +353,8 @@ class _Identifier:
             paths = self._story_paths()
             measured = [None if sp is None else sp.measured_features()[None, :] for sp in paths]
             tp = path_pass(paths, est, bins, self.identifiable, cfg=cfg, stage=stage, seed=seed, cache=self.cache,
-                           tb=self.tb, step=it + 1, chosen_C=self.chosen_C, path_errors=self._path_errors(est, seed))
+                           tb=self.tb, step=it + 1, chosen_C=self.chosen_C, path_errors=self._path_errors(est, seed),
+                           noise=self.noise_histories)
         else:
             measured = [F.values for F in self.features]
             tp = train_pass(est, self.training_motion, bins, self.identifiable, noise=self.noise, cfg=cfg,
