@@ -181,6 +181,25 @@ def test_coarse_pass_draws_coarse_samples(table1, record):
     assert sizes[None] == {"coarse": {60}, "fine": {60}}
 
 
+def test_refinement_restarts_from_a_neutral_start_when_the_fit_misses_the_noise(table1, record):
+    """``refine.restart_ratio``: above it the refinement runs again from the neutral start and
+    keeps the clearly better fit; below it (Table 1 fits to its noise) or with null it does not;
+    the ratio is reported."""
+    meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
+    base = _small_config(refine=RefineConfig(max_iterations=4))
+    plain = identify(meas, base, cache_dir="").clone.diagnostics["refine"]
+    assert "restart" not in plain and 0 < plain["noise_ratio"] < base.refine.restart_ratio
+    res = identify(meas, dataclasses.replace(base, refine=RefineConfig(max_iterations=4, restart_ratio=1e-6)),
+                   cache_dir="")
+    info = res.clone.diagnostics["refine"]
+    assert info["restart"]["noise_ratio"] == pytest.approx(plain["noise_ratio"])
+    kept = info["restart"]["kept"]
+    assert info["cost_final"] == pytest.approx(info["restart"]["cost_final"] if kept else plain["cost_final"])
+    if kept:
+        assert info["restart"]["cost_final"] < 0.8 * plain["cost_final"]
+    assert res.refinement.cost_final == pytest.approx(info["cost_final"])
+
+
 def test_no_yield_is_not_identifiable(table1, record):
     meas = simulate_measurement(table1, record.scaled(0.03 / 0.62), noise_rms=0.02)
     with pytest.raises(NotIdentifiableError, match="no story yielded"):

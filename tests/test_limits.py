@@ -346,6 +346,10 @@ def test_cache_entry_failing_its_check_is_reported_and_retrained(tmp_path, machi
     ({"training": {"crossover_hz": 1000.0}}, "crossover_hz"),
     ({"training": {"coarse_factor": 1e300}}, "coarse_factor"),
     ({"svm": {"n_bags": 10_000}}, "n_bags"),
+    ({"training": {"coarse_samples": 100_000_000}}, "HLAID_MAX_TRAINING"),
+    ({"training": {"coarse_samples": 5}}, "coarse_samples"),
+    ({"refine": {"restart_ratio": 0.0}}, "restart_ratio"),
+    ({"refine": {"restart_ratio": 1e400}}, "restart_ratio"),
 ])
 def test_identify_training_sizes_are_bounded(block, message):
     """Path-driven training allocates samples x time per story: its sizes are checked on load."""
