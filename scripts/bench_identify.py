@@ -93,6 +93,10 @@ def tall(n: int) -> int:
     print(f"{n}-story identification from scratch: {t:.1f} s (target <= 180 s); {ident.sum()} of {n} stories "
           f"identifiable; alpha, p, dy, delta_eta median error {100 * np.median(allv):.1f} %")
     print({k: round(v, 1) for k, v in res.timings.items()})
+    info = res.clone.diagnostics["refine"] or {}
+    restart = info.get("restart")
+    print(f"refinement: cost {info.get('noise_ratio', float('nan')):.2f} x the noise's; restart: "
+          f"{'none' if restart is None else ('kept' if restart['kept'] else 'not kept')}")
     return 0
 
 
