@@ -95,7 +95,8 @@ def tall(n: int) -> int:
     print({k: round(v, 1) for k, v in res.timings.items()})
     info = res.clone.diagnostics["refine"] or {}
     restart = info.get("restart")
-    print(f"refinement: cost {info.get('noise_ratio', float('nan')):.2f} x the noise's; restart: "
+    ratio = info.get("noise_ratio")  # None with refine.ground_noise: whiten
+    print(f"refinement: cost {'n/a' if ratio is None else f'{ratio:.2f}'} x the noise's; restart: "
           f"{'none' if restart is None else ('kept' if restart['kept'] else 'not kept')}")
     return 0
 

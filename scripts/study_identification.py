@@ -139,9 +139,10 @@ def main(argv=None) -> int:
     summary = {"paper_method": summarise(rows, "paper"), "with_refinement": summarise(rows, "final"),
                "R_true_min": float(min(min(r["R_true"]) for r in rows if "failed" not in r)),
                "failures": sum("failed" in r for r in rows), "runs": len(rows)}
+    key = f"ductility_at_most_{args.ductility_split:g}"
     calm = [r for r in rows if "failed" not in r and max(r["ductility"]) <= args.ductility_split]
     if calm and len(calm) < len(rows):
-        summary[f"ductility_at_most_{args.ductility_split:g}"] = {
+        summary[key] = {
             "runs": len(calm), "paper_method": summarise(calm, "paper"), "with_refinement": summarise(calm, "final")}
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
     lines = ["| parameter | paper method mean | worst | with replay refinement mean | worst |", "|---|---|---|---|---|"]
@@ -150,7 +151,6 @@ def main(argv=None) -> int:
         lines.append(f"| {p} | {a['mean']:.1%} | {a['worst']:.1%} | {b2['mean']:.1%} | {b2['worst']:.1%} |")
     lines.append(f"\nR (true vs replayed displacement), worst story of all runs: {summary['R_true_min']:.4f}; "
                  f"failures {summary['failures']} of {summary['runs']}")
-    key = f"ductility_at_most_{args.ductility_split:g}"
     if key in summary:
         a, b2 = (summary[key][k]["12 parameters (alpha, p, dy, delta_eta)"]
                  for k in ("paper_method", "with_refinement"))
