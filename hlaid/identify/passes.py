@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,7 +100,7 @@ def train_pass(estimate: Building, motion: GroundMotion, bins: list[tuple[Bins, 
 def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], identifiable: np.ndarray, *,
               cfg: IdentifyConfig, stage: str, seed: int, cache: MachineCache, tb: TBLogger | None = None,
               step: int = 0, chosen_C: dict | None = None, path_errors: np.ndarray | None = None,
-              noise: np.ndarray | None = None) -> TrainedPass:
+              noise: np.ndarray | Callable[[], np.ndarray] | None = None) -> TrainedPass:
     """Train (or load) the alpha and p classifiers of every identifiable story on path-driven
     training sets (:mod:`hlaid.identify.pathtrain`): one feature vector per sample.
 
@@ -113,7 +114,8 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
     path_errors : ``(history, time, story)`` simulated errors of the paths
         (:func:`hlaid.identify.patherrors.path_error_bank`), or None
     noise : ``(time, histories)`` low-passed unit white noise shared by the stories
-        (:func:`hlaid.identify.pathtrain.noise_bank`), or None (drawn per story)
+        (:func:`hlaid.identify.pathtrain.noise_bank`), or a function returning it (called only
+        when the machines are not cached), or None (drawn per story)
     """
     tc = cfg.training
     chosen_C = {} if chosen_C is None else chosen_C
@@ -134,6 +136,7 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
     _progress.info(f"[identify] {stage} pass: path-driven training sets and {2 * int(np.sum(identifiable))} "
                    "kernel machines")
     coarse = stage == "coarse"
+    noise = noise() if callable(noise) else noise
     n_samples = min(tc.samples, tc.coarse_samples) if coarse and tc.coarse_samples is not None else tc.samples
     machines, stats, sets = {}, {}, []
     t_sim = 0.0

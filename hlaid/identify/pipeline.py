@@ -378,7 +378,7 @@ class _Identifier:
             measured = [None if sp is None else sp.measured_features()[None, :] for sp in paths]
             tp = path_pass(paths, est, bins, self.identifiable, cfg=cfg, stage=stage, seed=seed, cache=self.cache,
                            tb=self.tb, step=it + 1, chosen_C=self.chosen_C, path_errors=self._path_errors(est, seed),
-                           noise=self.noise_histories)
+                           noise=lambda: self.noise_histories)
         else:
             measured = [F.values for F in self.features]
             tp = train_pass(est, self.training_motion, bins, self.identifiable, noise=self.noise, cfg=cfg,
