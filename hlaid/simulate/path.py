@@ -25,25 +25,43 @@ from ..model.collapse import N_COLLAPSE
 from ._kernel import _FASTMATH, _degradation, _hysteretic_rate, _spring_force
 
 
+_LANES = 16
+"""Parameter sets integrated in lockstep by one thread of :func:`_drive`: each RK4 stage is
+evaluated for all lanes before the next, so the CPU overlaps their independent chains of
+power, division and degradation. Measured on 800 sets x 6000 steps, one thread: 2.2x faster
+than one set at a time (4 lanes 1.7x, 8 lanes 2.1x, 32 lanes as 16)."""
+
+
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy", inline="always")
-def _rk4_step(z, e, d0, dm, d1, h, al, k0, m, p, dy, de):
-    """One RK4 step of ``(z, e)`` with drift rates ``d0, dm, d1`` at the start, middle, end."""
-    eta = _degradation(e, al, k0, m, de)
-    k1 = _hysteretic_rate(d0, z, dy, p, eta)
-    l1 = z * d0
-    z2 = z + 0.5 * h * k1
-    eta = _degradation(e + 0.5 * h * l1, al, k0, m, de)
-    k2 = _hysteretic_rate(dm, z2, dy, p, eta)
-    l2 = z2 * dm
-    z3 = z + 0.5 * h * k2
-    eta = _degradation(e + 0.5 * h * l2, al, k0, m, de)
-    k3 = _hysteretic_rate(dm, z3, dy, p, eta)
-    l3 = z3 * dm
-    z4 = z + h * k3
-    eta = _degradation(e + h * l3, al, k0, m, de)
-    k4 = _hysteretic_rate(d1, z4, dy, p, eta)
-    l4 = z4 * d1
-    return z + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4), e + h / 6.0 * (l1 + 2.0 * l2 + 2.0 * l3 + l4)
+def _rk4_lanes(j0, j1, z, e, d0, dm, d1, h, lo, al, k0, m, p, dy, de, w):
+    """One RK4 step of ``(z[j], e[j])`` for lanes ``j0 <= j < j1`` (parameter set ``lo + j``),
+    with drift rates ``d0, dm, d1`` ``(lane,)`` at the start, middle and end of the step.
+    ``w`` ``(6, lane)`` is scratch for the stage rates."""
+    for j in range(j0, j1):
+        b = lo + j
+        eta = _degradation(e[j], al[b], k0[b], m, de[b])
+        w[0, j] = _hysteretic_rate(d0[j], z[j], dy[b], p[b], eta)
+        w[3, j] = z[j] * d0[j]
+    for j in range(j0, j1):
+        b = lo + j
+        z2 = z[j] + 0.5 * h * w[0, j]
+        eta = _degradation(e[j] + 0.5 * h * w[3, j], al[b], k0[b], m, de[b])
+        w[1, j] = _hysteretic_rate(dm[j], z2, dy[b], p[b], eta)
+        w[4, j] = z2 * dm[j]
+    for j in range(j0, j1):
+        b = lo + j
+        z3 = z[j] + 0.5 * h * w[1, j]
+        eta = _degradation(e[j] + 0.5 * h * w[4, j], al[b], k0[b], m, de[b])
+        w[2, j] = _hysteretic_rate(dm[j], z3, dy[b], p[b], eta)
+        w[5, j] = z3 * dm[j]
+    for j in range(j0, j1):
+        b = lo + j
+        z4 = z[j] + h * w[2, j]
+        eta = _degradation(e[j] + h * w[5, j], al[b], k0[b], m, de[b])
+        k4 = _hysteretic_rate(d1[j], z4, dy[b], p[b], eta)
+        l4 = z4 * d1[j]
+        z[j] = z[j] + h / 6.0 * (w[0, j] + 2.0 * w[1, j] + 2.0 * w[2, j] + k4)
+        e[j] = e[j] + h / 6.0 * (w[3, j] + 2.0 * w[4, j] + 2.0 * w[5, j] + l4)
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy", inline="always")
@@ -54,56 +72,78 @@ def _hermite_rate(tau, x0, x1, v0, v1, dt):
             + (3.0 * t2 - 2.0 * tau) * v1)
 
 
+@nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy", inline="always")
+def _advance(j0, j1, z, e, x, v, k, dt, hermite, ns, lo, al, k0, m, p, dy, de, r, w):
+    """``(z[j], e[j])`` of lanes ``j0 <= j < j1`` over sample interval ``k`` in ``ns`` RK4
+    sub-steps, lane ``j`` along path ``x[(lo + j) % n_paths]``; ``r`` ``(3, lane)`` scratch."""
+    P = x.shape[0]
+    h = dt / ns
+    for s in range(ns):
+        for j in range(j0, j1):
+            q = (lo + j) % P
+            if hermite:
+                for c in range(3):
+                    r[c, j] = _hermite_rate((s + 0.5 * c) / ns, x[q, k], x[q, k + 1], v[q, k], v[q, k + 1], dt)
+            else:
+                d = (x[q, k + 1] - x[q, k]) / dt
+                r[0, j] = d
+                r[1, j] = d
+                r[2, j] = d
+        _rk4_lanes(j0, j1, z, e, r[0], r[1], r[2], h, lo, al, k0, m, p, dy, de, w)
+
+
 @nb.njit(cache=True, parallel=True, fastmath=_FASTMATH, error_model="numpy")
 def _drive(x, v, dt, hermite, k0, al, p, dy, de, m, nsub, state, force, z_out, e_out):
     """Integrate every parameter set ``b`` along path ``x[b % n_paths]``; see :func:`drive_story`.
-    A sample whose step lets ``|z|`` overshoot ``dy`` is redone with up to 16x the sub-steps (as
-    the batch simulator does); beyond that it takes the law's limit (elastic to ``|z| = dy``).
+    Each thread takes blocks of :data:`_LANES` parameter sets and steps them in lockstep. A set
+    whose step lets ``|z|`` overshoot ``dy`` is redone alone with up to 16x the sub-steps (as the
+    batch simulator does); beyond that it takes the law's limit (elastic to ``|z| = dy``).
     ``z_out`` and ``e_out`` are written only with ``state`` (the force alone halves the memory
     traffic of a large batch)."""
     B = k0.shape[0]
     P, T = x.shape
-    for b in nb.prange(B):
-        xb = x[b % P]
-        vb = v[b % P]
-        z = 0.0
-        e = 0.0
-        force[b, 0] = _spring_force(xb[0], z, al[b], k0[b])
-        if state:
-            z_out[b, 0] = z
-            e_out[b, 0] = e
-        for k in range(T - 1):
-            x0 = xb[k]
-            x1 = xb[k + 1]
-            ns = nsub
-            while True:  # a step that lets |z| overshoot dy is redone with 2x, 4x, ... 16x the sub-steps
-                zs = z
-                es = e
-                h = dt / ns
-                for s in range(ns):
-                    if hermite:
-                        r0 = _hermite_rate((s + 0.0) / ns, x0, x1, vb[k], vb[k + 1], dt)
-                        r1 = _hermite_rate((s + 0.5) / ns, x0, x1, vb[k], vb[k + 1], dt)
-                        r2 = _hermite_rate((s + 1.0) / ns, x0, x1, vb[k], vb[k + 1], dt)
-                        zs, es = _rk4_step(zs, es, r0, r1, r2, h, al[b], k0[b], m, p[b], dy[b], de[b])
-                    else:
-                        d = (x1 - x0) / dt
-                        zs, es = _rk4_step(zs, es, d, d, d, h, al[b], k0[b], m, p[b], dy[b], de[b])
-                if abs(zs) <= dy[b] * (1.0 + 1e-5) or ns >= 16 * nsub:
-                    break
-                ns *= 2
-            if not abs(zs) <= dy[b] * (1.0 + 1e-5):
-                # still over (a drift increment of many dy in one sample): the law's limit for such a
-                # step, elastic to the yield surface and no further (|z| <= dy holds for the exact law)
-                eta = _degradation(e, al[b], k0[b], m, de[b])
-                zs = min(max(z + (x1 - x0) / eta, -dy[b]), dy[b])
-                es = e + 0.5 * (z + zs) * (x1 - x0)
-            z = zs
-            e = es
-            force[b, k + 1] = _spring_force(x1, z, al[b], k0[b])
+    for c in nb.prange((B + _LANES - 1) // _LANES):
+        lo = c * _LANES
+        n = min(_LANES, B - lo)
+        z = np.zeros(_LANES)
+        e = np.zeros(_LANES)
+        z1 = np.empty(_LANES)
+        e1 = np.empty(_LANES)
+        r = np.empty((3, _LANES))
+        w = np.empty((6, _LANES))
+        for j in range(n):
+            b = lo + j
+            force[b, 0] = _spring_force(x[b % P, 0], 0.0, al[b], k0[b])
             if state:
-                z_out[b, k + 1] = z
-                e_out[b, k + 1] = e
+                z_out[b, 0] = 0.0
+                e_out[b, 0] = 0.0
+        for k in range(T - 1):
+            z1[:n] = z[:n]
+            e1[:n] = e[:n]
+            _advance(0, n, z1, e1, x, v, k, dt, hermite, nsub, lo, al, k0, m, p, dy, de, r, w)
+            for j in range(n):
+                b = lo + j
+                top = dy[b] * (1.0 + 1e-5)
+                ns = nsub
+                while not abs(z1[j]) <= top and ns < 16 * nsub:  # overshoot: redo with 2x, 4x ... 16x
+                    ns *= 2
+                    z1[j] = z[j]
+                    e1[j] = e[j]
+                    _advance(j, j + 1, z1, e1, x, v, k, dt, hermite, ns, lo, al, k0, m, p, dy, de, r, w)
+                x0 = x[b % P, k]
+                x1 = x[b % P, k + 1]
+                if not abs(z1[j]) <= top:
+                    # still over (a drift increment of many dy in one sample): the law's limit for such a
+                    # step, elastic to the yield surface and no further (|z| <= dy holds for the exact law)
+                    eta = _degradation(e[j], al[b], k0[b], m, de[b])
+                    z1[j] = min(max(z[j] + (x1 - x0) / eta, -dy[b]), dy[b])
+                    e1[j] = e[j] + 0.5 * (z[j] + z1[j]) * (x1 - x0)
+                z[j] = z1[j]
+                e[j] = e1[j]
+                force[b, k + 1] = _spring_force(x1, z[j], al[b], k0[b])
+                if state:
+                    z_out[b, k + 1] = z[j]
+                    e_out[b, k + 1] = e[j]
 
 
 @dataclass(frozen=True, eq=False)
