@@ -24,7 +24,6 @@ from ..model import equations as eq
 from ..model.collapse import N_COLLAPSE
 from ._kernel import _FASTMATH, _degradation, _hysteretic_rate, _spring_force
 
-
 _LANES = 16
 """Parameter sets integrated in lockstep by one thread of :func:`_drive`: each RK4 stage is
 evaluated for all lanes before the next, so the CPU overlaps their independent chains of
