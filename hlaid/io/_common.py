@@ -10,7 +10,6 @@ import re
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 
 from ..errors import InputError, column_label, columns_text
 
@@ -186,15 +185,6 @@ def remove_offset(values: np.ndarray, dt: float, mode: str, pre_event_s: float, 
     else:
         bias = np.zeros(values.shape[1])
     return values - bias, bias
-
-
-def lowpass(x: np.ndarray, dt: float, corner_hz: float, *, order: int = 4) -> np.ndarray:
-    """Zero-phase Butterworth low-pass along axis 0 (``sosfiltfilt``, so the order doubles)."""
-    nyq = 0.5 / dt
-    if not 0 < corner_hz < nyq:
-        raise ValueError(f"low-pass corner {corner_hz} Hz must be between 0 and the Nyquist frequency {nyq:g} Hz")
-    sos = signal.butter(order, corner_hz, btype="low", fs=1.0 / dt, output="sos")
-    return signal.sosfiltfilt(sos, x, axis=0)
 
 
 def second_derivative(x: np.ndarray, dt: float) -> np.ndarray:

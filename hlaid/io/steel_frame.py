@@ -31,8 +31,9 @@ import numpy as np
 from .._fileio import read_file_text
 from ..errors import InputError
 from ..measurement import Measurement
+from ..signal import lowpass
 from ..units import G_MM_S2, INCH_MM
-from ._common import lowpass, parse_table, pre_event_mean, second_derivative, uniform_time
+from ._common import parse_table, pre_event_mean, second_derivative, uniform_time
 
 TIME = "Time"
 TABLE_ACC = "aextx"
@@ -96,10 +97,12 @@ def read_steel_frame(path: str | os.PathLike, *, lowpass_hz: float | None = 10.0
 
 
 def _lowpass(x: np.ndarray, dt: float, corner: float, src: str) -> np.ndarray:
-    try:
-        return lowpass(x, dt, corner)
-    except ValueError as err:
-        raise InputError(f"lowpass_hz: {err}", source=src) from None
+    """:func:`hlaid.signal.lowpass`, the corner checked first (it is a user's option)."""
+    nyq = 0.5 / dt
+    if not 0 < corner < nyq:
+        raise InputError(f"lowpass_hz: low-pass corner {corner} Hz must be between 0 and the Nyquist frequency "
+                         f"{nyq:g} Hz", source=src)
+    return lowpass(x, dt, corner)
 
 
 def sniff_steel_frame(head: str) -> bool:
