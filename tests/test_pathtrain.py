@@ -70,6 +70,26 @@ def test_drive_story_batches_parameters_and_paths(table1):
         lean.elastic_stiffness(1.9e4, alphas, 0.5, 17.5)
 
 
+@pytest.mark.parametrize("hermite", [False, True])
+def test_drive_story_lanes_are_independent(hermite):
+    """The kernel steps blocks of parameter sets in lockstep: a batch over several blocks (37
+    sets, two paths, some with a dy so small that their steps are redone with more sub-steps)
+    gives every set exactly what it gives alone."""
+    rng = np.random.default_rng(5)
+    t = np.arange(600) * 0.01
+    x = np.stack([40.0 * np.sin(2 * np.pi * 0.8 * t) * np.minimum(t, 1.0), 25.0 * np.sin(2 * np.pi * 1.3 * t)])
+    v = np.gradient(x, 0.01, axis=1) if hermite else None
+    n = 38  # two paths: sets 0, 2, 4, ... follow the first
+    par = {"k0": rng.uniform(8e3, 2e4, n), "alpha": rng.uniform(0.05, 0.4, n), "p": rng.uniform(1.0, 3.0, n),
+           "dy": np.exp(rng.uniform(np.log(0.05), np.log(8.0), n)), "delta_eta": rng.uniform(0.0, 1.5, n)}
+    batch = drive_story(x, **par, mass=20.0, dt=0.01, velocity=v, substeps=2)
+    for b in (0, 1, 15, 16, 17, 36, 37):
+        one = drive_story(x[b % 2], **{k: a[b] for k, a in par.items()}, mass=20.0, dt=0.01,
+                          velocity=None if v is None else v[b % 2], substeps=2)
+        assert np.array_equal(batch.force[b], one.force[0]) and np.array_equal(batch.energy[b], one.energy[0])
+    assert np.any(par["dy"] < 0.1)  # the redo is exercised
+
+
 def test_drive_story_stays_on_the_law_when_a_sample_spans_many_dy():
     """A drift increment of up to 100 dy per sample (a coarse-pass draw of a small dy): the
     sub-step redo and the law's limit keep |z| <= dy and the force bounded by the
