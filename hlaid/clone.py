@@ -34,7 +34,7 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -108,7 +108,7 @@ class Clone:
         stories = d.get("stories")
         if not isinstance(stories, list) or not stories:
             raise InputError("field 'stories' must be a non-empty list", source=source)
-        cols: dict[str, list] = {k: [] for k in _STORY_KEYS}
+        cols: dict[str, Any] = {k: [] for k in _STORY_KEYS}
         heights, gravity = [], []
         for i, s in enumerate(stories):
             if not isinstance(s, dict):
@@ -140,10 +140,11 @@ class Clone:
             if key in d and not isinstance(d[key], kinds):
                 raise InputError(f"field '{key}' must be {what}, got {kind_of(d[key])}", source=source)
         try:
-            b = Building(**cols, height=None if None in heights else heights,
-                         gravity_load=None if None in gravity else gravity, damping=Damping(**damping),
-                         pdelta=d.get("pdelta"), collapse=_collapse_block(d.get("collapse"), source),
-                         name=d.get("name") or "", source=source)
+            # the story lists become arrays in Building
+            b = Building(**cols, height=None if None in heights else cast("np.ndarray", heights),
+                         gravity_load=None if None in gravity else cast("np.ndarray", gravity),
+                         damping=Damping(**damping), pdelta=d.get("pdelta"),
+                         collapse=_collapse_block(d.get("collapse"), source), name=d.get("name") or "", source=source)
         except InputError as err:
             raise InputError(str(err).removeprefix(f"{source}: "), source=source) from None
         unc = None

@@ -65,4 +65,5 @@ def kind_of(v, *, none: str = "null") -> str:
         return "true or false"
     if isinstance(v, (int, float)):
         return "a number"
-    return {str: "a string", list: "a list", dict: "a mapping"}.get(type(v), type(v).__name__)
+    kinds: dict[type, str] = {str: "a string", list: "a list", dict: "a mapping"}
+    return kinds.get(type(v), type(v).__name__)

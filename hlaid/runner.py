@@ -16,7 +16,7 @@ import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -83,11 +83,11 @@ def load_measurement(src: MeasurementSource, base_dir: Path | None) -> Measureme
     if src.simulate is not None:
         meas = measurement_from_config(src.simulate, base_dir=base_dir)
     else:
-        path = Path(src.file)
+        path = Path(cast(str, src.file))  # file is given when simulate is not (MeasurementSource)
         if base_dir is not None and not path.is_absolute():
             path = Path(base_dir) / path
         meas = read(path, "measurement", format=src.format, **src.options)
-    changes = {}
+    changes: dict[str, Any] = {}
     if src.mass_t is not None:
         changes["mass"] = np.asarray(src.mass_t, float)
     if src.height_mm is not None:
@@ -206,8 +206,9 @@ def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> di
             "beta", "own_im", "p_collapse", "p_collapse_band", "drift_limits", "p_exceed", "p_exceed_band",
             "indicator", "placard", "reasons", "thresholds")
     out = {k: d[k] for k in keep}
-    out["own_residual_drift_median"] = float(np.median(res.own_residual_drift))
-    out["own_peak_drift_median"] = float(np.median(res.own_peak_drift))
+    # both are set when own_motion is given
+    out["own_residual_drift_median"] = float(np.median(cast(np.ndarray, res.own_residual_drift)))
+    out["own_peak_drift_median"] = float(np.median(cast(np.ndarray, res.own_peak_drift)))
     return out
 
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -120,7 +121,8 @@ class PointAssessment:
                 "collapse_median_band": list(self.collapse_median_band) if self.collapse_median_band else None,
                 "beta": self.beta, "own_im": self.own_im, "p_collapse": self.p_collapse,
                 "drift_limits": list(self.drift_limits), "p_exceed": list(self.p_exceed),
-                "indicator": self.indicator, "placard": PLACARDS.get(self.indicator), "rule": FALLBACK_RULE,
+                "indicator": self.indicator,
+                "placard": None if self.indicator is None else PLACARDS.get(self.indicator), "rule": FALLBACK_RULE,
                 "notes": list(self.notes)}
 
 
@@ -157,7 +159,7 @@ def point_assess(clone, records, *, n_ensemble: int = 0, ida_config: IDAConfig |
         n_records=res.n_records, ci=cfg.ci, im=res.im, period=_num(res.period),
         collapse_median=None if frag is None else _num(frag.median),
         collapse_median_band=(None if frag is None or frag.median_ci is None
-                              else tuple(float(v) for v in frag.median_ci)),
+                              else cast("tuple[float, float]", tuple(float(v) for v in frag.median_ci))),
         beta=None if frag is None else _num(frag.beta), own_im=own, p_collapse=p_col,
         drift_limits=tuple(res.exceedance_limits) if own is not None else (), p_exceed=tuple(p_exc),
         indicator=indicator, notes=tuple(notes))

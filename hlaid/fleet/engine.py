@@ -200,7 +200,8 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
                    f"{len(todo)} to run; {len(records)} IDA records, ensemble {cfg.n_ensemble}, assessment: {engine}")
     write_json(out / MARKER, {"format": "hlaid-fleet", "version": 1, "name": cfg.name, "hlaid_version": __version__,
                               "state": "running", "units": [j.unit for j in jobs]})
-    computed, failed = [], []
+    computed: list[str] = []
+    failed: list[str] = []
     results = {d["unit"]: d for d in kept}
     if todo:
         ctx = contextlib.nullcontext(client) if client is not None else open_client(cfg.cluster, scheduler)
@@ -237,7 +238,8 @@ def _run_on(client, todo: list[UnitJob], records, assess, out: Path, results: di
     for job in todo:
         f = client.submit(run_unit, job, recs, assess, key=f"hlaid-fleet-{job.unit}-{job.digest[:12]}", pure=False)
         futures[f] = job
-    computed, failed = [], []
+    computed: list[str] = []
+    failed: list[str] = []
     try:
         for i, fut in enumerate(distributed.as_completed(futures), 1):
             job = futures[fut]

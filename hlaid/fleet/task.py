@@ -19,6 +19,7 @@ import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -136,7 +137,7 @@ def load_unit_measurement(job: UnitJob) -> Measurement:
     else:
         src = MeasurementSource(file=m.file, format=m.format, options=m.options, simulate=m.simulate)
         meas = load_measurement(src, base)
-    changes = {"name": job.unit}  # the clone is named after the unit
+    changes: dict[str, Any] = {"name": job.unit}  # the clone is named after the unit
     if job.mass_t is not None:
         changes["mass"] = np.asarray(job.mass_t, float)
     if job.height_mm is not None:
@@ -167,7 +168,8 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
 
     saved = torch.get_num_threads(), numba.get_num_threads()
     torch.set_num_threads(job.task_threads)
-    numba.set_num_threads(min(job.task_threads, numba.config.NUMBA_NUM_THREADS))
+    # numba.config sets NUMBA_NUM_THREADS at import time (from the environment): not seen by mypy
+    numba.set_num_threads(min(job.task_threads, numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
     own_process = os.getpid() != job.driver_pid
     if own_process:  # a worker process: its own messages only with --verbose
         _progress.set_verbosity(2 if job.verbosity >= 2 else 0)

@@ -35,6 +35,7 @@ import os
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -298,6 +299,7 @@ def ida(model: Clone | Building | str | os.PathLike,
     if np.any(~(im0 > 0)):
         bad = [m.name for m, v in zip(motions, im0) if not v > 0]
         raise InputError(f"record(s) with zero {measure.label}: {', '.join(bad)}")
+    levels: Sequence[float] | np.ndarray | None  # the configured levels, then their array
     levels, n_levels, slope_ratio, refine = cfg.levels, cfg.n_levels, cfg.slope_ratio, cfg.refine
     hunt_factor, max_hunt, tolerance, max_fill = cfg.hunt_factor, cfg.max_hunt, cfg.tolerance, cfg.max_fill
     R = len(motions)
@@ -382,8 +384,8 @@ def _scan_all(runner: _Runner, slope_el: np.ndarray, slope_ratio: float) -> dict
     edp = runner.edp(a)
     failed = (a["status"] != 0) | (edp > runner.drift_limit)
     R = slope_el.size
-    out = {"first": np.full(R, -1), "lo": np.full(R, np.nan), "hi": np.full(R, np.nan),
-           "max_im": np.zeros(R), "mode": ["none"] * R}
+    out: dict[str, Any] = {"first": np.full(R, -1), "lo": np.full(R, np.nan), "hi": np.full(R, np.nan),
+                           "max_im": np.zeros(R), "mode": ["none"] * R}
     for r in range(R):
         idx = np.flatnonzero(a["record"] == r)
         out["max_im"][r] = a["im"][idx].max()

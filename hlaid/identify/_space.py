@@ -19,6 +19,7 @@ accelerations) feed every identifier of this family.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import torch
@@ -62,8 +63,9 @@ class KnownPart:
 
     def building(self, values: dict[str, np.ndarray]) -> Building:
         """The :class:`~hlaid.model.Building` of one set of story values ``(story,)``."""
+        stories: dict[str, Any] = {k: np.asarray(values[k], dtype=float) for k in FIELDS}
         return Building(mass=self.mass, height=self.height, pdelta=self.pdelta, damping=self.damping,
-                        name=self.name, **{k: np.asarray(values[k], dtype=float) for k in FIELDS})
+                        name=self.name, **stories)
 
     def tensors(self, values: dict[str, torch.Tensor]) -> BuildingTensors:
         """Batched, differentiable module parameters of ``(batch, story)`` story values; the

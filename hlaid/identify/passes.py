@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -38,14 +39,14 @@ class TrainedPass:
     stats : per machine: accuracies, confusion, sample counts, seconds
     cached : taken from the cache
     seconds_simulate : time spent simulating training half cycles
-    sets : the training sets (None when cached)
+    sets : the training sets, None for a story not trained (None when cached)
     """
 
     machines: dict
     stats: dict
     cached: bool
     seconds_simulate: float
-    sets: list[TrainingSet] | None
+    sets: Sequence[TrainingSet | None] | None
 
 
 def train_pass(estimate: Building, motion: GroundMotion, bins: list[tuple[Bins, Bins]], identifiable: np.ndarray, *,
@@ -138,6 +139,7 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
     coarse = stage == "coarse"
     noise = noise() if callable(noise) else noise
     n_samples = min(tc.samples, tc.coarse_samples) if coarse and tc.coarse_samples is not None else tc.samples
+    sets: list[TrainingSet | None]
     machines, stats, sets = {}, {}, []
     t_sim = 0.0
     # the story law runs here (compiled, both cores); the machines of a story train on the worker
@@ -160,6 +162,7 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
             for param, b in zip(PARAMS, bins[i]):
                 name = f"story{i + 1}_{param}"
                 svm = cfg.svm if name not in chosen_C else _chosen(cfg.svm, *chosen_C[name])
+                kw: dict[str, Any]
                 args, kw = (S, param, b, svm, tc.test_fraction), {"seed": seed + 31 * i + len(param)}
                 job = pool.apply_async(fit_ensemble, args, kw) if pool else fit_ensemble(*args, **kw)
                 jobs.append((i, param, b, S, job))

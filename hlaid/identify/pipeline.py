@@ -16,6 +16,7 @@ import hashlib
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 
@@ -219,9 +220,10 @@ class _Identifier:
         t = time.perf_counter()
         ident = [i for i in range(self.res.n_stories) if self.identifiable[i]]
         rc = cfg.refine
-        common = {"band_hz": rc.band_hz, "max_iterations": rc.max_iterations, "upper_factor": rc.upper_factor,
-                  "substeps": rc.substeps, "jac_substeps": rc.jac_substeps, "ground_noise": rc.ground_noise}
-        info = {}
+        common: dict[str, Any] = {"band_hz": rc.band_hz, "max_iterations": rc.max_iterations,
+                                  "upper_factor": rc.upper_factor, "substeps": rc.substeps,
+                                  "jac_substeps": rc.jac_substeps, "ground_noise": rc.ground_noise}
+        info: dict[str, Any] = {}
         start = paper
         if "k0" in rc.parameters:
             s1 = refine_replay(paper, meas, parameters=("k0",), damping=False, ftol=rc.ftol, **common)
@@ -392,7 +394,8 @@ class _Identifier:
                 for j, param in enumerate(PARAMS):
                     name = f"story{i + 1}_{param}"
                     st = tp.stats[name]
-                    v = vote(machines_of(tp, name), measured[i], bins[i][j], st.get("single", -1), st.get("scaler"))
+                    v = vote(machines_of(tp, name), cast(np.ndarray, measured[i]), bins[i][j], st.get("single", -1),
+                             st.get("scaler"))  # an identifiable story has its measured features
                     entry[param] = pass_result(param, stage, bins[i][j], v, st, tp.cached, cfg.aggregate)
             result.append(entry)
         self.passes.append({"iteration": it + 1, "stage": stage,

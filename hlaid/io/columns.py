@@ -28,7 +28,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 
@@ -173,15 +173,18 @@ def read_columns(config: str | os.PathLike | ColumnsConfig, *, base: str | os.Pa
             g = cfg.ground_disp
             disp = disp - (table.column(g.column, src) * g.sign * length_factor(g.units))[:, None]
     values = acc if disp is None else np.concatenate([acc, disp], axis=1)
+    extra: dict[str, Any]
     if cfg.time is not None:
         axis, values = uniform_time(table.column(cfg.time, src), values, src, column=str(cfg.time))
         dt, extra = axis.dt, {"time_jitter_s": axis.jitter, "resampled": axis.resampled}
     else:
-        dt, extra = float(cfg.dt), {}
+        dt, extra = float(cast(float, cfg.dt)), {}  # dt is given when time is not (checked in the config)
     values, bias = remove_offset(values, dt, cfg.offset, cfg.pre_event_s, src)
     extra["offset_removed"] = bias
     mass = cfg.mass_t if cfg.mass_t is not None else (
         [weight_kn_to_mass_t(w) for w in cfg.weight_kN] if cfg.weight_kN is not None else None)
+    # mass and height may be lists: Measurement makes them arrays
     return Measurement(dt=dt, ground_acc=values[:, 0], floor_acc=values[:, 1:1 + nf],
-                       floor_disp=None if disp is None else values[:, 1 + nf:], mass=mass, height=cfg.height_mm,
+                       floor_disp=None if disp is None else values[:, 1 + nf:], mass=cast("np.ndarray | None", mass),
+                       height=cast("np.ndarray | None", cfg.height_mm),
                        source=src, name=name or cfg.name or data_path.name.split(".")[0], extra=extra)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import os
 import re
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -81,7 +82,7 @@ def read_mini_shake_table(path: str | os.PathLike, *, axis: str = "X", pre_event
     names = [chans[(lv, axis)] for lv in levels]
     other_axis = "Y" if axis == "X" else "X"
     other = [chans.get((lv, other_axis)) for lv in levels]
-    cols = names + ([c for c in other] if all(other) else [])
+    cols = names + (cast("list[str]", [c for c in other]) if all(other) else [])
     tax, values = uniform_time(table.column(TIME, src), table.data[:, [table.index(c, src) for c in cols]], src,
                                column=TIME)
     values = values * factor

@@ -23,6 +23,7 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -234,15 +235,15 @@ def smc_measurement(paths: str | os.PathLike | Sequence[str | os.PathLike], *, a
     if azimuth is None:
         azimuth = _default_azimuth(horiz, levels)
     picked: dict[float, list[tuple[SmcChannel, float]]] = {}
-    for c in horiz:
-        d = _angle(c.azimuth, azimuth)
+    for c in horiz:  # each with an azimuth and a level
+        d = _angle(cast(float, c.azimuth), azimuth)
         if d <= AZIMUTH_TOLERANCE:
             sign = 1.0
         elif d >= 180.0 - AZIMUTH_TOLERANCE:
             sign = -1.0
         else:
             continue
-        picked.setdefault(levels[id(c)][0], []).append((c, sign))
+        picked.setdefault(cast("tuple[float, str]", levels[id(c)])[0], []).append((c, sign))
     keys = sorted(picked)
     where = str(files[0].parent)
     if not keys or keys[0] != 0.0:
@@ -256,7 +257,7 @@ def smc_measurement(paths: str | os.PathLike | Sequence[str | os.PathLike], *, a
         group = centre[:1] or group
         series.append(np.mean([s * c.acc for c, s in group], axis=0))
         used.append([(Path(c.source).name, s) for c, s in group])
-    labels = [levels[id(picked[k][0][0])][1] for k in keys]
+    labels = [cast("tuple[float, str]", levels[id(picked[k][0][0])])[1] for k in keys]
     station = first.scnl.split(".")[0] if first.scnl else first.station
     return Measurement(dt=first.dt, ground_acc=series[0], floor_acc=np.stack(series[1:], axis=1), source=where,
                        name=name or f"{station}-az{azimuth:g}",
@@ -267,8 +268,9 @@ def smc_measurement(paths: str | os.PathLike | Sequence[str | os.PathLike], *, a
 def _default_azimuth(horiz: list[SmcChannel], levels: dict) -> float:
     axes: dict[float, list[SmcChannel]] = {}
     for c in horiz:
-        key = next((a for a in axes if _angle(a, c.azimuth) <= AZIMUTH_TOLERANCE
-                    or _angle(a, c.azimuth) >= 180 - AZIMUTH_TOLERANCE), c.azimuth)
+        az = cast(float, c.azimuth)  # horizontal channels have an azimuth
+        key = next((a for a in axes if _angle(a, az) <= AZIMUTH_TOLERANCE
+                    or _angle(a, az) >= 180 - AZIMUTH_TOLERANCE), az)
         axes.setdefault(key, []).append(c)
 
     def score(item):
@@ -279,7 +281,8 @@ def _default_azimuth(horiz: list[SmcChannel], levels: dict) -> float:
     upper = [c for c in chans if levels[id(c)][0] > 0] or chans
     votes: dict[float, int] = {}
     for c in upper:
-        key = next((a for a in votes if _angle(a, c.azimuth) <= AZIMUTH_TOLERANCE), c.azimuth)
+        az = cast(float, c.azimuth)
+        key = next((a for a in votes if _angle(a, az) <= AZIMUTH_TOLERANCE), az)
         votes[key] = votes.get(key, 0) + 1
     return max(votes.items(), key=lambda kv: kv[1])[0]
 

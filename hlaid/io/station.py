@@ -25,7 +25,7 @@ import fnmatch
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -225,7 +225,9 @@ def read_station(config: str | os.PathLike | StationConfig, *, base: str | os.Pa
     mass = mass_t if mass_t is not None else cfg.mass_t
     height = height_mm if height_mm is not None else cfg.height_mm
     extra = {"channels": [tr.id for _, _, tr, _ in picked], "starttime": str(t0), "offset_removed": bias}
-    return Measurement(dt=dt, ground_acc=values[:, 0], floor_acc=values[:, 1:], mass=mass, height=height,
+    # mass and height may be lists: Measurement makes them arrays
+    return Measurement(dt=dt, ground_acc=values[:, 0], floor_acc=values[:, 1:],
+                       mass=cast("np.ndarray | None", mass), height=cast("np.ndarray | None", height),
                        source=where, name=name or cfg.name or paths[0].name.split(".")[0], extra=extra)
 
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
+from typing import Any, cast
 
 import torch
 from torch import nn
@@ -156,8 +157,9 @@ class BoucWenBuilding(nn.Module):
         ``energy`` (hysteretic work ``(1-alpha) k0 integral(z dx)`` [N mm]). With the collapse law
         ``force`` is the story force with its strength loss (P-Delta excluded).
         """
-        P = BuildingTensors(**{f.name: None if getattr(self.params, f.name) is None
-                               else getattr(self.params, f.name)[:, None] for f in dataclasses.fields(self.params)})
+        fields: dict[str, Any] = {f.name: None if getattr(self.params, f.name) is None
+                                  else getattr(self.params, f.name)[:, None] for f in dataclasses.fields(self.params)}
+        P = BuildingTensors(**fields)
         n = self.n_stories
         if states.shape[-1] == 6 * n:
             u, v, z, e, xp, xn = states.split(n, dim=-1)
@@ -174,7 +176,7 @@ def _story_force(P: BuildingTensors, x, z, xp=None, xn=None):
     """Story spring force [N]: the paper's law, or the collapse law when the memory is given."""
     if xp is None:
         return eq.spring_force(x, z, P.alpha, P.k0)
-    c = P.collapse
+    c = cast(torch.Tensor, P.collapse)  # the collapse memory (xp) is carried only with a collapse model
     return eq.collapse_spring_force(x, z, xp, xn, P.alpha, P.k0, *(c[..., j] for j in range(c.shape[-1])))
 
 

@@ -165,7 +165,7 @@ class Building:
         ``delta_eta`` and optionally ``height_mm`` and ``gravity_kN``.
         """
         source = kwargs.get("source")
-        cols: dict[str, list] = {k: [] for k in STORY_FIELDS}
+        cols: dict[str, Any] = {k: [] for k in STORY_FIELDS}
         heights, gravity = [], []
         for i, s in enumerate(stories):
             s = dict(s)
@@ -208,7 +208,7 @@ class Building:
             if self.gravity_load is not None:
                 s["gravity_kN"] = n_to_kn(float(self.gravity_load[i]))
             stories.append(s)
-        out = {"stories": stories, "damping": self.damping.to_dict(), "pdelta": self.pdelta}
+        out: dict[str, Any] = {"stories": stories, "damping": self.damping.to_dict(), "pdelta": self.pdelta}
         if self.collapse is not None:
             out["collapse"] = self.collapse.to_dict()
         if self.name:
@@ -337,8 +337,9 @@ class BuildingTensors:
     def index(self, idx) -> BuildingTensors:
         """Select (or repeat) batch rows: ``idx`` is a 1-D index tensor or array."""
         idx = torch.as_tensor(idx, dtype=torch.long, device=self.mass.device)
-        return BuildingTensors(**{f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[idx]
-                                  for f in dataclasses.fields(self)})
+        fields: dict[str, Any] = {f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[idx]
+                                  for f in dataclasses.fields(self)}
+        return BuildingTensors(**fields)
 
     def numpy(self) -> dict[str, np.ndarray]:
         """Every field as an array; ``collapse`` always (no-loss values when None)."""

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import torch
@@ -107,6 +108,9 @@ def _layout(nb: int, nm: int, scales, pairing: str):
         elif sc.shape[0] != nm:
             raise InputError(f"scales of shape {sc.shape} need one row per motion ({nm})")
         ns = sc.shape[1]
+        bi: np.ndarray
+        mi: np.ndarray
+        si: np.ndarray
         bi, mi, si = np.meshgrid(np.arange(nb), np.arange(nm), np.arange(ns), indexing="ij")
         bi, mi, si = bi.ravel(), mi.ravel(), si.ravel()
         return bi, mi, sc[mi, si]
@@ -162,7 +166,7 @@ def _run_torch(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, outputs):
     dt_b = torch.as_tensor(dt[mi])[:, None]
     y = torch.as_tensor(y0)
     T = int(nt.max())
-    states = torch.empty((bi.size, T, y.shape[1]), dtype=y.dtype)
+    states: Any = torch.empty((bi.size, T, y.shape[1]), dtype=y.dtype)  # a tensor, then its array
     states[:, 0] = y
     with torch.no_grad():
         for k in range(T - 1):
@@ -252,7 +256,8 @@ def simulate(buildings: Building | Sequence[Building], motions: GroundMotion | S
                              scale=sc, status=status, final_state=final, peak_drift=peak_drift,
                              peak_acc=peak_acc, keep_histories=outputs != "peaks")
     if outputs == "acc":  # only the accelerations: the compiled kernel wrote them, the torch backend has all
-        res = dataclasses.replace(res, **{**dict.fromkeys(HISTORY_FIELDS), "acc": res.acc if acc is None else acc})
+        changes: dict[str, Any] = {**dict.fromkeys(HISTORY_FIELDS), "acc": res.acc if acc is None else acc}
+        res = dataclasses.replace(res, **changes)
     return res
 
 

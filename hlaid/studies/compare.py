@@ -21,7 +21,7 @@ import resource
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 
@@ -274,10 +274,10 @@ def _cpu() -> float:
 
 
 def _replay_r(building: Building, motion: GroundMotion, true_disp: np.ndarray):
-    r = simulate(building, motion)
-    if r.status[0] != 0 or not np.all(np.isfinite(r.disp[0])):
+    r = simulate(building, motion)  # full outputs: disp is set
+    if r.status[0] != 0 or not np.all(np.isfinite(cast(np.ndarray, r.disp)[0])):
         return None, None
-    return corrcoef(r.disp[0], true_disp), r.peak_drift[0]
+    return corrcoef(cast(np.ndarray, r.disp)[0], true_disp), r.peak_drift[0]
 
 
 def run_case(case: Case, names: list[str], settings: dict, unseen: GroundMotion, *, failure_r: float = 0.5,
@@ -287,8 +287,8 @@ def run_case(case: Case, names: list[str], settings: dict, unseen: GroundMotion,
     truth_unseen = simulate(case.building, unseen)
     out, times = [], {}
     for name in names:
-        base = {"case": case.name, "identifier": name, "structure": case.structure, "record": case.motion.name,
-                    "noise": case.noise, "seed": case.seed}
+        base: dict[str, Any] = {"case": case.name, "identifier": name, "structure": case.structure,
+                                "record": case.motion.name, "noise": case.noise, "seed": case.seed}
         est = make_identifier(name, settings.get(name), base_dir=base_dir, cache_dir=cache_dir)
         t0, c0 = time.perf_counter(), _cpu()
         try:
@@ -299,7 +299,8 @@ def run_case(case: Case, names: list[str], settings: dict, unseen: GroundMotion,
         wall, cpu = time.perf_counter() - t0, _cpu() - c0
         times[name] = (wall, cpu)
         before = times.get("hlasvm", (0.0, 0.0)) if shared_cache and name == "hlasvm_replay" else (0.0, 0.0)
-        spent = {"wall_s": wall + before[0], "wall_own_s": wall, "cpu_s": cpu + before[1], "cpu_own_s": cpu}
+        spent: dict[str, Any] = {"wall_s": wall + before[0], "wall_own_s": wall, "cpu_s": cpu + before[1],
+                                 "cpu_own_s": cpu}
         if err is not None:
             out.append(Outcome(**base, failed=True, reason=err, **spent))
             _progress.info(f"[compare] {case.name}: {name} failed ({err}) in {wall:.1f} s")
@@ -356,17 +357,19 @@ def summarise(outcomes: list[Outcome]) -> list[dict]:
                "wall_mean_s": float(np.mean([o.wall_s for o in sel])),
                "wall_max_s": float(np.max([o.wall_s for o in sel])),
                "cpu_mean_s": float(np.mean([o.cpu_s for o in sel]))}
-        if ok:
-            per = {k: np.abs(np.concatenate([o.errors[k] for o in ok])) for k in PARAMETERS}
+        if ok:  # the metrics of an outcome that did not fail are set
+            per = {k: np.abs(np.concatenate([cast(dict, o.errors)[k] for o in ok])) for k in PARAMETERS}
             row.update({"mean_error": float(np.mean([o.mean_error for o in ok])),
                         "worst_error": float(np.max([o.max_error for o in ok])),
                         "param_mean_error": {k: float(np.mean(v)) for k, v in per.items()},
                         "param_worst_error": {k: float(np.max(v)) for k, v in per.items()},
-                        "r_ident_mean": float(np.mean([np.mean(o.r_ident) for o in ok])),
-                        "r_ident_min": float(np.min([np.min(o.r_ident) for o in ok])),
-                        "r_unseen_mean": float(np.mean([np.mean(o.r_unseen) for o in ok])),
-                        "r_unseen_min": float(np.min([np.min(o.r_unseen) for o in ok])),
-                        "drift_error_unseen_mean": float(np.mean([np.mean(np.abs(o.drift_error_unseen)) for o in ok])),
-                        "drift_error_unseen_worst": float(np.max([np.max(np.abs(o.drift_error_unseen)) for o in ok]))})
+                        "r_ident_mean": float(np.mean([np.mean(cast(list, o.r_ident)) for o in ok])),
+                        "r_ident_min": float(np.min([np.min(cast(list, o.r_ident)) for o in ok])),
+                        "r_unseen_mean": float(np.mean([np.mean(cast(list, o.r_unseen)) for o in ok])),
+                        "r_unseen_min": float(np.min([np.min(cast(list, o.r_unseen)) for o in ok])),
+                        "drift_error_unseen_mean": float(np.mean([np.mean(np.abs(cast(list, o.drift_error_unseen)))
+                                                                  for o in ok])),
+                        "drift_error_unseen_worst": float(np.max([np.max(np.abs(cast(list, o.drift_error_unseen)))
+                                                                   for o in ok]))})
         rows.append(row)
     return rows

@@ -72,6 +72,7 @@ import math
 import warnings
 from dataclasses import dataclass
 from types import SimpleNamespace
+from typing import cast
 
 import torch
 from sklearn.exceptions import ConvergenceWarning
@@ -315,7 +316,7 @@ def _loop(layout: OvOLayout, cache: KernelBlockCache, *, kernel: Kernel, Xs: tor
         w.S = torch.stack([rows_of(F_full), beta,
                            torch.where(wvalid & (beta < hi), zero_t, ninf_t),
                            torch.where(wvalid & (beta > lo), zero_t, pinf_t), hi], 1).contiguous()
-        w.kd = None if const_diag else rows_of(kd_full)
+        w.kd = None if const_diag else rows_of(cast(torch.Tensor, kd_full))  # None only when const_diag
         w.idx, w.loc, w.wvalid, w.cnt = pidx, sel, wvalid, cnt
         w.gA = rows_of(layout.gmap)
         w.cls = layout.pairs.index_select(0, pidx)
@@ -444,6 +445,7 @@ def _loop(layout: OvOLayout, cache: KernelBlockCache, *, kernel: Kernel, Xs: tor
         full = w.cnt == nvalid.index_select(0, w.idx)
         done = conv & full
         if n_ref:
+            assert refined is not None  # n_ref > 0 only when refined is set above
             done &= ~refined                       # refined pairs are re-checked exactly
         recon = conv & ~done
         n_done, n_recon = int(done.sum()), int(recon.sum())

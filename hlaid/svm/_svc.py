@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numbers
 import os
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
@@ -155,7 +155,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
     def _check_params(self) -> None:
         def real(name: str, lo: float, closed: bool) -> None:
             v = getattr(self, name)
-            ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and np.isfinite(v)
+            ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and np.isfinite(cast(float, v))
             if not ok or v < lo or (v == lo and not closed):
                 rel = ">=" if closed else ">"
                 raise ValueError(f"{name} must be a finite number {rel} {lo}; got {v!r}.")

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.stats import norm
@@ -156,6 +157,7 @@ class ParameterUncertainty:
             if unknown:
                 raise bad(f"parameters[{j}].{unknown[0][:40]}: unknown field; expected name, story, transform, value, "
                           "std, interval")
+            v: Any  # checked to be a finite number below
             name, story, t, v = p.get("name"), p.get("story"), p.get("transform"), p.get("value")
             if name not in BOUNDS:
                 raise bad(f"parameters[{j}].name must be one of {', '.join(BOUNDS)}")

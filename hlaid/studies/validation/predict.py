@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
@@ -107,20 +108,20 @@ def predict_event(clone: Clone, meas: Measurement, hla_config: HLAConfig, *, com
     try:
         res = hla(meas, cfg)
         band = tuple(res.band_hz)
-    except InputError as err:  # too weak or too short for HLA: no stiffness comparison
-        _progress.warn(f"{labels[0]}/{labels[2]}: HLA failed ({err}); no stiffness comparison")
+    except InputError as exc:  # too weak or too short for HLA: no stiffness comparison
+        _progress.warn(f"{labels[0]}/{labels[2]}: HLA failed ({exc}); no stiffness comparison")
         res, band = None, tuple(resolved_band(meas, cfg))
         cfg = _with_band(cfg, band)
     hi_in = sg.cap_corner(input_lowpass_hz or band[1], dt)
     ground = GroundMotion(dt=dt, acc=sg.bandpass(np.asarray(meas.ground_acc), dt, (0.0, hi_in), cfg.preprocess.order),
                           name=meas.name)
-    sim = simulate(clone.building, ground)
+    sim = simulate(clone.building, ground)  # full outputs: acc, eta and force are set
     # the clone's response goes through what the measured one went through: its displacement
     # band-passed when the data hold displacements, else its accelerations integrated
     integrated = cfg.preprocess.displacement == "integrate" or (cfg.preprocess.displacement == "auto" and
                                                                meas.floor_disp is None)
-    twin = dataclasses.replace(meas, ground_acc=ground.acc, floor_acc=np.nan_to_num(sim.acc[0]), floor_disp=None,
-                               truth=None, mass=None)
+    twin = dataclasses.replace(meas, ground_acc=ground.acc, floor_acc=np.nan_to_num(cast(np.ndarray, sim.acc)[0]),
+                               floor_disp=None, truth=None, mass=None)
 
     def compare(b):
         c = _with_band(cfg, b)
@@ -136,7 +137,7 @@ def predict_event(clone: Clone, meas: Measurement, hla_config: HLAConfig, *, com
     r_broad = corrcoef(*compare((band[0], max(band[1], sg.cap_corner(20.0, dt)))))
     xm, xp = pp.story_drift(disp_meas), pp.story_drift(dp)
     pm, pk = np.max(np.abs(xm), axis=0), np.max(np.abs(xp), axis=0)
-    ke = clone.building.elastic_stiffness(np.nan_to_num(sim.eta[0], nan=1.0))
+    ke = clone.building.elastic_stiffness(np.nan_to_num(cast(np.ndarray, sim.eta)[0], nan=1.0))
     err = np.full(clone.building.n_stories, np.nan)
     if res is not None:
         for i, s in enumerate(res.stories):
@@ -144,9 +145,10 @@ def predict_event(clone: Clone, meas: Measurement, hla_config: HLAConfig, *, com
             if len(hc):
                 err[i] = float(np.mean(np.abs(ke[hc.start, i] / hc.ke - 1.0)))
     return Prediction(structure=labels[0], identified_from=labels[1], event=labels[2], kind=labels[3],
-                      self_replay=self_replay, pga_g=float(np.max(np.abs(meas.ground_acc)) / G_MM_S2), band_hz=band,
+                      self_replay=self_replay, pga_g=float(np.max(np.abs(meas.ground_acc)) / G_MM_S2),
+                      band_hz=cast("tuple[float, float]", band),
                       r=r, r_broadband=r_broad, peak_drift_measured=pm, peak_drift_predicted=pk,
                       peak_drift_error=pk / pm - 1.0,
                       stiffness_error=err, status=int(sim.status[0]), time=meas.time, disp_measured=disp_meas,
-                      disp_predicted=dp, drift_predicted=xp, force_predicted=np.nan_to_num(sim.force[0]), ke_clone=ke,
-                      hla=res)
+                      disp_predicted=dp, drift_predicted=xp,
+                      force_predicted=np.nan_to_num(cast(np.ndarray, sim.force)[0]), ke_clone=ke, hla=res)
