@@ -41,18 +41,13 @@ def _rk4_lanes(j0, j1, z, e, d0, dm, d1, h, lo, al, k0, m, p, dy, de, w):
         eta = _degradation(e[j], al[b], k0[b], m, de[b])
         w[0, j] = _hysteretic_rate(d0[j], z[j], dy[b], p[b], eta)
         w[3, j] = z[j] * d0[j]
-    for j in range(j0, j1):
-        b = lo + j
-        z2 = z[j] + 0.5 * h * w[0, j]
-        eta = _degradation(e[j] + 0.5 * h * w[3, j], al[b], k0[b], m, de[b])
-        w[1, j] = _hysteretic_rate(dm[j], z2, dy[b], p[b], eta)
-        w[4, j] = z2 * dm[j]
-    for j in range(j0, j1):
-        b = lo + j
-        z3 = z[j] + 0.5 * h * w[1, j]
-        eta = _degradation(e[j] + 0.5 * h * w[4, j], al[b], k0[b], m, de[b])
-        w[2, j] = _hysteretic_rate(dm[j], z3, dy[b], p[b], eta)
-        w[5, j] = z3 * dm[j]
+    for s in range(1, 3):  # the two midpoint stages, each from the one before
+        for j in range(j0, j1):
+            b = lo + j
+            zm = z[j] + 0.5 * h * w[s - 1, j]
+            eta = _degradation(e[j] + 0.5 * h * w[s + 2, j], al[b], k0[b], m, de[b])
+            w[s, j] = _hysteretic_rate(dm[j], zm, dy[b], p[b], eta)
+            w[s + 3, j] = zm * dm[j]
     for j in range(j0, j1):
         b = lo + j
         z4 = z[j] + h * w[2, j]
