@@ -16,6 +16,7 @@ import warnings
 from collections.abc import Iterable, Iterator, Sized
 from typing import TypeVar
 
+from . import _interrupt
 from .errors import HlaidWarning
 
 T = TypeVar("T")
@@ -84,12 +85,14 @@ def cli_warnings() -> Iterator[None]:
 
 
 def info(msg: str) -> None:
-    """A progress message (INFO)."""
+    """A progress message (INFO); also where a dropped Ctrl-C is raised again (:mod:`hlaid._interrupt`)."""
+    _interrupt.check()
     LOGGER.info(msg)
 
 
 def debug(msg: str) -> None:
     """A detail (DEBUG)."""
+    _interrupt.check()
     LOGGER.debug(msg)
 
 
@@ -106,6 +109,7 @@ def progress(items: Iterable[T], total: int | None = None, desc: str = "") -> It
     show = LOGGER.hasHandlers() and level >= 1 and (sys.stderr.isatty() or level >= 2)
     t0 = time.perf_counter()
     for i, item in enumerate(items):
+        _interrupt.check()
         yield item
         if show and total:
             done = i + 1

@@ -27,6 +27,8 @@ import signal
 import threading
 from typing import Any
 
+from . import _interrupt
+
 _POLL_S = 0.1  # how often a waiting parent looks at its signal flag
 _GRACE_S = 3.0  # how long Pool.terminate may take before the workers are killed
 
@@ -85,6 +87,7 @@ def result(job: multiprocessing.pool.AsyncResult) -> Any:
     the signal was delivered to another thread of this process (see the module docstring)."""
     while not job.ready():
         job.wait(_POLL_S)
+        _interrupt.check()
     return job.get()
 
 

@@ -146,3 +146,32 @@ def test_ctrl_c_during_demo(tmp_path):
                                     after="path-driven training sets", delay=1.0)
     _assert_interrupted(rc, elapsed, lines, "demo")
     assert _leftovers(tmp_path, "demo-out") == []
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")  # the dropped one
+def test_ctrl_c_dropped_in_a_finaliser_is_raised_again():
+    """SIGINT arriving while a ``__del__`` runs raises KeyboardInterrupt inside it, which Python
+    drops ("Exception ignored in ..."); under the command line's handler the next progress
+    message raises it again (``hlaid demo`` interrupted at such a moment used to finish and exit
+    0). Clean-up code that runs while an exception is handled is not interrupted twice, and
+    without the handler nothing changes."""
+    from hlaid import _interrupt, _progress
+
+    class Finaliser:
+        def __del__(self):
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(1000):  # the handler runs here, inside the finaliser
+                pass
+
+    with _interrupt.sticky_sigint():
+        obj = Finaliser()
+        del obj  # KeyboardInterrupt raised and dropped inside __del__
+        try:
+            raise ValueError("clean-up in progress")
+        except ValueError:
+            _progress.info("clean-up")  # an exception is being handled: not raised here
+        with pytest.raises(KeyboardInterrupt):
+            _progress.info("next step")
+        _progress.info("raised once")  # the flag is cleared
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    _interrupt.check()  # outside the block: nothing pending

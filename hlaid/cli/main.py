@@ -13,7 +13,7 @@ import importlib
 import sys
 import traceback
 
-from .. import __version__, _progress
+from .. import __version__, _interrupt, _progress
 from ..errors import InputError
 
 COMMANDS = [
@@ -70,8 +70,9 @@ def build_parser() -> Parser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line with ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
-    with _progress.cli_warnings():
+    """Run the command line with ``argv`` (default ``sys.argv[1:]``); returns the exit status.
+    A Ctrl-C that Python drops (inside a finaliser) is raised again (:mod:`hlaid._interrupt`)."""
+    with _progress.cli_warnings(), _interrupt.sticky_sigint():
         return _main(argv)
 
 
