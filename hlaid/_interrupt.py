@@ -3,8 +3,8 @@
 Python raises ``KeyboardInterrupt`` wherever the main thread is when SIGINT arrives. When that
 is a weakref callback or a ``__del__`` run by the garbage collector, the exception is printed as
 "Exception ignored in ..." and dropped, and the run goes on as if Ctrl-C had not been pressed
-(measured: ``hlaid demo`` interrupted 7 s in went on to finish its work and exit 0, in 2 of 2
-tries at that moment). Under :func:`sticky_sigint` (the command line) the handler also
+(measured: ``hlaid demo`` interrupted at 3-11 s went on to finish its work and exit 0 in 3 of 13
+tries, all of them 6.8-7.0 s in). Under :func:`sticky_sigint` (the command line) the handler also
 remembers the interruption, and :func:`check`, called with every progress message of the
 library and while the parent waits for worker processes, raises it again where it was dropped.
 """
