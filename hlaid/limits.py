@@ -17,6 +17,8 @@ variable                   default     what it limits
 ``HLAID_MAX_BOOTSTRAP``    100000      bootstrap resamples of a fragility interval
 ``HLAID_MAX_TRAINING``     20000       training samples per story and classifier pass
                                        (``training.samples``, ``training.max_simulations``)
+``HLAID_MAX_TANGENT_MB``   4096        memory of the ground tangent of ``refine.ground_noise:
+                                       tangent`` [MiB] (samples x lags x floors, 4 copies)
 =========================  ==========  =========================================================
 
 A value over its limit is an :class:`~hlaid.errors.InputError` (one line naming the value,
@@ -42,6 +44,7 @@ DEFAULTS: dict[str, float] = {
     "IDA_RECORDS": 1000,
     "BOOTSTRAP": 100_000,
     "TRAINING": 20_000,
+    "TANGENT_MB": 4096,
 }
 """Default limits by name; ``HLAID_MAX_<NAME>`` overrides each."""
 

@@ -350,6 +350,11 @@ def test_cache_entry_failing_its_check_is_reported_and_retrained(tmp_path, machi
     ({"training": {"coarse_samples": 5}}, "coarse_samples"),
     ({"refine": {"restart_ratio": 0.0}}, "restart_ratio"),
     ({"refine": {"restart_ratio": 1e400}}, "restart_ratio"),
+    ({"refine": {"ground_memory_s": 0.0}}, "ground_memory_s"),
+    ({"refine": {"ground_memory_s": 1e400}}, "ground_memory_s"),
+    ({"refine": {"ground_memory_s": float("nan")}}, "ground_memory_s"),
+    ({"refine": {"ground_memory_s": -1.0}}, "ground_memory_s"),
+    ({"refine": {"ground_noise": "tangents"}}, "ground_noise"),
 ])
 def test_identify_training_sizes_are_bounded(block, message):
     """Path-driven training allocates samples x time per story: its sizes are checked on load."""

@@ -203,7 +203,7 @@ class _Identifier:
                       "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                       "noise_rms_used": self.noise}
         rr = getattr(self, "refinement", None)
-        unc = None if rr is None else uncertainty_of_refinement(rr, meas.n_floors, noise_rms=self.noise,
+        unc = None if rr is None else uncertainty_of_refinement(rr, rr.channels or meas.n_floors, noise_rms=self.noise,
                                                                 band_hz=cfg.refine.band_hz, dt=meas.dt)
         clone = Clone(building=final, mass_normalised=res.mass_normalised, diagnostics=diagnostics,
                       provenance=provenance, uncertainty=unc)
@@ -222,7 +222,8 @@ class _Identifier:
         rc = cfg.refine
         common: dict[str, Any] = {"band_hz": rc.band_hz, "max_iterations": rc.max_iterations,
                                   "upper_factor": rc.upper_factor, "substeps": rc.substeps,
-                                  "jac_substeps": rc.jac_substeps, "ground_noise": rc.ground_noise}
+                                  "jac_substeps": rc.jac_substeps,
+                                  "ground_noise": "ignore" if rc.ground_noise == "tangent" else rc.ground_noise}
         info: dict[str, Any] = {}
         start = paper
         if "k0" in rc.parameters:
@@ -248,6 +249,13 @@ class _Identifier:
             if kept:
                 rr = alt
         info["noise_ratio"] = ratio
+        if rc.ground_noise == "tangent":  # the errors-in-variables finish, from the least-squares optimum
+            eiv = refine_replay(rr.building, meas, parameters=rc.parameters, stories=ident, damping=rc.damping,
+                                ftol=rc.ftol, **{**common, "ground_noise": "tangent"},
+                                ground_memory_s=rc.ground_memory_s)
+            info["tangent"] = {"cost_initial": eiv.cost_initial, "cost_final": eiv.cost_final, "nfev": eiv.nfev,
+                               "seconds": eiv.seconds}
+            rr = eiv
         self.refinement = rr
         info.update({"cost_initial": rr.cost_initial, "cost_final": rr.cost_final, "nfev": rr.nfev,
                      "message": rr.message})

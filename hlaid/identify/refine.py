@@ -21,9 +21,10 @@ from .. import _progress
 from ..errors import InputError
 from ..measurement import Measurement
 from ..model import Building, Damping
-from ..signal import bandpass, cap_corner, measured_ground
+from ..signal import bandpass, cap_corner, lowpass, measured_ground
 from ..simulate import simulate
-from .eiv import ground_transfer, lowpass_gain, whiten
+from ..simulate.tangent import GroundTangent, ground_tangent
+from .eiv import TangentWhitener, ground_transfer, lowpass_gain, whiten
 
 _CHUNK = 8
 """Replays band-passed together in the refinement: filtering a whole Jacobian batch at once
@@ -46,9 +47,11 @@ class RefineResult:
     x : their values at the solution, shape ``(n_params,)``
     jacobian : d residuals / d x at the solution (the optimiser's last finite-difference
         Jacobian), shape ``(n_time * n_floors, n_params)``, rows time-major
-    residuals : normalised residuals at the solution, shape ``(n_time * n_floors,)``
-        (``reshape(n_time, n_floors)`` gives one column per floor); both feed
+    residuals : normalised residuals at the solution, shape ``(n_time * channels,)``
+        (``reshape(n_time, channels)`` gives one column per channel); both feed
         :mod:`hlaid.uncertainty`
+    channels : residual columns: the floors, and with ``ground_noise="tangent"`` one more
+        (the ground correction's)
     """
 
     building: Building
@@ -61,12 +64,14 @@ class RefineResult:
     x: np.ndarray | None = None
     jacobian: np.ndarray | None = None
     residuals: np.ndarray | None = None
+    channels: int = 0
 
 
 def refine_replay(building: Building, measurement: Measurement, *, parameters=("k0", "alpha", "p", "dy", "delta_eta"),
                   stories=None, damping: bool = False, band_hz=(0.1, 20.0), max_iterations: int = 40,
                   substeps: int = 4, upper_factor: float | None = 10.0, ftol: float = 1e-10,
-                  jac_substeps: int | None = None, ground_noise: str = "ignore") -> RefineResult:
+                  jac_substeps: int | None = None, ground_noise: str = "ignore",
+                  ground_memory_s: float = 7.5) -> RefineResult:
     """Refine ``building`` so that its replay matches ``measurement``'s floor accelerations.
 
     Parameters
@@ -89,17 +94,31 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         whitened per frequency by their covariance with the measured ground's noise propagated
         through the linear building being evaluated (:mod:`hlaid.identify.eiv`; every channel's
         noise a common fraction of its RMS, as :func:`hlaid.synthetic.simulate_measurement`
-        adds it). ``cost_*`` and ``residuals`` are then of the whitened residuals.
+        adds it). ``"tangent"``: whitened against the ground noise carried to the floors by the
+        time-varying tangent of the replay of ``building`` (:func:`_tangent_whitener`), i.e.
+        maximum likelihood with the true ground as a nuisance; the same noise model. The
+        residuals are then low-passed only (``band_hz[0]`` is not used). ``cost_*`` and
+        ``residuals`` are then of the whitened residuals.
+    ground_memory_s : with ``"tangent"``, seconds of the floors' response kept after each
+        ground sample
     """
     t0 = time.perf_counter()
     dt = measurement.dt
     hi = cap_corner(band_hz[1], dt)
+    if ground_noise == "tangent":  # its noise model has no high-pass (with one the optimum moved, docs)
+        band_hz = (0.0, band_hz[1])
     ground = measured_ground(measurement, hi)
     target = bandpass(np.asarray(measurement.floor_acc), dt, (band_hz[0], hi))
     scale = np.sqrt(np.mean(target**2, axis=0))
-    if ground_noise not in ("ignore", "whiten"):
-        raise InputError(f"ground_noise = {ground_noise!r}; expected 'ignore' or 'whiten'")
+    if ground_noise not in ("ignore", "whiten", "tangent"):
+        raise InputError(f"ground_noise = {ground_noise!r}; expected 'ignore', 'whiten' or 'tangent'")
     transfer = _ground_noise_transfer(measurement, hi, scale) if ground_noise == "whiten" else None
+    tangent = None
+    if ground_noise == "tangent":
+        _progress.info("[identify] tangent of the replay to the ground motion (errors in the input)")
+        tangent = _tangent_whitener(building, measurement, ground, (band_hz[0], hi), scale, ground_memory_s,
+                                    substeps if jac_substeps is None else jac_substeps)  # a weighting: 2 will do
+    channels = measurement.n_floors + (tangent is not None)
     stories = range(building.n_stories) if stories is None else stories
     slots = [(name, i) for i in range(building.n_stories) for name in parameters
              if i in stories or name == "k0"]
@@ -134,7 +153,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         r = simulate(bs, ground, substeps=n_sub, outputs="acc")
         acc = r.acc
         acc[r.status != 0] = 0.0  # only a stopped replay has NaN (after its stop); no copy of the rest
-        res = np.empty((len(bs), acc[0].size))
+        res = np.empty((len(bs), acc.shape[1] * channels))
 
         v = [] if transfer is None else transfer.of(bs)
 
@@ -145,6 +164,8 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
             if transfer is not None:
                 for k in range(len(part)):
                     part[k] = whiten(part[k], v[i + k], transfer.floor_std)
+            if tangent is not None:
+                part = tangent(part)
             res[i:i + _CHUNK] = part.reshape(len(part), -1)
 
         starts = range(0, len(bs), _CHUNK)
@@ -190,7 +211,32 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
     cost0 = 0.5 * float(np.sum(fun(x0) ** 2))
     return RefineResult(building=make(sol.x), cost_initial=cost0, cost_final=float(sol.cost), nfev=int(sol.nfev),
                         seconds=time.perf_counter() - t0, message=str(sol.message), slots=tuple(slots),
-                        x=np.array(sol.x), jacobian=np.array(sol.jac), residuals=np.array(sol.fun))
+                        x=np.array(sol.x), jacobian=np.array(sol.jac), residuals=np.array(sol.fun),
+                        channels=channels)
+
+
+def _tangent_whitener(building: Building, meas: Measurement, ground, band_hz, scale: np.ndarray,
+                      memory_s: float, substeps: int) -> TangentWhitener:
+    """:class:`~hlaid.identify.eiv.TangentWhitener` of the refinement's residuals.
+
+    The replay's ground is the measured one low-passed at ``band_hz[1]``, so a ground sensor's
+    white noise reaches it through that low-pass: the tangent is taken for the low-pass's
+    impulse response at every sample, its floor responses low-passed and divided by ``scale``
+    like the residuals (the 0.1 Hz high-pass is left out: white noise has next to no power
+    below it). Every channel's noise a common fraction of its RMS (the fraction cancels).
+    """
+    dt = meas.dt
+    half = int(np.ceil(4.0 / (band_hz[1] * dt)))
+    imp = np.zeros(8 * half + 1)
+    imp[4 * half] = 1.0
+    shape = lowpass(imp, dt, band_hz[1])[2 * half:6 * half + 1]  # room before lag 0 for the output's low-pass
+    lags = max(int(round(memory_s / dt)), 1)
+    gt = ground_tangent(building, ground, lags=lags, shape=shape, substeps=substeps)
+    resp = lowpass(gt.response, dt, band_hz[1], axis=1) / scale[None, None, :]
+    floor = np.asarray(meas.floor_acc)
+    rms_f = np.sqrt(np.mean(floor**2, axis=0))
+    rms_g = float(np.sqrt(np.mean(np.asarray(meas.ground_acc) ** 2)))
+    return TangentWhitener(GroundTangent(response=resp, lead=gt.lead, dt=dt), rms_f / scale, rms_g)
 
 
 class _GroundNoise:
