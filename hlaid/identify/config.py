@@ -258,7 +258,7 @@ class RefineConfig:
         the time-varying tangent of that replay (maximum likelihood with the true ground as a
         nuisance, :class:`hlaid.identify.eiv.TangentWhitener`): on Table 1 at 10 % noise the
         least-squares optimum moves from 1.39 to about 1.0 % mean error; it costs the tangent,
-        ``2 x samples x ground_memory_s / dt`` short replays (20-50 s for a 3-story building and a
+        ``2 x samples x ground_memory_s / dt`` short replays (15-45 s for a 3-story building and a
         30-50 s record). Measured on Table 1 in docs/identification.md
     ground_memory_s : with ``ground_noise: tangent``, seconds of the floors' response to each
         ground sample kept in the tangent (a few periods over the damping ratio)
