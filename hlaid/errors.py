@@ -28,6 +28,12 @@ class NotIdentifiableError(InputError):
     """The record does not hold enough information to identify what was asked."""
 
 
+class UnstableTangentError(InputError):
+    """The replay's tangent-linear model grows without bound along the trajectory (a building far
+    from the data, or one whose linearisation is unstable): the errors-in-variables weighting
+    (``refine.ground_noise: tangent``) cannot be formed there."""
+
+
 class HlaidWarning(UserWarning):
     """Legal but suspicious input (an unusual sample rate, a skipped record file, ...); the
     command line shows each as one ``warning: ...`` line on stderr."""

@@ -8,6 +8,7 @@ The accuracy studies (5 records x 3 seeds, 30 random structures) are scripts
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import json
 
 import numpy as np
@@ -16,7 +17,7 @@ from conftest import paper_record, window
 
 from hlaid.cli.main import main
 from hlaid.clone import Clone
-from hlaid.errors import NotIdentifiableError
+from hlaid.errors import NotIdentifiableError, UnstableTangentError
 from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig, identify, refine_replay
 from hlaid.identify.classify import Bins, pass_result
 from hlaid.identify.regression import fit_delta_eta, fit_yield_displacement, hysteretic_displacement, hysteretic_work
@@ -198,6 +199,28 @@ def test_refinement_restarts_from_a_neutral_start_when_the_fit_misses_the_noise(
     if kept:
         assert info["restart"]["cost_final"] < 0.8 * plain["cost_final"]
     assert res.refinement.cost_final == pytest.approx(info["cost_final"])
+
+
+def test_tangent_stage_is_skipped_where_it_weights_nothing_real(table1, record, monkeypatch):
+    """``refine.ground_noise: tangent`` keeps the least-squares fit, saying why, where that fit
+    misses the data by more than its noise or the replay's tangent is unstable."""
+    meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
+    cfg = _small_config(refine=RefineConfig(max_iterations=4, restart_ratio=1e-6, ground_noise="tangent"))
+    info = identify(meas, cfg, cache_dir="").clone.diagnostics["refine"]
+    assert "misses the data" in info["tangent"]["skipped"] and info["cost_final"] > 0
+    pipeline = importlib.import_module("hlaid.identify.pipeline")
+    plain = pipeline.refine_replay
+
+    def unstable(*args, **kw):
+        if kw.get("ground_noise") == "tangent":
+            raise UnstableTangentError("ground_tangent: the tangent of the replay grows without bound")
+        return plain(*args, **kw)
+
+    monkeypatch.setattr(pipeline, "refine_replay", unstable)
+    cfg = _small_config(refine=RefineConfig(max_iterations=4, ground_noise="tangent"))
+    res = identify(meas, cfg, cache_dir="")
+    assert "grows without bound" in res.clone.diagnostics["refine"]["tangent"]["skipped"]
+    assert res.refinement.channels == meas.n_floors  # the least-squares fit, kept
 
 
 def test_no_yield_is_not_identifiable(table1, record):

@@ -5,17 +5,21 @@ on its size, and the refinement's use of it."""
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 import pytest
+import torch
 from conftest import paper_record, window
 
-from hlaid.errors import InputError
+from hlaid.errors import InputError, UnstableTangentError
 from hlaid.identify import refine_replay
 from hlaid.identify.eiv import TangentWhitener
+from hlaid.model import BoucWenBuilding, BuildingTensors
 from hlaid.motions import GroundMotion
 from hlaid.signal import lowpass
 from hlaid.simulate import simulate
-from hlaid.simulate.tangent import GroundTangent, ground_tangent
+from hlaid.simulate.tangent import GroundTangent, ground_tangent, step_jacobians
 from hlaid.synthetic import simulate_measurement
 
 
@@ -47,6 +51,63 @@ def test_tangent_predicts_the_nonlinear_response(table1, yielding, amplitude, to
     assert np.all(err < tol), err
     shifted = np.roll(pred, 1, axis=0)  # one sample off is clearly worse: the alignment is tested
     assert np.all(np.sqrt(np.mean((shifted - act) ** 2, axis=0) / np.mean(act**2, axis=0)) > 3 * err)
+
+
+def test_linear_tangent_is_the_difference_tangent(table1, yielding):
+    """The tangent-linear model (the default) and the replays' finite differences agree."""
+    gm, shape, gt = yielding
+    ref = ground_tangent(table1, gm, lags=gm.acc.size, shape=shape, method="difference")
+    assert ref.lead == gt.lead and ref.response.shape == gt.response.shape
+    err = np.sqrt(np.sum((gt.response - ref.response) ** 2) / np.sum(ref.response**2))
+    assert err < 1e-6, err
+    with pytest.raises(InputError, match="method"):
+        ground_tangent(table1, gm, lags=10, method="adjoint")
+
+
+def test_coarse_tangent_is_the_fine_one_sampled(table1, yielding):
+    """``stride`` and ``lowpass_hz``: the fine tangent's columns at every third sample, low-passed
+    along the lags and sampled there; and white ground noise of std ``s`` per fine sample carries
+    to the floors what ``sqrt(3) s`` per coarse perturbation carries (power below 20 Hz)."""
+    gm, shape, gt = yielding
+    co = ground_tangent(table1, gm, lags=gm.acc.size // 3, shape=shape, stride=3, lowpass_hz=20.0)
+    want = lowpass(gt.response[::3], gm.dt, 20.0, axis=1)
+    shift = 3 * co.lead - gt.lead  # the shape is padded to a lead that is a multiple of the stride
+    assert co.dt == 3 * gm.dt and 0 <= shift < 3
+    lags = np.arange(20, 200)  # coarse lag i is fine lag 3 i - shift (away from the filter's edges)
+    np.testing.assert_allclose(co.response[:, lags], want[:, 3 * lags - shift], atol=1e-6 * np.abs(want).max())
+    rng = np.random.default_rng(1)
+    fine = np.array([lowpass(gt.apply(rng.standard_normal(gm.acc.size)), gm.dt, 20.0)[::3] for _ in range(40)])
+    coarse = np.array([co.apply(np.sqrt(3.0) * rng.standard_normal(co.n_time)) for _ in range(40)])
+    f = np.fft.rfftfreq(co.n_time, co.dt)
+    band = f < 15.0
+    pf = np.mean(np.abs(np.fft.rfft(fine, axis=1)) ** 2, axis=(0, 2))[band]
+    pc = np.mean(np.abs(np.fft.rfft(coarse, axis=1)) ** 2, axis=(0, 2))[band]
+    assert 0.85 < pc.sum() / pf.sum() < 1.15
+
+
+def test_step_jacobians_are_the_modules_derivatives(table1, yielding):
+    """The compiled step's central differences against forward-mode derivatives of the torch
+    module's RK4 sample (the same scheme, differentiated exactly)."""
+    gm, _, _ = yielding
+    full = simulate(table1, gm, outputs="full", substeps=2)
+    work = full.energy[0] / ((1.0 - table1.alpha) * table1.k0)
+    states = np.concatenate([full.disp[0], full.vel[0], full.z[0], work], axis=1)[::7]
+    g = gm.acc[::7]  # any pairs of samples will do
+    A, b0, b1 = step_jacobians(table1, states, g, gm.dt, substeps=2, chunk=50)
+    m, S = A.shape[0], states.shape[1]
+    model = BoucWenBuilding(BuildingTensors.stack([table1]).index(np.zeros(m, dtype=np.int64)))
+    y, g0, g1 = (torch.as_tensor(np.ascontiguousarray(a)) for a in (states[:-1], g[:-1], g[1:]))
+
+    def step(y, a0, a1):
+        return model.rk4_sample(y, a0, a1, gm.dt, 2)
+
+    for j in range(S + 2):
+        ty, t0, t1 = torch.zeros_like(y), torch.zeros_like(g0), torch.zeros_like(g1)
+        (ty[:, j] if j < S else t0 if j == S else t1).fill_(1.0)
+        with torch.no_grad():
+            d = torch.func.jvp(step, (y, g0, g1), (ty, t0, t1))[1].numpy()
+        got = A[:, :, j] if j < S else (b0 if j == S else b1)
+        np.testing.assert_allclose(got, d, rtol=1e-5, atol=1e-6 * np.abs(d).max())
 
 
 def test_tangent_adjoint(yielding):
@@ -88,6 +149,22 @@ def test_tangent_size_is_bounded(table1, monkeypatch):
         ground_tangent(table1, gm, lags=1000)
 
 
+def test_unstable_tangent_is_refused(table1, yielding, monkeypatch):
+    """A tangent that grows without bound is refused with its own error, by the tangent and by
+    the whitener (finite but overflowing), rather than as NaNs deep inside the fit."""
+    gm, shape, gt = yielding
+    with pytest.raises(UnstableTangentError, match="without bound"):
+        TangentWhitener(GroundTangent(response=gt.response * 1e200, lead=gt.lead, dt=gt.dt), np.ones(3), 1.0)
+    tangent = importlib.import_module("hlaid.simulate.tangent")
+
+    def blown(A, b0, b1, cmap, k, half, taus, out):
+        out[:] = np.inf
+
+    monkeypatch.setattr(tangent, "_propagate", blown)
+    with pytest.raises(UnstableTangentError, match="without bound"):
+        ground_tangent(table1, gm, lags=50, shape=shape)
+
+
 def test_tangent_refinement_stays_at_the_truth_without_noise(table1):
     """Noise-free, the truth is the optimum of the whitened criterion too; the residuals gain the
     ground correction's column."""
@@ -95,6 +172,7 @@ def test_tangent_refinement_stays_at_the_truth_without_noise(table1):
     meas = simulate_measurement(table1, gm, noise_rms=0.0, seed=0)
     start = table1.replace(dy=table1.dy * 1.03, alpha=table1.alpha * 0.97)
     rr = refine_replay(start, meas, ground_noise="tangent", ground_memory_s=2.0, jac_substeps=2)
-    assert rr.channels == 4 and rr.residuals.size == meas.floor_acc.shape[0] * 4
+    stride = 3  # residuals low-passed at 20 Hz, compared at 66.7 Hz of the 200 Hz record
+    assert rr.channels == 4 and rr.residuals.size == len(range(0, meas.floor_acc.shape[0], stride)) * 4
     for k in ("dy", "alpha", "p", "delta_eta", "k0"):
         np.testing.assert_allclose(getattr(rr.building, k), getattr(table1, k), rtol=2e-3)

@@ -23,7 +23,7 @@ import numpy as np
 import scipy.linalg
 from scipy import signal as _scipy_signal
 
-from ..errors import InputError
+from ..errors import InputError, UnstableTangentError
 from ..model import Building
 from ..signal import butter_sos
 
@@ -146,6 +146,9 @@ class TangentWhitener:
                         continue
                     j0 = max(off, 0)
                     ab[u - d, c2 + j0:c2 + j0 + diag.size] += diag
+        if not np.all(np.isfinite(ab)):  # finite but huge tangents overflow G^T D G
+            raise UnstableTangentError("TangentWhitener: the tangent's Gram matrix overflows (a tangent that grows "
+                                       "without bound along the replay)")
         self._chol = scipy.linalg.cholesky_banded(ab, lower=False)
 
     def _apply(self, d: np.ndarray) -> np.ndarray:

@@ -23,7 +23,7 @@ import numpy as np
 from .. import __version__, _progress
 from ..clone import Clone
 from ..config import config_to_dict
-from ..errors import NotIdentifiableError
+from ..errors import NotIdentifiableError, UnstableTangentError
 from ..hla import HLAResult, hla, reanalyse_story
 from ..hla.features import half_cycle_features
 from ..measurement import Measurement
@@ -38,7 +38,7 @@ from .loopfit import fit_story_loop
 from .passes import PARAMS, machines_of, path_pass, train_pass
 from .patherrors import path_error_bank
 from .pathtrain import noise_bank, story_paths
-from .refine import refine_replay
+from .refine import RefineResult, refine_replay
 from .regression import plausible_limits, story_delta_eta, story_yield_displacement
 from .replaycheck import ReplayCheck, replay_check
 from .tb import TBLogger
@@ -249,18 +249,36 @@ class _Identifier:
             if kept:
                 rr = alt
         info["noise_ratio"] = ratio
-        if rc.ground_noise == "tangent":  # the errors-in-variables finish, from the least-squares optimum
-            eiv = refine_replay(rr.building, meas, parameters=rc.parameters, stories=ident, damping=rc.damping,
-                                ftol=rc.ftol, **{**common, "ground_noise": "tangent"},
-                                ground_memory_s=rc.ground_memory_s)
-            info["tangent"] = {"cost_initial": eiv.cost_initial, "cost_final": eiv.cost_final, "nfev": eiv.nfev,
-                               "seconds": eiv.seconds}
-            rr = eiv
+        if rc.ground_noise == "tangent":
+            rr, info["tangent"] = self._tangent_stage(rr, ident, common)
         self.refinement = rr
         info.update({"cost_initial": rr.cost_initial, "cost_final": rr.cost_final, "nfev": rr.nfev,
                      "message": rr.message})
         self.timings["refine"] = time.perf_counter() - t
         return rr.building, info
+
+    def _tangent_stage(self, rr: RefineResult, ident: list[int], common: dict) -> tuple[RefineResult, dict]:
+        """The errors-in-variables finish (``refine.ground_noise: tangent``) from the least-squares
+        optimum ``rr``; skipped, keeping ``rr``, where that fit misses the data by more than its
+        noise (``restart_ratio``, 1 when None: a tangent taken there weights nothing real) or the
+        replay's tangent is unstable (found on two random buildings driven to 80-200 x dy)."""
+        rc, meas = self.cfg.refine, self.meas
+        ratio = rr.cost_final / (0.5 * np.asarray(meas.floor_acc).size * max(self.noise, 0.01) ** 2)
+        limit = 1.0 if rc.restart_ratio is None else rc.restart_ratio
+        if ratio > limit:
+            why = f"the least-squares fit misses the data by {ratio:.1f}x its noise level"
+        else:
+            try:
+                eiv = refine_replay(rr.building, meas, parameters=rc.parameters, stories=ident, damping=rc.damping,
+                                    ftol=rc.ftol, **{**common, "ground_noise": "tangent"},
+                                    ground_memory_s=rc.ground_memory_s)
+            except UnstableTangentError as err:
+                why = str(err)
+            else:
+                return eiv, {"cost_initial": eiv.cost_initial, "cost_final": eiv.cost_final, "nfev": eiv.nfev,
+                             "seconds": eiv.seconds}
+        _progress.info(f"[identify] errors-in-variables stage skipped: {why}")
+        return rr, {"skipped": why}
 
     def _neutral_start(self, paper: Building) -> Building:
         """The restart of the refinement (``refine.restart_ratio``): mid-range shape parameters,

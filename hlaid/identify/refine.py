@@ -97,8 +97,10 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         adds it). ``"tangent"``: whitened against the ground noise carried to the floors by the
         time-varying tangent of the replay of ``building`` (:func:`_tangent_whitener`), i.e.
         maximum likelihood with the true ground as a nuisance; the same noise model. The
-        residuals are then low-passed only (``band_hz[0]`` is not used). ``cost_*`` and
-        ``residuals`` are then of the whitened residuals.
+        residuals are then low-passed only (``band_hz[0]`` is not used) and compared at every
+        ``stride``-th sample, three samples per period of the upper corner (every third sample of
+        a 200 Hz record low-passed at 20 Hz). ``cost_*`` and ``residuals`` are then of the
+        whitened residuals, ``(samples / stride, floors + 1)``.
     ground_memory_s : with ``"tangent"``, seconds of the floors' response kept after each
         ground sample
     """
@@ -113,11 +115,12 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
     if ground_noise not in ("ignore", "whiten", "tangent"):
         raise InputError(f"ground_noise = {ground_noise!r}; expected 'ignore', 'whiten' or 'tangent'")
     transfer = _ground_noise_transfer(measurement, hi, scale) if ground_noise == "whiten" else None
-    tangent = None
+    tangent, stride = None, 1
     if ground_noise == "tangent":
         _progress.info("[identify] tangent of the replay to the ground motion (errors in the input)")
-        tangent = _tangent_whitener(building, measurement, ground, (band_hz[0], hi), scale, ground_memory_s,
-                                    substeps if jac_substeps is None else jac_substeps)  # a weighting: 2 will do
+        stride = max(int(1.0 / (3.0 * hi * dt)), 1)  # the low-passed residuals, sampled at 3x their corner
+        tangent = _tangent_whitener(building, measurement, ground, hi, scale, ground_memory_s,  # a weighting:
+                                    substeps if jac_substeps is None else jac_substeps, stride)  # 2 sub-steps do
     channels = measurement.n_floors + (tangent is not None)
     stories = range(building.n_stories) if stories is None else stories
     slots = [(name, i) for i in range(building.n_stories) for name in parameters
@@ -153,7 +156,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         r = simulate(bs, ground, substeps=n_sub, outputs="acc")
         acc = r.acc
         acc[r.status != 0] = 0.0  # only a stopped replay has NaN (after its stop); no copy of the rest
-        res = np.empty((len(bs), acc.shape[1] * channels))
+        res = np.empty((len(bs), len(range(0, acc.shape[1], stride)) * channels))
 
         v = [] if transfer is None else transfer.of(bs)
 
@@ -165,7 +168,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
                 for k in range(len(part)):
                     part[k] = whiten(part[k], v[i + k], transfer.floor_std)
             if tangent is not None:
-                part = tangent(part)
+                part = tangent(part[:, ::stride])
             res[i:i + _CHUNK] = part.reshape(len(part), -1)
 
         starts = range(0, len(bs), _CHUNK)
@@ -215,28 +218,32 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
                         channels=channels)
 
 
-def _tangent_whitener(building: Building, meas: Measurement, ground, band_hz, scale: np.ndarray,
-                      memory_s: float, substeps: int) -> TangentWhitener:
-    """:class:`~hlaid.identify.eiv.TangentWhitener` of the refinement's residuals.
+def _tangent_whitener(building: Building, meas: Measurement, ground, hi_hz: float, scale: np.ndarray,
+                      memory_s: float, substeps: int, stride: int) -> TangentWhitener:
+    """:class:`~hlaid.identify.eiv.TangentWhitener` of the refinement's residuals, low-passed at
+    ``hi_hz`` and sampled every ``stride`` samples.
 
-    The replay's ground is the measured one low-passed at ``band_hz[1]``, so a ground sensor's
-    white noise reaches it through that low-pass: the tangent is taken for the low-pass's
-    impulse response at every sample, its floor responses low-passed and divided by ``scale``
-    like the residuals (the 0.1 Hz high-pass is left out: white noise has next to no power
-    below it). Every channel's noise a common fraction of its RMS (the fraction cancels).
+    The replay's ground is the measured one low-passed at ``hi_hz``, so a ground sensor's white
+    noise reaches it through that low-pass: the tangent is taken for the low-pass's impulse
+    response at every ``stride``-th sample (white noise of std ``s`` per sample is then
+    ``sqrt(stride) s`` per perturbation), its floor responses low-passed, sampled and divided by
+    ``scale`` like the residuals (the 0.1 Hz high-pass is left out: white noise has next to no
+    power below it). The floor noise, white of std ``s`` per sample and low-passed, is white of
+    std ``s / sqrt(stride)`` on the coarse grid within the band. Every channel's noise a common
+    fraction of its RMS (the fraction cancels).
     """
     dt = meas.dt
-    half = int(np.ceil(4.0 / (band_hz[1] * dt)))
+    half = int(np.ceil(4.0 / (hi_hz * dt)))
     imp = np.zeros(8 * half + 1)
     imp[4 * half] = 1.0
-    shape = lowpass(imp, dt, band_hz[1])[2 * half:6 * half + 1]  # room before lag 0 for the output's low-pass
-    lags = max(int(round(memory_s / dt)), 1)
-    gt = ground_tangent(building, ground, lags=lags, shape=shape, substeps=substeps)
-    resp = lowpass(gt.response, dt, band_hz[1], axis=1) / scale[None, None, :]
+    shape = lowpass(imp, dt, hi_hz)[2 * half:6 * half + 1]  # room before lag 0 for the output's low-pass
+    lags = max(int(round(memory_s / (dt * stride))), 1)
+    gt = ground_tangent(building, ground, lags=lags, shape=shape, substeps=substeps, stride=stride, lowpass_hz=hi_hz)
     floor = np.asarray(meas.floor_acc)
     rms_f = np.sqrt(np.mean(floor**2, axis=0))
     rms_g = float(np.sqrt(np.mean(np.asarray(meas.ground_acc) ** 2)))
-    return TangentWhitener(GroundTangent(response=resp, lead=gt.lead, dt=dt), rms_f / scale, rms_g)
+    resp = GroundTangent(response=gt.response / scale[None, None, :], lead=gt.lead, dt=gt.dt)
+    return TangentWhitener(resp, rms_f / scale / np.sqrt(stride), rms_g * np.sqrt(stride))
 
 
 class _GroundNoise:
