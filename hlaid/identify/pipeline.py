@@ -234,10 +234,8 @@ class _Identifier:
             info["stage1_k0"] = {"cost_initial": s1.cost_initial, "cost_final": s1.cost_final, "nfev": s1.nfev}
         rr = refine_replay(start, meas, parameters=rc.parameters, stories=ident, damping=rc.damping, ftol=rc.ftol,
                            **common)
-        # sigma at least 1 %: a noise-free record fits to the model's own discretisation, not to zero;
         # whitened residuals have another scale (no ratio, no restart)
-        ratio = None if rc.ground_noise == "whiten" else \
-            rr.cost_final / (0.5 * np.asarray(meas.floor_acc).size * max(self.noise, 0.01) ** 2)
+        ratio = None if rc.ground_noise == "whiten" else self._noise_ratio(rr)
         if rc.restart_ratio is not None and ratio is not None and ratio > rc.restart_ratio:
             _progress.info(f"[identify] the refined replay misses the data by {ratio:.1f}x its noise level: "
                            "refining again from a neutral start")
@@ -257,13 +255,18 @@ class _Identifier:
         self.timings["refine"] = time.perf_counter() - t
         return rr.building, info
 
+    def _noise_ratio(self, rr: RefineResult) -> float:
+        """The least-squares cost over ``0.5 N sigma^2`` (N residuals, sigma the noise level, at least
+        1 %: a noise-free record fits to the model's own discretisation, not to zero)."""
+        return rr.cost_final / (0.5 * np.asarray(self.meas.floor_acc).size * max(self.noise, 0.01) ** 2)
+
     def _tangent_stage(self, rr: RefineResult, ident: list[int], common: dict) -> tuple[RefineResult, dict]:
         """The errors-in-variables finish (``refine.ground_noise: tangent``) from the least-squares
         optimum ``rr``; skipped, keeping ``rr``, where that fit misses the data by more than its
         noise (``restart_ratio``, 1 when None: a tangent taken there weights nothing real) or the
         replay's tangent is unstable (found on two random buildings driven to 80-200 x dy)."""
         rc, meas = self.cfg.refine, self.meas
-        ratio = rr.cost_final / (0.5 * np.asarray(meas.floor_acc).size * max(self.noise, 0.01) ** 2)
+        ratio = self._noise_ratio(rr)
         limit = 1.0 if rc.restart_ratio is None else rc.restart_ratio
         if ratio > limit:
             why = f"the least-squares fit misses the data by {ratio:.1f}x its noise level"
