@@ -6,7 +6,9 @@ is a weakref callback or a ``__del__`` run by the garbage collector, the excepti
 (measured: ``hlaid demo`` interrupted at 3-11 s went on to finish its work and exit 0 in 3 of 13
 tries, all of them 6.8-7.0 s in). Under :func:`sticky_sigint` (the command line) the handler also
 remembers the interruption, and :func:`check`, called with every progress message of the
-library and while the parent waits for worker processes, raises it again where it was dropped.
+library and while the parent waits for worker processes, raises it again where it was dropped;
+Python's "Exception ignored" traceback of the dropped one is not printed then (session 8: seen once
+in 10 Ctrl-C tries during the tangent stage).
 """
 
 from __future__ import annotations
@@ -48,8 +50,16 @@ def sticky_sigint() -> Iterator[None]:
         return
     _pending = False
     old = signal.signal(signal.SIGINT, _handler)
+    old_hook = sys.unraisablehook
+
+    def quiet(unraisable) -> None:  # the dropped Ctrl-C is raised again by check(): no "Exception ignored"
+        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+            old_hook(unraisable)
+
+    sys.unraisablehook = quiet
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, old)
+        sys.unraisablehook = old_hook
         _pending = False
