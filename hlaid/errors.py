@@ -34,6 +34,11 @@ class UnstableTangentError(InputError):
     (``refine.ground_noise: tangent``) cannot be formed there."""
 
 
+class TangentTooLargeError(InputError):
+    """The replay's ground tangent would need more memory than the errors-in-variables weighting
+    is allowed (``refine.tangent_max_mb``; its time grows alike): least squares is used instead."""
+
+
 class HlaidWarning(UserWarning):
     """Legal but suspicious input (an unusual sample rate, a skipped record file, ...); the
     command line shows each as one ``warning: ...`` line on stderr."""

@@ -76,7 +76,7 @@ def run(args) -> None:
         slots = np.array([f"{n}:{i}" for n, i in rr.slots])
         true_x = np.array([getattr(truth, n)[i] if n != "damping" else truth.damping.ratio for n, i in rr.slots])
         np.savez_compressed(path, slots=slots, x=rr.x, true_x=true_x, jacobian=rr.jacobian.astype(np.float32),
-                            residuals=rr.residuals, n_floors=meas.n_floors, record=gm.name, seed=seed,
+                            residuals=rr.residuals, n_floors=rr.channels or meas.n_floors, record=gm.name, seed=seed,
                             seconds=time.perf_counter() - t, clone=json.dumps(res.clone.to_dict()))
         err = np.abs(rr.x / true_x - 1)
         print(f"[{j + 1}/{args.n}] {gm.name} {truth.n_stories} stories: {len(slots)} parameters, mean error "
@@ -104,12 +104,23 @@ def load(folder: Path) -> list:
     return out
 
 
+def fit_class(rr, channels: int, rho: float) -> str:
+    """``"whitened"`` (the errors-in-variables fit: a residual column more than stories),
+    ``"consistent"`` (least squares at the noise level) or ``"inconsistent"`` (misfit ratio above
+    :data:`MISFIT_LIMIT`), the classes the package calibrates separately."""
+    if rho > MISFIT_LIMIT:
+        return "inconsistent"
+    return "whitened" if channels > sum(n == "k0" for n, _ in rr.slots) else "consistent"
+
+
 def case_zscores(data, method: str) -> list:
-    """Per case: (z-scores of its slots, their parameter names, fit consistent with the noise)."""
+    """Per case: (z-scores of its slots, their parameter names, fit consistent with the noise,
+    :func:`fit_class`)."""
     out = []
     for rr, true_x, nf, rho in data:
         u = from_refinement(rr, nf, method=method)
-        out.append((zscores(u, true_x), np.array([n for n, _ in u.slots]), rho <= MISFIT_LIMIT))
+        out.append((zscores(u, true_x), np.array([n for n, _ in u.slots]), rho <= MISFIT_LIMIT,
+                    fit_class(rr, nf, rho)))
     return out
 
 
@@ -129,15 +140,15 @@ def _entry(z, names, scale):
 
 def loco(cases, only_ok: bool, by_class: bool = True):
     """Leave-one-case-out calibration: each case's intervals widened by the factor fitted on the
-    *other* cases of its class (fit consistent with the noise or not; ``by_class`` False: the
-    other consistent fits for every case), so no case is scored with a factor fitted on itself.
+    *other* cases of its class (:func:`fit_class`; ``by_class`` False: the other consistent fits
+    for every case), so no case is scored with a factor fitted on itself.
     Returns (z, names, per-slot factors) of the cases scored (consistent fits only if ``only_ok``)."""
     zs, ns, fs = [], [], []
-    for k, (z, n, ok) in enumerate(cases):
+    for k, (z, n, ok, kind) in enumerate(cases):
         if only_ok and not ok:
             continue
-        want = ok if by_class else True
-        others = np.concatenate([c[0] for j, c in enumerate(cases) if j != k and c[2] == want])
+        same = [c[0] for j, c in enumerate(cases) if j != k and (c[3] == kind if by_class else c[2])]
+        others = np.concatenate(same or [c[0] for j, c in enumerate(cases) if j != k and c[2]])  # a class of one
         zs.append(z)
         ns.append(n)
         fs.append(np.full(z.size, calibration_factor(others, 0.9)))
@@ -167,12 +178,15 @@ def analyse(args) -> None:
         if method != "sandwich":
             continue
         report["factor_all_consistent"] = calibration_factor(zo, 0.9)
-        zi = np.concatenate([c[0] for c in cases if not c[2]] or [np.zeros(0)])
-        report["factor_all_inconsistent"] = calibration_factor(zi, 0.9) if zi.size else None
+        for kind in ("whitened", "consistent", "inconsistent"):
+            zk = np.concatenate([c[0] for c in cases if c[3] == kind] or [np.zeros(0)])
+            report[f"factor_{kind}"] = calibration_factor(zk, 0.9) if zk.size else None
+            report[f"cases_{kind}"] = sum(c[3] == kind for c in cases)
+        report["factor_all_inconsistent"] = report["factor_inconsistent"]
         for only_ok, by_class, label, style in (
                 (True, True, "consistent fits", "^-"),
                 (False, False, "all cases, consistent-fit factor for every case", "s--"),
-                (False, True, "all cases, factor per class (consistent / not)", "D-")):
+                (False, True, "all cases, factor per class (whitened / least squares / inconsistent)", "D-")):
             zl, nl, fl = loco(cases, only_ok, by_class)
             key = f"sandwich x factor (leave-one-case-out), {label}"
             rows[key] = _entry(zl, nl, fl)
@@ -189,7 +203,9 @@ def analyse(args) -> None:
     (out / "coverage.json").write_text(json.dumps(report, indent=1))
     lines = [f"Cases: {len(held)} ({n_ok} with a fit consistent with the noise, misfit ratio <= {MISFIT_LIMIT:g}); "
              f"factors fitted on all cases: consistent fits {report['factor_all_consistent']:.2f}, the others "
-             f"{report['factor_all_inconsistent'] or float('nan'):.2f}", "",
+             f"{report['factor_all_inconsistent'] or float('nan'):.2f}; per class "
+             + ", ".join(f"{k} {report[f'factor_{k}'] or float('nan'):.2f} ({report[f'cases_{k}']} cases)"
+                         for k in ("whitened", "consistent", "inconsistent")), "",
              "| intervals | 90 % coverage | " + " | ".join(PARAMS) + " | intervals |",
              "|---|---|" + "---|" * len(PARAMS) + "---|"]
     for name, e in rows.items():

@@ -19,7 +19,7 @@ LOADERS = {
     "hla_steel_frame.yaml": ("hlaid.hla", "HLAConfig"),
     "identify.yaml": ("hlaid.identify", "IdentifyConfig"),
     "identify_steel_frame.yaml": ("hlaid.identify", "IdentifyConfig"),
-    "identify_tangent.yaml": ("hlaid.identify", "IdentifyConfig"),
+    "identify_leastsquares.yaml": ("hlaid.identify", "IdentifyConfig"),
     "svm.yaml": ("hlaid.identify.svmtrain", "TrainSVMConfig"),
     "ida.yaml": ("hlaid.ida", "IDAConfig"),
     "demo.yaml": ("hlaid.runner", "load_run_config"),

@@ -187,11 +187,11 @@ def test_refinement_restarts_from_a_neutral_start_when_the_fit_misses_the_noise(
     keeps the clearly better fit; below it (Table 1 fits to its noise) or with null it does not;
     the ratio is reported."""
     meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
-    base = _small_config(refine=RefineConfig(max_iterations=4))
+    base = _small_config(refine=RefineConfig(max_iterations=4, ground_noise="ignore"))
     plain = identify(meas, base, cache_dir="").clone.diagnostics["refine"]
     assert "restart" not in plain and 0 < plain["noise_ratio"] < base.refine.restart_ratio
-    res = identify(meas, dataclasses.replace(base, refine=RefineConfig(max_iterations=4, restart_ratio=1e-6)),
-                   cache_dir="")
+    res = identify(meas, dataclasses.replace(base, refine=RefineConfig(max_iterations=4, restart_ratio=1e-6,
+                                                                       ground_noise="ignore")), cache_dir="")
     info = res.clone.diagnostics["refine"]
     assert info["restart"]["noise_ratio"] == pytest.approx(plain["noise_ratio"])
     kept = info["restart"]["kept"]
@@ -199,6 +199,39 @@ def test_refinement_restarts_from_a_neutral_start_when_the_fit_misses_the_noise(
     if kept:
         assert info["restart"]["cost_final"] < 0.8 * plain["cost_final"]
     assert res.refinement.cost_final == pytest.approx(info["cost_final"])
+
+
+def test_default_refinement_is_the_errors_in_variables_fit_from_the_regressions(table1, record, monkeypatch):
+    """``refine.ground_noise: tangent`` (the default) fits the whitened residuals from the
+    regressions' building and reports the un-whitened noise ratio of the result; a tangent above
+    ``tangent_max_mb`` falls back to least squares, saying why, before anything is simulated."""
+    meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
+    assert RefineConfig().ground_noise == "tangent"
+    res = identify(meas, _small_config(refine=RefineConfig(max_iterations=20)), cache_dir="")
+    info = res.clone.diagnostics["refine"]
+    assert info["tangent"]["start"] == "regressions" and "fallback" not in info["tangent"]
+    assert res.refinement.channels == meas.n_floors + 1 and res.refinement.plain_cost > res.refinement.cost_final
+    assert 0 < info["noise_ratio"] < 1  # of the plain residuals: as the least-squares fit's (0.25-0.64 at the truth)
+    pipeline = importlib.import_module("hlaid.identify.pipeline")
+    calls = []
+    plain = pipeline.refine_replay
+
+    def spy(*args, **kw):
+        calls.append(kw.get("ground_noise"))
+        return plain(*args, **kw)
+
+    monkeypatch.setattr(pipeline, "refine_replay", spy)
+    res = identify(meas, _small_config(refine=RefineConfig(max_iterations=4, tangent_max_mb=1.0)), cache_dir="")
+    tang = res.clone.diagnostics["refine"]["tangent"]
+    assert "MiB" in tang["fallback"] and "MiB" in tang["skipped"]
+    assert res.refinement.channels == meas.n_floors and calls == ["ignore", "tangent", "ignore", "tangent"]
+    res = identify(meas, _small_config(refine=RefineConfig(max_iterations=2)), cache_dir="")
+    assert "did not converge in 2 evaluations" in res.clone.diagnostics["refine"]["tangent"]["fallback"]
+    calls.clear()  # session 8's order: least squares first, the errors-in-variables fit from its optimum
+    res = identify(meas, _small_config(refine=RefineConfig(max_iterations=6, eiv_start="least_squares")),
+                   cache_dir="")
+    assert res.clone.diagnostics["refine"]["tangent"]["start"] == "least squares" and calls == ["ignore", "ignore",
+                                                                                                 "tangent"]
 
 
 def test_tangent_stage_is_skipped_where_it_weights_nothing_real(table1, record, monkeypatch):

@@ -12,10 +12,11 @@ import pytest
 import torch
 from conftest import paper_record, window
 
-from hlaid.errors import InputError, UnstableTangentError
+from hlaid.errors import InputError, TangentTooLargeError, UnstableTangentError
 from hlaid.identify import refine_replay
 from hlaid.identify.eiv import TangentWhitener
-from hlaid.model import BoucWenBuilding, BuildingTensors
+from hlaid.identify.refine import ground_memory
+from hlaid.model import BoucWenBuilding, BuildingTensors, Damping
 from hlaid.motions import GroundMotion
 from hlaid.signal import lowpass
 from hlaid.simulate import simulate
@@ -143,10 +144,23 @@ def test_whitener_is_the_inverse_covariance(T, W, lead):
 
 
 def test_tangent_size_is_bounded(table1, monkeypatch):
-    monkeypatch.setenv("HLAID_MAX_TANGENT_MB", "1")
     gm = GroundMotion(dt=0.005, acc=np.ones(2000))
+    tangent = importlib.import_module("hlaid.simulate.tangent")
+    monkeypatch.setattr(tangent, "simulate", None)  # both refusals come before anything is simulated
+    # one copy: 2000 x 1000 x 3 doubles (45.8 MiB) and 2000 step Jacobians of 12 x 14 (2.6 MiB)
+    with pytest.raises(TangentTooLargeError, match="would take 48 MiB, more than the 40 MiB"):
+        ground_tangent(table1, gm, lags=1000, max_mb=40)
+    monkeypatch.setenv("HLAID_MAX_TANGENT_MB", "1")
     with pytest.raises(InputError, match="HLAID_MAX_TANGENT_MB"):
-        ground_tangent(table1, gm, lags=1000)
+        ground_tangent(table1, gm, lags=1000, max_mb=60)
+
+
+def test_ground_memory_is_four_decay_times_of_the_first_mode(table1):
+    t1 = float(table1.periods()[0])
+    assert ground_memory(table1) == pytest.approx(4 * t1 / (2 * np.pi * 0.05))
+    assert 4.5 < ground_memory(table1) < 5.0  # Table 1: T1 0.38 s at 5 %
+    assert ground_memory(table1.replace(damping=Damping(kind="none"))) == 10.0  # undamped: the upper limit
+    assert ground_memory(table1.replace(damping=Damping(ratio=0.9))) == 2.0
 
 
 def test_unstable_tangent_is_refused(table1, yielding, monkeypatch):

@@ -337,3 +337,8 @@ def test_misfit_check_widens_an_inconsistent_fit():
     np.testing.assert_allclose(good.std, laplace.CALIBRATION * plain.std, rtol=1e-9)
     assert not bad.info["fit_consistent"] and bad.info["misfit_ratio"] == pytest.approx(4.0, rel=0.01)
     np.testing.assert_allclose(bad.std, laplace.CALIBRATION_MISFIT * 4.0 / 1.1 * plain.std, rtol=1e-6)
+    eiv = rr(1.1 * s0)
+    eiv.criterion = "tangent"  # the errors-in-variables fit (the default) has its own factor
+    good = laplace.uncertainty_of_refinement(eiv, 1, noise_rms=0.1, band_hz=(0.1, 20.0), dt=0.005)
+    np.testing.assert_allclose(good.std, laplace.CALIBRATION_TANGENT * plain.std, rtol=1e-9)
+    assert laplace.CALIBRATION_TANGENT != laplace.CALIBRATION

@@ -247,23 +247,42 @@ class RefineConfig:
         so 2 sub-steps here cut the refinement of a 20-story building by a third and left the
         Table 1 and random-building studies as they were. One sub-step was faster still but
         moved two random buildings to worse optima (docs/identification.md, "Speed")
-    ground_noise : ``"ignore"`` (default): plain least squares of the normalised residuals;
-        ``"whiten"``: the residuals whitened per frequency by their covariance with the measured
-        ground's noise carried to the floors by the linear (initial-stiffness) building being
-        evaluated, ``Sigma(w) = diag(s_f^2) + s_g^2 |L h|^2`` (the frequency-domain
-        errors-in-variables criterion, :mod:`hlaid.identify.eiv`; every channel's noise taken as
-        a common fraction of its RMS). Both refinement stages; the clone's uncertainty is then
-        of the whitened fit. ``"tangent"``: after the refinement (and its restart) as with
-        ``"ignore"``, a last stage from its result whitened against the ground noise carried by
-        the time-varying tangent of that replay (maximum likelihood with the true ground as a
-        nuisance, :class:`hlaid.identify.eiv.TangentWhitener`): on Table 1 at 10 % noise the
-        least-squares optimum moves from 1.39 to 0.90 % mean error (30 random buildings: median 2.5
-        -> 1.4 %); about 3 s more for a 3-story building and a 50 s record. Skipped, with its
-        reason in the clone, where the least-squares fit misses the data by more than
-        ``restart_ratio`` times its noise or the tangent is unstable. Measured in
-        docs/identification.md; ``configs/identify_tangent.yaml`` sets it
+    ground_noise : ``"tangent"`` (default since session 9): maximum likelihood with the true ground
+        as a nuisance: the residuals whitened against the ground noise carried to the floors by
+        the time-varying tangent of the replay (:class:`hlaid.identify.eiv.TangentWhitener`; every
+        channel's noise a common fraction of its RMS), fitted from the regressions' building with
+        the tangent of its replay. Where that fit misses the data by more than ``restart_ratio``
+        times its noise, or the tangent is unstable or larger than ``tangent_max_mb``, least
+        squares runs instead (with its restart), then the errors-in-variables fit once more from
+        its optimum if that one is consistent with the noise; the clone says which
+        (``diagnostics.refine.tangent``). On Table 1 at 10 % noise: 0.92 % mean, 4.26 % worst
+        against 1.39 / 8.96 % by least squares; 30 random buildings: median and 90th percentile
+        in docs/identification.md. ``"ignore"``: plain least squares of the normalised residuals
+        (``configs/identify_leastsquares.yaml``); ``"whiten"``: the residuals whitened per frequency
+        by their covariance with the measured ground's noise carried to the floors by the linear
+        (initial-stiffness) building being evaluated, ``Sigma(w) = diag(s_f^2) + s_g^2 |L h|^2``
+        (:mod:`hlaid.identify.eiv`), both refinement stages, no restart
     ground_memory_s : with ``ground_noise: tangent``, seconds of the floors' response to each
-        ground sample kept in the tangent (a few periods over the damping ratio)
+        ground sample kept in the tangent; null: four first-mode decay times of the building the
+        tangent is taken at, ``4 T1 / (2 pi zeta)``, within 2-10 s (4.9 s for Table 1;
+        :func:`hlaid.identify.refine.ground_memory`)
+    tangent_max_mb : the errors-in-variables weighting is used only where the tangent (and its
+        step Jacobians) takes at most this many MiB; above it, least squares (said in the clone's
+        diagnostics). Its time grows alike: a 20-story building under El Centro (54 s) would need
+        1.3 GiB and minutes of whitening; Table 1 (3 stories) 0.1 GiB
+    eiv_start : with ``ground_noise: tangent``, where the errors-in-variables fit starts and its
+        tangent is taken: ``"regressions"`` (default: the regressions' building, least squares
+        only as the fall-back) or ``"least_squares"`` (session 8's order: least squares and its
+        restart first, the errors-in-variables fit as a last stage from that optimum). The second
+        weights with a tangent taken nearer the truth: 30 random buildings median 1.38 % against
+        1.56 %, 90th percentile 9.9 against 9.7 %, Table 1 0.90 / 4.07 % against 0.92 / 4.26 %, at
+        about 3 s more per identification (El Centro: 5.1-5.6 s cached against 2.3 s)
+    eiv_ftol : ``ftol`` of the errors-in-variables fits (``ground_noise: tangent``). Their cost is a
+        negative log-likelihood whose minimum is ``N/2`` noise variances, so a step that lowers it
+        by less than this fraction moves it by ``eiv_ftol N / 2`` units of log-likelihood: 1e-6 is
+        about 0.01 for a 50 s record at 200 Hz (a step of about a tenth of a standard error). At
+        ``ftol``'s 1e-10 the fit found the same optimum in 19 evaluations instead of 6 (the rest
+        rejected steps shrinking the trust region), 1.2 s more on Table 1
     restart_ratio : when the refined cost exceeds this multiple of ``0.5 N sigma^2`` (N residuals,
         sigma the measurement's noise level), the fit misses the data by more than its noise:
         the refinement runs again, every story's parameters, from a neutral start (alpha 0.2,
@@ -288,8 +307,11 @@ class RefineConfig:
     ftol: float = 1e-10
     substeps: int = 4
     jac_substeps: int = 2
-    ground_noise: Literal["ignore", "whiten", "tangent"] = "ignore"
-    ground_memory_s: float = 7.5
+    ground_noise: Literal["ignore", "whiten", "tangent"] = "tangent"
+    ground_memory_s: float | None = None
+    eiv_start: Literal["regressions", "least_squares"] = "regressions"
+    eiv_ftol: float = 1e-6
+    tangent_max_mb: float = 1024.0
     restart_ratio: float | None = 1.0
 
     def __post_init__(self):
@@ -297,10 +319,16 @@ class RefineConfig:
             raise InputError(f"refine.restart_ratio = {self.restart_ratio}; expected a positive number (or null)")
         if self.ground_noise not in ("ignore", "whiten", "tangent"):
             raise InputError(f"refine.ground_noise = {self.ground_noise!r}; expected 'ignore', 'whiten' or 'tangent'")
-        if not 0 < self.ground_memory_s <= 60:
+        if self.ground_memory_s is not None and not 0 < self.ground_memory_s <= 60:
             raise InputError(f"refine.ground_memory_s = {self.ground_memory_s}; expected seconds in (0, 60], e.g. 7.5")
         if not 0 < self.ftol < 1:
             raise InputError(f"refine.ftol = {self.ftol}; expected a fraction in (0, 1), e.g. 1e-10")
+        if not 0 < self.tangent_max_mb < math.inf:
+            raise InputError(f"refine.tangent_max_mb = {self.tangent_max_mb}; expected MiB > 0, e.g. 1024")
+        if self.eiv_start not in ("regressions", "least_squares"):
+            raise InputError(f"refine.eiv_start = {self.eiv_start!r}; expected 'regressions' or 'least_squares'")
+        if not 0 < self.eiv_ftol < 1:
+            raise InputError(f"refine.eiv_ftol = {self.eiv_ftol}; expected a fraction in (0, 1), e.g. 1e-6")
         if not 1 <= self.substeps <= 64:
             raise InputError(f"refine.substeps = {self.substeps}; expected 1..64")
         if not 1 <= self.jac_substeps <= 64:

@@ -23,7 +23,7 @@ import numpy as np
 from .. import __version__, _progress
 from ..clone import Clone
 from ..config import config_to_dict
-from ..errors import NotIdentifiableError, UnstableTangentError
+from ..errors import NotIdentifiableError, TangentTooLargeError, UnstableTangentError
 from ..hla import HLAResult, hla, reanalyse_story
 from ..hla.features import half_cycle_features
 from ..measurement import Measurement
@@ -214,7 +214,10 @@ class _Identifier:
     def _refine(self, paper: Building, alpha, p):
         """Replay refinement in two stages: k0 alone first (HLA's k0 is its least certain
         output and the regressions amplify its error), the regressions again with it, then
-        every parameter of the identifiable stories."""
+        every parameter of the identifiable stories: with ``ground_noise: tangent`` the
+        errors-in-variables fit from there (:meth:`_tangent_fit`), falling back to least squares
+        (and its restart) followed by the errors-in-variables finish (:meth:`_tangent_stage`)
+        where that fit misses the data or its tangent is unstable."""
         cfg, meas = self.cfg, self.meas
         _progress.info("[identify] replay refinement against the measured accelerations")
         t = time.perf_counter()
@@ -232,9 +235,29 @@ class _Identifier:
             de, dy, _ = self._regressions(alpha, p)
             start = self._building(alpha, p, dy, de)
             info["stage1_k0"] = {"cost_initial": s1.cost_initial, "cost_final": s1.cost_final, "nfev": s1.nfev}
+        rr = None
+        if rc.ground_noise == "tangent" and rc.eiv_start == "regressions":
+            rr, info["tangent"] = self._tangent_fit(start, ident, common)
+        if rr is None:
+            rr = self._least_squares(start, paper, ident, common, info)
+            if rc.ground_noise == "tangent":
+                rr, stage = self._tangent_stage(rr, ident, common)
+                info.setdefault("tangent", {}).update(stage)
+        # whitened residuals have another scale (no ratio, no restart)
+        info["noise_ratio"] = None if rc.ground_noise == "whiten" else self._noise_ratio(rr)
+        self.refinement = rr
+        info.update({"cost_initial": rr.cost_initial, "cost_final": rr.cost_final, "nfev": rr.nfev,
+                     "message": rr.message})
+        self.timings["refine"] = time.perf_counter() - t
+        return rr.building, info
+
+    def _least_squares(self, start: Building, paper: Building, ident: list[int], common: dict,
+                       info: dict) -> RefineResult:
+        """Least squares of the residuals from ``start``, again from a neutral start where the fit
+        misses the data by more than ``restart_ratio`` times its noise (``info["restart"]``)."""
+        rc, meas = self.cfg.refine, self.meas
         rr = refine_replay(start, meas, parameters=rc.parameters, stories=ident, damping=rc.damping, ftol=rc.ftol,
                            **common)
-        # whitened residuals have another scale (no ratio, no restart)
         ratio = None if rc.ground_noise == "whiten" else self._noise_ratio(rr)
         if rc.restart_ratio is not None and ratio is not None and ratio > rc.restart_ratio:
             _progress.info(f"[identify] the refined replay misses the data by {ratio:.1f}x its noise level: "
@@ -246,40 +269,62 @@ class _Identifier:
                                "stories": "all"}
             if kept:
                 rr = alt
-        info["noise_ratio"] = ratio
-        if rc.ground_noise == "tangent":
-            rr, info["tangent"] = self._tangent_stage(rr, ident, common)
-        self.refinement = rr
-        info.update({"cost_initial": rr.cost_initial, "cost_final": rr.cost_final, "nfev": rr.nfev,
-                     "message": rr.message})
-        self.timings["refine"] = time.perf_counter() - t
-        return rr.building, info
+        return rr
 
     def _noise_ratio(self, rr: RefineResult) -> float:
-        """The least-squares cost over ``0.5 N sigma^2`` (N residuals, sigma the noise level, at least
-        1 %: a noise-free record fits to the model's own discretisation, not to zero)."""
-        return rr.cost_final / (0.5 * np.asarray(self.meas.floor_acc).size * max(self.noise, 0.01) ** 2)
+        """The least-squares (un-whitened) cost over ``0.5 N sigma^2`` (N residuals, sigma the noise
+        level, at least 1 %: a noise-free record fits to the model's own discretisation, not to zero)."""
+        cost = rr.cost_final if rr.plain_cost is None else rr.plain_cost
+        return cost / (0.5 * np.asarray(self.meas.floor_acc).size * max(self.noise, 0.01) ** 2)
+
+    def _eiv(self, building: Building, ident: list[int], common: dict) -> RefineResult:
+        rc = self.cfg.refine
+        return refine_replay(building, self.meas, parameters=rc.parameters, stories=ident, damping=rc.damping,
+                             ftol=rc.eiv_ftol, **{**common, "ground_noise": "tangent"},
+                             ground_memory_s=rc.ground_memory_s, tangent_max_mb=rc.tangent_max_mb)
+
+    def _tangent_fit(self, start: Building, ident: list[int], common: dict) -> tuple[RefineResult | None, dict]:
+        """The errors-in-variables fit from the regressions' building ``start``, whitened by the
+        tangent of its replay (close enough to weight the residuals: Table 1 came out as from the
+        least-squares optimum, docs/identification.md); None, with the reason, where the tangent
+        is unstable or larger than ``tangent_max_mb``, or the fit misses the data by more than
+        ``restart_ratio`` (1 when None) times its noise or stops on ``max_iterations`` (a start
+        too far for its tangent: one of 30 random buildings ran into k0's bound that way)."""
+        rc = self.cfg.refine
+        limit = 1.0 if rc.restart_ratio is None else rc.restart_ratio
+        try:
+            eiv = self._eiv(start, ident, common)
+        except (UnstableTangentError, TangentTooLargeError) as err:
+            why = str(err)
+        else:
+            ratio = self._noise_ratio(eiv)
+            if ratio <= limit and eiv.converged:
+                return eiv, {"start": "regressions", "cost_initial": eiv.cost_initial, "cost_final": eiv.cost_final,
+                             "nfev": eiv.nfev, "seconds": eiv.seconds}
+            why = (f"the errors-in-variables fit misses the data by {ratio:.1f}x its noise level" if ratio > limit
+                   else f"the errors-in-variables fit did not converge in {eiv.nfev} evaluations")
+        _progress.info(f"[identify] {why}: least squares first")
+        return None, {"fallback": why}
 
     def _tangent_stage(self, rr: RefineResult, ident: list[int], common: dict) -> tuple[RefineResult, dict]:
-        """The errors-in-variables finish (``refine.ground_noise: tangent``) from the least-squares
-        optimum ``rr``; skipped, keeping ``rr``, where that fit misses the data by more than its
-        noise (``restart_ratio``, 1 when None: a tangent taken there weights nothing real) or the
-        replay's tangent is unstable (found on two random buildings driven to 80-200 x dy)."""
-        rc, meas = self.cfg.refine, self.meas
+        """The errors-in-variables finish from the least-squares optimum ``rr`` (the fall-back of
+        :meth:`_tangent_fit`); skipped, keeping ``rr``, where that fit misses the data by more
+        than its noise (``restart_ratio``, 1 when None: a tangent taken there weights nothing
+        real) or the replay's tangent is unstable (found on two random buildings driven to
+        80-200 x dy)."""
+        rc = self.cfg.refine
         ratio = self._noise_ratio(rr)
         limit = 1.0 if rc.restart_ratio is None else rc.restart_ratio
         if ratio > limit:
             why = f"the least-squares fit misses the data by {ratio:.1f}x its noise level"
         else:
             try:
-                eiv = refine_replay(rr.building, meas, parameters=rc.parameters, stories=ident, damping=rc.damping,
-                                    ftol=rc.ftol, **{**common, "ground_noise": "tangent"},
-                                    ground_memory_s=rc.ground_memory_s)
-            except UnstableTangentError as err:
+                eiv = self._eiv(rr.building, ident, common)
+            except (UnstableTangentError, TangentTooLargeError) as err:
                 why = str(err)
             else:
-                return eiv, {"cost_initial": eiv.cost_initial, "cost_final": eiv.cost_final, "nfev": eiv.nfev,
-                             "seconds": eiv.seconds}
+                return eiv, {"start": "least squares", "cost_initial": eiv.cost_initial,
+                             "cost_final": eiv.cost_final, "nfev": eiv.nfev, "seconds": eiv.seconds}
         _progress.info(f"[identify] errors-in-variables stage skipped: {why}")
         return rr, {"skipped": why}
 

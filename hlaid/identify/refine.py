@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
+from threadpoolctl import threadpool_limits
 
 from .. import _progress
 from ..errors import InputError
@@ -29,6 +30,10 @@ from .eiv import TangentWhitener, ground_transfer, lowpass_gain, whiten
 _CHUNK = 8
 """Replays band-passed together in the refinement: filtering a whole Jacobian batch at once
 (0.2 GB for 101 replays of a 20-story building) spent up to 4x longer allocating than filtering."""
+
+_BLAS_ONE_THREAD = 1e8
+"""Residuals x parameters^2 (the flops of the Jacobian's SVD) below which the refinement runs BLAS
+on one thread: Table 1's 7e6, a 20-story building's 2e9."""
 
 _LIMITS = {"k0": (1e-6, np.inf), "alpha": (0.0, 0.95), "p": (1.0, 10.0), "dy": (1e-6, np.inf),
            "delta_eta": (0.0, np.inf)}
@@ -52,6 +57,11 @@ class RefineResult:
         :mod:`hlaid.uncertainty`
     channels : residual columns: the floors, and with ``ground_noise="tangent"`` one more
         (the ground correction's)
+    converged : the search stopped on a tolerance, not on ``max_iterations``
+    criterion : the ``ground_noise`` the residuals were fitted with
+    plain_cost : half the sum of squared normalised residuals at the solution *before* any
+        whitening (``cost_final`` itself with ``ground_noise="ignore"``): the scale of the
+        noise-consistency test, whatever the fit's weighting
     """
 
     building: Building
@@ -65,13 +75,16 @@ class RefineResult:
     jacobian: np.ndarray | None = None
     residuals: np.ndarray | None = None
     channels: int = 0
+    plain_cost: float | None = None
+    converged: bool = True
+    criterion: str = "ignore"
 
 
 def refine_replay(building: Building, measurement: Measurement, *, parameters=("k0", "alpha", "p", "dy", "delta_eta"),
                   stories=None, damping: bool = False, band_hz=(0.1, 20.0), max_iterations: int = 40,
                   substeps: int = 4, upper_factor: float | None = 10.0, ftol: float = 1e-10,
                   jac_substeps: int | None = None, ground_noise: str = "ignore",
-                  ground_memory_s: float = 7.5) -> RefineResult:
+                  ground_memory_s: float | None = None, tangent_max_mb: float | None = None) -> RefineResult:
     """Refine ``building`` so that its replay matches ``measurement``'s floor accelerations.
 
     Parameters
@@ -102,8 +115,26 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         a 200 Hz record low-passed at 20 Hz). ``cost_*`` and ``residuals`` are then of the
         whitened residuals, ``(samples / stride, floors + 1)``.
     ground_memory_s : with ``"tangent"``, seconds of the floors' response kept after each
-        ground sample
+        ground sample; None: :func:`ground_memory` of ``building``
+    tangent_max_mb : with ``"tangent"``, raise :class:`~hlaid.errors.TangentTooLargeError` where the
+        tangent would take more than this many MiB (None: only the hard limit)
     """
+    # BLAS on one thread for small problems: its threads and the compiled replays' (OpenMP) share
+    # the cores, and when they met, a Jacobian's 2 ms SVD took 0.1 s at random (the refinement of
+    # Table 1: 2.2-2.5 s against 1.45-1.5 s with one BLAS thread). A 20-story building's SVDs
+    # (2e9 flops) need both threads (its refinement 83 s against 96 s on one)
+    n_params = len(parameters) * building.n_stories + bool(damping)
+    small = np.asarray(measurement.floor_acc).size * n_params**2 < _BLAS_ONE_THREAD
+    with threadpool_limits(limits=1 if small else None, user_api="blas"):
+        return _refine_replay(building, measurement, parameters=parameters, stories=stories, damping=damping,
+                              band_hz=band_hz, max_iterations=max_iterations, substeps=substeps,
+                              upper_factor=upper_factor, ftol=ftol, jac_substeps=jac_substeps,
+                              ground_noise=ground_noise, ground_memory_s=ground_memory_s,
+                              tangent_max_mb=tangent_max_mb)
+
+
+def _refine_replay(building, measurement, *, parameters, stories, damping, band_hz, max_iterations, substeps,
+                   upper_factor, ftol, jac_substeps, ground_noise, ground_memory_s, tangent_max_mb) -> RefineResult:
     t0 = time.perf_counter()
     dt = measurement.dt
     hi = cap_corner(band_hz[1], dt)
@@ -119,8 +150,10 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
     if ground_noise == "tangent":
         _progress.info("[identify] tangent of the replay to the ground motion (errors in the input)")
         stride = max(int(1.0 / (3.0 * hi * dt)), 1)  # the low-passed residuals, sampled at 3x their corner
-        tangent = _tangent_whitener(building, measurement, ground, hi, scale, ground_memory_s,  # a weighting:
-                                    substeps if jac_substeps is None else jac_substeps, stride)  # 2 sub-steps do
+        memory = ground_memory(building) if ground_memory_s is None else ground_memory_s
+        tangent = _tangent_whitener(building, measurement, ground, hi, scale, memory,  # a weighting:
+                                    substeps if jac_substeps is None else jac_substeps, stride,  # 2 sub-steps do
+                                    tangent_max_mb)
     channels = measurement.n_floors + (tangent is not None)
     stories = range(building.n_stories) if stories is None else stories
     slots = [(name, i) for i in range(building.n_stories) for name in parameters
@@ -157,6 +190,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         acc = r.acc
         acc[r.status != 0] = 0.0  # only a stopped replay has NaN (after its stop); no copy of the rest
         res = np.empty((len(bs), len(range(0, acc.shape[1], stride)) * channels))
+        plain = np.empty(len(bs))
 
         v = [] if transfer is None else transfer.of(bs)
 
@@ -164,6 +198,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
             part = bandpass(acc[i:i + _CHUNK], dt, (band_hz[0], hi), axis=1)
             part -= target[None]
             part /= scale
+            plain[i:i + _CHUNK] = 0.5 * np.sum(part.reshape(len(part), -1) ** 2, axis=1)
             if transfer is not None:
                 for k in range(len(part)):
                     part[k] = whiten(part[k], v[i + k], transfer.floor_std)
@@ -178,15 +213,18 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
             with ThreadPoolExecutor(min(len(starts), os.cpu_count() or 1)) as ex:
                 list(ex.map(chunk, starts))
         res[r.status != 0] = 1e3  # a diverged trial is far from the data
-        return res
+        plain[r.status != 0] = np.inf
+        return res, plain
 
     cache: dict = {}
+    plain_of: dict = {}  # the unweighted cost of every point the search evaluated (a float each)
 
     def fun(x):
         key = x.tobytes()
         if key not in cache:
             cache.clear()
-            cache[key] = residuals_of([make(x)])[0]
+            res, plain = residuals_of([make(x)])
+            cache[key], plain_of[key] = res[0], float(plain[0])
         return cache[key]
 
     n_jac = [0]
@@ -201,9 +239,9 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         xp[over] = x[over] - h[over]
         trial = [make(np.where(np.arange(x.size) == j, xp, x)) for j in range(x.size)]
         if jac_substeps == substeps:
-            rp, r0 = residuals_of(trial), fun(x)
+            rp, r0 = residuals_of(trial)[0], fun(x)
         else:
-            both = residuals_of([make(x)] + trial, jac_substeps)
+            both = residuals_of([make(x)] + trial, jac_substeps)[0]
             r0, rp = both[0], both[1:]
         rp -= r0[None]  # in place: the batch is (n_params, n_residuals), 0.2 GB at 20 stories
         rp /= (xp - x)[:, None]
@@ -211,15 +249,30 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
 
     sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi_b), x_scale=xs, method="trf",
                         max_nfev=max_iterations, xtol=1e-10, ftol=ftol, gtol=1e-10)
+    fun(sol.x)  # its plain cost (the last point evaluated may have been a rejected trial)
+    plain = plain_of[sol.x.tobytes()]
     cost0 = 0.5 * float(np.sum(fun(x0) ** 2))
     return RefineResult(building=make(sol.x), cost_initial=cost0, cost_final=float(sol.cost), nfev=int(sol.nfev),
                         seconds=time.perf_counter() - t0, message=str(sol.message), slots=tuple(slots),
                         x=np.array(sol.x), jacobian=np.array(sol.jac), residuals=np.array(sol.fun),
-                        channels=channels)
+                        channels=channels, plain_cost=plain, converged=bool(sol.status > 0), criterion=ground_noise)
+
+
+def ground_memory(building: Building, decays: float = 4.0, limits_s=(2.0, 10.0)) -> float:
+    """Seconds of the floors' response to a ground sample that the tangent keeps by default:
+    ``decays`` first-mode decay times ``T1 / (2 pi zeta)`` of the linear building (initial
+    stiffness, its damping ratio), within ``limits_s``. Table 1 (T1 0.38 s, 5 %): 4.9 s, after
+    which 0.2-0.6 % of the tangent's energy is left on its five records (yielding lengthens the
+    tail); the tangent only weights the residuals, so a shorter memory costs efficiency, not
+    consistency."""
+    zeta = building.damping.ratio if building.damping.kind != "none" else 0.0
+    t1 = float(building.periods()[0])
+    tau = t1 / (2.0 * np.pi * zeta) if zeta > 0 else np.inf
+    return float(np.clip(decays * tau, *limits_s))
 
 
 def _tangent_whitener(building: Building, meas: Measurement, ground, hi_hz: float, scale: np.ndarray,
-                      memory_s: float, substeps: int, stride: int) -> TangentWhitener:
+                      memory_s: float, substeps: int, stride: int, max_mb: float | None = None) -> TangentWhitener:
     """:class:`~hlaid.identify.eiv.TangentWhitener` of the refinement's residuals, low-passed at
     ``hi_hz`` and sampled every ``stride`` samples.
 
@@ -238,7 +291,8 @@ def _tangent_whitener(building: Building, meas: Measurement, ground, hi_hz: floa
     imp[4 * half] = 1.0
     shape = lowpass(imp, dt, hi_hz)[2 * half:6 * half + 1]  # room before lag 0 for the output's low-pass
     lags = max(int(round(memory_s / (dt * stride))), 1)
-    gt = ground_tangent(building, ground, lags=lags, shape=shape, substeps=substeps, stride=stride, lowpass_hz=hi_hz)
+    gt = ground_tangent(building, ground, lags=lags, shape=shape, substeps=substeps, stride=stride, lowpass_hz=hi_hz,
+                        max_mb=max_mb)
     floor = np.asarray(meas.floor_acc)
     rms_f = np.sqrt(np.mean(floor**2, axis=0))
     rms_g = float(np.sqrt(np.mean(np.asarray(meas.ground_acc) ** 2)))

@@ -34,7 +34,7 @@ import numpy as np
 import torch
 
 from .. import _progress
-from ..errors import InputError, UnstableTangentError
+from ..errors import InputError, TangentTooLargeError, UnstableTangentError
 from ..limits import check_count
 from ..model import BoucWenBuilding, Building, BuildingTensors
 from ..motions import GroundMotion
@@ -93,7 +93,7 @@ class GroundTangent:
 
 def ground_tangent(building: Building, motion: GroundMotion, *, lags: int, shape: np.ndarray | None = None,
                    substeps: int = 4, method: str = "linear", stride: int = 1, lowpass_hz: float | None = None,
-                   rel_step: float = 1e-4, chunk: int = 512) -> GroundTangent:
+                   rel_step: float = 1e-4, chunk: int = 512, max_mb: float | None = None) -> GroundTangent:
     """Tangent of the floors' absolute accelerations along ``building``'s replay of ``motion``.
 
     Parameters
@@ -114,6 +114,9 @@ def ground_tangent(building: Building, motion: GroundMotion, *, lags: int, shape
         before it is sampled, as the residuals it describes; None: as simulated
     rel_step : with ``"difference"``, the finite-difference step as a fraction of the ground's RMS
     chunk : with ``"difference"``, perturbation samples simulated per batch
+    max_mb : raise :class:`~hlaid.errors.TangentTooLargeError` before anything is simulated when
+        the tangent and its step Jacobians would take more than this many MiB (a budget, below
+        the hard limit ``HLAID_MAX_TANGENT_MB`` on four copies)
 
     Returns
     -------
@@ -138,7 +141,12 @@ def ground_tangent(building: Building, motion: GroundMotion, *, lags: int, shape
     width = int(lags) * stride + half
     S = 4 * n
     taus = np.arange(0, T, stride)
-    check_count((4 * taus.size * width * n + T * S * (S + 2)) * 8.0 / 2**20, "TANGENT_MB",
+    one, jacobians = taus.size * width * n * 8.0 / 2**20, T * S * (S + 2) * 8.0 / 2**20  # MiB
+    if max_mb is not None and one + jacobians > max_mb:
+        raise TangentTooLargeError(f"ground_tangent: the tangent ({taus.size} samples x {width} lags x {n} floors) "
+                                   f"and its step Jacobians would take {one + jacobians:.0f} MiB, more than the "
+                                   f"{max_mb:g} MiB allowed")
+    check_count(4 * one + jacobians, "TANGENT_MB",
                 f"memory of the ground tangent ({taus.size} samples x {width} lags x {n} floors, 4 copies, "
                 f"and {T} step Jacobians) [MiB]")
     base = simulate(building, motion, substeps=substeps)
@@ -167,16 +175,18 @@ def ground_tangent(building: Building, motion: GroundMotion, *, lags: int, shape
     return GroundTangent(response=out, lead=half // stride, dt=float(motion.dt) * stride)
 
 
-def _lowpass_lags(out: np.ndarray, dt: float, hi_hz: float, stride: int) -> np.ndarray:
-    """``out`` low-passed along axis 1 and sampled every ``stride`` lags, rows shared among the
-    cores (scipy's filter releases the GIL)."""
-    parts = np.array_split(np.arange(out.shape[0]), max(min(os.cpu_count() or 1, out.shape[0]), 1))
+def _lowpass_lags(out: np.ndarray, dt: float, hi_hz: float, stride: int, rows: int = 32) -> np.ndarray:
+    """``out`` low-passed along axis 1 and sampled every ``stride`` lags, in blocks of ``rows``
+    rows (a few MB: filtering the whole array at once spent as long allocating as filtering)
+    shared among the cores (scipy's filter releases the GIL)."""
+    res = np.empty((out.shape[0], len(range(0, out.shape[1], stride)), out.shape[2]))
 
-    def one(rows):
-        return lowpass(out[rows[0]:rows[-1] + 1], dt, hi_hz, axis=1)[:, ::stride]
+    def one(r0):
+        res[r0:r0 + rows] = lowpass(out[r0:r0 + rows], dt, hi_hz, axis=1)[:, ::stride]
 
-    with ThreadPoolExecutor(len(parts)) as ex:
-        return np.concatenate(list(ex.map(one, parts)))
+    with ThreadPoolExecutor(max(min(os.cpu_count() or 1, out.shape[0]), 1)) as ex:
+        list(ex.map(one, range(0, out.shape[0], rows)))
+    return res
 
 
 def step_jacobians(building: Building, states: np.ndarray, ground: np.ndarray, dt: float, *, substeps: int = 4,
