@@ -274,9 +274,9 @@ class RefineConfig:
         tangent is taken: ``"regressions"`` (default: the regressions' building, least squares
         only as the fall-back) or ``"least_squares"`` (session 8's order: least squares and its
         restart first, the errors-in-variables fit as a last stage from that optimum). The second
-        weights with a tangent taken nearer the truth: 30 random buildings median 1.38 % against
-        1.56 %, 90th percentile 9.9 against 9.7 %, Table 1 0.90 / 4.07 % against 0.92 / 4.26 %, at
-        about 3 s more per identification (El Centro: 5.1-5.6 s cached against 2.3 s)
+        weights with a tangent taken nearer the truth: 30 random buildings median 1.40 % against
+        1.56 %, 90th percentile 10.0 against 9.7 %, Table 1 0.90 / 4.07 % against 0.92 / 4.26 %
+        (docs/identification.md), at about 3 s more per identification
     eiv_ftol : ``ftol`` of the errors-in-variables fits (``ground_noise: tangent``). Their cost is a
         negative log-likelihood whose minimum is ``N/2`` noise variances, so a step that lowers it
         by less than this fraction moves it by ``eiv_ftol N / 2`` units of log-likelihood: 1e-6 is
