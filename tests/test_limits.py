@@ -355,6 +355,12 @@ def test_cache_entry_failing_its_check_is_reported_and_retrained(tmp_path, machi
     ({"refine": {"ground_memory_s": float("nan")}}, "ground_memory_s"),
     ({"refine": {"ground_memory_s": -1.0}}, "ground_memory_s"),
     ({"refine": {"ground_noise": "tangents"}}, "ground_noise"),
+    ({"refine": {"eiv_start": "__import__('os').system('x')"}}, "eiv_start"),
+    ({"refine": {"eiv_ftol": float("nan")}}, "eiv_ftol"),
+    ({"refine": {"eiv_ftol": 1.0}}, "eiv_ftol"),
+    ({"refine": {"tangent_max_mb": 1e400}}, "tangent_max_mb"),
+    ({"refine": {"tangent_max_mb": float("nan")}}, "tangent_max_mb"),
+    ({"refine": {"tangent_max_mb": 0.0}}, "tangent_max_mb"),
 ])
 def test_identify_training_sizes_are_bounded(block, message):
     """Path-driven training allocates samples x time per story: its sizes are checked on load."""

@@ -252,7 +252,8 @@ class RefineConfig:
         the time-varying tangent of the replay (:class:`hlaid.identify.eiv.TangentWhitener`; every
         channel's noise a common fraction of its RMS), fitted from the regressions' building with
         the tangent of its replay. Where that fit misses the data by more than ``restart_ratio``
-        times its noise, or the tangent is unstable or larger than ``tangent_max_mb``, least
+        times its noise, stops on ``max_iterations``, or the tangent is unstable or larger than
+        ``tangent_max_mb``, least
         squares runs instead (with its restart), then the errors-in-variables fit once more from
         its optimum if that one is consistent with the noise; the clone says which
         (``diagnostics.refine.tangent``). On Table 1 at 10 % noise: 0.92 % mean, 4.26 % worst
@@ -282,7 +283,9 @@ class RefineConfig:
         by less than this fraction moves it by ``eiv_ftol N / 2`` units of log-likelihood: 1e-6 is
         about 0.01 for a 50 s record at 200 Hz (a step of about a tenth of a standard error). At
         ``ftol``'s 1e-10 the fit found the same optimum in 19 evaluations instead of 6 (the rest
-        rejected steps shrinking the trust region), 1.2 s more on Table 1
+        rejected steps shrinking the trust region), 1.2 s more on Table 1. (``ftol``'s warning
+        concerns least squares stopping far from the data; such an errors-in-variables fit
+        falls back, and the random-building study is measured with 1e-6)
     restart_ratio : when the refined cost exceeds this multiple of ``0.5 N sigma^2`` (N residuals,
         sigma the measurement's noise level), the fit misses the data by more than its noise:
         the refinement runs again, every story's parameters, from a neutral start (alpha 0.2,

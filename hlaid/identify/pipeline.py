@@ -277,11 +277,23 @@ class _Identifier:
         cost = rr.cost_final if rr.plain_cost is None else rr.plain_cost
         return cost / (0.5 * np.asarray(self.meas.floor_acc).size * max(self.noise, 0.01) ** 2)
 
-    def _eiv(self, building: Building, ident: list[int], common: dict) -> RefineResult:
+    def _eiv(self, building: Building, ident: list[int], common: dict, start: str) -> tuple[RefineResult | None, dict]:
+        """The errors-in-variables fit from ``building`` (``start`` names it), with its summary;
+        None and the reason where the tangent is unstable or larger than ``tangent_max_mb``."""
         rc = self.cfg.refine
-        return refine_replay(building, self.meas, parameters=rc.parameters, stories=ident, damping=rc.damping,
-                             ftol=rc.eiv_ftol, **{**common, "ground_noise": "tangent"},
-                             ground_memory_s=rc.ground_memory_s, tangent_max_mb=rc.tangent_max_mb)
+        try:
+            eiv = refine_replay(building, self.meas, parameters=rc.parameters, stories=ident, damping=rc.damping,
+                                ftol=rc.eiv_ftol, **{**common, "ground_noise": "tangent"},
+                                ground_memory_s=rc.ground_memory_s, tangent_max_mb=rc.tangent_max_mb)
+        except (UnstableTangentError, TangentTooLargeError) as err:
+            return None, {"why": str(err)}
+        return eiv, {"start": start, "cost_initial": eiv.cost_initial, "cost_final": eiv.cost_final, "nfev": eiv.nfev,
+                     "seconds": eiv.seconds}
+
+    def _ratio_limit(self) -> float:
+        """The noise ratio above which a fit misses the data (``restart_ratio``; 1 when None)."""
+        ratio = self.cfg.refine.restart_ratio
+        return 1.0 if ratio is None else ratio
 
     def _tangent_fit(self, start: Building, ident: list[int], common: dict) -> tuple[RefineResult | None, dict]:
         """The errors-in-variables fit from the regressions' building ``start``, whitened by the
@@ -290,19 +302,16 @@ class _Identifier:
         is unstable or larger than ``tangent_max_mb``, or the fit misses the data by more than
         ``restart_ratio`` (1 when None) times its noise or stops on ``max_iterations`` (a start
         too far for its tangent: one of 30 random buildings ran into k0's bound that way)."""
-        rc = self.cfg.refine
-        limit = 1.0 if rc.restart_ratio is None else rc.restart_ratio
-        try:
-            eiv = self._eiv(start, ident, common)
-        except (UnstableTangentError, TangentTooLargeError) as err:
-            why = str(err)
+        eiv, info = self._eiv(start, ident, common, "regressions")
+        if eiv is None:
+            why = info["why"]
         else:
             ratio = self._noise_ratio(eiv)
-            if ratio <= limit and eiv.converged:
-                return eiv, {"start": "regressions", "cost_initial": eiv.cost_initial, "cost_final": eiv.cost_final,
-                             "nfev": eiv.nfev, "seconds": eiv.seconds}
-            why = (f"the errors-in-variables fit misses the data by {ratio:.1f}x its noise level" if ratio > limit
-                   else f"the errors-in-variables fit did not converge in {eiv.nfev} evaluations")
+            if ratio <= self._ratio_limit() and eiv.converged:
+                return eiv, info
+            why = (f"the errors-in-variables fit misses the data by {ratio:.1f}x its noise level"
+                   if ratio > self._ratio_limit() else
+                   f"the errors-in-variables fit did not converge in {eiv.nfev} evaluations")
         _progress.info(f"[identify] {why}: least squares first")
         return None, {"fallback": why}
 
@@ -311,20 +320,15 @@ class _Identifier:
         :meth:`_tangent_fit`); skipped, keeping ``rr``, where that fit misses the data by more
         than its noise (``restart_ratio``, 1 when None: a tangent taken there weights nothing
         real) or the replay's tangent is unstable (found on two random buildings driven to
-        80-200 x dy)."""
-        rc = self.cfg.refine
+        80-200 x dy) or too large."""
         ratio = self._noise_ratio(rr)
-        limit = 1.0 if rc.restart_ratio is None else rc.restart_ratio
-        if ratio > limit:
+        if ratio > self._ratio_limit():
             why = f"the least-squares fit misses the data by {ratio:.1f}x its noise level"
         else:
-            try:
-                eiv = self._eiv(rr.building, ident, common)
-            except (UnstableTangentError, TangentTooLargeError) as err:
-                why = str(err)
-            else:
-                return eiv, {"start": "least squares", "cost_initial": eiv.cost_initial,
-                             "cost_final": eiv.cost_final, "nfev": eiv.nfev, "seconds": eiv.seconds}
+            eiv, info = self._eiv(rr.building, ident, common, "least squares")
+            if eiv is not None:
+                return eiv, info
+            why = info["why"]
         _progress.info(f"[identify] errors-in-variables stage skipped: {why}")
         return rr, {"skipped": why}
 
