@@ -76,7 +76,8 @@ def run(args) -> None:
         slots = np.array([f"{n}:{i}" for n, i in rr.slots])
         true_x = np.array([getattr(truth, n)[i] if n != "damping" else truth.damping.ratio for n, i in rr.slots])
         np.savez_compressed(path, slots=slots, x=rr.x, true_x=true_x, jacobian=rr.jacobian.astype(np.float32),
-                            residuals=rr.residuals, n_floors=rr.channels or meas.n_floors, record=gm.name, seed=seed,
+                            residuals=rr.residuals, n_floors=rr.channels or meas.n_floors, criterion=rr.criterion,
+                            record=gm.name, seed=seed,
                             seconds=time.perf_counter() - t, clone=json.dumps(res.clone.to_dict()))
         err = np.abs(rr.x / true_x - 1)
         print(f"[{j + 1}/{args.n}] {gm.name} {truth.n_stories} stories: {len(slots)} parameters, mean error "
@@ -89,6 +90,7 @@ class _RR:
     def __init__(self, z):
         self.slots = tuple((s.split(":")[0], int(s.split(":")[1])) for s in z["slots"])
         self.x, self.jacobian, self.residuals = z["x"], z["jacobian"].astype(float), z["residuals"]
+        self.criterion = str(z["criterion"]) if "criterion" in z else None  # absent in older case files
 
 
 def load(folder: Path) -> list:
@@ -105,11 +107,14 @@ def load(folder: Path) -> list:
 
 
 def fit_class(rr, channels: int, rho: float) -> str:
-    """``"whitened"`` (the errors-in-variables fit: a residual column more than stories),
-    ``"consistent"`` (least squares at the noise level) or ``"inconsistent"`` (misfit ratio above
-    :data:`MISFIT_LIMIT`), the classes the package calibrates separately."""
+    """``"whitened"`` (the errors-in-variables fit: ``criterion`` ``"tangent"``, or in case files
+    written before it was stored, a residual column more than stories), ``"consistent"`` (least
+    squares at the noise level) or ``"inconsistent"`` (misfit ratio above :data:`MISFIT_LIMIT`),
+    the classes the package calibrates separately."""
     if rho > MISFIT_LIMIT:
         return "inconsistent"
+    if getattr(rr, "criterion", None) is not None:
+        return "whitened" if rr.criterion == "tangent" else "consistent"
     return "whitened" if channels > sum(n == "k0" for n, _ in rr.slots) else "consistent"
 
 
