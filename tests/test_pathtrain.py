@@ -245,3 +245,20 @@ def test_hyper_parameters_without_grids_and_reused_choice():
     for bad in ((), (0.0, 1.0)):
         with pytest.raises(InputError, match="gamma_grid"):
             SVMConfig(gamma_grid=bad)
+
+
+def test_loop_fit_recovers_all_five_parameters_along_the_true_path(table1):
+    """All five story parameters, started 10 % off, come back along the true drift against the
+    true restoring force (noise-free), on every story: the estimator behind
+    ``scripts/study_loop_bound.py`` is consistent, so what that study measures is the path's and
+    the noise's doing."""
+    gm = window(paper_record("elcentro-1940-ns"), 12.0)
+    meas = simulate_measurement(table1, gm, noise_rms=0.0)
+    names = ("k0", "alpha", "p", "dy", "delta_eta")
+    for i in range(table1.n_stories):
+        truth = {n: float(getattr(table1, n)[i]) for n in names}
+        start = {n: v * (1.1 if j % 2 else 0.9) for j, (n, v) in enumerate(truth.items())}
+        fit = fit_story_loop(meas.truth.drift[:, i], meas.truth.force[:, i], meas.dt, float(table1.mass[i]), start,
+                             free=names, max_nfev=60)
+        err = {n: abs(fit.params[n] / truth[n] - 1) for n in names}
+        assert max(err.values()) < 5e-3, (i, err)  # 0.3-2.4e-3: the path is straight between samples
