@@ -92,6 +92,32 @@ def test_refine_recovers_perturbed_parameters(table1, record):
         assert np.allclose(getattr(r.building, name), getattr(table1, name), rtol=0.01), name
 
 
+def test_refine_runs_blas_on_one_thread_only_for_small_problems(table1):
+    """The refinement's BLAS limit is read from the call's own arguments (bound with their
+    defaults): one thread for residuals x parameters^2 below ``_BLAS_ONE_THREAD``, the process's
+    own setting above it and after the call."""
+    from types import SimpleNamespace
+
+    from threadpoolctl import threadpool_info
+
+    rf = importlib.import_module("hlaid.identify.refine")
+
+    def blas_threads():
+        return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+    @rf._blas_threads
+    def probe(building, measurement, *, parameters=("k0", "alpha"), damping=False):
+        return blas_threads()
+
+    before = blas_threads()
+    small = SimpleNamespace(floor_acc=np.zeros((1000, 3)))  # 3e3 x (2 x 3)^2 = 1e5
+    large = SimpleNamespace(floor_acc=np.broadcast_to(0.0, (10**6, 3)))  # 3e6 x (5 x 3 + 1)^2 = 8e8
+    assert probe(table1, small) == [1] * len(before)
+    assert probe(table1, large, parameters=rf._LIMITS, damping=True) == before
+    assert blas_threads() == before
+    assert probe.__name__ == "probe"
+
+
 def test_refine_jacobian_substeps_keep_the_optimum(table1, record):
     """Fewer RK4 sub-steps in the Jacobian's replays steer the search differently but the
     residuals (4 sub-steps) define the optimum: the same building, and the same cost."""

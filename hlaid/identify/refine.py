@@ -9,10 +9,14 @@ displacements. Jacobians are finite differences computed as one batch of the sim
 
 from __future__ import annotations
 
+import functools
+import inspect
 import os
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import ParamSpec, TypeVar
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -34,6 +38,9 @@ _CHUNK = 8
 _BLAS_ONE_THREAD = 1e8
 """Residuals x parameters^2 (the flops of the Jacobian's SVD) below which the refinement runs BLAS
 on one thread: Table 1's 7e6, a 20-story building's 2e9."""
+
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
 
 _LIMITS = {"k0": (1e-6, np.inf), "alpha": (0.0, 0.95), "p": (1.0, 10.0), "dy": (1e-6, np.inf),
            "delta_eta": (0.0, np.inf)}
@@ -80,6 +87,30 @@ class RefineResult:
     criterion: str = "ignore"
 
 
+def _blas_threads(fn: Callable[_P, _R]) -> Callable[_P, _R]:
+    """Run ``fn`` (:func:`refine_replay`) with BLAS on one thread for small problems.
+
+    Its threads and the compiled replays' (OpenMP) share the cores, and when they met, a
+    Jacobian's 2 ms SVD took 0.1 s at random (the refinement of Table 1: 2.2-2.5 s against
+    1.45-1.5 s with one BLAS thread). A 20-story building's SVDs (2e9 flops) need both threads
+    (its refinement 83 s against 96 s on one). The call's own arguments say which: residuals x
+    parameters^2 against :data:`_BLAS_ONE_THREAD`.
+    """
+    sig = inspect.signature(fn)
+
+    @functools.wraps(fn)
+    def wrapper(*args: _P.args, **kwargs: _P.kwargs) -> _R:
+        a = sig.bind(*args, **kwargs)
+        a.apply_defaults()
+        n_params = len(a.arguments["parameters"]) * a.arguments["building"].n_stories + bool(a.arguments["damping"])
+        small = np.asarray(a.arguments["measurement"].floor_acc).size * n_params**2 < _BLAS_ONE_THREAD
+        with threadpool_limits(limits=1 if small else None, user_api="blas"):
+            return fn(*args, **kwargs)
+
+    return wrapper
+
+
+@_blas_threads
 def refine_replay(building: Building, measurement: Measurement, *, parameters=("k0", "alpha", "p", "dy", "delta_eta"),
                   stories=None, damping: bool = False, band_hz=(0.1, 20.0), max_iterations: int = 40,
                   substeps: int = 4, upper_factor: float | None = 10.0, ftol: float = 1e-10,
@@ -119,22 +150,6 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
     tangent_max_mb : with ``"tangent"``, raise :class:`~hlaid.errors.TangentTooLargeError` where the
         tangent would take more than this many MiB (None: only the hard limit)
     """
-    # BLAS on one thread for small problems: its threads and the compiled replays' (OpenMP) share
-    # the cores, and when they met, a Jacobian's 2 ms SVD took 0.1 s at random (the refinement of
-    # Table 1: 2.2-2.5 s against 1.45-1.5 s with one BLAS thread). A 20-story building's SVDs
-    # (2e9 flops) need both threads (its refinement 83 s against 96 s on one)
-    n_params = len(parameters) * building.n_stories + bool(damping)
-    small = np.asarray(measurement.floor_acc).size * n_params**2 < _BLAS_ONE_THREAD
-    with threadpool_limits(limits=1 if small else None, user_api="blas"):
-        return _refine_replay(building, measurement, parameters=parameters, stories=stories, damping=damping,
-                              band_hz=band_hz, max_iterations=max_iterations, substeps=substeps,
-                              upper_factor=upper_factor, ftol=ftol, jac_substeps=jac_substeps,
-                              ground_noise=ground_noise, ground_memory_s=ground_memory_s,
-                              tangent_max_mb=tangent_max_mb)
-
-
-def _refine_replay(building, measurement, *, parameters, stories, damping, band_hz, max_iterations, substeps,
-                   upper_factor, ftol, jac_substeps, ground_noise, ground_memory_s, tangent_max_mb) -> RefineResult:
     t0 = time.perf_counter()
     dt = measurement.dt
     hi = cap_corner(band_hz[1], dt)
