@@ -141,6 +141,11 @@ def test_whitener_is_the_inverse_covariance(T, W, lead):
         want = np.mean(sf) ** 2 * r[k].ravel() @ np.linalg.solve(S, r[k].ravel())
         assert np.isclose(np.sum(rho[k] ** 2), want, rtol=1e-10)
         np.testing.assert_allclose(wt(r[k]), rho[k], atol=1e-12)
+    # the whitener's block form of the operator is GroundTangent's apply / adjoint, scaled by D^(1/2)
+    gt = GroundTangent(response=R, lead=lead, dt=0.01)
+    d, x = rng.standard_normal(T), rng.standard_normal((T, n))
+    np.testing.assert_allclose(wt._apply(d[:, None])[:, :, 0], gt.apply(d) / sf, atol=1e-12)
+    np.testing.assert_allclose(wt._adjoint(x[:, :, None])[:, 0], gt.adjoint(x / sf), atol=1e-12)
 
 
 def test_tangent_size_is_bounded(table1, monkeypatch):
