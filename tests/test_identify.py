@@ -113,7 +113,7 @@ def test_refine_runs_blas_on_one_thread_only_for_small_problems(table1):
     small = SimpleNamespace(floor_acc=np.zeros((1000, 3)))  # 3e3 x (2 x 3)^2 = 1e5
     large = SimpleNamespace(floor_acc=np.broadcast_to(0.0, (10**6, 3)))  # 3e6 x (5 x 3 + 1)^2 = 8e8
     assert probe(table1, small) == [1] * len(before)
-    assert probe(table1, large, parameters=rf._LIMITS, damping=True) == before
+    assert probe(table1, large, parameters=("k0", "alpha", "p", "dy", "delta_eta"), damping=True) == before
     assert blas_threads() == before
     assert probe.__name__ == "probe"
 
