@@ -44,7 +44,7 @@ from .model import Building, Damping
 from .units import UNITS_JSON
 
 if TYPE_CHECKING:
-    from .uncertainty import ParameterUncertainty
+    from .model.uncertainty import ParameterUncertainty
 
 FORMAT = "hlaid-clone"
 VERSION = 2
@@ -149,7 +149,7 @@ class Clone:
             raise InputError(str(err).removeprefix(f"{source}: "), source=source) from None
         unc = None
         if d.get("uncertainty") is not None:
-            from .uncertainty import ParameterUncertainty
+            from .model.uncertainty import ParameterUncertainty
 
             unc = ParameterUncertainty.from_dict(d["uncertainty"], source=source)
             if any(i >= b.n_stories for n, i in unc.slots):

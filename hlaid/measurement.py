@@ -17,7 +17,8 @@ from ._fileio import atomic_write, write_npz
 from .errors import InputError
 from .limits import check_count
 from .model import Building
-from .signal import max_corner
+from .motions.record import GroundMotion
+from .signal import lowpass, max_corner
 from .units import G_MM_S2
 
 TRUTH_FIELDS = ("disp", "drift", "force", "z", "eta")
@@ -238,3 +239,12 @@ def check_band(meas: Measurement, band_hz, field: str) -> None:
         raise InputError(f"{field}: low corner {float(band_hz[0]):g} Hz is not below {top:.4g} Hz (0.9 x the "
                          f"Nyquist frequency of this {1.0 / meas.dt:.4g} Hz measurement); lower it",
                          source=meas.source or None)
+
+
+def measured_ground(meas: Measurement, hi_hz: float, *, name: str = "measured") -> GroundMotion:
+    """The ground acceleration of ``meas`` low-passed (zero phase, order 4) at ``hi_hz`` [Hz]:
+    the input under which a clone is replayed against the measured floors.
+
+    ``hi_hz`` is used as given; pass ``cap_corner(band[1], meas.dt)`` for the Nyquist rule.
+    """
+    return GroundMotion(dt=meas.dt, acc=lowpass(np.asarray(meas.ground_acc), meas.dt, hi_hz), name=name)

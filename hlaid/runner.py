@@ -20,12 +20,13 @@ from typing import Any, cast
 
 import numpy as np
 
-from . import __version__, _progress
+from . import _progress
 from ._fileio import atomic_directory, write_json
+from ._version import __version__
 from .config import config_from_node, config_to_dict, load_yaml
 from .errors import InputError
 from .ida import IDAConfig
-from .identify import IdentifyConfig, identify
+from .identify import IdentifyConfig, identify_clone
 from .identify.replaycheck import corrcoef
 from .io import read
 from .measurement import Measurement, check_band
@@ -140,7 +141,7 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
         timings["measurement"] = time.perf_counter() - t
         t = time.perf_counter()
         _progress.info("[2/4] hysteresis loop analysis and identification")
-        res = identify(meas, cfg.identify, tensorboard=str(tmp / "tensorboard"), cache_dir=cache_dir)
+        res = identify_clone(meas, cfg.identify, tensorboard=str(tmp / "tensorboard"), cache_dir=cache_dir)
         timings["identify"] = time.perf_counter() - t
         res.clone.save(tmp / "clone.json")
         res.hla.save(tmp / "hla")

@@ -16,16 +16,9 @@ given explicitly is used as given when it is realisable.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 from scipy import integrate
 from scipy import signal as _scipy_signal
-
-from .motions.record import GroundMotion
-
-if TYPE_CHECKING:
-    from .measurement import Measurement
 
 MAX_CORNER_RATIO = 0.45
 """Highest analysis corner as a fraction of the sample rate (0.9 x Nyquist)."""
@@ -34,7 +27,7 @@ DESIGN_GUARD = 0.95
 """Fraction of the Nyquist frequency above which a corner cannot be designed and is lowered to it."""
 
 __all__ = ["MAX_CORNER_RATIO", "max_corner", "cap_corner", "butter_sos", "bandpass", "lowpass", "highpass",
-           "integrate_twice", "measured_ground"]
+           "integrate_twice"]
 
 
 def max_corner(dt: float) -> float:
@@ -99,12 +92,3 @@ def integrate_twice(acc: np.ndarray, dt: float, band_hz, order: int = 4) -> tupl
     vel = highpass(integrate.cumulative_trapezoid(acc, dx=dt, axis=0, initial=0.0), dt, band_hz, order)
     disp = highpass(integrate.cumulative_trapezoid(vel, dx=dt, axis=0, initial=0.0), dt, band_hz, order)
     return vel, disp
-
-
-def measured_ground(meas: Measurement, hi_hz: float, *, name: str = "measured") -> GroundMotion:
-    """The ground acceleration of ``meas`` low-passed (zero phase, order 4) at ``hi_hz`` [Hz]:
-    the input under which a clone is replayed against the measured floors.
-
-    ``hi_hz`` is used as given; pass ``cap_corner(band[1], meas.dt)`` for the Nyquist rule.
-    """
-    return GroundMotion(dt=meas.dt, acc=lowpass(np.asarray(meas.ground_acc), meas.dt, hi_hz), name=name)

@@ -14,7 +14,7 @@ from .limits import check_count
 from .measurement import Measurement, Truth
 from .model import Building
 from .motions import GroundMotion
-from .simulate import simulate
+from .simulate import simulate_response
 from .specs import BuildingSpec, MotionSpec
 
 
@@ -44,7 +44,7 @@ def simulate_measurement(building: Building, motion: GroundMotion, *, rate_hz: f
     if noise_rms < 0:
         raise InputError(f"noise_rms = {noise_rms}; expected >= 0")
     gm = motion.resampled(rate_hz) if rate_hz else motion
-    r = simulate(building, gm, substeps=substeps)
+    r = simulate_response(building, gm, substeps=substeps)
     if r.status[0] != 0:
         raise InputError(f"the simulation diverged under {motion.name or motion.source}")
     assert (r.disp is not None and r.drift is not None and r.force is not None and r.z is not None

@@ -30,7 +30,7 @@ from hlaid.ida.intensity import get_intensity_measure
 from hlaid.io import read
 from hlaid.model import Building
 from hlaid.opensees import run_opensees
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 from hlaid.units import G_MM_S2
 
 REPO = Path(__file__).resolve().parents[1]
@@ -94,7 +94,7 @@ def main(argv=None):
 
         def ours(im, gm=gm, sa1=sa1, sub=sub, n=n):
             n["h"] += 1
-            r = simulate(b, gm, im / sa1, substeps=sub, outputs="peaks", stop_drift=stop)
+            r = simulate_response(b, gm, im / sa1, substeps=sub, outputs="peaks", stop_drift=stop)
             return bool(r.status[0] != 0 or np.any(r.peak_drift[0] > stop))
 
         def theirs(im, gm=gm, sa1=sa1, n=n):

@@ -25,11 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-from hlaid.hla import HLAConfig, hla
+from hlaid.hla import HLAConfig, run_hla
 from hlaid.hla.config import ForceConfig
 from hlaid.io import read
 from hlaid.motions import GroundMotion
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 from hlaid.synthetic import load_simulation_config, simulate_measurement
 
 REPO = Path(__file__).resolve().parents[1]
@@ -81,12 +81,12 @@ def main(argv=None) -> int:
           f"10 % noise; median of {a.repeat} runs; {numba.config.NUMBA_NUM_THREADS} numba threads, "
           f"{os.cpu_count()} cores", flush=True)
 
-    sim_first, sim = timed(lambda: simulate(building, gm, substeps=4), a.repeat)
+    sim_first, sim = timed(lambda: simulate_response(building, gm, substeps=4), a.repeat)
     rows = []
     for damping in ("rayleigh", "none", "regression"):
         cfg = HLAConfig(force=ForceConfig(damping=damping))
-        first, t = timed(lambda cfg=cfg: hla(meas, cfg), a.repeat)
-        n_hc = [len(s.half_cycles) for s in hla(meas, cfg).stories]
+        first, t = timed(lambda cfg=cfg: run_hla(meas, cfg), a.repeat)
+        n_hc = [len(s.half_cycles) for s in run_hla(meas, cfg).stories]
         rows.append((f"`hla`, damping: {damping}" + (" (default)" if damping == "rayleigh" else ""), first, t, n_hc))
 
     print()

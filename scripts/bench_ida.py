@@ -30,12 +30,12 @@ from pathlib import Path
 import numpy as np
 
 from hlaid import _progress
-from hlaid.ida import IDAConfig, ida, prepare_building
+from hlaid.ida import IDAConfig, prepare_building, run_ida
 from hlaid.ida.analysis import upsampled
 from hlaid.io import read
 from hlaid.model import Building
 from hlaid.opensees import run_opensees_batch
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -65,7 +65,7 @@ def grid(b: Building, motions, scales, rate=None, stop=None):
     out = np.empty((len(motions), scales.shape[1], b.n_stories))
     for s in np.unique(sub):  # one call per refined dt (any grouping gives the same numbers)
         sel = np.flatnonzero(sub == s)
-        r = simulate(b, [fine[i] for i in sel], scales[sel], substeps=1, outputs="peaks", stop_drift=stop)
+        r = simulate_response(b, [fine[i] for i in sel], scales[sel], substeps=1, outputs="peaks", stop_drift=stop)
         out[sel] = r.peak_drift.reshape(sel.size, scales.shape[1], -1)
     return out
 
@@ -91,13 +91,13 @@ def main(argv=None):
     R, L = len(motions), LEVELS.size
     print(f"# bench_ida: Table 1 clone (P-Delta on), {R} records x {L} levels = {R * L} runs, "
           f"IM Sa(T1, 5%), {threads} numba threads", flush=True)
-    ida(clone, motions[:1], IDAConfig(levels=[1.0], refine=False))  # load the compiled kernels
+    run_ida(clone, motions[:1], IDAConfig(levels=[1.0], refine=False))  # load the compiled kernels
 
     tracemalloc.start()
-    res, w_grid, c_grid = timed(lambda: ida(clone, motions, IDAConfig(levels=LEVELS, refine=False)))
+    res, w_grid, c_grid = timed(lambda: run_ida(clone, motions, IDAConfig(levels=LEVELS, refine=False)))
     mem_grid = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
-    res_full, w_full, c_full = timed(lambda: ida(clone, motions, IDAConfig(levels=LEVELS)))
+    res_full, w_full, c_full = timed(lambda: run_ida(clone, motions, IDAConfig(levels=LEVELS)))
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
     sa = res.record_im
@@ -186,7 +186,7 @@ def figures(res, out: Path):
     ref = np.array([bilinear_peak(gm.acc * (L / sa0), gm.dt, 50, V.M, V.K, V.ALPHA, V.UY,
                                   2 * V.XI * (2 * np.pi / V.T) * V.M) for L in levels]) / V.UY
     b = Building(mass=[V.M], k0=[V.K], alpha=[V.ALPHA], p=[30.0], dy=[V.UY], delta_eta=[0.0], height=[1e5])
-    r = ida(b, gm, IDAConfig(levels=levels, refine=False, pdelta=False, max_step=0.002))
+    r = run_ida(b, gm, IDAConfig(levels=levels, refine=False, pdelta=False, max_step=0.002))
     g = np.argsort(np.where(r.point_stage == "grid", r.point_im, np.inf))[: levels.size]
     fig, ax = plt.subplots(figsize=(6.0, 5.0))
     ax.plot(ref, levels, "k-", lw=2.5, alpha=0.35, label="bilinear reference (Newmark, dt/50)")

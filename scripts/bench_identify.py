@@ -22,14 +22,14 @@ import time
 import numpy as np
 
 from hlaid import _progress
-from hlaid.identify import IdentifyConfig, TrainingConfig, classify, identify
+from hlaid.identify import IdentifyConfig, TrainingConfig, classify, identify_clone
 from hlaid.io import read
 from hlaid.synthetic import load_simulation_config, simulate_measurement
 
 
 def run(meas, cache, cfg=None):
     t = time.perf_counter()
-    res = identify(meas, cfg or IdentifyConfig(), cache_dir=cache)
+    res = identify_clone(meas, cfg or IdentifyConfig(), cache_dir=cache)
     return time.perf_counter() - t, res
 
 

@@ -32,7 +32,7 @@ from hlaid.io import read
 from hlaid.model import Building
 from hlaid.motions import GroundMotion
 from hlaid.opensees import run_opensees_batch
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -88,13 +88,13 @@ def main(argv=None):
           f"RK4 x 4 sub-steps, {threads} numba threads, {os.cpu_count()} cores", flush=True)
 
     t0 = time.perf_counter()
-    simulate(b, motions[0], substeps=4)
+    simulate_response(b, motions[0], substeps=4)
     compile_s = time.perf_counter() - t0
-    one_full = best_of(lambda: simulate(b, motions[0], substeps=4), 20)
-    one_peaks = best_of(lambda: simulate(b, motions[0], substeps=4, outputs="peaks"), 20)
-    batch = best_of(lambda: simulate(b, motions, rows, substeps=4, outputs="peaks"), 3)
-    ours = simulate(b, motions, rows, substeps=4, outputs="peaks").peak_drift
-    ref = simulate(b, [upsampled(m, 10) for m in motions], rows, substeps=4, outputs="peaks").peak_drift
+    one_full = best_of(lambda: simulate_response(b, motions[0], substeps=4), 20)
+    one_peaks = best_of(lambda: simulate_response(b, motions[0], substeps=4, outputs="peaks"), 20)
+    batch = best_of(lambda: simulate_response(b, motions, rows, substeps=4, outputs="peaks"), 3)
+    ours = simulate_response(b, motions, rows, substeps=4, outputs="peaks").peak_drift
+    ref = simulate_response(b, [upsampled(m, 10) for m in motions], rows, substeps=4, outputs="peaks").peak_drift
     err_ours = rel_errors(ours, ref)
     print(f"first call (numba load/compile): {compile_s:.2f} s", flush=True)
 

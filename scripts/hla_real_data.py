@@ -29,7 +29,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 from hlaid.config import load_config  # noqa: E402
 from hlaid.errors import InputError  # noqa: E402
-from hlaid.hla import HLAConfig, hla  # noqa: E402
+from hlaid.hla import HLAConfig, run_hla  # noqa: E402
 from hlaid.hla.analysis import story_force  # noqa: E402
 from hlaid.hla.plots import plot_loops, plot_stiffness  # noqa: E402
 from hlaid.hla.preprocess import dominant_frequency  # noqa: E402
@@ -86,7 +86,7 @@ def steel_frame(data: Path, figures: Path | None, force: bool) -> None:
     runs = [read_steel_frame(data / STEEL.format(s)) for s in (1, 2, 3, 4)]
     configs = {"default (`configs/hla.yaml`)": HLAConfig(), "first-mode band (`configs/hla_steel_frame.yaml`)":
                load_config(STEEL_CONFIG, HLAConfig)}
-    results = {label: [hla(m, c) for m in runs] for label, c in configs.items()}
+    results = {label: [run_hla(m, c) for m in runs] for label, c in configs.items()}
     f1 = np.array([dominant_frequency(m.ground_acc, m.floor_acc[:, -1], m.dt) for m in runs])
     mass = next(iter(results.values()))[0].mass
     frf = np.array([apparent_stiffness(m, mass, 0.85 * f, 1.15 * f) for m, f in zip(runs, f1)])
@@ -144,7 +144,7 @@ def mini_shake_table(data: Path, figures: Path | None) -> None:
     print("|" + "---|" * 10)
     for name in MINI_RUNS:
         m = read_mini_shake_table(data / MINI.format(name))
-        r = hla(m)
+        r = run_hla(m)
         f_k0 = shear_frequencies(r.k0, r.mass)[0]
         f_meas = transfer_peak(m, 2.0, 15.0)
         print(_row([name, f"{r.band_hz[0]:.2f}-{r.band_hz[1]:.1f}"] + [f"{v:.0f}" for v in r.k0]

@@ -24,7 +24,7 @@ from study_identification import TABLE1_RECORDS
 
 from hlaid.identify.eiv import TangentWhitener
 from hlaid.io import read
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 from hlaid.simulate.tangent import ground_tangent
 from hlaid.synthetic import load_simulation_config
 
@@ -41,9 +41,9 @@ def information(b, gm, noise: float, memory_s: float) -> tuple[np.ndarray, np.nd
                 v = np.array(getattr(b, k), dtype=float)
                 v[s] *= np.exp(sign * h)
                 trials.append(b.replace(**{k: v}))
-    acc = simulate(trials, gm, outputs="acc").acc
+    acc = simulate_response(trials, gm, outputs="acc").acc
     J = (acc[0::2] - acc[1::2]) / (2 * h)  # (param, time, floor)
-    clean = simulate(b, gm, outputs="acc").acc[0]
+    clean = simulate_response(b, gm, outputs="acc").acc[0]
     sf = noise * np.sqrt(np.mean(clean**2, axis=0))
     sg = noise * float(np.sqrt(np.mean(gm.acc**2)))
     Jw = (J / sf).reshape(len(J), -1)

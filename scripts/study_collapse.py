@@ -23,7 +23,7 @@ from reference_models import table1_stories
 
 from hlaid import _progress
 from hlaid.clone import Clone
-from hlaid.ida import IDAConfig, ida
+from hlaid.ida import IDAConfig, run_ida
 from hlaid.io import read
 from hlaid.model import Building
 from hlaid.model.collapse import COLLAPSE_MODELS
@@ -136,7 +136,7 @@ def main(argv=None):
     results = {}
     for name in MODELS:
         t0 = time.perf_counter()
-        r = ida(b, motions, IDAConfig(collapse=name))
+        r = run_ida(b, motions, IDAConfig(collapse=name))
         f = r.collapse_fragility()
         results[name] = r
         print(f"| {name} | {f.median:.3g} | {f.beta:.2f} | {r.point_im.size} | "

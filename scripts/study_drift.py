@@ -21,10 +21,10 @@ from pathlib import Path
 import numpy as np
 from study_identification import RANDOM_RECORDS, TABLE1_RECORDS, random_building, scale_to_yield
 
-from hlaid.hla import hla
+from hlaid.hla import run_hla
 from hlaid.identify.drift import hla_drift, reconstruct_drift
 from hlaid.io import read
-from hlaid.signal import measured_ground
+from hlaid.measurement import measured_ground
 from hlaid.synthetic import load_simulation_config, simulate_measurement
 
 PARAMS = ("k0", "alpha", "p", "dy", "delta_eta")
@@ -39,7 +39,7 @@ def errors(x: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def case(building, gm, noise: float, seed: int) -> dict:
     meas = simulate_measurement(building, gm, noise_rms=noise, seed=seed)
-    res = hla(meas)
+    res = run_hla(meas)
     ground = measured_ground(meas, res.band_hz[1], name="")
     rng = np.random.default_rng(seed + 100)
     off = building.replace(**{k: getattr(building, k) * rng.uniform(0.9, 1.1, building.n_stories) for k in PARAMS})

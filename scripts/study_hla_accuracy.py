@@ -38,7 +38,7 @@ from hlaid.errors import InputError  # noqa: E402
 from hlaid.hla import HLAConfig  # noqa: E402
 from hlaid.io import read  # noqa: E402
 from hlaid.motions import GroundMotion  # noqa: E402
-from hlaid.simulate import simulate  # noqa: E402
+from hlaid.simulate import simulate_response  # noqa: E402
 from hlaid.studies.hla_accuracy import accuracy_study, summarise  # noqa: E402
 from hlaid.synthetic import load_simulation_config  # noqa: E402
 
@@ -67,7 +67,7 @@ def find_record(token: str, root: Path = GROUND_MOTIONS) -> GroundMotion:
 def ductility(building, motions) -> dict[str, np.ndarray]:
     """Peak drift / dy per story of each record at PGA 0.62 g (noise-free simulation)."""
     gms = [m.scaled_to_pga(PGA_G).resampled(RATE_HZ) for m in motions]
-    r = simulate(building, gms, outputs="peaks")
+    r = simulate_response(building, gms, outputs="peaks")
     return {m.name: r.peak_drift[i] / np.asarray(building.dy) for i, m in enumerate(motions)}
 
 
@@ -180,13 +180,13 @@ FIGURES = ("sim_loops.png", "sim_stiffness.png")
 
 def figures(building, motion: GroundMotion, seed: int, noise: float, cfg: HLAConfig, out: Path) -> None:
     """HLA loops and stiffness evolution (with the truth) of one simulated measurement."""
-    from hlaid.hla import hla
+    from hlaid.hla import run_hla
     from hlaid.hla.plots import plot_loops, plot_stiffness
     from hlaid.plots import save_figure
     from hlaid.synthetic import simulate_measurement
 
     meas = simulate_measurement(building, motion.scaled_to_pga(PGA_G), rate_hz=RATE_HZ, noise_rms=noise, seed=seed)
-    res = hla(meas, cfg)
+    res = run_hla(meas, cfg)
     what = f"Table 1, {motion.name} at {PGA_G} g, {100 * noise:g} % noise, seed {seed}"
     fig = plot_loops(res)
     fig.suptitle(f"HLA loops: {what}")

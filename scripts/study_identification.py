@@ -25,10 +25,10 @@ import numpy as np
 
 from hlaid import _progress
 from hlaid.config import load_config
-from hlaid.identify import IdentifyConfig, identify
+from hlaid.identify import IdentifyConfig, identify_clone
 from hlaid.io import read
 from hlaid.model import Building
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 from hlaid.synthetic import load_simulation_config, simulate_measurement
 
 PARAMS = ("k0", "alpha", "p", "dy", "delta_eta")
@@ -48,7 +48,7 @@ def one(truth: Building, gm, seed: int, cfg: IdentifyConfig, cache: str, noise: 
     meas = simulate_measurement(truth, gm, noise_rms=noise, seed=seed)
     t = time.perf_counter()
     try:
-        res = identify(meas, cfg, cache_dir=cache)
+        res = identify_clone(meas, cfg, cache_dir=cache)
     except ValueError as err:
         return {"record": gm.name, "seed": seed, "failed": str(err)}
     ident = [s["identifiable"] for s in res.clone.diagnostics["stories"]]
@@ -71,7 +71,7 @@ def scale_to_yield(b: Building, gm, ductility: float = 1.5):
     lo, hi = 0.0, None
     s = 1.0
     for _ in range(30):
-        r = simulate(b, gm, s, outputs="peaks")
+        r = simulate_response(b, gm, s, outputs="peaks")
         ok = r.status[0] == 0 and np.all(r.peak_drift[0] >= ductility * b.dy)
         if ok:
             hi = s

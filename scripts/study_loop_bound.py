@@ -35,13 +35,13 @@ import numpy as np
 from study_identification import PAPER_LEVEL, TABLE1_RECORDS, at_paper_level, run_errors
 
 from hlaid._fileio import atomic_write, write_json
-from hlaid.hla import hla
+from hlaid.hla import run_hla
 from hlaid.identify import IdentifyConfig
 from hlaid.identify.drift import reconstruct_drift
 from hlaid.identify.loopfit import STORY_PARAMS, fit_story_loop
 from hlaid.io import read
-from hlaid.signal import measured_ground
-from hlaid.simulate import simulate
+from hlaid.measurement import measured_ground
+from hlaid.simulate import simulate_response
 from hlaid.synthetic import load_simulation_config, simulate_measurement
 
 PATHS = ("true", "replay_true", "complementary_true")
@@ -61,10 +61,10 @@ def loop_errors(res, path: np.ndarray, truth) -> np.ndarray:
 
 def case(truth, gm, noise: float, seed: int) -> dict:
     meas = simulate_measurement(truth, gm, noise_rms=noise, seed=seed)
-    res = hla(meas, IdentifyConfig().hla)
+    res = run_hla(meas, IdentifyConfig().hla)
     n = res.stories[0].drift.shape[0]
     ground = measured_ground(meas, res.band_hz[1], name="")
-    replay = simulate(truth, ground, substeps=4).drift
+    replay = simulate_response(truth, ground, substeps=4).drift
     assert replay is not None and meas.truth is not None
     paths = {"true": np.asarray(meas.truth.drift)[:n], "replay_true": replay[0][:n],
              "complementary_true": reconstruct_drift(res, ground, truth)}

@@ -32,9 +32,10 @@ from hlaid.identify.classify import make_svc
 from hlaid.identify.svmtrain import TrainSVMConfig, pass_bins
 from hlaid.identify.tb import TBLogger
 from hlaid.identify.training import Ranges, simulate_training_sets, strong_motion_window
+from hlaid.measurement import measured_ground
 from hlaid.motions import GroundMotion
 from hlaid.plots import plt, save_figure
-from hlaid.signal import lowpass, measured_ground
+from hlaid.signal import lowpass
 
 
 def main(argv=None) -> int:
@@ -140,7 +141,7 @@ def plot(rows, stories, series, title: str, out: Path) -> None:
 def path_sets(cfg, noise: float, spread: float, n: int, seed: int):
     """Path-driven training sets of every story around the config's building, along the drift
     path reconstructed from a simulated measurement of it; ``(sets, bins)``."""
-    from hlaid.hla import hla
+    from hlaid.hla import run_hla
     from hlaid.hla.features import half_cycle_features
     from hlaid.identify.drift import reconstruct_drift
     from hlaid.identify.pathtrain import path_training_set, story_paths
@@ -149,7 +150,7 @@ def path_sets(cfg, noise: float, spread: float, n: int, seed: int):
     b = cfg.building.build()
     gm = cfg.motion.load(None)
     meas = simulate_measurement(b, gm, noise_rms=noise, seed=seed)
-    res = hla(meas, cfg.identify.hla)
+    res = run_hla(meas, cfg.identify.hla)
     ground = measured_ground(meas, res.band_hz[1], name="")
     paths = reconstruct_drift(res, ground, b, crossover_hz=cfg.identify.training.crossover_hz)
     bins = pass_bins(b, cfg.alpha_max, cfg.identify, "coarse")

@@ -33,10 +33,11 @@ from scipy.stats import norm
 from study_identification import RANDOM_RECORDS, random_building, scale_to_yield
 
 from hlaid import _progress
-from hlaid.identify import IdentifyConfig, identify
+from hlaid.identify import IdentifyConfig, identify_clone
 from hlaid.io import read
+from hlaid.studies.bootstrap import parametric_bootstrap
 from hlaid.synthetic import load_simulation_config, simulate_measurement
-from hlaid.uncertainty import calibration_factor, parametric_bootstrap, zscores
+from hlaid.uncertainty import calibration_factor, zscores
 from hlaid.uncertainty.laplace import METHODS, MISFIT_LIMIT, from_refinement, noise_residual_rms
 
 SET_SEEDS = {"heldout": 1515, "calibration": 2727}
@@ -67,7 +68,7 @@ def run(args) -> None:
         meas = simulate_measurement(truth, gm, noise_rms=0.10, seed=seed)
         t = time.perf_counter()
         try:
-            res = identify(meas, cfg, cache_dir=args.cache)
+            res = identify_clone(meas, cfg, cache_dir=args.cache)
         except ValueError as err:
             print(f"[{j + 1}/{args.n}] {gm.name}: FAILED {err}", flush=True)
             np.savez(path, failed=str(err))
@@ -229,7 +230,7 @@ def bootstrap(args) -> None:
     jobs = [(truth, read(r, "motion").scaled_to_pga(0.62), 0) for r in BOOT_RECORDS[: args.n_boot_cases]]
     for j, (truth, gm, seed) in enumerate(jobs):
         meas = simulate_measurement(truth, gm, noise_rms=0.10, seed=seed)
-        res = identify(meas, cfg, cache_dir=args.cache)
+        res = identify_clone(meas, cfg, cache_dir=args.cache)
         t = time.perf_counter()
         boot = parametric_bootstrap(res.clone, meas, args.n_boot, config=cfg, cache_dir=args.cache, seed=j)
         u = res.clone.uncertainty

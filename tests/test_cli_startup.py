@@ -45,9 +45,21 @@ def test_parser_and_every_help_import_nothing_heavy():
 
 def test_import_hlaid_is_light_and_names_load_on_use():
     code = (f"import sys, hlaid; light = not any(m in sys.modules for m in {HEAVY!r}); "
-            "from hlaid.ida.analysis import ida as f; from hlaid import Building, ida; "
-            "print(light, hlaid.ida is ida is f, Building.__module__)")
+            "from hlaid.ida.analysis import run_ida as f; from hlaid import Building, run_ida; "
+            "print(light, hlaid.run_ida is run_ida is f, Building.__module__)")
     assert _fresh(code).split() == ["True", "True", "hlaid.model.params"]
+
+
+def test_subpackages_are_modules():
+    """``hlaid.identify`` & co. are the subpackages, whether imported before or after the
+    functions of the same stem; ``import hlaid.x.y as m`` gives the module."""
+    code = ("import types, hlaid; f = hlaid.identify_clone; import hlaid.identify.pipeline as pl; "
+            "import hlaid.hla, hlaid.ida, hlaid.simulate, hlaid.simulate.odeint as od; "
+            "mods = [hlaid.identify, hlaid.hla, hlaid.ida, hlaid.simulate, pl, od]; "
+            "print(all(isinstance(m, types.ModuleType) for m in mods), hlaid.identify.identify_clone is f, "
+            "hlaid.hla.run_hla is hlaid.run_hla, hlaid.simulate.simulate_response is hlaid.simulate_response, "
+            "hlaid.ida.run_ida is hlaid.run_ida)")
+    assert _fresh(code).split() == ["True"] * 5
 
 
 def test_public_api_is_complete():
@@ -58,3 +70,23 @@ def test_public_api_is_complete():
     assert set(hlaid.__all__) <= set(dir(hlaid))
     with pytest.raises(AttributeError, match="no attribute 'nothing'"):
         hlaid.nothing  # noqa: B018
+    for old in ("hla", "identify", "simulate", "ida"):  # the subpackages' names are not functions
+        assert old not in hlaid.__all__
+
+
+def test_the_type_stub_declares_the_public_api():
+    """``hlaid/__init__.pyi`` (what type checkers see) imports exactly ``_LAZY``'s names, each
+    from the module ``_LAZY`` says."""
+    import ast
+
+    import hlaid
+
+    stub = ast.parse((REPO / "hlaid" / "__init__.pyi").read_text())
+    declared: dict[str, set[str]] = {}
+    for node in stub.body:
+        if isinstance(node, ast.ImportFrom) and node.level == 1:
+            for a in node.names:
+                assert a.asname == a.name, f"{a.name}: re-export it as 'import {a.name} as {a.name}'"
+                declared.setdefault("." + (node.module or ""), set()).add(a.name)
+    declared.pop(".typing", None)
+    assert declared == {m: set(names) for m, names in hlaid._LAZY.items()}

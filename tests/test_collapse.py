@@ -16,7 +16,7 @@ from scipy.integrate import solve_ivp
 from hlaid.errors import InputError
 from hlaid.model import BoucWenBuilding, Building, BuildingTensors
 from hlaid.model.collapse import COLLAPSE_MODELS, CollapseModel, get_collapse_model
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 from hlaid.simulate.path import drive_story
 
 H = 3000.0
@@ -127,11 +127,11 @@ def test_registry_names_and_errors():
 def test_none_keeps_the_paper_law(table1):
     b = table1.replace(height=[H] * 3, pdelta=True)
     gm = paper_record("elcentro-1940-ns")
-    r0 = simulate(b, gm, [0.5, 1.0])
+    r0 = simulate_response(b, gm, [0.5, 1.0])
     assert r0.final_state.shape == (2, 12)  # no collapse memory: the 4*story state of the paper's law
     # a collapse model whose cap is never reached gives the same response, to rounding
     far = CollapseModel(theta_p=0.9, theta_pc=1.0, kappa=0.5, theta_u=0.95)
-    r1 = simulate(b.replace(collapse=far), gm, [0.5, 1.0])
+    r1 = simulate_response(b.replace(collapse=far), gm, [0.5, 1.0])
     assert r1.final_state.shape == (2, 18)
     np.testing.assert_allclose(r1.drift, r0.drift, rtol=0, atol=1e-9 * np.abs(r0.drift).max())
     np.testing.assert_array_equal(r1.final_state[:, 12:15], np.abs(r1.final_state[:, 12:15]))
@@ -219,7 +219,7 @@ def test_dynamic_response_matches_solve_ivp(scale):
     gm = paper_record("elcentro-1940-ns")
     t_end = 12.0
     gm = gm.__class__(acc=gm.acc[: int(t_end / gm.dt) + 1], dt=gm.dt, name=gm.name)
-    ours = simulate(b, gm, scale, substeps=8)
+    ours = simulate_response(b, gm, scale, substeps=8)
     u_ref = _ref_sdof(b, gm, scale, t_end)
     u = ours.disp[0, : u_ref.size, 0]
     peak = np.abs(u_ref).max()
@@ -234,8 +234,8 @@ def test_torch_module_equals_kernel(table1):
     b = table1.replace(height=[H] * 3, pdelta=True, collapse="steel-mrf")
     gm = paper_record("kocaeli-1999-dzc180")
     gm = gm.__class__(acc=gm.acc[:2000], dt=gm.dt, name=gm.name)
-    a = simulate(b, gm, [1.0, 2.5], substeps=2)
-    t = simulate(b, gm, [1.0, 2.5], substeps=2, backend="torch")
+    a = simulate_response(b, gm, [1.0, 2.5], substeps=2)
+    t = simulate_response(b, gm, [1.0, 2.5], substeps=2, backend="torch")
     assert a.final_state.shape[1] == 18
     assert np.abs(a.drift).max() > 1.2 * b.collapse_values()[:, 0].min()  # past a cap
     np.testing.assert_allclose(t.drift, a.drift, rtol=0, atol=1e-8 * np.abs(a.drift).max())
@@ -270,19 +270,19 @@ def test_clone_file_collapse_block(table1, tmp_path):
 
 
 def test_ida_flatlines_at_a_lower_intensity_with_a_collapse_model(table1):
-    from hlaid.ida import IDAConfig, ida
+    from hlaid.ida import IDAConfig, run_ida
     b = table1.replace(height=[H] * 3)
     recs = ["builtin:elcentro-1940-ns", "builtin:kocaeli-1999-dzc180", "builtin:northridge-1994-mul009"]
     cfg = IDAConfig(levels=[0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0], tolerance=0.05)
-    none = ida(b, recs, cfg)
-    steel = ida(b, recs, cfg.replace(collapse="steel-mrf"))
+    none = run_ida(b, recs, cfg)
+    steel = run_ida(b, recs, cfg.replace(collapse="steel-mrf"))
     assert any("collapse model 'none'" in n for n in none.notes)
     assert any("steel-mrf" in n for n in steel.notes)
     m0 = none.collapse_fragility().median
     m1 = steel.collapse_fragility().median
     assert m1 < 0.8 * m0
     with pytest.raises(InputError, match="unknown collapse model"):
-        ida(b, recs, cfg.replace(collapse="steel"))
+        run_ida(b, recs, cfg.replace(collapse="steel"))
 
 
 def test_ida_command_collapse_flag(table1, tmp_path, capsys):

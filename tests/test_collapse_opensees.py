@@ -18,7 +18,7 @@ from hlaid.opensees import (
     opensees_script,
     run_opensees,
 )
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 
 H = 3000.0
 
@@ -44,13 +44,13 @@ def test_past_the_cap_and_collapse_agree_with_opensees(table1):
     at 3x both codes collapse (drift beyond 10 % or no convergence)."""
     b = _clone(table1)
     gm = paper_record("elcentro-1940-ns")
-    ours = simulate(b, gm, 2.0, substeps=10)
+    ours = simulate_response(b, gm, 2.0, substeps=10)
     theirs = _os(b, gm, 2.0)
     xc = b.collapse_values()[:, 0]
     assert theirs.ok and np.sum(ours.peak_drift[0] > xc) >= 2
     np.testing.assert_allclose(ours.peak_drift[0], theirs.peak_drift, rtol=0.01)
     stop = 0.1 * b.height
-    ours = simulate(b, gm, 3.0, substeps=10, stop_drift=stop)
+    ours = simulate_response(b, gm, 3.0, substeps=10, stop_drift=stop)
     theirs = _os(b, gm, 3.0)
     assert ours.status[0] == 1 and (not theirs.ok or np.any(theirs.peak_drift > stop))
 
@@ -76,7 +76,7 @@ def test_median_collapse_intensity_within_2_percent_of_opensees(table1):
     ours, theirs = [], []
     def hlaid_collapses(gm, s):
         sub = int(np.ceil(gm.dt / 0.0005 - 1e-9))
-        return simulate(b, gm, s, substeps=sub, outputs="peaks", stop_drift=stop).status[0] != 0
+        return simulate_response(b, gm, s, substeps=sub, outputs="peaks", stop_drift=stop).status[0] != 0
 
     def opensees_collapses(gm, s):
         r = _os(b, gm, s)

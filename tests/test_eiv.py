@@ -13,7 +13,7 @@ from hlaid.identify import RefineConfig, refine_replay
 from hlaid.identify.eiv import ground_transfer, lowpass_gain, whiten
 from hlaid.motions import GroundMotion
 from hlaid.signal import lowpass
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 from hlaid.synthetic import simulate_measurement
 
 
@@ -26,7 +26,7 @@ def test_ground_transfer_is_the_linear_buildings(table1, pdelta):
     g = np.random.default_rng(1).standard_normal(n) * 100.0
     g[:500] = g[-1500:] = 0.0  # quiet ends: the response dies out before the (circular) end
     g = lowpass(g, dt, 20.0)
-    acc = simulate(b, GroundMotion(dt=dt, acc=g), substeps=4, outputs="acc").acc[0]
+    acc = simulate_response(b, GroundMotion(dt=dt, acc=g), substeps=4, outputs="acc").acc[0]
     pred = np.fft.irfft(ground_transfer(b, np.fft.rfftfreq(n, dt)) * np.fft.rfft(g)[:, None], n=n, axis=0)
     assert np.all(np.std(acc - pred, axis=0) < 0.01 * np.std(acc, axis=0))
     if pdelta:  # the geometric stiffness softens the building: a visibly different transfer

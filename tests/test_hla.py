@@ -15,7 +15,7 @@ from conftest import paper_record, window
 
 from hlaid.cli.main import main
 from hlaid.errors import InputError
-from hlaid.hla import HLAConfig, hla
+from hlaid.hla import HLAConfig, run_hla
 from hlaid.hla.config import ForceConfig, StiffnessConfig
 from hlaid.hla.halfcycles import half_cycle_bounds, reversals
 from hlaid.hla.stiffness import degradation_trend, isotonic_decreasing, ls_slope, segment_slopes, sliding_slope
@@ -81,7 +81,7 @@ def test_isotonic_and_degradation_trend_recover_known_curves():
 # ---------------------------------------------------------------------- against the truth
 def test_noise_free_hla_matches_truth(table1, elcentro):
     meas = simulate_measurement(table1, elcentro, noise_rms=0.0)
-    res = hla(meas)
+    res = run_hla(meas)
     e = hla_errors(res, meas.truth)
     # k0 is the least certain: El Centro yields hard in its second cycle, before many
     # elastic half cycles were recorded (docs/hla.md)
@@ -93,7 +93,7 @@ def test_noise_free_hla_matches_truth(table1, elcentro):
 
 
 def test_ten_percent_noise(table1, kocaeli):
-    errs = [hla_errors(hla(m), m.truth) for m in
+    errs = [hla_errors(run_hla(m), m.truth) for m in
             (simulate_measurement(table1, kocaeli, noise_rms=0.10, seed=s) for s in (0, 1))]
     ke = np.array([e.ke_median for e in errs])
     nr = np.array([e.force_nrmse for e in errs])
@@ -108,7 +108,7 @@ def test_damping_options(table1, kocaeli):
     ke = {}
     for kind in ("none", "rayleigh", "regression"):
         cfg = HLAConfig(force=ForceConfig(damping=kind), stiffness=StiffnessConfig(ke_smoothing="none"))
-        r = hla(meas, cfg)
+        r = run_hla(meas, cfg)
         assert r.damping == kind
         ke[kind] = np.median(hla_errors(r, meas.truth).ke_median)
     assert ke["rayleigh"] < 0.05
@@ -118,7 +118,7 @@ def test_damping_options(table1, kocaeli):
 
 def test_elastic_story_reported_not_failed(table1, kocaeli):
     meas = simulate_measurement(table1, kocaeli.scaled(0.05 / 0.62), noise_rms=0.05, seed=3)
-    res = hla(meas)
+    res = run_hla(meas)
     assert not any(s.yielded for s in res.stories)
     for s, k0 in zip(res.stories, table1.k0):
         assert np.allclose(s.half_cycles.ke, s.k0)
@@ -131,23 +131,23 @@ def test_strongly_hardening_degraded_story_is_yielded(record, delta_eta):
     """alpha = 0.42 at ductility ~12-20: the half cycles end near the *degraded* ke (which has fallen
     towards alpha k0), but far below the undegraded one; the yield test must see it. Half as strong
     (peak drift 0.5 dy), the same building is elastic."""
-    from hlaid import Building, read, simulate
+    from hlaid import Building, read, simulate_response
     b = Building(mass=[20.0, 15.0], k0=[2.0e4, 1.6e4], alpha=[0.42, 0.42], p=[2.0, 2.0], dy=[4.0, 4.0],
                  delta_eta=[delta_eta, delta_eta])
     gm = read(record, "motion")
-    mu = (simulate(b, gm, 1.0, outputs="peaks").peak_drift[0] / b.dy).max()
+    mu = (simulate_response(b, gm, 1.0, outputs="peaks").peak_drift[0] / b.dy).max()
     strong = simulate_measurement(b, gm.scaled(12.0 / mu), noise_rms=0.10, seed=0)
     assert (np.abs(strong.truth.drift).max(axis=0) > 8 * b.dy).all()
-    assert all(s.yielded for s in hla(strong).stories)
+    assert all(s.yielded for s in run_hla(strong).stories)
     weak = simulate_measurement(b, gm.scaled(0.5 / mu), noise_rms=0.10, seed=0)
-    assert not any(s.yielded for s in hla(weak).stories)
+    assert not any(s.yielded for s in run_hla(weak).stories)
 
 
 def test_pdelta_share_added_back(table1, elcentro):
     b = table1.replace(height=[3000.0] * 3, pdelta=True)
     meas = simulate_measurement(b, elcentro, noise_rms=0.0)
-    on = hla_errors(hla(meas), meas.truth)
-    off = hla_errors(hla(meas, HLAConfig(force=ForceConfig(pdelta="off"))), meas.truth)
+    on = hla_errors(run_hla(meas), meas.truth)
+    off = hla_errors(run_hla(meas, HLAConfig(force=ForceConfig(pdelta="off"))), meas.truth)
     assert np.all(np.abs(on.force_nrmse) < 0.01)
     assert np.all(on.force_nrmse < off.force_nrmse)
 
@@ -156,12 +156,12 @@ def test_mass_normalised(table1, elcentro):
     meas = simulate_measurement(table1, elcentro, noise_rms=0.0)
     unknown = dataclasses.replace(meas, mass=None)
     ratios = table1.mass / table1.mass.sum()
-    res = hla(unknown, HLAConfig(force=ForceConfig(mass_ratios=list(ratios))))
-    ref = hla(meas)
+    res = run_hla(unknown, HLAConfig(force=ForceConfig(mass_ratios=list(ratios))))
+    ref = run_hla(meas)
     assert res.mass_normalised and not ref.mass_normalised
     assert np.allclose(res.k0 * table1.mass.sum(), ref.k0, rtol=1e-4)
     assert "per unit total mass" in res.units["force"]
-    eq = hla(unknown)  # equal masses assumed: still runs, says so
+    eq = run_hla(unknown)  # equal masses assumed: still runs, says so
     assert eq.mass_normalised and np.allclose(eq.mass, 1 / 3)
 
 
@@ -169,13 +169,13 @@ def test_bad_input(table1, elcentro):
     meas = simulate_measurement(table1, elcentro, noise_rms=0.0)
     short = Measurement(dt=meas.dt, ground_acc=meas.ground_acc[:40], floor_acc=meas.floor_acc[:40], mass=meas.mass)
     with pytest.raises(InputError, match="samples"):
-        hla(short)
+        run_hla(short)
     with pytest.raises(InputError, match="mass_ratios"):
-        hla(dataclasses.replace(meas, mass=None), HLAConfig(force=ForceConfig(mass_ratios=[1.0, 2.0])))
+        run_hla(dataclasses.replace(meas, mass=None), HLAConfig(force=ForceConfig(mass_ratios=[1.0, 2.0])))
     quiet = Measurement(dt=meas.dt, ground_acc=np.sin(np.arange(4000) * 0.01) * 100,
                         floor_acc=np.zeros((4000, 3)) + 1e-9 * np.arange(4000)[:, None], mass=meas.mass)
     with pytest.raises(InputError, match="half cycle|too short or too weak"):
-        hla(quiet)
+        run_hla(quiet)
 
 
 # ---------------------------------------------------------------------- files and CLI

@@ -25,7 +25,7 @@ from io_checks import data_path
 from scipy import signal
 
 from hlaid.config import load_config
-from hlaid.hla import HLAConfig, hla
+from hlaid.hla import HLAConfig, run_hla
 from hlaid.io import read_mini_shake_table, read_steel_frame
 
 STEEL = "shake_table_3story_steel_mrf_fixedbase"
@@ -89,7 +89,7 @@ def shear_building_f1(k: np.ndarray, m: np.ndarray) -> float:
 def steel():
     runs = [read_steel_frame(data_path(STEEL, f"filtered_fbgm152s{s}_denoised.tsv.gz")) for s in (1, 2, 3, 4)]
     cfg = load_config(STEEL_CONFIG, HLAConfig)
-    return {"runs": runs, "first_mode": [hla(m, cfg) for m in runs], "default": [hla(m) for m in runs]}
+    return {"runs": runs, "first_mode": [run_hla(m, cfg) for m in runs], "default": [run_hla(m) for m in runs]}
 
 
 def test_steel_frame_k0_does_not_rise_from_run_to_run(steel):
@@ -156,7 +156,7 @@ def mini():
     out = {}
     for n in names:
         m = read_mini_shake_table(data_path(MINI, f"{n}.csv"))
-        out[n] = (m, hla(m))
+        out[n] = (m, run_hla(m))
     return out
 
 

@@ -16,11 +16,11 @@ import pytest
 
 from hlaid.clone import Clone
 from hlaid.errors import HlaidWarning, InputError
-from hlaid.ida import IDAConfig, IDAResult, ida, prepare_building, scan_collapse
+from hlaid.ida import IDAConfig, IDAResult, prepare_building, run_ida, scan_collapse
 from hlaid.io import read
 from hlaid.model import Building
 from hlaid.motions import GroundMotion, load_builtin
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 
 HEIGHTS = [3000.0, 3000.0, 3000.0]
 RECS = ("elcentro-1940-ns", "kocaeli-1999-dzc180", "northridge-1994-mul009")
@@ -34,7 +34,7 @@ def motions():
 @pytest.fixture(scope="module")
 def result(table1, motions) -> IDAResult:
     # a 3 % drift limit keeps collapse intensities low (short runs)
-    return ida(table1, motions, IDAConfig(levels=[0.5, 1.0, 1.5, 2.0, 3.0], drift_limit=0.03, heights_mm=HEIGHTS))
+    return run_ida(table1, motions, IDAConfig(levels=[0.5, 1.0, 1.5, 2.0, 3.0], drift_limit=0.03, heights_mm=HEIGHTS))
 
 
 def test_every_point_matches_a_direct_simulation(result, motions):
@@ -47,11 +47,11 @@ def test_every_point_matches_a_direct_simulation(result, motions):
         gm, f = motions[result.point_record[k]], int(result.point_substeps[k])
         t = np.arange((gm.npts - 1) * f + 1) * gm.dt / f
         fine = GroundMotion(dt=gm.dt / f, acc=np.interp(t, gm.time, gm.acc))
-        d = simulate(b, fine, result.point_scale[k], substeps=1, outputs="peaks", stop_drift=stop)
+        d = simulate_response(b, fine, result.point_scale[k], substeps=1, outputs="peaks", stop_drift=stop)
         assert np.allclose(d.peak_drift[0], result.peak_drift[k], rtol=1e-12, atol=1e-12)
         assert d.status[0] == result.point_status[k]
         if d.status[0] == 0:  # the same run with peaks at the record's samples only: lower, barely
-            c = simulate(b, gm, result.point_scale[k], substeps=f, outputs="peaks")
+            c = simulate_response(b, gm, result.point_scale[k], substeps=f, outputs="peaks")
             assert np.all(c.peak_drift[0] <= result.peak_drift[k] * (1 + 1e-9))
             assert np.all(c.peak_drift[0] >= 0.98 * result.peak_drift[k])
             assert np.allclose(c.residual_drift[0], result.residual_drift[k], rtol=1e-9, atol=1e-9)
@@ -82,7 +82,7 @@ def test_collapse_im_agrees_with_brute_force_scan(result, motions):
             continue
         c = result.collapse_im[r]
         ims = np.linspace(0.8 * c, 1.2 * c, 81)
-        d = simulate(b, motions[r], ims / result.record_im[r], substeps=int(result.point_substeps[0]),
+        d = simulate_response(b, motions[r], ims / result.record_im[r], substeps=int(result.point_substeps[0]),
                      outputs="peaks", stop_drift=1.001 * result.drift_limit * np.asarray(b.height))
         ratio = (d.peak_drift / np.asarray(b.height)).max(axis=1)
         first = ims[np.argmax(ratio > result.drift_limit)]
@@ -110,7 +110,7 @@ def test_integration_blow_up_is_rerun_not_taken_for_collapse(table1, monkeypatch
     """A run that comes back from the simulator diverged, or stopped far past the drift limit
     (a jump within one step), is re-run with 4x the steps; only the re-run counts."""
     from hlaid.ida import analysis as A
-    real = A.simulate
+    real = A.simulate_response
     calls = []
 
     def flaky(*args, substeps=1, **kw):
@@ -120,9 +120,9 @@ def test_integration_blow_up_is_rerun_not_taken_for_collapse(table1, monkeypatch
             bad = np.full_like(r.peak_drift, 1e6 if kind == "jump" else np.nan)
             return dataclasses.replace(r, peak_drift=bad, status=np.full_like(r.status, 1 if kind == "jump" else 2))
         return r
-    monkeypatch.setattr(A, "simulate", flaky)
+    monkeypatch.setattr(A, "simulate_response", flaky)
     gm = load_builtin("landers-1992-yer270")
-    res = ida(table1, gm, IDAConfig(im="pga", levels=[0.5], refine=False, heights_mm=HEIGHTS, max_step=0.02))
+    res = run_ida(table1, gm, IDAConfig(im="pga", levels=[0.5], refine=False, heights_mm=HEIGHTS, max_step=0.02))
     k = np.flatnonzero(res.point_stage == "grid")[0]
     assert calls == [1, 4, 1, 4]  # probe and grid point, each re-run once
     assert res.point_substeps[k] == 4 and res.point_status[k] == 0 and res.peak_drift[k].max() < 100.0
@@ -157,11 +157,11 @@ def test_pdelta_and_heights_rules(table1, tmp_path, capsys):
 
 def test_bad_input(table1, motions, tmp_path, capsys):
     with pytest.raises(InputError, match="strictly increasing; level 3 .0.5 g. is not above level 2"):
-        ida(table1, motions, IDAConfig(levels=[0.2, 0.8, 0.5], heights_mm=HEIGHTS))
+        run_ida(table1, motions, IDAConfig(levels=[0.2, 0.8, 0.5], heights_mm=HEIGHTS))
     empty = tmp_path / "empty"
     empty.mkdir()
     with pytest.raises(InputError, match="no record files in the folder"):
-        ida(table1, empty, IDAConfig(heights_mm=HEIGHTS))
+        run_ida(table1, empty, IDAConfig(heights_mm=HEIGHTS))
     folder = tmp_path / "recs"
     folder.mkdir()
     src = load_builtin(RECS[0]).source
@@ -181,12 +181,12 @@ def test_bad_input(table1, motions, tmp_path, capsys):
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"format": "something-else"}))
     with pytest.raises(InputError, match="not an hlaid clone"):
-        ida(bad, motions)
+        run_ida(bad, motions)
     d = Clone(building=table1).to_dict()
     d["version"] = 99
     bad.write_text(json.dumps(d))
     with pytest.raises(InputError, match="clone version 99 is not supported"):
-        ida(bad, motions)
+        run_ida(bad, motions)
     assert src
 
 
@@ -241,7 +241,7 @@ def test_save_is_atomic_and_complete(result, tmp_path, monkeypatch):
 def test_building_argument_kinds(table1, motions, tmp_path):
     """A Building, a Clone, a clone file (path or str): the same building to analyse; else an InputError."""
     with pytest.raises(InputError, match="expected a Clone, a Building or a clone file"):
-        ida(42, motions)
+        run_ida(42, motions)
     ref, _ = prepare_building(table1, heights=HEIGHTS)
     assert isinstance(ref, Building) and ref.pdelta
     path = Clone(building=table1).save(tmp_path / "clone.json")

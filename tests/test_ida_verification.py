@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 from conftest import GROUND_MOTIONS, requires_data
 
-from hlaid.ida import IDAConfig, ida, intensity
+from hlaid.ida import IDAConfig, intensity, run_ida
 from hlaid.io import read
 from hlaid.model import Building
 
@@ -77,7 +77,7 @@ def curves():
                     for L in LEVELS]) / UY
     b = Building(mass=[M], k0=[K], alpha=[ALPHA], p=[30.0], dy=[UY], delta_eta=[0.0], height=[1e5],
                  name="VC2002 SDOF")
-    res = ida(b, gm, IDAConfig(levels=LEVELS, refine=False, pdelta=False, max_step=0.002))
+    res = run_ida(b, gm, IDAConfig(levels=LEVELS, refine=False, pdelta=False, max_step=0.002))
     grid = res.point_stage == "grid"
     order = np.argsort(res.point_im[grid])
     mu = res.peak_drift[grid, 0][order] / UY

@@ -44,7 +44,7 @@ from hlaid.identify.gradient import (
 )
 from hlaid.identify.ukf import UKFIdentifier, sigma_weights
 from hlaid.model import Building, Damping
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 from hlaid.studies import compare
 from hlaid.synthetic import simulate_measurement
 
@@ -234,7 +234,7 @@ def test_segments_reproduce_the_compiled_simulator(problem):
     y0, ok = prob.start_states(sp.values_numpy(values))
     with torch.no_grad():
         acc, _ = prob.accelerations(values, torch.as_tensor(y0))
-    ref = simulate(prob.known.building({k: v[0] for k, v in sp.values_numpy(values).items()}), prob.ground,
+    ref = simulate_response(prob.known.building({k: v[0] for k, v in sp.values_numpy(values).items()}), prob.ground,
                    substeps=prob.substeps)
     want = ref.acc[0, prob.i0:prob.i1]
     assert ok.all() and np.max(np.abs(acc[0].numpy() - want)) < 1e-8 * np.max(np.abs(want))

@@ -18,7 +18,7 @@ from conftest import paper_record, window
 from hlaid.cli.main import main
 from hlaid.clone import Clone
 from hlaid.errors import NotIdentifiableError, UnstableTangentError
-from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig, identify, refine_replay
+from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig, identify_clone, refine_replay
 from hlaid.identify.classify import Bins, pass_result
 from hlaid.identify.regression import fit_delta_eta, fit_yield_displacement, hysteretic_displacement, hysteretic_work
 from hlaid.synthetic import simulate_measurement
@@ -139,7 +139,7 @@ def _small_config(**kw) -> IdentifyConfig:
 def test_identify_end_to_end_cached_and_logged(table1, record, tmp_path):
     meas = simulate_measurement(table1, record, noise_rms=0.05, seed=1)
     cfg = _small_config()
-    res = identify(meas, cfg, tensorboard=str(tmp_path / "tb"), cache_dir=str(tmp_path / "cache"))
+    res = identify_clone(meas, cfg, tensorboard=str(tmp_path / "tb"), cache_dir=str(tmp_path / "cache"))
     b = res.clone.building
     for name in ("k0", "alpha", "dy", "delta_eta"):
         err = np.abs(getattr(b, name) / getattr(table1, name) - 1)
@@ -155,7 +155,7 @@ def test_identify_end_to_end_cached_and_logged(table1, record, tmp_path):
     assert u.info["fit_consistent"] and np.all(u.std > 0) and np.all(u.std < 0.5)
     assert any(p.name.startswith("events.out.tfevents") for p in (tmp_path / "tb").iterdir())
     cached = sorted((p.relative_to(tmp_path), p.stat().st_size) for p in (tmp_path / "cache").rglob("*"))
-    again = identify(meas, cfg, cache_dir=str(tmp_path / "cache"))
+    again = identify_clone(meas, cfg, cache_dir=str(tmp_path / "cache"))
     # every kernel machine comes from the cache (none trained, nothing written) and gives the same clone
     assert all(v["cached"] for p in again.passes for s in p["stories"] if s for v in s.values())
     assert sorted((p.relative_to(tmp_path), p.stat().st_size) for p in (tmp_path / "cache").rglob("*")) == cached
@@ -168,8 +168,8 @@ def test_worker_processes_give_the_same_clone(table1, record):
     samples) are the machines trained in the process itself: the same clone to the digit."""
     meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
     cfg = _small_config(refine=RefineConfig(method="none"))
-    one = identify(meas, dataclasses.replace(cfg, n_jobs=1), cache_dir="")
-    two = identify(meas, dataclasses.replace(cfg, n_jobs=2), cache_dir="")
+    one = identify_clone(meas, dataclasses.replace(cfg, n_jobs=1), cache_dir="")
+    two = identify_clone(meas, dataclasses.replace(cfg, n_jobs=2), cache_dir="")
     for name in ("k0", "alpha", "p", "dy", "delta_eta"):
         np.testing.assert_array_equal(getattr(one.clone.building, name), getattr(two.clone.building, name))
     def votes(res):
@@ -186,7 +186,7 @@ def test_first_fine_pass_can_be_left_to_the_reconstructed_paths(table1, record):
     stages = {}
     for first in (True, False):
         c = dataclasses.replace(cfg, outer=OuterConfig(max_iterations=2, tol=1e-9, first_fine=first))
-        res = identify(meas, c, cache_dir="")
+        res = identify_clone(meas, c, cache_dir="")
         stages[first] = [(p["iteration"], p["stage"]) for p in res.passes]
         assert res.iterations == 2 and np.all(np.isfinite(res.paper_estimate.alpha))
     assert stages[True] == [(1, "coarse"), (1, "fine"), (2, "fine")]
@@ -201,7 +201,7 @@ def test_coarse_pass_draws_coarse_samples(table1, record):
     for coarse in (40, None):
         cfg = IdentifyConfig(training=TrainingConfig(samples=60, coarse_samples=coarse, n_segments=8),
                              outer=OuterConfig(max_iterations=1), refine=RefineConfig(method="none"))
-        res = identify(meas, cfg, cache_dir="")
+        res = identify_clone(meas, cfg, cache_dir="")
         sizes[coarse] = {p["stage"]: {s["alpha"]["n_train"] + s["alpha"]["n_test"] for s in p["stories"] if s}
                          for p in res.passes}
     assert sizes[40] == {"coarse": {40}, "fine": {60}}
@@ -214,9 +214,9 @@ def test_refinement_restarts_from_a_neutral_start_when_the_fit_misses_the_noise(
     the ratio is reported."""
     meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
     base = _small_config(refine=RefineConfig(max_iterations=4, ground_noise="ignore"))
-    plain = identify(meas, base, cache_dir="").clone.diagnostics["refine"]
+    plain = identify_clone(meas, base, cache_dir="").clone.diagnostics["refine"]
     assert "restart" not in plain and 0 < plain["noise_ratio"] < base.refine.restart_ratio
-    res = identify(meas, dataclasses.replace(base, refine=RefineConfig(max_iterations=4, restart_ratio=1e-6,
+    res = identify_clone(meas, dataclasses.replace(base, refine=RefineConfig(max_iterations=4, restart_ratio=1e-6,
                                                                        ground_noise="ignore")), cache_dir="")
     info = res.clone.diagnostics["refine"]
     assert info["restart"]["noise_ratio"] == pytest.approx(plain["noise_ratio"])
@@ -233,7 +233,7 @@ def test_default_refinement_is_the_errors_in_variables_fit_from_the_regressions(
     ``tangent_max_mb`` falls back to least squares, saying why, before anything is simulated."""
     meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
     assert RefineConfig().ground_noise == "tangent"
-    res = identify(meas, _small_config(refine=RefineConfig(max_iterations=20)), cache_dir="")
+    res = identify_clone(meas, _small_config(refine=RefineConfig(max_iterations=20)), cache_dir="")
     info = res.clone.diagnostics["refine"]
     assert info["tangent"]["start"] == "regressions" and "fallback" not in info["tangent"]
     assert res.refinement.channels == meas.n_floors + 1 and res.refinement.plain_cost > res.refinement.cost_final
@@ -247,14 +247,14 @@ def test_default_refinement_is_the_errors_in_variables_fit_from_the_regressions(
         return plain(*args, **kw)
 
     monkeypatch.setattr(pipeline, "refine_replay", spy)
-    res = identify(meas, _small_config(refine=RefineConfig(max_iterations=4, tangent_max_mb=1.0)), cache_dir="")
+    res = identify_clone(meas, _small_config(refine=RefineConfig(max_iterations=4, tangent_max_mb=1.0)), cache_dir="")
     tang = res.clone.diagnostics["refine"]["tangent"]
     assert "MiB" in tang["fallback"] and "MiB" in tang["skipped"]
     assert res.refinement.channels == meas.n_floors and calls == ["ignore", "tangent", "ignore", "tangent"]
-    res = identify(meas, _small_config(refine=RefineConfig(max_iterations=2)), cache_dir="")
+    res = identify_clone(meas, _small_config(refine=RefineConfig(max_iterations=2)), cache_dir="")
     assert "did not converge in 2 evaluations" in res.clone.diagnostics["refine"]["tangent"]["fallback"]
     calls.clear()  # session 8's order: least squares first, the errors-in-variables fit from its optimum
-    res = identify(meas, _small_config(refine=RefineConfig(max_iterations=6, eiv_start="least_squares")),
+    res = identify_clone(meas, _small_config(refine=RefineConfig(max_iterations=6, eiv_start="least_squares")),
                    cache_dir="")
     assert res.clone.diagnostics["refine"]["tangent"]["start"] == "least squares" and calls == ["ignore", "ignore",
                                                                                                  "tangent"]
@@ -265,7 +265,7 @@ def test_tangent_stage_is_skipped_where_it_weights_nothing_real(table1, record, 
     misses the data by more than its noise or the replay's tangent is unstable."""
     meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
     cfg = _small_config(refine=RefineConfig(max_iterations=4, restart_ratio=1e-6, ground_noise="tangent"))
-    info = identify(meas, cfg, cache_dir="").clone.diagnostics["refine"]
+    info = identify_clone(meas, cfg, cache_dir="").clone.diagnostics["refine"]
     assert "misses the data" in info["tangent"]["skipped"] and info["cost_final"] > 0
     pipeline = importlib.import_module("hlaid.identify.pipeline")
     plain = pipeline.refine_replay
@@ -277,7 +277,7 @@ def test_tangent_stage_is_skipped_where_it_weights_nothing_real(table1, record, 
 
     monkeypatch.setattr(pipeline, "refine_replay", unstable)
     cfg = _small_config(refine=RefineConfig(max_iterations=4, ground_noise="tangent"))
-    res = identify(meas, cfg, cache_dir="")
+    res = identify_clone(meas, cfg, cache_dir="")
     assert "grows without bound" in res.clone.diagnostics["refine"]["tangent"]["skipped"]
     assert res.refinement.channels == meas.n_floors  # the least-squares fit, kept
 
@@ -285,13 +285,13 @@ def test_tangent_stage_is_skipped_where_it_weights_nothing_real(table1, record, 
 def test_no_yield_is_not_identifiable(table1, record):
     meas = simulate_measurement(table1, record.scaled(0.03 / 0.62), noise_rms=0.02)
     with pytest.raises(NotIdentifiableError, match="no story yielded"):
-        identify(meas, _small_config(refine=RefineConfig(method="none")), cache_dir="")
+        identify_clone(meas, _small_config(refine=RefineConfig(method="none")), cache_dir="")
 
 
 def test_elastic_story_marked_not_identifiable(table1, record):
     strong_top = table1.replace(dy=np.array([7.0, 6.0, 60.0]))  # the top story cannot yield
     meas = simulate_measurement(strong_top, record, noise_rms=0.02, seed=2)
-    res = identify(meas, _small_config(refine=RefineConfig(method="none")), cache_dir="")
+    res = identify_clone(meas, _small_config(refine=RefineConfig(method="none")), cache_dir="")
     top = res.clone.diagnostics["stories"][2]
     assert not top["identifiable"] and "elastic" in top["reason"]
     assert res.clone.building.dy[2] >= np.max(np.abs(meas.truth.drift[:, 2]))

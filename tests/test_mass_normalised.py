@@ -16,7 +16,7 @@ import pytest
 from conftest import paper_record, window
 
 from hlaid.clone import Clone
-from hlaid.hla import HLAConfig, hla
+from hlaid.hla import HLAConfig, run_hla
 from hlaid.hla.config import ForceConfig
 from hlaid.hla.features import half_cycle_features
 from hlaid.identify import (
@@ -24,11 +24,11 @@ from hlaid.identify import (
     OuterConfig,
     RefineConfig,
     TrainingConfig,
-    identify,
+    identify_clone,
 )
 from hlaid.identify.regression import story_delta_eta, story_yield_displacement
 from hlaid.identify.replaycheck import corrcoef
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 from hlaid.synthetic import simulate_measurement
 
 
@@ -53,7 +53,7 @@ def test_scaled_building_responds_identically(table1, records):
     b = table1.replace(height=np.array([3000.0, 3000.0, 3000.0]), pdelta=True)
     M = float(b.mass.sum())
     scaled = b.replace(mass=b.mass / M, k0=b.k0 / M)
-    r = simulate([b, scaled], records["elcentro-1940-ns"])
+    r = simulate_response([b, scaled], records["elcentro-1940-ns"])
     assert np.all(r.status == 0)
     for name in ("drift", "acc", "eta"):
         a, s = getattr(r, name)
@@ -66,8 +66,8 @@ def test_hla_and_regressions_are_equivariant(table1, record):
     half cycles, ke / M and the same delta_eta and dy regressions as with the masses."""
     meas = simulate_measurement(table1, record, noise_rms=0.05, seed=4)
     M = float(table1.mass.sum())
-    known = hla(meas)
-    norm = hla(_withheld(meas), HLAConfig(force=ForceConfig(mass_ratios=list(table1.mass))))
+    known = run_hla(meas)
+    norm = run_hla(_withheld(meas), HLAConfig(force=ForceConfig(mass_ratios=list(table1.mass))))
     assert not known.mass_normalised and norm.mass_normalised
     assert np.allclose(norm.mass, table1.mass / M) and norm.units["stiffness"].startswith("N/mm/t")
     assert np.allclose(norm.k0 * M, known.k0, rtol=1e-8)
@@ -88,7 +88,7 @@ def test_hla_and_regressions_are_equivariant(table1, record):
 
 def test_equal_ratios_are_the_default(table1, record):
     meas = simulate_measurement(table1, record, noise_rms=0.0)
-    res = hla(_withheld(meas))
+    res = run_hla(_withheld(meas))
     assert res.mass_normalised and np.allclose(res.mass, 1.0 / 3.0)
 
 
@@ -98,7 +98,7 @@ def test_clone_without_masses_predicts_another_record(table1, record, records, t
     building: R >= 0.98 per floor, peak drifts within 5 %; stiffness ratios, alpha, p, dy and
     delta_eta close to the truth; masses and stiffnesses per unit total mass."""
     meas = simulate_measurement(table1, record, noise_rms=0.0)
-    res = identify(_withheld(meas), _config(list(table1.mass / table1.mass[0])), cache_dir="")
+    res = identify_clone(_withheld(meas), _config(list(table1.mass / table1.mass[0])), cache_dir="")
     path = res.clone.save(tmp_path / "clone.json")
     clone = Clone.load(path)
     b, M = clone.building, float(table1.mass.sum())
@@ -110,7 +110,7 @@ def test_clone_without_masses_predicts_another_record(table1, record, records, t
     for name in ("p", "dy", "delta_eta"):
         assert np.allclose(getattr(b, name), getattr(table1, name), rtol=0.10), name
     other = records["elcentro-1940-ns"]
-    true, pred = simulate(table1, other), simulate(b, other)
+    true, pred = simulate_response(table1, other), simulate_response(b, other)
     assert pred.status[0] == 0
     assert np.all(corrcoef(pred.disp[0], true.disp[0]) >= 0.98)
     assert np.allclose(pred.peak_drift, true.peak_drift, rtol=0.05)
@@ -122,8 +122,8 @@ def test_identification_equivariant_to_withheld_masses(table1, record):
     same alpha, p, dy, delta_eta and k0 / M (the whole pipeline, classifiers included)."""
     meas = simulate_measurement(table1, record, noise_rms=0.05, seed=1)
     cfg = _config(list(table1.mass), refine=RefineConfig(method="none"))
-    known = identify(meas, cfg, cache_dir="").paper_estimate
-    norm = identify(_withheld(meas), cfg, cache_dir="").paper_estimate
+    known = identify_clone(meas, cfg, cache_dir="").paper_estimate
+    norm = identify_clone(_withheld(meas), cfg, cache_dir="").paper_estimate
     for name in ("alpha", "p", "dy", "delta_eta"):
         assert np.allclose(getattr(norm, name), getattr(known, name), rtol=1e-6), name
     assert np.allclose(norm.k0 * table1.mass.sum(), known.k0, rtol=1e-6)

@@ -11,7 +11,7 @@ from hlaid.errors import InputError
 from hlaid.io.native import read_native
 from hlaid.measurement import TRUTH_FIELDS, Measurement
 from hlaid.motions import load_builtin
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 from hlaid.synthetic import add_noise, simulate_measurement
 
 SEEDS = (0, 1, 2, 3, 4)
@@ -31,7 +31,7 @@ def noisy(table1, elcentro):
 def test_noise_std_is_noise_rms_times_channel_rms(table1, elcentro, noisy):
     """Per channel: std(noise) = 0.10 * RMS(channel), white, zero-mean, independent channels."""
     gm = elcentro.resampled(200.0)
-    clean = simulate(table1, gm, substeps=4)
+    clean = simulate_response(table1, gm, substeps=4)
     ratios = []
     for m in noisy.values():
         assert m.dt == 0.005 and m.n_samples == gm.npts and m.noise_rms == 0.10
@@ -55,7 +55,7 @@ def test_seeds_and_truth(table1, elcentro, noisy):
     np.testing.assert_array_equal(again.floor_acc, noisy[0].floor_acc)
     assert not np.allclose(noisy[0].floor_acc, noisy[1].floor_acc)
     clean = simulate_measurement(table1, elcentro, noise_rms=0.0)
-    r = simulate(table1, elcentro.resampled(200.0))
+    r = simulate_response(table1, elcentro.resampled(200.0))
     np.testing.assert_array_equal(clean.floor_acc, r.acc[0])
     t = noisy[3].truth
     assert t.building is table1

@@ -24,7 +24,7 @@ from hlaid.opensees import (
     run_opensees,
     run_opensees_batch,
 )
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 
 HEIGHTS = [3000.0, 3000.0, 3000.0]
 
@@ -49,7 +49,7 @@ def test_peak_drifts_agree_with_opensees_at_dt_over_10(table1, name, pdelta):
     b = table1.replace(height=HEIGHTS, pdelta=pdelta)
     gm = paper_record(name)
     histories = name == "elcentro-1940-ns" and pdelta  # one case checks the whole history (slower)
-    ours = simulate(b, gm, substeps=4)
+    ours = simulate_response(b, gm, substeps=4)
     ref = run_opensees(b, gm, dt_factor=10, histories=histories)
     assert ref.ok
     err = np.abs(ours.peak_drift[0] / ref.peak_drift - 1)
@@ -83,10 +83,10 @@ def test_ida_points_agree_with_opensees(table1):
     """A small IDA of the Table 1 clone (P-Delta on): every point re-run in OpenSees at dt/10;
     median difference of the peak drifts below 2 % (the full 10 records x 8 levels check is
     ``test_ida_cross_check_full`` / scripts/bench_ida.py)."""
-    from hlaid.ida import IDAConfig, ida
+    from hlaid.ida import IDAConfig, run_ida
     from hlaid.motions import load_builtin
     motions = [load_builtin(n) for n in ("northridge-1994-mul009", "kobe-1995-nis000")]
-    res = ida(table1, motions, IDAConfig(levels=[1.0, 4.0], refine=False, heights_mm=HEIGHTS))
+    res = run_ida(table1, motions, IDAConfig(levels=[1.0, 4.0], refine=False, heights_mm=HEIGHTS))
     diffs = _compare(res, motions)
     assert np.median(diffs) < 0.02 and diffs.size >= 9
 
@@ -104,11 +104,11 @@ def _compare(res, motions):
 @pytest.mark.slow
 def test_ida_cross_check_full(table1, data_dir):
     """10 far-field records x 8 levels: median |difference| of the peak drifts below 2 %."""
-    from hlaid.ida import IDAConfig, ida
+    from hlaid.ida import IDAConfig, run_ida
     from hlaid.io import read
     files = sorted((data_dir / "ground_motions" / "fema_p695_farfield").glob("FF*.AT2"))[::4][:10]
     motions = read(files, "records")
-    res = ida(table1, motions, IDAConfig(levels=np.linspace(0.5, 4.0, 8), refine=False, heights_mm=HEIGHTS))
+    res = run_ida(table1, motions, IDAConfig(levels=np.linspace(0.5, 4.0, 8), refine=False, heights_mm=HEIGHTS))
     diffs = _compare(res, motions)
     assert np.median(diffs) < 0.02
 

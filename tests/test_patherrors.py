@@ -11,12 +11,12 @@ import pytest
 from conftest import paper_record, window
 
 from hlaid.errors import InputError
-from hlaid.hla import HLAConfig, hla
-from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig, identify
+from hlaid.hla import HLAConfig, run_hla
+from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig, identify_clone
 from hlaid.identify.drift import hla_drift, reconstruct_drift
 from hlaid.identify.patherrors import path_error_bank
 from hlaid.identify.pathtrain import StoryPath, path_training_set, story_features
-from hlaid.signal import measured_ground
+from hlaid.measurement import measured_ground
 from hlaid.simulate.path import drive_story
 from hlaid.synthetic import simulate_measurement
 
@@ -24,7 +24,7 @@ from hlaid.synthetic import simulate_measurement
 @pytest.fixture(scope="module")
 def measured(table1):
     meas = simulate_measurement(table1, paper_record("kocaeli-1999-dzc180"), noise_rms=0.10, seed=4)
-    res = hla(meas)
+    res = run_hla(meas)
     return meas, res, measured_ground(meas, res.band_hz[1])
 
 
@@ -112,7 +112,7 @@ def test_identify_with_path_errors(table1):
         return IdentifyConfig(training=TrainingConfig(samples=60, n_segments=8, path_errors=k),
                               outer=OuterConfig(max_iterations=2, tol=1e-9), refine=RefineConfig(method="none"))
 
-    plain, eiv = identify(meas, cfg(0), cache_dir=""), identify(meas, cfg(2), cache_dir="")
+    plain, eiv = identify_clone(meas, cfg(0), cache_dir=""), identify_clone(meas, cfg(2), cache_dir="")
     assert "path_errors" in eiv.timings and "path_errors" not in plain.timings
     assert eiv.iterations == 2
     for name in ("alpha", "p", "dy", "delta_eta"):
@@ -137,9 +137,9 @@ def test_failed_pseudo_measurements_are_left_out(table1, measured, monkeypatch):
             raise ValueError("Initial guess is outside of provided bounds")
         return real_hla(m, cfg)
 
-    monkeypatch.setattr(pe, "hla", flaky)
+    monkeypatch.setattr(pe, "run_hla", flaky)
     kw = {"noise_rms": 0.10, "seed": 11, "reconstruct": False, "crossover_hz": 1.0, "hla_config": HLAConfig()}
     bank = path_error_bank(res, ground, table1, n=3, **kw)
     assert bank.shape[0] == 2
-    monkeypatch.setattr(pe, "hla", lambda m, cfg: (_ for _ in ()).throw(ValueError("no")))
+    monkeypatch.setattr(pe, "run_hla", lambda m, cfg: (_ for _ in ()).throw(ValueError("no")))
     assert path_error_bank(res, ground, table1, n=2, **kw).shape == (0,) + res.stories[0].drift.shape + (3,)

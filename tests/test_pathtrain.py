@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from conftest import paper_record, random_building, window
 
-from hlaid.hla import hla
+from hlaid.hla import run_hla
 from hlaid.hla.halfcycles import half_cycle_bounds
 from hlaid.hla.stiffness import segment_slopes
 from hlaid.identify.drift import hla_drift, reconstruct_drift
@@ -18,7 +18,7 @@ from hlaid.identify.loopfit import fit_story_loop
 from hlaid.identify.pathtrain import StoryPath, noise_bank, path_training_set, segment_operator, story_features
 from hlaid.motions import GroundMotion
 from hlaid.signal import bandpass
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 from hlaid.simulate.path import drive_story
 from hlaid.synthetic import simulate_measurement
 
@@ -35,7 +35,7 @@ def test_drive_story_matches_the_batch_simulator(seed):
     rng = np.random.default_rng(seed)
     b = random_building(rng, 3)
     gm = _fine(paper_record("elcentro-1940-ns"), 1000.0, 10.0)
-    r = simulate(b, gm, substeps=2)
+    r = simulate_response(b, gm, substeps=2)
     assert r.status[0] == 0
     for i in range(3):
         out = drive_story(r.drift[0][:, i], k0=b.k0[i], alpha=b.alpha[i], p=b.p[i], dy=b.dy[i],
@@ -49,7 +49,7 @@ def test_drive_story_matches_the_batch_simulator(seed):
 def test_drive_story_batches_parameters_and_paths(table1):
     """A batch of parameter sets equals the same sets one at a time; one path per set works."""
     gm = _fine(paper_record("kobe-1995-nis000"), 200.0, 8.0)
-    x = simulate(table1, gm).drift[0][:, 0]
+    x = simulate_response(table1, gm).drift[0][:, 0]
     alphas = np.array([0.1, 0.2, 0.3])
     batch = drive_story(x, k0=1.9e4, alpha=alphas, p=2.0, dy=6.0, delta_eta=0.5, mass=17.5, dt=gm.dt)
     for j, a in enumerate(alphas):
@@ -127,7 +127,7 @@ def test_measured_and_simulated_features_through_one_function(table1):
     meas = simulate_measurement(table1, gm, noise_rms=0.0)
     i = 1
     x, f = meas.truth.drift[:, i], meas.truth.force[:, i]
-    res = hla(meas)
+    res = run_hla(meas)
     hc = res.stories[i].half_cycles
     bounds = np.stack([hc.start, hc.end], axis=1)[np.argsort(hc.drift_increment)[-8:]]
     sp = StoryPath(drift=x, force=f, bounds=np.sort(bounds, axis=0), k0=float(table1.k0[i]),
@@ -164,7 +164,7 @@ def test_drift_reconstruction_beats_hla_and_falls_back(table1):
     """With the true building the reconstructed drift is several times closer to the truth
     than HLA's (10 % noise); without a building it is HLA's drift."""
     meas = simulate_measurement(table1, paper_record("kocaeli-1999-dzc180"), noise_rms=0.10, seed=0)
-    res = hla(meas)
+    res = run_hla(meas)
     ground = GroundMotion(dt=meas.dt, acc=bandpass(np.asarray(meas.ground_acc), meas.dt, (0.0, res.band_hz[1])))
     true = meas.truth.drift
 

@@ -17,7 +17,7 @@ from scipy import linalg
 
 from hlaid.model import Building, Damping
 from hlaid.motions import GroundMotion
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 
 G = 9806.65
 
@@ -41,12 +41,12 @@ def test_elastic_sdof_oscillates_at_reduced_frequency(backend):
     assert 0.3 < kg / 800.0 < 0.5  # a large effect, so a missing P-Delta cannot pass
     u0 = 10.0
     gm = _still(1.5, dt=0.005)  # about 3.4 periods
-    r = simulate(b, gm, substeps=4, y0=[u0, 0.0, u0, 0.0], backend=backend)
+    r = simulate_response(b, gm, substeps=4, y0=[u0, 0.0, u0, 0.0], backend=backend)
     w = np.sqrt((800.0 - kg) / 2.0)
     exact = u0 * np.cos(w * gm.time)
     assert np.max(np.abs(r.disp[0, :, 0] - exact)) < 1e-6 * u0
     # the same building without P-Delta follows sqrt(k/m): the test sees the difference
-    r0 = simulate(b.replace(pdelta=False), gm, substeps=4, y0=[u0, 0.0, u0, 0.0], backend=backend)
+    r0 = simulate_response(b.replace(pdelta=False), gm, substeps=4, y0=[u0, 0.0, u0, 0.0], backend=backend)
     assert np.max(np.abs(r0.disp[0, :, 0] - exact)) > 0.5 * u0
 
 
@@ -65,7 +65,7 @@ def test_three_story_modes_of_reduced_stiffness():
     mode = phi[:, 0] / np.abs(phi[:, 0]).max() * 20.0
     x0 = np.diff(np.concatenate([[0.0], mode]))
     gm = _still(4.0)
-    r = simulate(b, gm, substeps=4, y0=np.concatenate([mode, np.zeros(3), x0, np.zeros(3)]))
+    r = simulate_response(b, gm, substeps=4, y0=np.concatenate([mode, np.zeros(3), x0, np.zeros(3)]))
     exact = np.cos(np.sqrt(lam[0]) * gm.time)[:, None] * mode
     assert np.max(np.abs(r.disp[0] - exact)) < 1e-6 * 20.0
     # K0 alone would give a different frequency
@@ -107,7 +107,7 @@ def test_dynamic_tipping_point_of_a_yielded_story(side, collapses):
               damping=Damping(kind="rayleigh", ratio=0.05))
     x_crit = (1 - alpha) * k0 * dy / (kg - alpha * k0)  # 490 mm
     x0 = side * x_crit
-    r = simulate(b, _still(20.0), substeps=8, y0=[x0, 0.0, dy, 0.0], stop_drift=3 * x_crit, outputs="peaks")
+    r = simulate_response(b, _still(20.0), substeps=8, y0=[x0, 0.0, dy, 0.0], stop_drift=3 * x_crit, outputs="peaks")
     if collapses:
         assert r.status[0] == 1  # ran away to the drift limit
     else:
@@ -120,7 +120,7 @@ def test_stable_when_post_yield_stiffness_exceeds_pdelta():
     """With alpha*k0 > P/h the same push from far beyond yield returns (no tipping point)."""
     b = _sdof(mass=[5.0], k0=[1000.0], alpha=[0.1], p=[2.0], dy=[20.0], gravity_load=[60.0 * 3000.0],
               damping=Damping(kind="rayleigh", ratio=0.05))
-    r = simulate(b, _still(20.0), y0=[2000.0, 0.0, 20.0, 0.0], stop_drift=6000.0, outputs="peaks")
+    r = simulate_response(b, _still(20.0), y0=[2000.0, 0.0, 20.0, 0.0], stop_drift=6000.0, outputs="peaks")
     assert r.status[0] == 0 and abs(r.residual_drift[0, 0]) < 2000.0
 
 

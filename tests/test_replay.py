@@ -14,7 +14,7 @@ from conftest import rel_err, window
 from hlaid.errors import InputError
 from hlaid.model import BuildingTensors
 from hlaid.motions import GroundMotion
-from hlaid.simulate import SOLVERS, integrate_module, replay, replay_module, simulate
+from hlaid.simulate import SOLVERS, integrate_module, replay, replay_module, simulate_response
 
 
 @pytest.fixture(scope="module")
@@ -26,7 +26,7 @@ def strong_window(records):
 def test_rk4_replay_matches_simulator(table1, strong_window):
     """Fixed-step rk4 at the same step (dt/8) as the simulator."""
     r = replay(table1, strong_window, method="rk4", substeps=8)
-    s = simulate(table1, strong_window, substeps=8)
+    s = simulate_response(table1, strong_window, substeps=8)
     assert r.drift.shape == s.drift.shape == (1, strong_window.npts, 3)
     assert (r.peak_drift[0] > 3 * table1.dy).all()  # well into the nonlinear range
     err = rel_err(r.drift, s.drift)
@@ -40,7 +40,7 @@ def test_rk4_replay_matches_simulator(table1, strong_window):
 def test_dopri5_replay_with_sample_step_points(table1, strong_window):
     """Adaptive dopri5, told the record's sample times as step points, at a tight tolerance."""
     r = replay(table1, strong_window, method="dopri5", rtol=1e-9, atol=1e-8)
-    s = simulate(table1, strong_window, substeps=16)  # the simulator near its converged answer
+    s = simulate_response(table1, strong_window, substeps=16)  # the simulator near its converged answer
     err = rel_err(r.drift, s.drift)
     assert err <= 1e-5, err  # measured about 1e-6
 
@@ -50,7 +50,7 @@ def test_replay_batch_and_scale(table1, strong_window):
     soft = table1.replace(k0=table1.k0 * 0.7)
     short = GroundMotion(dt=strong_window.dt, acc=strong_window.acc[:201])
     r = replay([table1, soft], short, method="rk4", substeps=4, scale=0.5)
-    s = simulate([table1, soft], short, 0.5, substeps=4)
+    s = simulate_response([table1, soft], short, 0.5, substeps=4)
     assert r.batch_size == 2 and list(r.scale) == [0.5, 0.5]
     assert rel_err(r.drift, s.drift) <= 1e-5
 

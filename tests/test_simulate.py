@@ -18,7 +18,7 @@ from reference_systems import ShearBuildingRef, energy_terms
 from hlaid.errors import InputError
 from hlaid.model import Building, Damping
 from hlaid.motions import GroundMotion
-from hlaid.simulate import HISTORY_FIELDS, simulate
+from hlaid.simulate import HISTORY_FIELDS, simulate_response
 
 
 def _ref(b: Building) -> ShearBuildingRef:
@@ -38,7 +38,7 @@ def test_linear_matches_lsim(table1, records, pdelta):
     b = _with_pdelta(b) if pdelta else b
     errs = []
     for gm in records.values():
-        r = simulate(b, gm, substeps=4)
+        r = simulate_response(b, gm, substeps=4)
         errs.append(rel_err(r.disp[0], _ref(b).linear_response(gm.acc, gm.dt)))
     assert max(errs) <= 1e-6, errs  # measured about 3e-8 (mean) / 5e-8 (worst)
 
@@ -48,7 +48,7 @@ def test_linear_any_number_of_stories(n):
     rng = np.random.default_rng(n)
     b = random_building(rng, n, alpha=np.ones(n), k0=rng.uniform(2e4, 5e4, n), mass=rng.uniform(20, 50, n))
     gm = GroundMotion(dt=0.01, acc=2000.0 * np.sin(2 * np.pi * 1.3 * np.arange(800) * 0.01) * rng.normal(1, 0.3, 800))
-    r = simulate(b, gm, substeps=8)
+    r = simulate_response(b, gm, substeps=8)
     assert r.disp.shape == (1, 800, n)
     assert rel_err(r.disp[0], _ref(b).linear_response(gm.acc, gm.dt)) <= 1e-6
 
@@ -60,7 +60,7 @@ def test_rk4_fourth_order(table1, records):
     gm = GroundMotion(dt=0.02, acc=src.acc[::4][:600])
     exact = _ref(b).linear_response(gm.acc, gm.dt)
     subs = np.array([2, 4, 8, 16, 32])
-    errs = [np.abs(simulate(b, gm, substeps=int(s)).disp[0] - exact).max() for s in subs]
+    errs = [np.abs(simulate_response(b, gm, substeps=int(s)).disp[0] - exact).max() for s in subs]
     slope = np.polyfit(np.log(gm.dt / subs), np.log(errs), 1)[0]
     assert slope == pytest.approx(4.0, abs=0.15), (slope, errs)  # measured 4.00
 
@@ -74,7 +74,7 @@ def test_table1_matches_solve_ivp(table1, records):
         w = window(gm, 10.0)
         states = ref.solve(w.acc, w.dt, rtol=1e-10, atol=1e-10)
         x_ref = story_drift(states[:, :3])
-        r = simulate(table1, w, substeps=4)
+        r = simulate_response(table1, w, substeps=4)
         assert (np.abs(x_ref).max(axis=0) > 3.0 * table1.dy).all()  # well into the nonlinear range
         peak_errs.append(np.abs(r.peak_drift[0] / np.abs(x_ref).max(axis=0) - 1.0).max())
         hist_errs.append(rel_err(r.drift[0], x_ref))
@@ -102,8 +102,8 @@ def test_numba_matches_torch_module():
         buildings.append(random_building(rng, 3, damping=damping, **extra))
     assert sum(b.pdelta_active for b in buildings) == 50
     motions = [window(paper_record(name).resampled(100.0), 8.0) for name in RECORDS[:2]]
-    a = simulate(buildings, motions, substeps=4, backend="numba")
-    b = simulate(buildings, motions, substeps=4, backend="torch")
+    a = simulate_response(buildings, motions, substeps=4, backend="numba")
+    b = simulate_response(buildings, motions, substeps=4, backend="torch")
     assert (a.status == 0).all() and (b.status == 0).all()
     worst = 0.0
     for name in HISTORY_FIELDS:
@@ -138,7 +138,7 @@ def test_unloading_slope_is_ke(table1, records):
     """Right after each reversal the story unloads along ke = alpha k0 + (1-alpha) k0 / eta (eq 11)."""
     worst, count = 0.0, 0
     for gm in records.values():
-        r = simulate(table1, gm, substeps=4)
+        r = simulate_response(table1, gm, substeps=4)
         for i in range(3):
             slope, ke = _reversal_slopes(r, table1, i)
             assert len(slope) >= 50
@@ -152,7 +152,7 @@ def test_unloading_slope_is_ke(table1, records):
 
 def test_loading_branch_is_softer_than_unloading(table1, records):
     """Near yield (|z| > 0.9 dy, loading) the tangent is far below ke: the law does switch branch."""
-    r = simulate(table1, records["elcentro-1940-ns"], substeps=4)
+    r = simulate_response(table1, records["elcentro-1940-ns"], substeps=4)
     x, f, z = r.drift[0], r.force[0], r.z[0]
     xd = story_drift(r.vel[0])
     for i in range(3):
@@ -167,7 +167,7 @@ def test_z_never_exceeds_dy(table1, records):
     rng = np.random.default_rng(7)
     buildings = [table1] + [random_building(rng, 3) for _ in range(20)]
     motions = [window(gm, 12.0) for gm in records.values()]
-    r = simulate(buildings, motions, [0.5, 1.0, 2.0], substeps=4)
+    r = simulate_response(buildings, motions, [0.5, 1.0, 2.0], substeps=4)
     assert (r.status == 0).all()
     dy = np.stack([b.dy for b in buildings])[r.building_index]
     ratio = np.nanmax(np.abs(r.z), axis=1) / dy
@@ -180,7 +180,7 @@ def test_energy_balance(table1, records, pdelta):
     """input = kinetic + damping + elastic + hysteretic (+ P-Delta potential), at every time."""
     b = _with_pdelta(table1) if pdelta else table1
     for gm in records.values():
-        r = simulate(b, gm, substeps=4)
+        r = simulate_response(b, gm, substeps=4)
         E = energy_terms(dt=gm.dt, mass=b.mass, C=b.damping_matrix(), alpha=b.alpha, k0=b.k0,
                          kg=b.geometric_stiffness(), ag=gm.acc, drift=r.drift[0], vel=r.vel[0], z=r.z[0])
         out = E["kinetic"] + E["damping"] + E["elastic"] + E["hysteretic"] + E["pdelta"]
@@ -198,7 +198,7 @@ def test_energy_balance(table1, records, pdelta):
     ("kocaeli-1999-dzc180", (33, 31, 14), (0.67, 0.66, 0.69)),
 ])
 def test_design_sanity_figures(table1, records, record, drift, ke):
-    r = simulate(table1, records[record], substeps=4)
+    r = simulate_response(table1, records[record], substeps=4)
     np.testing.assert_allclose(r.peak_drift[0], drift, rtol=0.05)
     final_eta = r.eta[0, r.n_time[0] - 1]
     np.testing.assert_allclose(table1.elastic_stiffness(final_eta) / table1.k0, ke, atol=0.015)
@@ -210,7 +210,7 @@ def test_any_number_of_stories_runs(n, records):
     rng = np.random.default_rng(100 + n)
     buildings = [random_building(rng, n) for _ in range(3)]
     gm = window(records["kocaeli-1999-dzc180"], 4.0)
-    r = simulate(buildings, gm, substeps=4)
+    r = simulate_response(buildings, gm, substeps=4)
     assert (r.status == 0).all()
     for name in HISTORY_FIELDS:
         assert getattr(r, name).shape == (3, gm.npts, n)
@@ -225,24 +225,24 @@ def test_product_and_zip_layouts(table1, records):
     buildings = [table1, random_building(rng, 3)]
     motions = [window(records[name], 3.0) for name in RECORDS[:2]]
     scales = np.array([[0.5, 1.0, 1.5], [0.2, 0.4, 0.6]])  # one row per motion
-    r = simulate(buildings, motions, scales, outputs="peaks")
+    r = simulate_response(buildings, motions, scales, outputs="peaks")
     assert r.batch_size == 12 and r.disp is None
     for bi in range(2):
         for mi in range(2):
             for si in range(3):
                 k = (bi * 2 + mi) * 3 + si
                 assert (r.building_index[k], r.motion_index[k], r.scale[k]) == (bi, mi, scales[mi, si])
-                one = simulate(buildings[bi], motions[mi].scaled(scales[mi, si]), outputs="peaks")
+                one = simulate_response(buildings[bi], motions[mi].scaled(scales[mi, si]), outputs="peaks")
                 np.testing.assert_allclose(r.peak_drift[k], one.peak_drift[0], rtol=1e-12)
-    z = simulate(buildings, motions[0], [0.5, 1.0], pairing="zip")
+    z = simulate_response(buildings, motions[0], [0.5, 1.0], pairing="zip")
     assert list(z.building_index) == [0, 1] and list(z.scale) == [0.5, 1.0]
     np.testing.assert_allclose(z.peak_drift[1], r.peak_drift[(1 * 2 + 0) * 3 + 1], rtol=1e-12)
 
 
 def test_peaks_output_equals_full_output(table1, records):
     ms = [window(records[n], 4.0) for n in RECORDS]
-    full = simulate(table1, ms)
-    peaks = simulate(table1, ms, outputs="peaks")
+    full = simulate_response(table1, ms)
+    peaks = simulate_response(table1, ms, outputs="peaks")
     for name in ("peak_drift", "peak_acc", "residual_drift", "final_state", "status", "n_time"):
         np.testing.assert_array_equal(getattr(full, name), getattr(peaks, name))
     np.testing.assert_allclose(full.peak_acc, np.abs(full.acc).max(axis=1))
@@ -262,9 +262,9 @@ def test_damping_band_gives_the_full_product(records, monkeypatch):
     bs = [random_building(rng, 6) for _ in range(3)]
     bs.append(bs[0].replace(damping=Damping(kind="mass", ratio=0.05)))
     gm = window(records["elcentro-1940-ns"], 4.0).scaled_to_pga(0.8)
-    band = simulate(bs, gm, outputs="acc")
+    band = simulate_response(bs, gm, outputs="acc")
     monkeypatch.setattr(_kernel, "damping_bandwidth", lambda C: np.full(len(C), C.shape[-1] - 1, dtype=np.int64))
-    full = simulate(bs, gm, outputs="acc")
+    full = simulate_response(bs, gm, outputs="acc")
     assert np.array_equal(band.acc, full.acc) and np.isfinite(band.acc).all()
 
 
@@ -275,8 +275,8 @@ def test_acc_output_equals_full_output(table1, records, backend):
     a = window(records["elcentro-1940-ns"], 3.0)
     b = window(records["kocaeli-1999-dzc180"].resampled(100.0), 5.0)
     buildings = [table1, table1.replace(k0=0.8 * table1.k0)]
-    full = simulate(buildings, [a, b], backend=backend)
-    acc = simulate(buildings, [a, b], backend=backend, outputs="acc")
+    full = simulate_response(buildings, [a, b], backend=backend)
+    acc = simulate_response(buildings, [a, b], backend=backend, outputs="acc")
     np.testing.assert_allclose(acc.acc, full.acc, rtol=0, atol=1e-9 * np.nanmax(np.abs(full.acc)))
     assert np.array_equal(np.isnan(acc.acc), np.isnan(full.acc)) and np.isnan(acc.acc).any()
     assert acc.disp is None and acc.drift is None and acc.force is None
@@ -287,10 +287,10 @@ def test_acc_output_equals_full_output(table1, records, backend):
 def test_records_of_different_length_and_rate(table1, records):
     a = window(records["elcentro-1940-ns"], 3.0)                # 200 Hz, 601 samples
     b = window(records["kocaeli-1999-dzc180"].resampled(100.0), 5.0)  # 100 Hz, 501 samples
-    r = simulate(table1, [a, b])
+    r = simulate_response(table1, [a, b])
     assert list(r.n_time) == [601, 501] and list(r.dt) == [a.dt, b.dt]
     assert np.isnan(r.disp[1, 501:]).all() and np.isfinite(r.disp[1, :501]).all()
-    np.testing.assert_array_equal(r.disp[1, :501], simulate(table1, b).disp[0])
+    np.testing.assert_array_equal(r.disp[1, :501], simulate_response(table1, b).disp[0])
     with pytest.raises(ValueError, match="different dt"):
         r.time  # noqa: B018
 
@@ -298,16 +298,16 @@ def test_records_of_different_length_and_rate(table1, records):
 def test_initial_state_continues_a_run(table1, records):
     gm = window(records["elcentro-1940-ns"], 6.0)
     k = 500
-    whole = simulate(table1, gm)
-    first = simulate(table1, GroundMotion(dt=gm.dt, acc=gm.acc[:k + 1]))
-    second = simulate(table1, GroundMotion(dt=gm.dt, acc=gm.acc[k:]), y0=first.final_state)
+    whole = simulate_response(table1, gm)
+    first = simulate_response(table1, GroundMotion(dt=gm.dt, acc=gm.acc[:k + 1]))
+    second = simulate_response(table1, GroundMotion(dt=gm.dt, acc=gm.acc[k:]), y0=first.final_state)
     np.testing.assert_allclose(second.disp[0], whole.disp[0, k:], rtol=0, atol=1e-12 * np.abs(whole.disp).max())
     np.testing.assert_allclose(second.eta[0], whole.eta[0, k:], rtol=1e-12)
 
 
 def test_free_vibration_decays(table1, records):
     gm = window(records["elcentro-1940-ns"], 5.0)
-    r = simulate(table1, gm, free_vibration=10.0)
+    r = simulate_response(table1, gm, free_vibration=10.0)
     assert r.n_time[0] == gm.npts + 2000
     tail = np.abs(r.vel[0, -200:]).max()
     assert tail < 1e-3 * np.abs(r.vel[0]).max()  # 5% damping, 10 s ~ 26 periods
@@ -320,11 +320,11 @@ def test_stop_drift_and_collapse(table1, records):
     weak = table1.replace(alpha=np.zeros(3), height=np.full(3, 3000.0), pdelta=True,
                           gravity_load=np.full(3, 2.0e7))  # P/h far above the post-yield stiffness
     gm = window(records["kocaeli-1999-dzc180"], 6.0)
-    r = simulate([table1, weak], gm, stop_drift=300.0)
+    r = simulate_response([table1, weak], gm, stop_drift=300.0)
     assert list(r.status) == [0, 1]
     assert r.n_time[0] == gm.npts and r.n_time[1] < gm.npts
     assert r.peak_drift[1].max() > 300.0 and np.isnan(r.disp[1, r.n_time[1]:]).all()
-    per_story = simulate(table1, gm, stop_drift=np.array([1.0, 1e9, 1e9]), outputs="peaks")
+    per_story = simulate_response(table1, gm, stop_drift=np.array([1.0, 1e9, 1e9]), outputs="peaks")
     assert per_story.status[0] == 1 and per_story.n_time[0] < gm.npts
 
 
@@ -333,7 +333,7 @@ def test_divergence_is_flagged_not_returned_as_numbers(records):
     stiff = Building(mass=[1.0], k0=[1e7], alpha=[1.0], p=[2.0], dy=[5.0], delta_eta=[0.0])
     ok = Building(mass=[10.0], k0=[1e4], alpha=[1.0], p=[2.0], dy=[5.0], delta_eta=[0.0])
     gm = window(records["kocaeli-1999-dzc180"].resampled(100.0), 20.0)
-    r = simulate([stiff, ok], gm, substeps=1)
+    r = simulate_response([stiff, ok], gm, substeps=1)
     assert list(r.status) == [2, 0]
     assert r.n_time[0] < gm.npts and np.isnan(r.disp[0, r.n_time[0]:]).all()
     assert np.isfinite(r.disp[1]).all()
@@ -352,16 +352,16 @@ def test_divergence_is_flagged_not_returned_as_numbers(records):
 def test_bad_arguments(table1, records, kwargs, match):
     gm = window(records["elcentro-1940-ns"], 1.0)
     with pytest.raises(InputError, match=match):
-        simulate(table1, gm, **kwargs)
+        simulate_response(table1, gm, **kwargs)
 
 
 def test_bad_batches(table1, records):
     gm = window(records["elcentro-1940-ns"], 1.0)
     with pytest.raises(InputError, match="pairing='zip' needs equal lengths"):
-        simulate([table1, table1], [gm, gm, gm], pairing="zip")
+        simulate_response([table1, table1], [gm, gm, gm], pairing="zip")
     with pytest.raises(InputError, match="one row per motion"):
-        simulate(table1, [gm, gm], np.ones((3, 2)))
+        simulate_response(table1, [gm, gm], np.ones((3, 2)))
     with pytest.raises(InputError, match="expected one or more GroundMotion"):
-        simulate(table1, [])
+        simulate_response(table1, [])
     with pytest.raises(InputError, match="same number of stories"):
-        simulate([table1, Building(mass=[1.0], k0=[1.0], alpha=[0.1], p=[2.0], dy=[1.0], delta_eta=[0.0])], gm)
+        simulate_response([table1, Building(mass=[1.0], k0=[1.0], alpha=[0.1], p=[2.0], dy=[1.0], delta_eta=[0.0])], gm)

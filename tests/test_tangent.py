@@ -19,7 +19,7 @@ from hlaid.identify.refine import ground_memory
 from hlaid.model import BoucWenBuilding, BuildingTensors, Damping
 from hlaid.motions import GroundMotion
 from hlaid.signal import lowpass
-from hlaid.simulate import simulate
+from hlaid.simulate import simulate_response
 from hlaid.simulate.tangent import GroundTangent, ground_tangent, step_jacobians
 from hlaid.synthetic import simulate_measurement
 
@@ -40,13 +40,13 @@ def test_tangent_predicts_the_nonlinear_response(table1, yielding, amplitude, to
     nonlinear building, is the tangent's prediction: within 1 % for a small one, 5 % for a
     10 % noise (the linear initial-stiffness transfer misses it by more than 100 %)."""
     gm, shape, gt = yielding
-    peak = np.abs(simulate(table1, gm, outputs="full").drift[0]).max(axis=0)
+    peak = np.abs(simulate_response(table1, gm, outputs="full").drift[0]).max(axis=0)
     assert np.all(peak > 2.0 * table1.dy)  # the transfer really changes along the record
     rng = np.random.default_rng(3)
     u = rng.standard_normal(gm.acc.size) * amplitude * np.sqrt(np.mean(gm.acc**2))
     dg = np.convolve(u, shape, mode="same")
-    base = simulate(table1, gm, outputs="acc").acc[0]
-    moved = simulate(table1, GroundMotion(dt=gm.dt, acc=gm.acc + dg), outputs="acc").acc[0]
+    base = simulate_response(table1, gm, outputs="acc").acc[0]
+    moved = simulate_response(table1, GroundMotion(dt=gm.dt, acc=gm.acc + dg), outputs="acc").acc[0]
     act, pred = moved - base, gt.apply(u)
     err = np.sqrt(np.mean((pred - act) ** 2, axis=0) / np.mean(act**2, axis=0))
     assert np.all(err < tol), err
@@ -90,7 +90,7 @@ def test_step_jacobians_are_the_modules_derivatives(table1, yielding):
     """The compiled step's central differences against forward-mode derivatives of the torch
     module's RK4 sample (the same scheme, differentiated exactly)."""
     gm, _, _ = yielding
-    full = simulate(table1, gm, outputs="full", substeps=2)
+    full = simulate_response(table1, gm, outputs="full", substeps=2)
     work = full.energy[0] / ((1.0 - table1.alpha) * table1.k0)
     states = np.concatenate([full.disp[0], full.vel[0], full.z[0], work], axis=1)[::7]
     g = gm.acc[::7]  # any pairs of samples will do
@@ -151,7 +151,7 @@ def test_whitener_is_the_inverse_covariance(T, W, lead):
 def test_tangent_size_is_bounded(table1, monkeypatch):
     gm = GroundMotion(dt=0.005, acc=np.ones(2000))
     tangent = importlib.import_module("hlaid.simulate.tangent")
-    monkeypatch.setattr(tangent, "simulate", None)  # both refusals come before anything is simulated
+    monkeypatch.setattr(tangent, "simulate_response", None)  # both refusals come before anything is simulated
     # one copy: 2000 x 1000 x 3 doubles (45.8 MiB) and 2000 step Jacobians of 12 x 14 (2.6 MiB)
     with pytest.raises(TangentTooLargeError, match="would take 48 MiB, more than the 40 MiB"):
         ground_tangent(table1, gm, lags=1000, max_mb=40)

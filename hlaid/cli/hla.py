@@ -22,7 +22,7 @@ def register(sub) -> None:
 def run_hla(args) -> int:
     from .._fileio import atomic_directory, check_output_folder
     from ..config import load_config
-    from ..hla import HLAConfig, hla
+    from ..hla import HLAConfig, run_hla
     from ..hla.plots import plot_loops, plot_stiffness
     from ..io import read
     from ..measurement import check_band
@@ -33,7 +33,7 @@ def run_hla(args) -> int:
     meas = read(args.measurement, "measurement")
     check_band(meas, cfg.preprocess.band_hz, f"preprocess.band_hz (in {args.config})")
     _progress.info(f"HLA of {meas.n_floors} stories, {meas.n_samples} samples at {1 / meas.dt:g} Hz")
-    res = hla(meas, cfg)
+    res = run_hla(meas, cfg)
     with atomic_directory(args.out, force=args.force) as tmp:
         res.save(tmp)
         if args.plot:

@@ -13,7 +13,8 @@ import importlib
 import sys
 import traceback
 
-from .. import __version__, _interrupt, _progress
+from .. import _interrupt, _progress
+from .._version import __version__
 from ..errors import InputError
 
 COMMANDS = [

@@ -25,7 +25,7 @@ from typing import cast
 import numpy as np
 
 from ..clone import Clone
-from ..ida import IDAConfig, ida, intensity
+from ..ida import IDAConfig, intensity, run_ida
 from ..motions import GroundMotion
 
 POINT = "point clone (n_ensemble: 0)"
@@ -135,7 +135,7 @@ def point_assess(clone, records, *, n_ensemble: int = 0, ida_config: IDAConfig |
                  own_motion: GroundMotion | None = None, seed: int = 0) -> PointAssessment:
     """IDA of the point clone alone (``n_ensemble`` is ignored): the fallback of :func:`assess_clone`."""
     cfg = ida_config or IDAConfig()
-    res = ida(clone, records, cfg)
+    res = run_ida(clone, records, cfg)
     notes = list(res.notes)
     try:
         frag = res.collapse_fragility("capacities", n_boot=cfg.bootstrap, ci=cfg.ci, seed=seed)

@@ -24,8 +24,9 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from .. import __version__, _progress
+from .. import _progress
 from .._fileio import check_parent, write_json
+from .._version import __version__
 from ..errors import InputError
 from ..io import read
 from .assess import POINT, default_assess, engine_label, point_assess

@@ -23,7 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from .. import __version__, _progress
+from .. import _progress
+from .._version import __version__
 from ..config import config_to_dict
 from ..errors import InputError
 from ..ida import IDAConfig
@@ -158,7 +159,7 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
     """
     import torch
 
-    from ..identify import identify
+    from ..identify import identify_clone
     t_all = time.perf_counter()
     out = {"format": RESULT_FORMAT, "version": RESULT_VERSION, "unit": job.unit, "building": job.building,
            "event": job.event, "digest": job.digest, "worker": f"{socket.gethostname()}:{os.getpid()}"}
@@ -187,7 +188,7 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
         clock("measurement", t, c)
         stage = "identify"
         t, c = time.perf_counter(), cpu_time()
-        res = identify(meas, job.identify, cache_dir=job.cache_dir)
+        res = identify_clone(meas, job.identify, cache_dir=job.cache_dir)
         clock("identify", t, c)
         stage = "assess"
         t, c = time.perf_counter(), cpu_time()

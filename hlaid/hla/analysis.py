@@ -175,7 +175,7 @@ class _StoryFit:
     k0: float
 
 
-def hla(measurement: Measurement, config: HLAConfig | None = None) -> HLAResult:
+def run_hla(measurement: Measurement, config: HLAConfig | None = None) -> HLAResult:
     """Hysteresis loop analysis of every story.
 
     Parameters

@@ -7,7 +7,7 @@ curves, lognormal collapse fragility (maximum likelihood, Baker 2015) and drift-
 exceedance. Method and verification: ``docs/ida.md``.
 """
 
-from .analysis import ida, ida_from_config, prepare_building, scan_collapse
+from .analysis import ida_from_config, prepare_building, run_ida, scan_collapse
 from .config import IDAConfig, load_ida_config
 from .fragility import (
            LognormalFragility,
@@ -36,7 +36,7 @@ __all__ = [
            "fragility_from_capacities",
            "fragility_from_exceedance",
            "get_intensity_measure",
-           "ida",
+           "run_ida",
            "ida_from_config",
            "intensity",
            "load_ida_config",

@@ -47,7 +47,7 @@ from ..limits import check_count
 from ..model import Building
 from ..model.collapse import get_collapse_model
 from ..motions import GroundMotion
-from ..simulate import simulate
+from ..simulate import simulate_response
 from ..units import G_MM_S2
 from .config import DEFAULT_EXCEEDANCE, IDAConfig, check_levels
 from .intensity import get_intensity_measure, period_for
@@ -156,7 +156,7 @@ class _Runner:
     def _sim(self, recs: np.ndarray, scales: np.ndarray, substeps: int):
         """Product runs of ``recs`` x their rows of ``scales`` ``(len(recs), k)``, at ``substeps``
         RK4 steps per sample of the (already refined) records."""
-        r = simulate(self.b, [self.motions[i] for i in recs], scales, substeps=int(substeps), outputs="peaks",
+        r = simulate_response(self.b, [self.motions[i] for i in recs], scales, substeps=int(substeps), outputs="peaks",
                      stop_drift=self.stop)
         self.n_runs += r.batch_size
         return r.peak_drift, r.residual_drift, r.status
@@ -255,7 +255,7 @@ def _auto_levels(elastic_slope: np.ndarray, drift_limit: float, n: int) -> list[
 
 
 # ---------------------------------------------------------------------------- the analysis
-def ida(model: Clone | Building | str | os.PathLike,
+def run_ida(model: Clone | Building | str | os.PathLike,
         records: str | os.PathLike | GroundMotion | Sequence[str | os.PathLike | GroundMotion],
         config: IDAConfig | None = None) -> IDAResult:
     """Incremental dynamic analysis of a clone (or building) over a record set.
@@ -419,5 +419,5 @@ def ida_from_config(model, cfg: IDAConfig, records=None, *, base_dir: str | Path
     recs = records if records is not None else cfg.record_specs(base_dir)
     if recs is None:
         raise InputError("no records: give them in the config ('records:') or on the command line (--records)")
-    return ida(model, recs, cfg)
+    return run_ida(model, recs, cfg)
 

@@ -28,6 +28,9 @@ from scipy import optimize, special, stats
 
 from ..errors import InputError
 
+FRACTILES = (16, 50, 84)
+"""The percentiles of an IDA's fractile curves."""
+
 __all__ = ["LognormalFragility", "fit_capacities", "fit_counts", "fragility_from_capacities",
            "fragility_from_exceedance"]
 

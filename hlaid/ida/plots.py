@@ -1,14 +1,45 @@
-"""Figures of an IDA: curves with fractiles, collapse fragility, drift-limit exceedance."""
+"""Figures of an IDA: curves with fractiles, collapse fragility, drift-limit exceedance.
+
+The figures read an :class:`~hlaid.ida.IDAResult` through :class:`IDACurves`, what they use of
+it (``IDAResult.save`` draws them, so this module does not import the result's).
+"""
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 
+from ..model import Building
 from ..plots import plt
-from .results import FRACTILES, IDAResult
+from .fragility import FRACTILES, LognormalFragility
 
 
-def plot_ida_curves(res: IDAResult, *, title: str | None = None):
+class IDACurves(Protocol):
+    """What the figures read of an IDA result (:class:`~hlaid.ida.IDAResult` is one)."""
+
+    building: Building
+    levels: np.ndarray
+    point_im: np.ndarray
+    collapse_im: np.ndarray
+    censored_im: np.ndarray
+    drift_limit: float
+    exceedance_limits: tuple
+    im_label: str
+
+    @property
+    def n_records(self) -> int: ...
+    def curve(self, r: int) -> tuple[np.ndarray, np.ndarray]: ...
+    def fractiles(self, im_values=None, q=FRACTILES) -> np.ndarray: ...
+    def exceedance(self, limits=None, im_values=None) -> np.ndarray: ...
+    def collapse_table(self) -> np.ndarray: ...
+    def collapse_fragility(self, method: str = ..., *, n_boot: int = ..., ci: float = ...,
+                           seed: int | None = ...) -> LognormalFragility: ...
+    def limit_fragility(self, limit: float, *, n_boot: int = ..., ci: float = ...,
+                        seed: int | None = ...) -> LognormalFragility: ...
+
+
+def plot_ida_curves(res: IDACurves, *, title: str | None = None):
     """IDA curves of every record (thin) with the 16/50/84 % fractiles (thick).
 
     Drift ratio in % on x, IM in g on y; a record's collapse is drawn as a flatline at its
@@ -37,7 +68,7 @@ def plot_ida_curves(res: IDAResult, *, title: str | None = None):
     return fig
 
 
-def plot_fragility(res: IDAResult, *, n_boot: int = 1000, ci: float = 0.90, seed: int | None = 0):
+def plot_fragility(res: IDACurves, *, n_boot: int = 1000, ci: float = 0.90, seed: int | None = 0):
     """Collapse fragility: the records' collapse intensities (empirical CDF), the fraction
     collapsed at each grid level, both lognormal MLE fits, and a bootstrap band of the
     capacity fit. Returns the figure."""
@@ -84,7 +115,7 @@ def plot_fragility(res: IDAResult, *, n_boot: int = 1000, ci: float = 0.90, seed
     return fig
 
 
-def plot_exceedance(res: IDAResult, *, n_boot: int = 0):
+def plot_exceedance(res: IDACurves, *, n_boot: int = 0):
     """Probability of exceeding each drift-ratio limit vs IM: fractions at the grid levels
     (markers) and lognormal MLE fits of the records' IM capacities (lines)."""
     fig, ax = plt.subplots(figsize=(7.2, 5.0))

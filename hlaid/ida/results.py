@@ -21,13 +21,13 @@ from .._fileio import atomic_directory, write_json, write_npz
 from ..model import Building
 from ..units import UNITS_JSON
 from .fragility import (
+    FRACTILES,
     LognormalFragility,
     fragility_from_capacities,
     fragility_from_exceedance,
 )
 
 FORMAT, VERSION = "hlaid-ida", 1
-FRACTILES = (16, 50, 84)
 
 
 @dataclass(frozen=True, eq=False)
@@ -220,7 +220,7 @@ class IDAResult:
     def summary(self, *, n_boot: int = 1000, ci: float = 0.90, seed: int | None = 0) -> dict:
         """A JSON-able summary: records, collapse fragility (both estimators), drift-limit
         fragilities and exceedance table, fractiles, settings and notes."""
-        from .. import __version__
+        from .._version import __version__
         frag = {}
         for method in ("capacities", "counts"):
             try:

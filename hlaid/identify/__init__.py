@@ -11,7 +11,7 @@ from .estimators import BaseIdentifier, HLASVMIdentifier, NotFittedError
 from .gradient import GradientIdentifier
 from .loopfit import LoopFit, fit_story_loop
 from .pathtrain import StoryPath, path_training_set, segment_operator, story_features
-from .pipeline import IdentificationResult, estimate_noise_rms, identify
+from .pipeline import IdentificationResult, estimate_noise_rms, identify_clone
 from .refine import RefineResult, refine_replay
 from .registry import IDENTIFIERS, get_identifier
 from .regression import RegressionFit, fit_delta_eta, fit_yield_displacement
@@ -20,7 +20,7 @@ from .ukf import UKFIdentifier
 
 __all__ = ["reconstruct_drift", "fit_story_loop", "LoopFit", "StoryPath", "path_training_set", "segment_operator",
            "story_features", "BaseIdentifier", "HLASVMIdentifier", "GradientIdentifier", "UKFIdentifier",
-           "NotFittedError", "identify", "IdentificationResult", "IdentifyConfig", "BinsConfig", "TrainingConfig",
+           "NotFittedError", "identify_clone", "IdentificationResult", "IdentifyConfig", "BinsConfig", "TrainingConfig",
            "SVMConfig",
            "OuterConfig", "RefineConfig", "refine_replay", "RefineResult", "fit_delta_eta", "fit_yield_displacement",
            "RegressionFit", "replay_check", "ReplayCheck", "estimate_noise_rms", "IDENTIFIERS", "get_identifier"]

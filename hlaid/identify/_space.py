@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..hla import HLAConfig, hla
+from ..hla import HLAConfig, run_hla
 from ..hla.analysis import floor_masses
 from ..measurement import Measurement
 from ..model import Building, BuildingTensors, Damping
@@ -123,7 +123,7 @@ def values_numpy(values: dict[str, torch.Tensor]) -> dict[str, np.ndarray]:
 def hla_scales(meas: Measurement) -> tuple[np.ndarray, np.ndarray]:
     """HLA's ``k0`` and each story's peak |drift| [mm], ``(story,)`` each: the scales that place
     the starting values of the output-error identifiers (``init="hla"``)."""
-    res = hla(meas)
+    res = run_hla(meas)
     return res.k0, np.array([np.max(np.abs(s.drift)) for s in res.stories])
 
 

@@ -25,7 +25,7 @@ from ..hla import HLAResult
 from ..model import Building
 from ..motions import GroundMotion
 from ..signal import highpass, max_corner
-from ..simulate import simulate
+from ..simulate import simulate_response
 
 __all__ = ["hla_drift", "reconstruct_drift"]
 
@@ -52,7 +52,7 @@ def reconstruct_drift(res: HLAResult, ground: GroundMotion, building: Building |
     x = hla_drift(res)
     if building is None:
         return x
-    r = simulate(building, ground, substeps=4)
+    r = simulate_response(building, ground, substeps=4)
     if r.status[0] != 0:
         return x
     assert r.drift is not None  # simulate keeps the histories by default

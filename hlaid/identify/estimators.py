@@ -17,10 +17,10 @@ import sklearn.exceptions
 from sklearn.base import BaseEstimator
 
 from ..clone import Clone
-from ..measurement import Measurement
+from ..measurement import Measurement, measured_ground
 from ..motions import GroundMotion
-from ..signal import bandpass, cap_corner, measured_ground
-from ..simulate import SimulationResult, simulate
+from ..signal import bandpass, cap_corner
+from ..simulate import SimulationResult, simulate_response
 
 
 class NotFittedError(sklearn.exceptions.NotFittedError):
@@ -62,7 +62,7 @@ class BaseIdentifier(BaseEstimator):
     def predict(self, motion: GroundMotion, *, scale: float = 1.0, substeps: int = 4) -> SimulationResult:
         """Replay the identified clone under ``motion`` (batch simulator)."""
         self._check_fitted()
-        return simulate(self.clone_.building, motion, scale, substeps=substeps)
+        return simulate_response(self.clone_.building, motion, scale, substeps=substeps)
 
     def score(self, measurement: Measurement) -> float:
         """Mean correlation coefficient between the replayed and the measured floor
@@ -106,12 +106,12 @@ class HLASVMIdentifier(BaseIdentifier):
         import dataclasses
 
         from .config import IdentifyConfig
-        from .pipeline import identify
+        from .pipeline import identify_clone
         cfg = self.config or IdentifyConfig()
         if self.refine is not None:
             cfg = dataclasses.replace(cfg, refine=dataclasses.replace(cfg.refine, method=self.refine))
         t0 = time.perf_counter()
-        self.result_ = identify(measurement, cfg, tensorboard=self.tensorboard, cache_dir=self.cache_dir)
+        self.result_ = identify_clone(measurement, cfg, tensorboard=self.tensorboard, cache_dir=self.cache_dir)
         self.clone_: Clone = self.result_.clone
         self.fit_seconds_ = time.perf_counter() - t0
         return self

@@ -68,10 +68,10 @@ from .. import _progress
 from .._threads import one_thread
 from ..clone import Clone
 from ..errors import InputError, NotIdentifiableError
-from ..measurement import Measurement
+from ..measurement import Measurement, measured_ground
 from ..model import BoucWenBuilding
-from ..signal import butter_sos, cap_corner, measured_ground
-from ..simulate import simulate
+from ..signal import butter_sos, cap_corner
+from ..simulate import simulate_response
 from . import _space as sp
 from .estimators import BaseIdentifier
 from .tb import TBLogger
@@ -141,7 +141,7 @@ class OutputErrorProblem:
         B = values["k0"].shape[0]
         buildings = [self.known.building({k: v[b] for k, v in values.items()}) for b in range(B)]
         g = self.ground
-        return simulate(buildings, type(g)(dt=g.dt, acc=g.acc[:end], name=g.name), substeps=self.substeps)
+        return simulate_response(buildings, type(g)(dt=g.dt, acc=g.acc[:end], name=g.name), substeps=self.substeps)
 
     def start_states(self, values: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """States ``(batch, segment, 4*story)`` at the segment starts (compiled simulator) and

@@ -24,10 +24,10 @@ import dataclasses
 
 import numpy as np
 
-from ..hla import HLAConfig, HLAResult, hla
+from ..hla import HLAConfig, HLAResult, run_hla
+from ..measurement import measured_ground
 from ..model import Building
 from ..motions import GroundMotion
-from ..signal import measured_ground
 from ..synthetic import simulate_measurement
 from .drift import hla_drift, reconstruct_drift
 
@@ -63,7 +63,7 @@ def path_error_bank(res: HLAResult, ground: GroundMotion, estimate: Building, *,
     for k in range(n):
         try:
             meas = simulate_measurement(estimate, ground, rate_hz=None, noise_rms=noise_rms, seed=seed + k)
-            r = hla(meas, cfg)
+            r = run_hla(meas, cfg)
         except ValueError:  # InputError, or HLA's fits on an unlucky noise draw: leave it out
             continue
         assert meas.truth is not None  # simulated

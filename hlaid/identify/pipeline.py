@@ -20,15 +20,15 @@ from typing import Any, cast
 
 import numpy as np
 
-from .. import __version__, _progress
+from .. import _progress
+from .._version import __version__
 from ..clone import Clone
 from ..config import config_to_dict
 from ..errors import NotIdentifiableError, TangentTooLargeError, UnstableTangentError
-from ..hla import HLAResult, hla, reanalyse_story
+from ..hla import HLAResult, reanalyse_story, run_hla
 from ..hla.features import half_cycle_features
-from ..measurement import Measurement
+from ..measurement import Measurement, measured_ground
 from ..model import Building, Damping
-from ..signal import measured_ground
 from ..uncertainty.laplace import uncertainty_of_refinement
 from .cache import MachineCache, default_cache_dir
 from .classify import Bins, pass_result, vote
@@ -119,7 +119,7 @@ class _Identifier:
         t_all = time.perf_counter()
         t = time.perf_counter()
         _progress.info("[identify] hysteresis loop analysis")
-        res = hla(meas, cfg.hla)
+        res = run_hla(meas, cfg.hla)
         self.timings["hla"] = time.perf_counter() - t
         self.res = res
         n = res.n_stories
@@ -508,7 +508,7 @@ def _rel_change(new, old) -> float:
     return float(np.max(np.abs(new - old) / np.maximum(np.abs(old), 1e-9)))
 
 
-def identify(measurement: Measurement, config: IdentifyConfig | None = None, *, tensorboard: str | None = None,
+def identify_clone(measurement: Measurement, config: IdentifyConfig | None = None, *, tensorboard: str | None = None,
              cache_dir: str | None = None) -> IdentificationResult:
     """Identify a digital clone from a measurement, with no expert input.
 

@@ -24,10 +24,10 @@ from threadpoolctl import threadpool_limits
 
 from .. import _progress
 from ..errors import InputError
-from ..measurement import Measurement
+from ..measurement import Measurement, measured_ground
 from ..model import Building, Damping
-from ..signal import bandpass, cap_corner, lowpass, measured_ground
-from ..simulate import simulate
+from ..signal import bandpass, cap_corner, lowpass
+from ..simulate import simulate_response
 from ..simulate.tangent import GroundTangent, ground_tangent
 from .eiv import TangentWhitener, ground_transfer, lowpass_gain, whiten
 
@@ -201,7 +201,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
     jac_substeps = substeps if jac_substeps is None else jac_substeps
 
     def residuals_of(bs, n_sub=substeps):
-        r = simulate(bs, ground, substeps=n_sub, outputs="acc")
+        r = simulate_response(bs, ground, substeps=n_sub, outputs="acc")
         acc = r.acc
         acc[r.status != 0] = 0.0  # only a stopped replay has NaN (after its stop); no copy of the rest
         res = np.empty((len(bs), len(range(0, acc.shape[1], stride)) * channels))

@@ -7,10 +7,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..hla import HLAResult
-from ..measurement import Measurement
+from ..measurement import Measurement, measured_ground
 from ..model import Building
-from ..signal import bandpass, measured_ground
-from ..simulate import simulate
+from ..signal import bandpass
+from ..simulate import simulate_response
 
 
 @dataclass(frozen=True)
@@ -53,7 +53,7 @@ def replay_check(building: Building, measurement: Measurement, hla_result: HLARe
     dt = measurement.dt
     band = hla_result.band_hz
     ground = measured_ground(measurement, band[1])
-    r = simulate(building, ground)
+    r = simulate_response(building, ground)
     assert r.disp is not None and r.eta is not None  # simulate keeps the histories by default
     disp = r.disp[0]
     _, _, _, meas_disp = floor_motion(measurement, hla_result.config)

@@ -15,12 +15,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._workers import result, worker_pool
-from ..hla import HLAConfig, hla
+from ..hla import HLAConfig, run_hla
 from ..hla.features import half_cycle_features
 from ..measurement import Measurement
 from ..model import Building
 from ..motions import GroundMotion
-from ..simulate import simulate
+from ..simulate import simulate_response
 from ..synthetic import add_noise
 
 
@@ -76,7 +76,7 @@ def _features_of(args):
                        floor_acc=add_noise(floor_acc, noise_rms, rng), mass=mass,
                        floor_disp=None if disp is None else add_noise(disp, noise_rms, rng))
     try:
-        res = hla(meas, hla_cfg)
+        res = run_hla(meas, hla_cfg)
     except ValueError:  # a simulation too weak to analyse: no samples
         return [np.zeros((0, n_segments + with_ke)) for _ in range(floor_acc.shape[1])]
     return [half_cycle_features(s, n_segments, yield_ratio=yield_ratio, with_ke=with_ke).values for s in res.stories]
@@ -116,7 +116,7 @@ def simulate_training_sets(estimate: Building, motion: GroundMotion, ranges: Ran
         while counts.min() < n_samples and n_sim < max_simulations:
             nb = min(batch, max_simulations - n_sim)
             buildings, a, p = draw_buildings(estimate, ranges, nb, spread, rng)
-            r = simulate(buildings, motion, substeps=4)
+            r = simulate_response(buildings, motion, substeps=4)
             ok = r.status == 0
             assert r.acc is not None and r.disp is not None  # simulate keeps the histories by default
             seeds = rng.integers(0, 2**63 - 1, size=nb)

@@ -46,9 +46,9 @@ from .. import _progress
 from .._threads import one_thread
 from ..clone import Clone
 from ..errors import InputError, NotIdentifiableError
-from ..measurement import Measurement
+from ..measurement import Measurement, measured_ground
 from ..model import BoucWenBuilding
-from ..signal import cap_corner, measured_ground
+from ..signal import cap_corner
 from . import _space as sp
 from .estimators import BaseIdentifier
 from .gradient import arias_window

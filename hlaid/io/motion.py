@@ -11,98 +11,30 @@ from __future__ import annotations
 import os
 import re
 from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
 
 from .._fileio import read_file_text
 from ..errors import InputError, columns_text, quotable
+from ..motions.at2 import NUMBER, floats, number, read_at2, record_name
+from ..motions.builtin import load_builtin
 from ..motions.record import GroundMotion
 from ..units import acceleration_factor
 
 __all__ = ["MOTION_READERS", "motion_format", "read_record", "read_at2", "read_text_record", "read_csv_record"]
-
-_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][-+]?\d+)?"
-
-
-def _default_name(src: str) -> str:
-    """A record's label from its file name: ``RSN6_IMPVALL.I_I-ELC180-hor1.AT2`` ->
-    ``RSN6_IMPVALL.I_I-ELC180-hor1`` (only the extension, and ``.gz``, are dropped)."""
-    name = Path(src).name
-    if name.lower().endswith(".gz"):
-        name = name[:-3]
-    return Path(name).stem or name
-
-
-def _number(token: str) -> float:
-    """``float`` that also reads a Fortran exponent (``.01D00``); raises ValueError."""
-    return float(token.strip().replace("D", "E").replace("d", "e"))
-
-
-def _floats(lines: list[tuple[int, str]], source: str) -> np.ndarray:
-    """The numbers of ``(line number, text)`` data lines, in order; a value that is not a number
-    is reported by its position, not quoted."""
-    text = "\n".join(t for _, t in lines)
-    try:
-        return np.array(text.replace("D", "E").replace("d", "e").split(), dtype=np.float64)
-    except ValueError:
-        for lineno, t in lines:
-            for k, token in enumerate(t.split()):
-                try:
-                    _number(token)
-                except ValueError:
-                    raise InputError(f"non-numeric value at line {lineno} (value {k + 1} of that line)",
-                                     source=source) from None
-        raise InputError("holds a value that is not a number", source=source) from None
-
 
 def _col(header: list[str], j: int) -> str:
     """``column 'acc (g)'``, or ``column 2`` when the header name is not quotable."""
     return f"column {header[j]!r}" if quotable(header[j]) else f"column {j + 1}"
 
 
-def read_at2(path: str | os.PathLike, *, name: str | None = None) -> GroundMotion:
-    """Read a PEER NGA ``.AT2`` file (units g, 4 header lines, ``NPTS= n, DT= dt SEC``).
-
-    The old NGA layout (``n dt NPTS, DT`` on line 4) is accepted too. The number of values
-    must equal NPTS.
-    """
-    src = str(path)
-    lines = read_file_text(path).splitlines()
-    if len(lines) < 5:
-        raise InputError(f"has {len(lines)} lines; an AT2 file has 4 header lines and data", source=src)
-    header = lines[3]
-    m_n = re.search(r"NPTS\s*=\s*(\d+)", header, re.I)
-    m_dt = re.search(rf"DT\s*=\s*({_NUM})", header, re.I)
-    if m_n and m_dt:
-        npts, dt = int(m_n.group(1)), _number(m_dt.group(1))
-    else:
-        m_old = re.match(rf"\s*(\d+)\s+({_NUM})\s+NPTS", header, re.I)
-        if not m_old:
-            raise InputError("line 4 should give NPTS and DT (e.g. 'NPTS= 5372, DT= .0100 SEC') and does not",
-                             source=src)
-        npts, dt = int(m_old.group(1)), _number(m_old.group(2))
-    units = lines[2].upper()
-    if re.search(r"CM/S", units):
-        factor = acceleration_factor("cm/s^2")
-    elif re.search(r"\bG\b", units) or "UNITS OF G" in units or units.strip() == "":
-        factor = acceleration_factor("g")
-    else:
-        raise InputError("cannot tell the units from line 3; expected 'UNITS OF G' (or CM/S/S)", source=src)
-    values = _floats([(i + 5, ln) for i, ln in enumerate(lines[4:])], src)
-    if values.size != npts:
-        raise InputError(f"header says NPTS = {npts} but the file holds {values.size} values", source=src)
-    label = name or _default_name(src)
-    return GroundMotion(dt=dt, acc=values * factor, name=label, source=src)
-
-
 def _header_hints(comments: list[str]) -> dict:
     """dt and units mentioned in comment lines, e.g. 'Acc. in cm/sec^2 and dt=0.005 sec.'."""
     text = " ".join(comments).lower()
     hints: dict[str, float | str] = {}
-    m = re.search(rf"\bdt\s*=\s*({_NUM})", text)
+    m = re.search(rf"\bdt\s*=\s*({NUMBER})", text)
     if m:
-        hints["dt"] = _number(m.group(1))
+        hints["dt"] = number(m.group(1))
     for pat, unit in ((r"cm/s(ec)?(\^2|2|/s(ec)?)", "cm/s^2"), (r"\bgal\b", "cm/s^2"),
                       (r"mm/s(ec)?(\^2|2|/s(ec)?)", "mm/s^2"), (r"\bm/s(ec)?(\^2|2|/s(ec)?)", "m/s^2"),
                       (r"units?\s*(of|in|:|=)\s*g\b", "g")):
@@ -139,7 +71,7 @@ def read_text_record(path: str | os.PathLike, *, units: str | None = None, dt: f
     widths = {len(ln.split()) for ln in body}
     if len(widths) != 1:
         raise InputError(f"rows have different numbers of columns {sorted(widths)}", source=src)
-    data = _floats(numbered, src).reshape(len(body), -1)
+    data = floats(numbered, src).reshape(len(body), -1)
     hints = _header_hints(comments)
     units = units or hints.get("units")
     if units is None:
@@ -173,7 +105,7 @@ def _motion(acc: np.ndarray, dt: float | None, units: str, name: str | None, src
         factor = acceleration_factor(units)
     except ValueError as err:
         raise InputError(str(err), source=src) from None
-    return GroundMotion(dt=dt, acc=acc * factor, name=name or _default_name(src), source=src)
+    return GroundMotion(dt=dt, acc=acc * factor, name=name or record_name(src), source=src)
 
 
 def _is_uniform_time(t: np.ndarray) -> bool:
@@ -199,7 +131,7 @@ def read_csv_record(path: str | os.PathLike, *, units: str | None = None, dt: fl
     if len(lines) < 2:
         raise InputError("holds no data rows", source=src)
     header = [h.strip() for h in lines[0].split(",")]
-    if all(re.fullmatch(_NUM, h) for h in header):
+    if all(re.fullmatch(NUMBER, h) for h in header):
         return read_text_record(path, units=units, dt=dt, column=column if isinstance(column, int) else None, name=name)
     rows = [ln.split(",") for ln in lines[1:]]
     if any(len(r) != len(header) for r in rows):
@@ -210,7 +142,7 @@ def read_csv_record(path: str | os.PathLike, *, units: str | None = None, dt: fl
     for i, r in enumerate(rows):
         for j, v in enumerate(r):
             try:
-                data[i, j] = _number(v)
+                data[i, j] = number(v)
             except ValueError:
                 raise InputError(f"line {numbered[i + 1][0]}, {_col(header, j)}: not a number", source=src) from None
     base = [re.sub(r"[\(\[].*", "", h).strip().lower() for h in header]
@@ -268,7 +200,6 @@ def read_record(spec: str | os.PathLike, *, units: str | None = None, dt: float 
     """
     spec = str(spec)
     if spec.startswith("builtin:"):
-        from ..motions.builtin import load_builtin
         return load_builtin(spec[len("builtin:"):])
     fmt = format or motion_format(spec)
     if fmt not in MOTION_READERS:

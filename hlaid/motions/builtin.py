@@ -8,6 +8,7 @@ from functools import cache
 from importlib import resources
 
 from ..errors import InputError
+from .at2 import read_at2
 from .record import GroundMotion
 
 SUITE = "builtin-suite"
@@ -36,8 +37,6 @@ def load_builtin(name: str) -> GroundMotion:
     if name not in recs:
         raise InputError(f"unknown built-in record {name!r}; available: {', '.join(sorted(recs))} "
                          f"(run 'hlaid records')", source=f"builtin:{name}")
-    from ..io.motion import read_at2  # here: hlaid.io imports this module
-
     with resources.as_file(resources.files("hlaid").joinpath(f"data/records/{recs[name].file}")) as p:
         gm = read_at2(p, name=name)
     return GroundMotion(dt=gm.dt, acc=gm.acc, name=name, source=f"builtin:{name}")

@@ -79,7 +79,7 @@ def model_data(model) -> dict[str, Any]:
     (story,) [t], ``k0`` [N/mm], ...), ``collapse`` (per story ``[(x_j, dk_j), ...]`` or None),
     ``rayleigh`` ``(a0, a1)``, ``damping`` (kind, ratio, modes), ``name`` and ``hlaid_version``.
     """
-    from .. import __version__
+    from .._version import __version__
     b = building_of(model)
     a0, a1 = b.rayleigh()
     return {

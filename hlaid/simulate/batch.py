@@ -191,7 +191,7 @@ BACKENDS: dict[str, Callable] = {"numba": _run_numba, "torch": _run_torch}
 """Integrators by name: ``"numba"`` (compiled, parallel) and ``"torch"`` (eager reference)."""
 
 
-def simulate(buildings: Building | Sequence[Building], motions: GroundMotion | Sequence[GroundMotion],
+def simulate_response(buildings: Building | Sequence[Building], motions: GroundMotion | Sequence[GroundMotion],
              scales: float | Sequence[float] | np.ndarray = 1.0, *, substeps: int = 4, pairing: str = "product",
              outputs: str = "full", backend: str = "numba", free_vibration: float = 0.0,
              stop_drift: float | np.ndarray | None = None, y0: np.ndarray | None = None) -> SimulationResult:

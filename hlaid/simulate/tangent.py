@@ -39,7 +39,7 @@ from ..limits import check_count
 from ..model import BoucWenBuilding, Building, BuildingTensors
 from ..motions import GroundMotion
 from ..signal import lowpass
-from .batch import _run_numba, simulate
+from .batch import _run_numba, simulate_response
 
 __all__ = ["METHODS", "GroundTangent", "ground_tangent", "step_jacobians"]
 
@@ -149,7 +149,7 @@ def ground_tangent(building: Building, motion: GroundMotion, *, lags: int, shape
     check_count(4 * one + jacobians, "TANGENT_MB",
                 f"memory of the ground tangent ({taus.size} samples x {width} lags x {n} floors, 4 copies, "
                 f"and {T} step Jacobians) [MiB]")
-    base = simulate(building, motion, substeps=substeps)
+    base = simulate_response(building, motion, substeps=substeps)
     if base.status[0] != 0:
         raise InputError("ground_tangent: the replay did not complete")
     assert base.disp is not None and base.vel is not None and base.z is not None and base.energy is not None
@@ -312,7 +312,7 @@ def _difference(building, motion, states, k, all_taus, substeps, rel_step, chunk
                 motions.append(GroundMotion(dt=motion.dt, acc=s))
                 y0[row] = states[s0]
             offs.append(tau - half - s0)  # segment index of lag 0 (1, or <= 0 at the record's start)
-        acc = simulate([building], motions, substeps=substeps, outputs="acc", y0=y0).acc
+        acc = simulate_response([building], motions, substeps=substeps, outputs="acc", y0=y0).acc
         assert acc is not None
         diff = (acc[0::2] - acc[1::2]) / (2.0 * eps)
         for i, (tau, off) in enumerate(zip(taus, offs)):

@@ -6,6 +6,8 @@
   recorded event predicting the others; ``scripts/validate_real.py``.
 * :mod:`hlaid.studies.hla_accuracy`: HLA against the truth of simulated measurements;
   ``scripts/study_hla_accuracy.py``.
+* :mod:`hlaid.studies.bootstrap`: the parametric bootstrap that checks a clone's uncertainty;
+  ``scripts/study_uncertainty.py``.
 
 Nothing here is imported by ``hlaid`` itself; import the study module you need.
 """

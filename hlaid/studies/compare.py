@@ -32,7 +32,7 @@ from ..identify import IDENTIFIERS, BaseIdentifier, IdentifyConfig, get_identifi
 from ..identify.replaycheck import corrcoef
 from ..model import Building
 from ..motions import GroundMotion
-from ..simulate import simulate
+from ..simulate import simulate_response
 from ..specs import MotionSpec
 from ..synthetic import load_simulation_config, simulate_measurement
 
@@ -215,7 +215,7 @@ def random_structure(spec: RandomStructureSpec, motion: GroundMotion, rng: np.ra
                      dy=rng.uniform(*spec.dy_mm, n), delta_eta=rng.uniform(*spec.delta_eta, n), name=name)
         t1 = rng.uniform(*spec.period_s)
         b = b.replace(k0=b.k0 * (b.periods()[0] / t1) ** 2)
-        r = simulate(b, motion, outputs="peaks")
+        r = simulate_response(b, motion, outputs="peaks")
         if r.status[0] == 0 and np.all(r.peak_drift[0] >= spec.min_ductility * b.dy):
             return b
     raise InputError(f"no random structure in {tries} draws reaches ductility {spec.min_ductility} on every story "
@@ -274,7 +274,7 @@ def _cpu() -> float:
 
 
 def _replay_r(building: Building, motion: GroundMotion, true_disp: np.ndarray):
-    r = simulate(building, motion)  # full outputs: disp is set
+    r = simulate_response(building, motion)  # full outputs: disp is set
     if r.status[0] != 0 or not np.all(np.isfinite(cast(np.ndarray, r.disp)[0])):
         return None, None
     return corrcoef(cast(np.ndarray, r.disp)[0], true_disp), r.peak_drift[0]
@@ -284,7 +284,7 @@ def run_case(case: Case, names: list[str], settings: dict, unseen: GroundMotion,
              base_dir=None, cache_dir: str = "", shared_cache: bool = False) -> list[Outcome]:
     """Every identifier of ``names`` on ``case``; exceptions are recorded as failures."""
     meas = simulate_measurement(case.building, case.motion, rate_hz=None, noise_rms=case.noise, seed=case.seed)
-    truth_unseen = simulate(case.building, unseen)
+    truth_unseen = simulate_response(case.building, unseen)
     out, times = [], {}
     for name in names:
         base: dict[str, Any] = {"case": case.name, "identifier": name, "structure": case.structure,

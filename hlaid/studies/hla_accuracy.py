@@ -50,7 +50,7 @@ def hla_errors(result: HLAResult, truth: Truth) -> HLAErrors:
 def accuracy_study(building, motions, seeds, *, noise_rms: float = 0.10, config=None, pga_g: float | None = 0.62,
                    rate_hz: float = 200.0) -> dict[tuple[str, int], HLAErrors]:
     """HLA errors on simulated measurements of ``building`` for every motion x noise seed."""
-    from ..hla import hla
+    from ..hla import run_hla
     from ..synthetic import simulate_measurement
 
     out = {}
@@ -59,7 +59,7 @@ def accuracy_study(building, motions, seeds, *, noise_rms: float = 0.10, config=
         for seed in seeds:
             meas = simulate_measurement(building, g, rate_hz=rate_hz, noise_rms=noise_rms, seed=seed)
             assert meas.truth is not None  # a simulated measurement carries its truth
-            out[(gm.name, seed)] = hla_errors(hla(meas, config), meas.truth)
+            out[(gm.name, seed)] = hla_errors(run_hla(meas, config), meas.truth)
     return out
 
 

@@ -8,12 +8,12 @@ and returns the fragility band, the probabilities at the building's own record i
 re-occupancy indicator. Method and measured coverage: ``docs/uncertainty.md``.
 """
 
-from ._params import ParameterUncertainty
+from ..model.uncertainty import ParameterUncertainty
 from .assess import AssessConfig, Assessment, ReoccupancyThresholds, assess
 from .coverage import calibration_factor, coverage, zscores
-from .ensemble import clone_ensemble, parametric_bootstrap
+from .ensemble import clone_ensemble
 from .laplace import covariance, from_refinement, uncertainty_of_refinement
 
 __all__ = ["AssessConfig", "Assessment", "ParameterUncertainty", "ReoccupancyThresholds", "assess",
            "calibration_factor", "clone_ensemble", "coverage", "covariance", "from_refinement",
-           "parametric_bootstrap", "uncertainty_of_refinement", "zscores"]
+           "uncertainty_of_refinement", "zscores"]

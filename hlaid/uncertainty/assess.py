@@ -37,7 +37,7 @@ from scipy.special import ndtr
 
 from .. import _progress
 from ..errors import InputError
-from .ensemble import _check_clone, _check_n, clone_ensemble
+from .ensemble import check_ensemble_size, check_uncertain_clone, clone_ensemble
 
 COLOURS = ("green", "yellow", "red")
 PLACARDS = {"green": "INSPECTED (re-occupancy permitted)", "yellow": "RESTRICTED USE (engineering evaluation)",
@@ -83,7 +83,7 @@ class AssessConfig:
     seed: int = 0
 
     def __post_init__(self):
-        _check_n(self.n_ensemble, "assess.n_ensemble")
+        check_ensemble_size(self.n_ensemble, "assess.n_ensemble")
         if isinstance(self.n_boot, bool) or not isinstance(self.n_boot, int) or not 0 <= self.n_boot <= 10_000:
             raise InputError(f"assess.n_boot = {self.n_boot!r}; expected a whole number in 0..10000")
         if isinstance(self.ci, bool) or not isinstance(self.ci, (int, float)) or not 0 < self.ci < 1:
@@ -232,11 +232,11 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
     from ..ida.intensity import period_for
     from ..io.records import as_motions
     from ..motions import GroundMotion
-    from ..simulate import simulate
+    from ..simulate import simulate_response
 
     t0 = time.perf_counter()
-    _check_clone(clone)
-    n_ensemble = _check_n(n_ensemble, "n_ensemble")
+    check_uncertain_clone(clone)
+    n_ensemble = check_ensemble_size(n_ensemble, "n_ensemble")
     if isinstance(n_boot, bool) or not isinstance(n_boot, int) or not 0 <= n_boot <= 10_000:
         raise InputError(f"n_boot = {n_boot!r}; expected a whole number in 0..10000")
     if isinstance(ci, bool) or not isinstance(ci, (int, float)) or not 0 < ci < 1:
@@ -310,7 +310,7 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
                                heights=cfg.heights_mm, gravity_load=cfg.gravity_load_n())[0] for b in members]
         sub = max(1, int(np.ceil(own_motion.dt / cfg.max_step)))
         h = np.array([np.asarray(b.height, dtype=float) for b in bs])
-        sim = simulate(bs, own_motion, substeps=sub, outputs="peaks", stop_drift=cfg.drift_limit * h)
+        sim = simulate_response(bs, own_motion, substeps=sub, outputs="peaks", stop_drift=cfg.drift_limit * h)
         peak = np.max(sim.peak_drift / h, axis=1)
         resid = np.max(np.abs(sim.residual_drift) / h, axis=1)
         resid = np.where(sim.status == 0, resid, np.inf)  # stopped or diverged: no re-occupancy

@@ -11,7 +11,7 @@ import numpy as np
 from scipy.stats import norm
 
 from ..errors import InputError
-from ._params import ParameterUncertainty
+from ..model.uncertainty import ParameterUncertainty
 
 
 def zscores(uncertainty: ParameterUncertainty, true_values) -> np.ndarray:

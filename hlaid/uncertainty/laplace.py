@@ -36,8 +36,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..model.uncertainty import BOUNDS, ParameterUncertainty
 from ..signal import cap_corner
-from ._params import BOUNDS, ParameterUncertainty
 
 METHODS = ("sandwich", "neff", "naive")
 

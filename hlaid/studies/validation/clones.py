@@ -13,12 +13,12 @@ from ... import signal as sg
 from ...clone import Clone
 from ...config import config_to_dict
 from ...errors import InputError, NotIdentifiableError
-from ...hla import hla
-from ...identify import IdentifyConfig, identify, refine_replay
+from ...hla import run_hla
+from ...identify import IdentifyConfig, identify_clone, refine_replay
 from ...measurement import Measurement
 from ...model import Building, Damping
 from ...motions import GroundMotion
-from ...simulate import simulate
+from ...simulate import simulate_response
 from .schema import StructureSpec
 
 FALLBACK_FITS = ("scale+damping", "k0+damping", "k0", "damping", "none")
@@ -77,7 +77,7 @@ def linear_clone(meas: Measurement, cfg: IdentifyConfig, *, fit: str = "scale+da
     the measured floor accelerations (``fit``): ``"scale+damping"`` one factor on every k0 and
     the damping ratio (HLA's stiffness distribution kept); ``"k0+damping"``, ``"k0"``,
     ``"damping"`` by :func:`refine_replay`; ``"none"``: HLA's k0 as they are."""
-    res = hla(meas, cfg.hla)
+    res = run_hla(meas, cfg.hla)
     n = res.n_stories
     peak = np.array([np.max(np.abs(s.drift)) for s in res.stories])
     b = Building(mass=res.mass, k0=res.k0, alpha=np.ones(n), p=np.full(n, 2.0), dy=np.maximum(1e3 * peak, 1.0),
@@ -116,7 +116,7 @@ def _fit_scale_damping(b: Building, meas: Measurement, band_hz, max_iterations: 
         return b.replace(k0=b.k0 * np.exp(x[0]), damping=Damping(kind=d.kind, ratio=float(x[1]), modes=d.modes))
 
     def fun(x):
-        r = simulate(make(x), ground)
+        r = simulate_response(make(x), ground)
         if r.status[0] != 0:
             return np.full(target.size, 1e3)
         return ((sg.bandpass(np.nan_to_num(r.acc[0]), dt, (band_hz[0], hi)) - target) / rms).ravel()
@@ -137,7 +137,7 @@ def identify_event(spec: StructureSpec, event: str, meas: Measurement, cfg: Iden
     try:
         if spec.clone == "linear":
             raise NotIdentifiableError("the config asks for a linear clone (clone: linear)")
-        clone = identify(meas, cfg, cache_dir=cache_dir).clone
+        clone = identify_clone(meas, cfg, cache_dir=cache_dir).clone
     except NotIdentifiableError as err:
         reason = str(err).removeprefix(f"{meas.source}: ")
         if spec.fallback == "none" and spec.clone != "linear":

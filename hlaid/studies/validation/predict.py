@@ -12,13 +12,13 @@ from ... import _progress
 from ... import signal as sg
 from ...clone import Clone
 from ...errors import InputError
-from ...hla import HLAConfig, HLAResult, hla
+from ...hla import HLAConfig, HLAResult, run_hla
 from ...hla import preprocess as pp
 from ...hla.analysis import floor_motion, resolved_band
 from ...identify.replaycheck import corrcoef
 from ...measurement import Measurement
 from ...motions import GroundMotion
-from ...simulate import simulate
+from ...simulate import simulate_response
 from ...units import G_MM_S2
 
 
@@ -106,7 +106,7 @@ def predict_event(clone: Clone, meas: Measurement, hla_config: HLAConfig, *, com
     cfg = _with_band(hla_config, compare_band_hz)
     dt = meas.dt
     try:
-        res = hla(meas, cfg)
+        res = run_hla(meas, cfg)
         band = tuple(res.band_hz)
     except InputError as exc:  # too weak or too short for HLA: no stiffness comparison
         _progress.warn(f"{labels[0]}/{labels[2]}: HLA failed ({exc}); no stiffness comparison")
@@ -115,7 +115,7 @@ def predict_event(clone: Clone, meas: Measurement, hla_config: HLAConfig, *, com
     hi_in = sg.cap_corner(input_lowpass_hz or band[1], dt)
     ground = GroundMotion(dt=dt, acc=sg.bandpass(np.asarray(meas.ground_acc), dt, (0.0, hi_in), cfg.preprocess.order),
                           name=meas.name)
-    sim = simulate(clone.building, ground)  # full outputs: acc, eta and force are set
+    sim = simulate_response(clone.building, ground)  # full outputs: acc, eta and force are set
     # the clone's response goes through what the measured one went through: its displacement
     # band-passed when the data hold displacements, else its accelerations integrated
     integrated = cfg.preprocess.displacement == "integrate" or (cfg.preprocess.displacement == "auto" and

@@ -8,7 +8,8 @@ through the transform and are clipped to the parameter's physical bounds. Parame
 are not slots (those of stories the record did not drive past yield, which identification
 does not refine) are held at their identified value.
 
-This module imports only numpy and the model, so :mod:`hlaid.clone` can hold one.
+This module imports only numpy, scipy and the model, so :mod:`hlaid.clone` can hold one
+(``hlaid.uncertainty`` re-exports it).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import numpy as np
 from scipy.stats import norm
 
 from ..errors import InputError
-from ..model import Building, Damping
+from .params import Building, Damping
 
 TRANSFORMS = ("log", "linear")
 BOUNDS = {"k0": (0.0, math.inf), "alpha": (0.0, 0.95), "p": (1.0, 10.0), "dy": (0.0, math.inf),
