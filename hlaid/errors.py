@@ -31,7 +31,7 @@ class NotIdentifiableError(InputError):
 class UnstableTangentError(InputError):
     """The replay's tangent-linear model grows without bound along the trajectory (a building far
     from the data, or one whose linearisation is unstable): the errors-in-variables weighting
-    (``refine.ground_noise: tangent``) cannot be formed there."""
+    (``refine.method: eiv``) cannot be formed there."""
 
 
 class TangentTooLargeError(InputError):

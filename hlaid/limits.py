@@ -16,9 +16,9 @@ variable                   default     what it limits
 ``HLAID_MAX_IDA_RECORDS``  1000        ground motion records of one IDA
 ``HLAID_MAX_BOOTSTRAP``    100000      bootstrap resamples of a fragility interval
 ``HLAID_MAX_TRAINING``     20000       training samples per story and classifier pass
-                                       (``training.samples``, ``training.max_simulations``)
-``HLAID_MAX_TANGENT_MB``   4096        memory of the ground tangent of ``refine.ground_noise:
-                                       tangent`` [MiB] (samples x lags x floors, 4 copies)
+                                       (``training.samples``)
+``HLAID_MAX_TANGENT_MB``   4096        memory of the ground tangent of ``refine.method: eiv``
+                                       [MiB] (samples x lags x floors, 4 copies)
 =========================  ==========  =========================================================
 
 A value over its limit is an :class:`~hlaid.errors.InputError` (one line naming the value,

@@ -39,8 +39,8 @@ TABLE1 = dict(weight=(171.85, 171.85, 90.0), k0=(1.94e4, 1.65e4, 1.37e4), alpha=
               p=(2.5, 1.5, 1.9), dy=(7.0, 6.0, 3.0), delta_eta=(0.7, 0.66, 1.54))
 EVENTS = ("elcentro-1940-ns", "kocaeli-1999-dzc180", "northridge-1994-mul009", "kobe-1995-nis000")
 IDENTIFY = {  # identification settings: the demo's (configs/demo.yaml) or the fast test ones
-    "demo": {"training": {"samples": 800, "max_simulations": 300}, "outer": {"max_iterations": 2, "tol": 0.02}},
-    "fast": {"training": {"samples": 60, "max_simulations": 24, "n_segments": 8}, "outer": {"max_iterations": 1}},
+    "demo": {"training": {"samples": 800}, "outer": {"max_iterations": 2, "tol": 0.02}},
+    "fast": {"training": {"samples": 60, "n_segments": 8}, "outer": {"max_iterations": 1}},
 }
 
 

@@ -1,11 +1,9 @@
 """Wall time of ``hlaid identify`` on the Table 1 case (10 % noise, El Centro at 0.62 g):
-classifiers trained from scratch, then again with the cached machines, and two peers in the
-same run: the same from-scratch run with scikit-learn's SVC in place of hlaid's KernelSVC,
-and the first version's training sets (``training.mode: simulate``: dynamic simulations of
-the whole building, HLA of each) from scratch.
+classifiers trained from scratch, then again with the cached machines, and a peer in the same
+run: the same from-scratch run with scikit-learn's SVC in place of hlaid's KernelSVC.
 
     python scripts/bench_identify.py [--no-peer]
-    python scripts/bench_identify.py --stories 20      # a tall building (issue: <= 3 min on 2 cores)
+    python scripts/bench_identify.py --stories 20      # a tall building (target: <= 3 min on 2 cores)
 
 ``--stories N``: a regular N-story shear building (20 t floors, k0 from 4e4 down to 1.5e4
 N/mm, alpha 0.1-0.3, p 1.5-2.5, dy 5-8 mm, delta_eta 0.5-1.5) under El Centro scaled until
@@ -22,7 +20,7 @@ import time
 import numpy as np
 
 from hlaid import _progress
-from hlaid.identify import IdentifyConfig, TrainingConfig, classify, identify_clone
+from hlaid.identify import IdentifyConfig, classify, identify_clone
 from hlaid.io import read
 from hlaid.synthetic import load_simulation_config, simulate_measurement
 
@@ -61,8 +59,6 @@ def main(argv=None) -> int:
         finally:
             classify.make_svc = orig
         rows.append(("peer: same from scratch with sklearn.svm.SVC", t3))
-        t4, _ = run(meas, "", IdentifyConfig(training=TrainingConfig(mode="simulate")))
-        rows.append(("peer: first version's training sets (dynamic simulations), from scratch", t4))
     print("| run | wall time [s] | ratio to first row |")
     print("|---|---|---|")
     for name, t in rows:
@@ -95,7 +91,7 @@ def tall(n: int) -> int:
     print({k: round(v, 1) for k, v in res.timings.items()})
     info = res.clone.diagnostics["refine"] or {}
     restart = info.get("restart")
-    ratio = info.get("noise_ratio")  # None with refine.ground_noise: whiten
+    ratio = info.get("noise_ratio")  # None without refinement
     print(f"refinement: cost {'n/a' if ratio is None else f'{ratio:.2f}'} x the noise's; restart: "
           f"{'none' if restart is None else ('kept' if restart['kept'] else 'not kept')}")
     return 0

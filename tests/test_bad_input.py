@@ -1,4 +1,4 @@
-"""Bad input across every command (issue 8): each case exits with status 2 and one line on
+"""Bad input across every command: each case exits with status 2 and one line on
 stderr naming the problem, never a traceback, and leaves no output behind."""
 
 from __future__ import annotations
@@ -179,7 +179,7 @@ def test_console_script_prints_no_traceback(tmp_path):
     assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
 
 
-# ----------------------------------------------------------------- hardening (issue 9, part A)
+# ----------------------------------------------------------------- hardening
 def _one_line(capsys, argv, expect, out=None, *, code=2, max_lines=1):
     """``main(argv)`` exits with ``code`` and one line on stderr (``max_lines`` when warnings are
     expected first) holding one of ``expect``, no traceback, and ``out`` was not written."""
@@ -335,7 +335,7 @@ identify:
     tol: 0.02
     max_iterations: {iterations}
   refine:
-    method: replay
+    method: eiv
 ida:
   records: builtin-suite
   im: sa_t1
@@ -367,7 +367,7 @@ def test_nested_unknown_key_names_its_line(tmp_path, capsys):
     ("outer: {max_iterations: -1}", "max_iterations"), ("outer: {max_iterations: 0}", "max_iterations"),
     ("refine: {max_iterations: -5}", "max_iterations"), ("n_jobs: 0", "n_jobs"),
     ("damping_ratio: 1.5", "damping_ratio"),
-    ("training: {max_simulations: 0}", "max_simulations"), ("training: {seed: -1}", "seed"),
+    ("training: {samples: 0}", "samples"), ("training: {seed: -1}", "seed"),
     ("svm: {C: -1}", "C = -1"), ("svm: {kernel: rbff}", "kernel"), ("refine: {band_hz: [5, 1]}", "band_hz"),
     ("outer: {tol: 0}", "tol"),
 ])

@@ -1,5 +1,5 @@
 """Every config shipped in configs/ loads against its schema; bad keys and types are refused
-with the key, the file and the line (issue 8)."""
+with the key, the file and the line."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ LOADERS = {
     "identify.yaml": ("hlaid.identify", "IdentifyConfig"),
     "identify_steel_frame.yaml": ("hlaid.identify", "IdentifyConfig"),
     "identify_leastsquares.yaml": ("hlaid.identify", "IdentifyConfig"),
-    "svm.yaml": ("hlaid.identify.svmtrain", "TrainSVMConfig"),
+    "svm.yaml": ("hlaid.studies.training_samples", "TrainingSamplesConfig"),
     "ida.yaml": ("hlaid.ida", "IDAConfig"),
     "demo.yaml": ("hlaid.runner", "load_run_config"),
     "run_example.yaml": ("hlaid.runner", "load_run_config"),

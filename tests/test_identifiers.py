@@ -1,4 +1,4 @@
-"""Alternative identifiers behind one interface (issue 9).
+"""Alternative identifiers behind one interface.
 
 Default run, on a short case (a 2-story building, an 8 s window of a real record at 0.62 g,
 200 Hz, small settings): the scikit-learn contract of every identifier; recovery of the true
@@ -8,7 +8,7 @@ segment starts, and the full-trajectory one once the carried sensitivities have 
 segment); the segmented response against the compiled simulator; the unscented transform
 against the exact moments of a linear map; the comparison study end to end on a tiny config.
 
-Slow (``-m slow``): the acceptance of issue 9, every identifier on noise-free Table 1 data
+Slow (``-m slow``): the acceptance test, every identifier on noise-free Table 1 data
 from three records, within 1 % (HLA+SVM alone is held to its bin resolution instead).
 """
 
@@ -50,7 +50,7 @@ from hlaid.synthetic import simulate_measurement
 
 TWO_STORY = {"mass": [20.0, 15.0], "k0": [2.0e4, 1.5e4], "alpha": [0.2, 0.15], "p": [2.0, 1.6], "dy": [6.0, 4.0],
                  "delta_eta": [0.8, 1.0]}
-SMALL_HLA = IdentifyConfig(training=TrainingConfig(samples=60, max_simulations=24, n_segments=8),
+SMALL_HLA = IdentifyConfig(training=TrainingConfig(samples=60, n_segments=8),
                            outer=OuterConfig(max_iterations=1))
 
 
@@ -58,7 +58,7 @@ def factories(cache: str) -> dict:
     """Every identifier with small settings for the short case."""
     return {
         "hlasvm": lambda: HLASVMIdentifier(config=SMALL_HLA, refine="none", cache_dir=cache),
-        "hlasvm_replay": lambda: HLASVMIdentifier(config=SMALL_HLA, refine="replay", cache_dir=cache),
+        "hlasvm_replay": lambda: HLASVMIdentifier(config=SMALL_HLA, refine=None, cache_dir=cache),
         "gradient": lambda: GradientIdentifier(n_candidates=64, n_starts=2, max_iterations=15, segment_s=0.25),
         "ukf": lambda: UKFIdentifier(n_passes=1),
     }
@@ -147,7 +147,7 @@ def test_registry_names_every_identifier():
     assert set(METHODS) <= set(IDENTIFIERS)  # the CLI's --method choices are registered identifiers
     ukf = get_identifier("ukf", n_passes=2)
     assert isinstance(ukf, UKFIdentifier) and ukf.n_passes == 2
-    assert get_identifier("hlasvm").refine == "none" and get_identifier("hlasvm_replay").refine == "replay"
+    assert get_identifier("hlasvm").refine == "none" and get_identifier("hlasvm_replay").refine is None
     with pytest.raises(InputError, match="unknown identifier 'svm'; expected one of .*'hlasvm'.*'gradient'.*'ukf'"):
         get_identifier("svm")
 
@@ -234,8 +234,8 @@ def test_segments_reproduce_the_compiled_simulator(problem):
     y0, ok = prob.start_states(sp.values_numpy(values))
     with torch.no_grad():
         acc, _ = prob.accelerations(values, torch.as_tensor(y0))
-    ref = simulate_response(prob.known.building({k: v[0] for k, v in sp.values_numpy(values).items()}), prob.ground,
-                   substeps=prob.substeps)
+    ref = simulate_response(prob.known.building({k: v[0] for k, v in sp.values_numpy(values).items()}),
+                            prob.ground, substeps=prob.substeps)
     want = ref.acc[0, prob.i0:prob.i1]
     assert ok.all() and np.max(np.abs(acc[0].numpy() - want)) < 1e-8 * np.max(np.abs(want))
 
@@ -380,7 +380,7 @@ def test_default_study_config_loads():
 @pytest.mark.slow
 @pytest.mark.parametrize("record", RECORDS)
 def test_acceptance_noise_free_table1(record, table1, tmp_path):
-    """Issue 9: the identifiers recover noise-free Table 1 parameters within 1 % (a 14 s window
+    """The identifiers recover noise-free Table 1 parameters within 1 % (a 14 s window
     of each record at 0.62 g, 200 Hz, default settings).
 
     The paper's method alone (HLA+SVM without the replay refinement) does not: its classes
@@ -390,7 +390,7 @@ def test_acceptance_noise_free_table1(record, table1, tmp_path):
     meas = simulate_measurement(table1, window(paper_record(record), 14.0, before_peak=4.0), noise_rms=0.0)
     cache = str(tmp_path / "cache")
     ests = {"hlasvm": HLASVMIdentifier(refine="none", cache_dir=cache),
-            "hlasvm_replay": HLASVMIdentifier(refine="replay", cache_dir=cache),
+            "hlasvm_replay": HLASVMIdentifier(refine=None, cache_dir=cache),
             "gradient": GradientIdentifier(), "ukf": UKFIdentifier()}
     worst, mean = {}, {}
     for name, est in ests.items():

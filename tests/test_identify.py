@@ -17,11 +17,12 @@ from conftest import paper_record, window
 
 from hlaid.cli.main import main
 from hlaid.clone import Clone
-from hlaid.errors import NotIdentifiableError, UnstableTangentError
+from hlaid.errors import NotIdentifiableError
 from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig, identify_clone, refine_replay
 from hlaid.identify.classify import Bins, pass_result
 from hlaid.identify.regression import fit_delta_eta, fit_yield_displacement, hysteretic_displacement, hysteretic_work
 from hlaid.synthetic import simulate_measurement
+from hlaid.uncertainty import zscores
 
 
 @pytest.fixture(scope="module")
@@ -132,25 +133,30 @@ def test_refine_jacobian_substeps_keep_the_optimum(table1, record):
 
 
 def _small_config(**kw) -> IdentifyConfig:
-    return IdentifyConfig(training=TrainingConfig(samples=60, max_simulations=24, n_segments=8),
+    return IdentifyConfig(training=TrainingConfig(samples=60, n_segments=8),
                           outer=OuterConfig(max_iterations=1), **kw)
 
 
 def test_identify_end_to_end_cached_and_logged(table1, record, tmp_path):
+    """The pipeline on 14 s of Kocaeli at 5 % noise with small training sets: every parameter
+    within 4 % of the truth and within 4 standard deviations of its own uncertainty; the file,
+    the logs and the cache."""
     meas = simulate_measurement(table1, record, noise_rms=0.05, seed=1)
     cfg = _small_config()
     res = identify_clone(meas, cfg, tensorboard=str(tmp_path / "tb"), cache_dir=str(tmp_path / "cache"))
     b = res.clone.building
-    for name in ("k0", "alpha", "dy", "delta_eta"):
+    for name in ("k0", "alpha", "p", "dy", "delta_eta"):
         err = np.abs(getattr(b, name) / getattr(table1, name) - 1)
-        assert err.max() < 0.15, (name, err)
-    assert np.all(res.replay.r_true > 0.98) and np.all(res.replay.r_measured > 0.95)
+        assert err.max() < 0.04, (name, err)
+    u = res.clone.uncertainty
+    z = zscores(u, [getattr(table1, k)[i] for k, i in u.slots])
+    assert np.all(np.abs(z) < 4), dict(zip(u.names, z.round(2)))
+    assert np.all(res.replay.r_true > 0.999) and np.all(res.replay.r_measured > 0.95)
     d = res.clone.to_dict()
     assert d["format"] == "hlaid-clone" and len(d["stories"]) == 3
     assert d["provenance"]["hlaid_version"] and "timings" in d["provenance"]
     assert {"outer_iterations", "passes", "stories", "replay"} <= set(d["diagnostics"])
     # the refinement's Laplace uncertainty, stored in the file (version 2); a fit at the noise level
-    u = res.clone.uncertainty
     assert d["version"] == 2 and len(d["uncertainty"]["parameters"]) == len(u.slots) > 0
     assert u.info["fit_consistent"] and np.all(u.std > 0) and np.all(u.std < 0.5)
     assert any(p.name.startswith("events.out.tfevents") for p in (tmp_path / "tb").iterdir())
@@ -178,46 +184,16 @@ def test_worker_processes_give_the_same_clone(table1, record):
     assert votes(one) == votes(two)
 
 
-def test_first_fine_pass_can_be_left_to_the_reconstructed_paths(table1, record):
-    """``outer.first_fine: false``: the first iteration runs the coarse pass only, the fine
-    passes follow along the reconstructed paths; the default runs coarse and fine first."""
-    meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
-    cfg = _small_config(refine=RefineConfig(method="none"))
-    stages = {}
-    for first in (True, False):
-        c = dataclasses.replace(cfg, outer=OuterConfig(max_iterations=2, tol=1e-9, first_fine=first))
-        res = identify_clone(meas, c, cache_dir="")
-        stages[first] = [(p["iteration"], p["stage"]) for p in res.passes]
-        assert res.iterations == 2 and np.all(np.isfinite(res.paper_estimate.alpha))
-    assert stages[True] == [(1, "coarse"), (1, "fine"), (2, "fine")]
-    assert stages[False] == [(1, "coarse"), (2, "fine")]
-
-
-def test_coarse_pass_draws_coarse_samples(table1, record):
-    """``training.coarse_samples`` caps the coarse pass's training set; the fine pass keeps
-    ``samples``; null gives the coarse pass ``samples`` too."""
-    meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
-    sizes = {}
-    for coarse in (40, None):
-        cfg = IdentifyConfig(training=TrainingConfig(samples=60, coarse_samples=coarse, n_segments=8),
-                             outer=OuterConfig(max_iterations=1), refine=RefineConfig(method="none"))
-        res = identify_clone(meas, cfg, cache_dir="")
-        sizes[coarse] = {p["stage"]: {s["alpha"]["n_train"] + s["alpha"]["n_test"] for s in p["stories"] if s}
-                         for p in res.passes}
-    assert sizes[40] == {"coarse": {40}, "fine": {60}}
-    assert sizes[None] == {"coarse": {60}, "fine": {60}}
-
-
 def test_refinement_restarts_from_a_neutral_start_when_the_fit_misses_the_noise(table1, record):
     """``refine.restart_ratio``: above it the refinement runs again from the neutral start and
-    keeps the clearly better fit; below it (Table 1 fits to its noise) or with null it does not;
-    the ratio is reported."""
+    keeps the clearly better fit; below it (Table 1 fits to its noise) it does not; the ratio
+    is reported."""
     meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
-    base = _small_config(refine=RefineConfig(max_iterations=4, ground_noise="ignore"))
+    base = _small_config(refine=RefineConfig(method="least_squares", max_iterations=4))
     plain = identify_clone(meas, base, cache_dir="").clone.diagnostics["refine"]
     assert "restart" not in plain and 0 < plain["noise_ratio"] < base.refine.restart_ratio
-    res = identify_clone(meas, dataclasses.replace(base, refine=RefineConfig(max_iterations=4, restart_ratio=1e-6,
-                                                                       ground_noise="ignore")), cache_dir="")
+    res = identify_clone(meas, dataclasses.replace(base, refine=RefineConfig(method="least_squares", max_iterations=4,
+                                                                             restart_ratio=1e-6)), cache_dir="")
     info = res.clone.diagnostics["refine"]
     assert info["restart"]["noise_ratio"] == pytest.approx(plain["noise_ratio"])
     kept = info["restart"]["kept"]
@@ -225,61 +201,6 @@ def test_refinement_restarts_from_a_neutral_start_when_the_fit_misses_the_noise(
     if kept:
         assert info["restart"]["cost_final"] < 0.8 * plain["cost_final"]
     assert res.refinement.cost_final == pytest.approx(info["cost_final"])
-
-
-def test_default_refinement_is_the_errors_in_variables_fit_from_the_regressions(table1, record, monkeypatch):
-    """``refine.ground_noise: tangent`` (the default) fits the whitened residuals from the
-    regressions' building and reports the un-whitened noise ratio of the result; a tangent above
-    ``tangent_max_mb`` falls back to least squares, saying why, before anything is simulated."""
-    meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
-    assert RefineConfig().ground_noise == "tangent"
-    res = identify_clone(meas, _small_config(refine=RefineConfig(max_iterations=20)), cache_dir="")
-    info = res.clone.diagnostics["refine"]
-    assert info["tangent"]["start"] == "regressions" and "fallback" not in info["tangent"]
-    assert res.refinement.channels == meas.n_floors + 1 and res.refinement.plain_cost > res.refinement.cost_final
-    assert 0 < info["noise_ratio"] < 1  # of the plain residuals: as the least-squares fit's (0.25-0.64 at the truth)
-    pipeline = importlib.import_module("hlaid.identify.pipeline")
-    calls = []
-    plain = pipeline.refine_replay
-
-    def spy(*args, **kw):
-        calls.append(kw.get("ground_noise"))
-        return plain(*args, **kw)
-
-    monkeypatch.setattr(pipeline, "refine_replay", spy)
-    res = identify_clone(meas, _small_config(refine=RefineConfig(max_iterations=4, tangent_max_mb=1.0)), cache_dir="")
-    tang = res.clone.diagnostics["refine"]["tangent"]
-    assert "MiB" in tang["fallback"] and "MiB" in tang["skipped"]
-    assert res.refinement.channels == meas.n_floors and calls == ["ignore", "tangent", "ignore", "tangent"]
-    res = identify_clone(meas, _small_config(refine=RefineConfig(max_iterations=2)), cache_dir="")
-    assert "did not converge in 2 evaluations" in res.clone.diagnostics["refine"]["tangent"]["fallback"]
-    calls.clear()  # session 8's order: least squares first, the errors-in-variables fit from its optimum
-    res = identify_clone(meas, _small_config(refine=RefineConfig(max_iterations=6, eiv_start="least_squares")),
-                   cache_dir="")
-    assert res.clone.diagnostics["refine"]["tangent"]["start"] == "least squares" and calls == ["ignore", "ignore",
-                                                                                                 "tangent"]
-
-
-def test_tangent_stage_is_skipped_where_it_weights_nothing_real(table1, record, monkeypatch):
-    """``refine.ground_noise: tangent`` keeps the least-squares fit, saying why, where that fit
-    misses the data by more than its noise or the replay's tangent is unstable."""
-    meas = simulate_measurement(table1, record, noise_rms=0.05, seed=2)
-    cfg = _small_config(refine=RefineConfig(max_iterations=4, restart_ratio=1e-6, ground_noise="tangent"))
-    info = identify_clone(meas, cfg, cache_dir="").clone.diagnostics["refine"]
-    assert "misses the data" in info["tangent"]["skipped"] and info["cost_final"] > 0
-    pipeline = importlib.import_module("hlaid.identify.pipeline")
-    plain = pipeline.refine_replay
-
-    def unstable(*args, **kw):
-        if kw.get("ground_noise") == "tangent":
-            raise UnstableTangentError("ground_tangent: the tangent of the replay grows without bound")
-        return plain(*args, **kw)
-
-    monkeypatch.setattr(pipeline, "refine_replay", unstable)
-    cfg = _small_config(refine=RefineConfig(max_iterations=4, ground_noise="tangent"))
-    res = identify_clone(meas, cfg, cache_dir="")
-    assert "grows without bound" in res.clone.diagnostics["refine"]["tangent"]["skipped"]
-    assert res.refinement.channels == meas.n_floors  # the least-squares fit, kept
 
 
 def test_no_yield_is_not_identifiable(table1, record):
@@ -300,7 +221,7 @@ def test_elastic_story_marked_not_identifiable(table1, record):
 def test_cli_identify(table1, record, tmp_path, capsys):
     meas = simulate_measurement(table1, record, noise_rms=0.05, seed=3).save(tmp_path / "m.npz")
     cfg = tmp_path / "id.yaml"
-    cfg.write_text("training: {samples: 60, max_simulations: 24, n_segments: 8}\nouter: {max_iterations: 1}\n"
+    cfg.write_text("training: {samples: 60, n_segments: 8}\nouter: {max_iterations: 1}\n"
                    "refine: {method: none}\n")
     out = tmp_path / "clone.json"
     assert main(["identify", str(meas), "-o", str(out), "--config", str(cfg), "--no-cache", "-q"]) == 0
@@ -314,12 +235,3 @@ def test_cli_identify(table1, record, tmp_path, capsys):
     assert "samplez" in err and "bad.yaml:1" in err and "Traceback" not in err
     assert not (tmp_path / "c2.json").exists()
     json.loads(out.read_text())
-
-
-@pytest.mark.parametrize("kw, match", [({"ftol": 0.0}, "ftol"), ({"ftol": 1.5}, "ftol"), ({"substeps": 0}, "substeps"),
-                                       ({"substeps": 65}, "substeps"), ({"jac_substeps": 0}, "jac_substeps"),
-                                       ({"jac_substeps": 65}, "jac_substeps")])
-def test_refine_settings_are_bounded(kw, match):
-    with pytest.raises(ValueError, match=match):
-        RefineConfig(**kw)
-

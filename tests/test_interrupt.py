@@ -110,18 +110,6 @@ def measurement(tmp_path_factory) -> Path:
     return path
 
 
-def test_ctrl_c_during_identify_training(measurement, tmp_path):
-    """The dynamic-simulation training sets (``training.mode: simulate``) run on a worker pool."""
-    out = tmp_path / "out"
-    out.mkdir()
-    (tmp_path / "sim.yaml").write_text("training: {mode: simulate}\n")
-    rc, elapsed, lines = _interrupt(["identify", str(measurement), "-o", "out/c.json", "--no-cache",
-                                     "--config", "sim.yaml"], tmp_path,
-                                    after="simulating training half cycles", workers=2)
-    _assert_interrupted(rc, elapsed, lines, "identify")
-    assert _leftovers(out, "c.json") == []
-
-
 def test_ctrl_c_during_identify_path_training(measurement, tmp_path):
     """The default path-driven training: the story law runs in-process (compiled, parallel
     threads) while the kernel machines train on a worker pool."""

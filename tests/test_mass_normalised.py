@@ -43,7 +43,7 @@ def _withheld(meas):
 
 def _config(ratios, **kw) -> IdentifyConfig:
     return IdentifyConfig(hla=HLAConfig(force=ForceConfig(mass_ratios=ratios)),
-                          training=TrainingConfig(samples=60, max_simulations=24, n_segments=8),
+                          training=TrainingConfig(samples=60, n_segments=8),
                           outer=OuterConfig(max_iterations=1), **kw)
 
 

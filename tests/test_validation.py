@@ -151,7 +151,7 @@ def test_steel_frame_end_to_end(tmp_path):
     docs/validation.md)."""
     cfg = load_validation_config(CONFIG)
     steel = next(s for s in cfg.structures if s.name == "steel-frame")
-    small = {"training": {"samples": 60, "max_simulations": 24}, "outer": {"max_iterations": 1},
+    small = {"training": {"samples": 60}, "outer": {"max_iterations": 1},
              "refine": {"max_iterations": 6}}
     spec = dataclasses.replace(steel, identify_from=["s1", "s4"], predict=["s2", "s3"], overrides=small)
     cfg = dataclasses.replace(cfg, structures=[spec])

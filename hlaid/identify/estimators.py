@@ -79,14 +79,14 @@ class BaseIdentifier(BaseEstimator):
 
 
 class HLASVMIdentifier(BaseIdentifier):
-    """The paper's method (:func:`hlaid.identify.identify`): HLA, eq 12-17 regressions, RBF SVMs
-    coarse to fine, outer loop; with ``refine="replay"`` the replay refinement after it.
+    """The paper's method (:func:`hlaid.identify.identify_clone`): HLA, eq 12-17 regressions,
+    RBF SVMs coarse to fine, outer loop, then the refinement the config names.
 
     Parameters
     ----------
     config : :class:`~hlaid.identify.IdentifyConfig` or None for the defaults
-    refine : ``"replay"`` or ``"none"`` (overrides ``config.refine.method``); None: as the
-        config says
+    refine : a name in :data:`hlaid.identify.REFINERS` (overrides ``config.refine.method``;
+        ``"none"``: the paper's method alone); None: as the config says
     cache_dir : classifier cache (None: the default cache; ``""``: none)
     tensorboard : TensorBoard folder or None
 
@@ -95,7 +95,7 @@ class HLASVMIdentifier(BaseIdentifier):
     clone_ : the identified clone; result_ : the full IdentificationResult; fit_seconds_
     """
 
-    def __init__(self, *, config=None, refine: str | None = "replay", cache_dir: str | None = None,
+    def __init__(self, *, config=None, refine: str | None = None, cache_dir: str | None = None,
                  tensorboard: str | None = None):
         self.config = config
         self.refine = refine

@@ -11,7 +11,7 @@ whatever the batch size, so the batch carries everything that can run side by si
 
 1. **Screened starts.** ``n_candidates`` random parameter sets (``k0`` within
    ``+-k0_spread`` of HLA's, the others from the ranges) are screened by the compiled batch
-   simulator (:func:`hlaid.simulate.simulate`, forward only, ~1 s for 256); the
+   simulator (:func:`hlaid.simulate.simulate_response`, forward only, ~1 s for 256); the
    ``n_starts`` with the lowest loss start the descent, and the lowest final loss is kept.
    The output-error loss has local minima in which unscreened random starts can all settle;
    screening puts the starts in the basin of the global one.

@@ -171,19 +171,13 @@ def _noise_features(sp: StoryPath, op, n: int, rng: np.random.Generator, bank: n
 
 def path_training_set(sp: StoryPath, *, k0: float, dy: float, delta_eta: float, alpha_range, p_range,
                       n_samples: int, spread: float, seed: int, substeps: int = 4,
-                      wide: float | None = None, path_errors: np.ndarray | None = None,
-                      noise: np.ndarray | None = None) -> TrainingSet:
+                      wide: float | None = None, noise: np.ndarray | None = None) -> TrainingSet:
     """``n_samples`` simulated feature vectors of one story along its path.
 
     alpha and p are drawn uniformly from their ranges (the class targets); k0, dy and
     delta_eta uniformly within ``+-spread`` (relative) of the given estimates, or, with
     ``wide``, dy and delta_eta log-uniformly within a factor ``wide`` of them (a first pass,
     whose estimates of dy and delta_eta are still rough).
-
-    ``path_errors`` ``(history, time)`` [mm]: simulated errors ``path - true drift`` of the
-    path (:func:`hlaid.identify.patherrors.path_error_bank`); sample ``b`` is then driven along
-    ``path - path_errors[b % history]`` and its features are still taken with the path's own
-    operator ``W``, as the measured ones are. None (or no history): along the path itself.
 
     ``noise``: a :func:`noise_bank` at least ``sp.end`` long, shared by the passes of a run
     (None: one is drawn for this set).
@@ -201,10 +195,6 @@ def path_training_set(sp: StoryPath, *, k0: float, dy: float, delta_eta: float, 
         return max(v, 1e-3) * np.exp(rng.uniform(-np.log(wide), np.log(wide), n_samples))
 
     x = sp.drift[: sp.end]
-    if path_errors is not None and len(path_errors):
-        x = x[None, :] - np.asarray(path_errors, dtype=float)[:, : sp.end]
-        if n_samples % x.shape[0]:
-            x = x[np.arange(n_samples) % x.shape[0]]
     resp = drive_story(x, k0=jitter(k0), alpha=a, p=p, dy=draw(dy), delta_eta=draw(max(delta_eta, 0.1)), mass=sp.mass,
                        dt=sp.dt, substeps=substeps, state=False)
     op = sp.operator

@@ -11,14 +11,14 @@ from .ukf import UKFIdentifier
 
 IDENTIFIERS: dict[str, Callable[..., BaseIdentifier]] = {
     "hlasvm": lambda **kw: HLASVMIdentifier(refine="none", **kw),
-    "hlasvm_replay": lambda **kw: HLASVMIdentifier(refine="replay", **kw),
+    "hlasvm_replay": lambda **kw: HLASVMIdentifier(refine=None, **kw),
     "gradient": GradientIdentifier,
     "ukf": UKFIdentifier,
 }
-"""Identifiers by name: the paper's method alone (``hlasvm``), with its replay refinement
-(``hlasvm_replay``), least squares through the differentiable model (``gradient``) and the
-unscented Kalman filter (``ukf``). Each value makes an unfitted identifier from keyword
-parameters."""
+"""Identifiers by name: the paper's method alone (``hlasvm``), with the refinement its config
+names (``hlasvm_replay``; the default config's: errors in variables), least squares through the
+differentiable model (``gradient``) and the unscented Kalman filter (``ukf``). Each value makes an
+unfitted identifier from keyword parameters."""
 
 
 def get_identifier(name: str, **params) -> BaseIdentifier:

@@ -22,7 +22,7 @@ parameters follow a random walk. The measurement is the absolute floor accelerat
 Noise settings
 --------------
 * measurement noise: std ``measurement_noise`` x each channel's RMS (None: the measurement's
-  noise level when known, else :func:`hlaid.identify.estimate_noise_rms`), at least
+  noise level when known, else :func:`hlaid.identify.stages.estimate_noise_rms`), at least
   ``min_noise`` x RMS so that noise-free data keep the filter well conditioned;
 * input noise: the ground record carries the same relative noise, low-passed at
   ``band_hz[1]`` like the input; it enters the velocities as process noise
@@ -52,7 +52,7 @@ from ..signal import cap_corner
 from . import _space as sp
 from .estimators import BaseIdentifier
 from .gradient import arias_window
-from .pipeline import estimate_noise_rms
+from .stages import estimate_noise_rms
 from .tb import TBLogger
 
 INITS = ("hla", "ranges")

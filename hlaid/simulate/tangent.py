@@ -6,21 +6,17 @@ its floors by a transfer that changes in time: stiff before yield, soft and hyst
 replay: for every sample ``tau`` the change of the absolute floor accelerations over the next
 ``lags`` samples per unit change of the ground acceleration at ``tau``.
 
-Two ways to compute it (``method``):
+It is the replay's tangent-linear model. The Jacobians of one sample's step, ``y[k+1]`` with
+respect to ``y[k]``, ``g[k]`` and ``g[k+1]``, are central differences of single steps of the
+compiled simulator from the trajectory's own states (every sample at once, one batch); a
+perturbation of the ground is then carried through them for ``lags`` samples (:func:`_propagate`,
+compiled, parallel over the perturbed samples). The absolute floor accelerations are linear in
+the state, so their map is exact.
 
-- ``"linear"`` (the default): the replay's tangent-linear model. The Jacobians of one sample's
-  step, ``y[k+1]`` with respect to ``y[k]``, ``g[k]`` and ``g[k+1]``, are central differences of
-  single steps of the compiled simulator from the trajectory's own states (every sample at once,
-  one batch); a perturbation of the ground is then carried through them for ``lags`` samples
-  (:func:`_propagate`, compiled, parallel over the perturbed samples). The absolute floor
-  accelerations are linear in the state, so their map is exact.
-- ``"difference"``: every column a central finite difference of two replays restarted from the
-  trajectory's own state just before ``tau``: the reference, ``2 x lags x substeps`` times
-  dearer (15-45 s against about 1 s for the Table 1 building under 20-40 s records).
-
-The two agree to 1e-9-1e-5 (tests/test_tangent.py). The linear initial-stiffness transfer misses the
-floors' response to a 10 % ground noise by 108-164 % on the Table 1 building; this operator by
-2-4 % (tests/test_tangent.py, docs/identification.md).
+It agrees to 1e-9-1e-5 with finite differences of replays restarted before each perturbed
+sample (the reference in tests/test_tangent.py, 2 x lags x substeps times dearer). The linear
+initial-stiffness transfer misses the floors' response to a 10 % ground noise by 108-164 % on
+the Table 1 building; this operator by 2-4 % (tests/test_tangent.py, docs/identification.md).
 """
 
 from __future__ import annotations
@@ -41,10 +37,7 @@ from ..motions import GroundMotion
 from ..signal import lowpass
 from .batch import _run_numba, simulate_response
 
-__all__ = ["METHODS", "GroundTangent", "ground_tangent", "step_jacobians"]
-
-METHODS = ("linear", "difference")
-"""How :func:`ground_tangent` computes the operator (see the module's doc)."""
+__all__ = ["GroundTangent", "ground_tangent", "step_jacobians"]
 
 @dataclass(frozen=True)
 class GroundTangent:
@@ -92,8 +85,8 @@ class GroundTangent:
 
 
 def ground_tangent(building: Building, motion: GroundMotion, *, lags: int, shape: np.ndarray | None = None,
-                   substeps: int = 4, method: str = "linear", stride: int = 1, lowpass_hz: float | None = None,
-                   rel_step: float = 1e-4, chunk: int = 512, max_mb: float | None = None) -> GroundTangent:
+                   substeps: int = 4, stride: int = 1, lowpass_hz: float | None = None,
+                   max_mb: float | None = None) -> GroundTangent:
     """Tangent of the floors' absolute accelerations along ``building``'s replay of ``motion``.
 
     Parameters
@@ -105,15 +98,12 @@ def ground_tangent(building: Building, motion: GroundMotion, *, lags: int, shape
     shape : ``(2 h + 1,)`` perturbation of the ground centred on its sample (e.g. the impulse
         response of the low-pass the replay's ground went through); None: a unit impulse
     substeps : RK4 sub-steps per sample, as the replay
-    method : a name in :data:`METHODS`
     stride : keep every ``stride``-th sample, of the perturbed samples and of the response: the
         tangent on a coarser grid (``dt * stride``), for a response band-limited well below
         its Nyquist frequency (see ``lowpass_hz``); ``shape`` then perturbs every ``stride``-th
         sample, so white noise of std ``s`` per sample is ``sqrt(stride) * s`` per perturbation
     lowpass_hz : the floors' response low-passed (zero phase, along the lags) at this corner
         before it is sampled, as the residuals it describes; None: as simulated
-    rel_step : with ``"difference"``, the finite-difference step as a fraction of the ground's RMS
-    chunk : with ``"difference"``, perturbation samples simulated per batch
     max_mb : raise :class:`~hlaid.errors.TangentTooLargeError` before anything is simulated when
         the tangent and its step Jacobians would take more than this many MiB (a budget, below
         the hard limit ``HLAID_MAX_TANGENT_MB`` on four copies)
@@ -125,8 +115,6 @@ def ground_tangent(building: Building, motion: GroundMotion, *, lags: int, shape
     """
     if building.collapse is not None:
         raise InputError("ground_tangent: a building with a collapse model is not supported")
-    if method not in METHODS:
-        raise InputError(f"ground_tangent: method = {method!r}; expected one of {', '.join(map(repr, METHODS))}")
     g = np.asarray(motion.acc, dtype=float)
     T, n = g.size, building.n_stories
     k = np.ones(1) if shape is None else np.asarray(shape, dtype=float)
@@ -156,15 +144,12 @@ def ground_tangent(building: Building, motion: GroundMotion, *, lags: int, shape
     work = base.energy[0] / ((1.0 - np.asarray(building.alpha)) * np.asarray(building.k0))  # e = integral(z dx)
     states = np.concatenate([base.disp[0], base.vel[0], base.z[0], work], axis=1)  # states[0] is rest
     out = np.zeros((taus.size, width, n))
-    if method == "linear":
-        A, b0, b1 = step_jacobians(building, states, g, float(motion.dt), substeps=substeps)
-        cmap = _acceleration_map(building)
-        per = max(int(4e8 // (width * S * S)), 1)  # about a second per call: Ctrl-C and progress between calls
-        for c0 in range(0, taus.size, per):
-            _propagate(A, b0, b1, cmap, k, half, taus[c0:c0 + per], out[c0:c0 + per])
-            _progress.debug(f"[tangent] {min(taus.size, c0 + per)}/{taus.size} samples")
-    else:
-        _difference(building, motion, states, k, taus, substeps, rel_step, chunk, out)
+    A, b0, b1 = step_jacobians(building, states, g, float(motion.dt), substeps=substeps)
+    cmap = _acceleration_map(building)
+    per = max(int(4e8 // (width * S * S)), 1)  # about a second per call: Ctrl-C and progress between calls
+    for c0 in range(0, taus.size, per):
+        _propagate(A, b0, b1, cmap, k, half, taus[c0:c0 + per], out[c0:c0 + per])
+        _progress.debug(f"[tangent] {min(taus.size, c0 + per)}/{taus.size} samples")
     if not np.all(np.isfinite(out)):
         raise UnstableTangentError("ground_tangent: the tangent of the replay grows without bound (not finite): "
                                    "the building is far from the data or its linearisation is unstable")
@@ -289,35 +274,3 @@ def _propagate(A, b0, b1, cmap, shape, half, taus, out):  # pragma: no cover (co
             for i in range(S):
                 dy[i] = nxt[i]
             s += 1
-
-
-def _difference(building, motion, states, k, all_taus, substeps, rel_step, chunk, out) -> None:
-    """``method="difference"``: each column from two replays restarted before its sample."""
-    g = np.asarray(motion.acc, dtype=float)
-    T, half = g.size, k.size // 2
-    n, width = building.n_stories, out.shape[1]
-    eps = rel_step * float(np.sqrt(np.mean(g**2)) or 1.0)
-    seg_len = width + half + 2
-    padded = np.concatenate([g, np.zeros(seg_len + 1)])
-    for c0 in range(0, all_taus.size, chunk):
-        taus = all_taus[c0:c0 + chunk]
-        motions, y0, offs = [], np.empty((2 * taus.size, 4 * n)), []
-        for i, tau in enumerate(taus):
-            s0 = max(tau - half - 1, 0)  # restart from the state at sample s0 (rest at 0)
-            seg = padded[s0:s0 + seg_len]
-            lo = max(tau - half, 0)  # the shape's first sample inside the record
-            for sign, row in ((1.0, 2 * i), (-1.0, 2 * i + 1)):
-                s = seg.copy()
-                s[lo - s0:tau + half + 1 - s0] += sign * eps * k[lo - (tau - half):]
-                motions.append(GroundMotion(dt=motion.dt, acc=s))
-                y0[row] = states[s0]
-            offs.append(tau - half - s0)  # segment index of lag 0 (1, or <= 0 at the record's start)
-        acc = simulate_response([building], motions, substeps=substeps, outputs="acc", y0=y0).acc
-        assert acc is not None
-        diff = (acc[0::2] - acc[1::2]) / (2.0 * eps)
-        for i, (tau, off) in enumerate(zip(taus, offs)):
-            j0 = max(-off, 0)
-            stop = min(width, T - (tau - half))  # lags past the record's end stay zero
-            if stop > j0:
-                out[c0 + i, j0:stop] = diff[i, off + j0:off + stop]
-        _progress.debug(f"[tangent] {taus[-1] + 1}/{T} samples")

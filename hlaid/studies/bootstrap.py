@@ -10,7 +10,7 @@ import numpy as np
 
 from .. import _progress
 from ..identify import IdentifyConfig, identify_clone
-from ..identify.pipeline import estimate_noise_rms
+from ..identify.stages import estimate_noise_rms
 from ..motions import GroundMotion
 from ..synthetic import simulate_measurement
 from ..uncertainty.ensemble import check_ensemble_size, check_uncertain_clone

@@ -38,7 +38,7 @@ from ..synthetic import load_simulation_config, simulate_measurement
 
 PARAMETERS = ("k0", "alpha", "p", "dy", "delta_eta")
 
-LABELS = {"hlasvm": "HLA+SVM (paper)", "hlasvm_replay": "HLA+SVM + replay LS", "gradient": "Gradient LS (AD)",
+LABELS = {"hlasvm": "HLA+SVM (paper)", "hlasvm_replay": "HLA+SVM + refinement", "gradient": "Gradient LS (AD)",
           "ukf": "UKF"}
 
 
@@ -256,7 +256,7 @@ def make_identifier(name: str, settings: dict | None = None, *, base_dir=None, c
     if name.startswith("hlasvm"):
         if "refine" in kw:
             raise InputError(f"settings.{name}.refine: fixed by the identifier's name (hlasvm: none, "
-                             "hlasvm_replay: replay)")
+                             "hlasvm_replay: the config's refinement)")
         if isinstance(kw.get("config"), str):
             kw["config"] = load_config(Path(base_dir or ".") / kw["config"], IdentifyConfig)
         kw.setdefault("cache_dir", cache_dir)
