@@ -68,9 +68,15 @@ def test_out_of_range_parameter_names_story_and_field(field, value, form):
     assert f"{field} = " in msg and form in msg
 
 
-@pytest.mark.parametrize("alpha,p,delta_eta", [(0.0, 1.0, 0.0), (1.0, 7.0, 10.0)])
-def test_range_bounds_are_inclusive(alpha, p, delta_eta):
-    Building(mass=[1.0], k0=[1.0], alpha=[alpha], p=[p], dy=[1.0], delta_eta=[delta_eta])
+@pytest.mark.parametrize("field,bound,outside", [("alpha", 0.0, -1e-12), ("alpha", 1.0, 1.0 + 1e-12),
+                                                  ("p", 1.0, 1.0 - 1e-12), ("delta_eta", 0.0, -1e-12)])
+def test_range_bounds_are_inclusive(field, bound, outside):
+    """A value on an inclusive bound is kept as given; one a hair beyond it is refused."""
+    good = {"mass": [1.0], "k0": [1.0], "alpha": [0.1], "p": [2.0], "dy": [1.0], "delta_eta": [0.5]}
+    b = Building(**{**good, field: [bound]})
+    assert getattr(b, field)[0] == bound
+    with pytest.raises(InputError, match=f"{field} = "):
+        Building(**{**good, field: [outside]})
 
 
 def test_shape_and_story_errors():

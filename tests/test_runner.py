@@ -1,6 +1,7 @@
-"""``hlaid run`` / ``hlaid report``: the whole pipeline writes every promised file, the report
-embeds every figure and renders in a headless browser, and nothing is replaced without force
-(issue 8)."""
+"""``hlaid run`` / ``hlaid report``: the whole pipeline writes every promised file with the
+values it promises (the identified parameters near the simulated truth, the collapse fragility
+the lognormal maximum likelihood of the records' collapse intensities), the report embeds every
+figure and renders in a headless browser, and nothing is replaced without force."""
 
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ measurement:
     measurement: {rate_hz: 200, noise_rms: 0.05}
     seed: 1
 identify:
-  training: {samples: 300, max_simulations: 60}
+  training: {samples: 300}
   outer: {max_iterations: 1}
 ida:
   records: ["builtin:northridge-1994-mul009", "builtin:kobe-1995-nis000", "builtin:lomaprieta-1989-cap000"]
@@ -64,7 +65,7 @@ def test_every_output_is_written(run_dir):
     # the table's errors are the identified values against the simulated truth
     for r in rows:
         assert r["error"] == pytest.approx(abs(r["identified"] / r["true"] - 1.0))
-    assert np.isfinite([r["identified"] for r in rows]).all()
+        assert r["error"] < 0.05, r  # 5 % noise, 300 samples, one outer iteration: 1.3 % at most
     with open(out / "parameters.csv", newline="") as fh:  # the same table as parameters.json
         table = list(csv.DictReader(fh))
     assert [(r["parameter"], int(r["story"])) for r in table] == [(r["parameter"], r["story"]) for r in rows]
@@ -87,8 +88,15 @@ def test_every_output_is_written(run_dir):
     assert len(points) == len(peak) > 0 and peak.shape[1] == 2
     np.testing.assert_allclose([[float(r["peak_drift_mm_1"]), float(r["peak_drift_mm_2"])] for r in points], peak,
                                rtol=1e-5)
-    assert summary["ida"]["collapse_fragility"]["capacities"]["median_g"] > 0
-    assert min(summary["replay"]["r_measured"]) > 0.9
+    # every record collapsed inside the grid: the maximum-likelihood lognormal of the collapse
+    # intensities is their geometric mean and the (population) standard deviation of their logs
+    with np.load(out / "ida" / "ida.npz") as z:
+        cap, cen = z["collapse_im"], z["censored_im"]
+    fit = summary["ida"]["collapse_fragility"]["capacities"]
+    assert np.all(np.isfinite(cap)) and not np.any(np.isfinite(cen)) and fit["n_censored"] == 0
+    assert fit["median_g"] == pytest.approx(np.exp(np.mean(np.log(cap))), rel=1e-6)
+    assert fit["beta"] == pytest.approx(np.std(np.log(cap)), rel=1e-4)
+    assert min(summary["replay"]["r_true"]) > 0.999  # the clone's replay against the simulated truth
 
 
 def test_report_embeds_every_figure(run_dir):
