@@ -7,8 +7,8 @@ is a weakref callback or a ``__del__`` run by the garbage collector, the excepti
 tries, all of them 6.8-7.0 s in). Under :func:`sticky_sigint` (the command line) the handler also
 remembers the interruption, and :func:`check`, called with every progress message of the
 library and while the parent waits for worker processes, raises it again where it was dropped;
-Python's "Exception ignored" traceback of the dropped one is not printed then (session 8: seen once
-in 10 Ctrl-C tries during the tangent stage).
+Python's "Exception ignored" traceback of the dropped one is not printed then (it was seen once in
+10 Ctrl-C tries during the tangent stage).
 """
 
 from __future__ import annotations

@@ -6,9 +6,9 @@ samples; default FEMA P695 FF19 Chi-Chi CHY101-N, its first 60 s, at PGA 0.62 g;
 noise. Target: HLA of it in <= 1 s.
 
 Timed (median of ``--repeat`` runs after one warm-up call, so numba compilation is excluded
-and reported apart): ``hlaid.hla.hla`` with each damping option (``rayleigh``, the default,
+and reported apart): ``hlaid.hla.run_hla`` with each damping option (``rayleigh``, the default,
 iterates the analysis until k0 settles), and, as peers, the simulation that made the data
-(``hlaid.simulate.simulate``, full histories, RK4 x 4 sub-steps, as ``simulate_measurement``
+(``hlaid.simulate.simulate_response``, full histories, RK4 x 4 sub-steps, as ``simulate_measurement``
 runs it) and real time (the record's duration).
 
 Usage: python scripts/bench_hla.py [--record PATH|builtin:NAME] [--seconds 60] [--repeat 7]

@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Benchmark :class:`hlaid.svm.KernelSVC` against :class:`sklearn.svm.SVC`.
 
-Default (issue 4): ``make_classification`` with 15 classes and 20 features
+Default: ``make_classification`` with 15 classes and 20 features
 (15 informative, 2 redundant, one cluster per class, ``class_sep=2.0``,
 ``random_state=0``); the first ``n`` samples train, the next ``--n-test``
 (default 2000) are the held-out set.  Both libraries get the same ``C`` and

@@ -1,4 +1,4 @@
-"""Compare identifiers on the same simulated cases (issue 9): tables, plots, TensorBoard.
+"""Compare identifiers on the same simulated cases: tables, plots, TensorBoard.
 
 Every identifier of the config (HLA+SVM as in the paper, HLA+SVM with its replay
 refinement, least squares through the differentiable model, the unscented Kalman filter)

@@ -1,4 +1,4 @@
-"""Accuracy of hysteresis loop analysis on simulated measurements (issue 3; prints markdown).
+"""Accuracy of hysteresis loop analysis on simulated measurements (prints markdown).
 
 Case: the Table 1 structure (``configs/poc_3story.yaml``: 5 % Rayleigh, no P-Delta), real
 records scaled to PGA 0.62 g and sampled at 200 Hz, 10 % RMS noise on every channel, several

@@ -1,4 +1,4 @@
-"""Accuracy of automated identification (issue 5), on simulated measurements with 10 % noise.
+"""Accuracy of automated identification, on simulated measurements with 10 % noise.
 
     python scripts/study_identification.py --part table1 --out runs/study_table1
     python scripts/study_identification.py --part random --out runs/study_random

@@ -1,4 +1,4 @@
-"""Coverage of the identification uncertainty intervals (issue 15), on simulated measurements.
+"""Coverage of the identification uncertainty intervals, on simulated measurements.
 
     S=scripts/study_uncertainty.py; O="--out runs/study_uncert --cache runs/uq_cache"
     python $S --part run --set heldout --n 60 $O

@@ -1,4 +1,4 @@
-"""Real-structure validation (issue 7): clones identified from measured records predict events they never saw.
+"""Real-structure validation: clones identified from measured records predict events they never saw.
 
     python scripts/validate_real.py --config configs/validate_real.yaml --out runs/validation \\
         --figures docs/figures/validation [--structures steel-frame,hotel] [--cache DIR | --no-cache] [--force]

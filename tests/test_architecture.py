@@ -13,6 +13,7 @@ import ast
 from pathlib import Path
 
 import pytest
+from test_import_graph import from_module
 
 import hlaid
 
@@ -56,12 +57,7 @@ def _violations(path: Path) -> list[str]:
     out = []
     for node in ast.walk(tree):
         if isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.split(".")
-                base = base[: len(base) - (node.level - 1)]
-                module = ".".join(base + ([node.module] if node.module else []))
-            else:
-                module = node.module or ""
+            module = from_module(node, package)
             dotted = [module + "." + a.name for a in node.names]
         elif isinstance(node, ast.Import):
             dotted = [a.name for a in node.names]

@@ -204,7 +204,7 @@ def test_cli_bad_file(tmp_path, capsys):
 # ---------------------------------------------------------------------- acceptance study
 @pytest.mark.slow
 def test_hla_accuracy_study(table1, data_dir):
-    """Issue 3: Table 1, 10 % noise, 5 real records x 3 seeds at 0.62 g."""
+    """HLA's accuracy study: Table 1, 10 % noise, 5 real records x 3 seeds at 0.62 g."""
     from hlaid.io import read
     ff = data_dir / "ground_motions" / "fema_p695_farfield"
     files = ["FF02_RSN960_NORTHR_LOS270.AT2", "FF05_RSN169_IMPVALL_H-DLT352.AT2", "FF07_RSN1111_KOBE_NIS090.AT2",

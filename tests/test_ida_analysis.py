@@ -83,7 +83,7 @@ def test_collapse_im_agrees_with_brute_force_scan(result, motions):
         c = result.collapse_im[r]
         ims = np.linspace(0.8 * c, 1.2 * c, 81)
         d = simulate_response(b, motions[r], ims / result.record_im[r], substeps=int(result.point_substeps[0]),
-                     outputs="peaks", stop_drift=1.001 * result.drift_limit * np.asarray(b.height))
+                              outputs="peaks", stop_drift=1.001 * result.drift_limit * np.asarray(b.height))
         ratio = (d.peak_drift / np.asarray(b.height)).max(axis=1)
         first = ims[np.argmax(ratio > result.drift_limit)]
         assert abs(first / c - 1) <= result.settings["tolerance"] + (ims[1] - ims[0]) / c

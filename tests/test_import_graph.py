@@ -33,6 +33,15 @@ def _ancestors(dotted: str) -> list[str]:
     return [".".join(parts[:i]) for i in range(1, len(parts))]
 
 
+def from_module(node: ast.ImportFrom, package: str) -> str:
+    """The absolute module of ``from <module> import ...`` written in ``package``."""
+    if not node.level:
+        return node.module or ""
+    base = package.split(".")
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
 def imports_of(source: str, module: str, is_package: bool, known: set[str]) -> set[str]:
     """The hlaid modules that importing ``module`` (source text ``source``) may import."""
     package = module if is_package else module.rpartition(".")[0]
@@ -41,12 +50,7 @@ def imports_of(source: str, module: str, is_package: bool, known: set[str]) -> s
         if isinstance(node, ast.Import):
             targets.update(a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.split(".")
-                base = base[: len(base) - (node.level - 1)]
-                parent = ".".join(base + ([node.module] if node.module else []))
-            else:
-                parent = node.module or ""
+            parent = from_module(node, package)
             for a in node.names:
                 sub = f"{parent}.{a.name}"
                 targets.add(sub if sub in known else parent)

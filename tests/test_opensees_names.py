@@ -1,4 +1,4 @@
-"""Clone names cannot inject code into the script ``hlaid export-opensees`` writes (issue 9).
+"""Clone names cannot inject code into the script ``hlaid export-opensees`` writes.
 
 ``hlaid identify`` names a clone after the measurement's file name, so the name is hostile
 input. Whatever it holds (quotes, ``\"\"\"``, newlines, backslashes, any unicode), the exported

@@ -2,7 +2,7 @@
 
 Both read their configuration from ``pyproject.toml``: ruff E, F, I, B, UP at 120 columns over
 ``hlaid``, ``tests`` and ``scripts``; mypy over every module of ``hlaid``, with no baseline of
-ignored modules left (the last 22 were fixed in session 6), so any error fails. A missing
+ignored modules left, so any error fails. A missing
 tool skips the test, except under ``CI=true``, where it fails.
 """
 

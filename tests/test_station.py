@@ -1,4 +1,4 @@
-"""Station data through ObsPy (miniSEED, SAC) mapped onto floors (issue 15): a simulated
+"""Station data through ObsPy (miniSEED, SAC) mapped onto floors: a simulated
 measurement written with ObsPy and read back through the mapping gives the same accelerations;
 a bad mapping is one line naming the file and the channel."""
 

@@ -1,7 +1,7 @@
 """A building portfolio on dask.distributed: ``hlaid fleet FLEET.yaml -o DIR``.
 
 For every building and event: measurement (a file, or station data through ObsPy) ->
-identification (:func:`hlaid.identify`) -> ensemble, IDA and decision (``hlaid.uncertainty``,
+identification (:func:`hlaid.identify_clone`) -> ensemble, IDA and decision (``hlaid.uncertainty``,
 through the one seam :func:`assess_clone`) -> one row of the fleet table and the portfolio
 report. One dask task per (building, event); finished units are kept, so a rerun resumes;
 a failing unit does not stop the others. Reference: ``docs/fleet.md``.

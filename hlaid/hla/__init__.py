@@ -1,8 +1,8 @@
 """Hysteresis loop analysis (HLA): story force-drift loops, half cycles, k0, ke(t), k(t)."""
 
-from .analysis import floor_motion, reanalyse_story, run_hla
+from .analysis import floor_motion, run_hla
 from .config import ForceConfig, HalfCycleConfig, HLAConfig, PreprocessConfig, StiffnessConfig
 from .result import HalfCycleTable, HLAResult, StoryHLA
 
-__all__ = ["run_hla", "floor_motion", "reanalyse_story", "HLAConfig", "PreprocessConfig", "ForceConfig",
-           "HalfCycleConfig", "StiffnessConfig", "HLAResult", "StoryHLA", "HalfCycleTable"]
+__all__ = ["run_hla", "floor_motion", "HLAConfig", "PreprocessConfig", "ForceConfig", "HalfCycleConfig",
+           "StiffnessConfig", "HLAResult", "StoryHLA", "HalfCycleTable"]

@@ -1,4 +1,4 @@
-"""Hysteresis loop analysis of a measurement: ``hla(measurement, config) -> HLAResult``.
+"""Hysteresis loop analysis of a measurement: ``run_hla(measurement, config) -> HLAResult``.
 
 Steps (DESIGN.md section 5): band-pass and integrate the accelerations to floor motion
 relative to the ground; inter-story drift and drift velocity; story restoring force
@@ -259,7 +259,7 @@ def reanalyse_story(story: StoryHLA, drift: np.ndarray, force: np.ndarray, dt: f
                     band_hz) -> StoryHLA:
     """HLA of one story again along another drift path (e.g. a reconstructed one, see
     :mod:`hlaid.identify.drift`) and a force consistent with it: half cycles, ``ke``,
-    ``k(t)``, ``k0`` and the yield test, as :func:`hla` does them. The damping and P-Delta
+    ``k(t)``, ``k0`` and the yield test, as :func:`run_hla` does them. The damping and P-Delta
     shares already in ``force`` are kept; the drift velocity is the path's derivative."""
     t = np.arange(drift.shape[0]) * dt
     dx = np.gradient(drift, dt)

@@ -1,13 +1,13 @@
 """Incremental dynamic analysis (IDA) and collapse fragility of a clone.
 
-``ida(clone, records)`` scales every record to increasing intensities, runs them in batches
+``run_ida(clone, records)`` scales every record to increasing intensities, runs them in batches
 of the simulator, finds each record's collapse intensity (drift limit, IDA slope, or
 divergence; hunt-and-fill refinement) and returns an :class:`IDAResult` with fractile
 curves, lognormal collapse fragility (maximum likelihood, Baker 2015) and drift-limit
 exceedance. Method and verification: ``docs/ida.md``.
 """
 
-from .analysis import ida_from_config, prepare_building, run_ida, scan_collapse
+from .analysis import ida_from_config, run_ida, scan_collapse
 from .config import IDAConfig, load_ida_config
 from .fragility import (
            LognormalFragility,
@@ -23,6 +23,7 @@ from .intensity import (
            intensity,
            response_spectrum,
 )
+from .prepare import prepare_building
 from .results import IDAResult
 
 __all__ = [

@@ -1,7 +1,7 @@
 """Incremental dynamic analysis of a clone over a record set (Vamvatsikos & Cornell 2002).
 
 Every record is scaled to IM levels and the clone is run with the batch simulator
-(:func:`hlaid.simulate.simulate`, ``outputs="peaks"``), many records x levels per call. The
+(:func:`hlaid.simulate.simulate_response`, ``outputs="peaks"``), many records x levels per call. The
 engineering demand parameter (EDP) is the peak inter-story drift ratio (largest over the
 stories). A point is a *collapse* when
 
@@ -43,14 +43,13 @@ from .. import _progress
 from ..clone import Clone
 from ..errors import InputError
 from ..io.records import as_motions
-from ..limits import check_count
 from ..model import Building
-from ..model.collapse import get_collapse_model
 from ..motions import GroundMotion
 from ..simulate import simulate_response
 from ..units import G_MM_S2
 from .config import DEFAULT_EXCEEDANCE, IDAConfig, check_levels
 from .intensity import get_intensity_measure, period_for
+from .prepare import prepare_building
 from .results import IDAResult
 
 PROBE_SCALE = 1e-4
@@ -62,75 +61,6 @@ _CONFIRM_FACTOR = 4
 _JUMP = 1.5
 """A run stopped at the drift limit with a drift above this multiple of the limit jumped there
 within one sample: an integration blow-up, re-run with finer steps."""
-
-
-# ---------------------------------------------------------------------------- the building
-def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: bool | None = None,
-                     heights=None, gravity_load=None, require_heights: bool = True,
-                     collapse=None) -> tuple[Building, list[str]]:
-    """The building an IDA runs, with P-Delta resolved, and notes on what was decided.
-
-    P-Delta (``pdelta=None``): on when story heights are known, even when a clone file says
-    ``pdelta: false`` (clones identified from P-Delta-free responses store false). For a
-    mass-normalised clone the default gravity loads, relative mass x g, are per unit of total
-    mass like its stiffnesses, so P-Delta stays consistent; absolute gravity loads [N] cannot be
-    combined with it. Story heights are required (``require_heights``): IDA reports drift ratios.
-    ``collapse`` (a name, a mapping or a CollapseModel; see :mod:`hlaid.model.collapse`) replaces
-    the clone's strength-loss model; None keeps the clone's (``none`` when it has none).
-    """
-    source = None
-    if isinstance(model, (str, os.PathLike)):
-        source = str(model)
-        model = Clone.load(model)
-    if isinstance(model, Clone):
-        building, normalised = model.building, model.mass_normalised
-    elif isinstance(model, Building):
-        building, normalised = model, False
-    else:
-        raise InputError(f"expected a Clone, a Building or a clone file, got {type(model).__name__}")
-    source = source or building.source
-    check_count(building.n_stories, "STORIES", "stories", source=source)
-    notes: list[str] = []
-    if heights is not None:
-        building = building.replace(height=heights)
-    if gravity_load is not None:
-        building = building.replace(gravity_load=gravity_load)
-    if building.height is None and require_heights:
-        raise InputError("story heights are unknown; IDA reports drift ratios and needs them: give heights "
-                         "in mm (hlaid ida --heights 3000,3000,...)", source=source)
-    want = (building.height is not None) if pdelta is None else bool(pdelta)
-    if want and building.height is None:
-        raise InputError("P-Delta needs story heights; give heights in mm (--heights 3000,3000,...)", source=source)
-    if normalised and gravity_load is not None:
-        raise InputError("the clone is mass-normalised (forces per unit of total mass): absolute gravity loads "
-                         "cannot be combined with it; leave --gravity-kN out (gravity is taken as relative mass "
-                         "x g, per unit mass like the clone)", source=source)
-    if want and normalised:
-        notes.append("mass-normalised clone: P-Delta from relative mass x g, per unit of total mass")
-    if want and pdelta is None and building.pdelta is False:
-        notes.append("P-Delta on (story heights known) although the clone says pdelta: false "
-                     "(identification without P-Delta); pass pdelta=False to keep it off")
-    elif not want:
-        notes.append("P-Delta off" + (" (requested)" if pdelta is False else " (story heights unknown)"))
-    building = building.replace(pdelta=want)
-    if collapse is not None:
-        building = building.replace(collapse=get_collapse_model(collapse))
-    if building.collapse is None:
-        notes.append("collapse model 'none': the stories never lose strength, so collapse comes only from the "
-                     "drift limit or the slope criterion (optimistic); choose one with collapse: steel-mrf, "
-                     "rc-frame, rc-frame-nonductile or your own ratios (docs/collapse.md)")
-    else:
-        c = building.collapse
-        notes.append(f"collapse model {c.name!r}: cap at dy/h + {c.theta_p:g}, post-capping drift {c.theta_pc:g} "
-                     f"to zero strength, residual {c.kappa:g} k0 dy, ultimate drift {c.theta_u:g}")
-    if want:
-        kg = building.geometric_stiffness()
-        post = building.alpha * building.k0 - kg
-        notes.append("P-Delta on: P/h = " + ", ".join(f"{v:.4g}" for v in kg) + " N/mm per story")
-        if np.all(post > 0) and building.collapse is None:
-            notes.append("every story keeps a positive post-yield stiffness alpha*k0 - P/h: collapse can "
-                         "only come from the drift limit or the slope criterion")
-    return building, notes
 
 
 # ---------------------------------------------------------------------------- runs
@@ -156,8 +86,8 @@ class _Runner:
     def _sim(self, recs: np.ndarray, scales: np.ndarray, substeps: int):
         """Product runs of ``recs`` x their rows of ``scales`` ``(len(recs), k)``, at ``substeps``
         RK4 steps per sample of the (already refined) records."""
-        r = simulate_response(self.b, [self.motions[i] for i in recs], scales, substeps=int(substeps), outputs="peaks",
-                     stop_drift=self.stop)
+        r = simulate_response(self.b, [self.motions[i] for i in recs], scales, substeps=int(substeps),
+                              outputs="peaks", stop_drift=self.stop)
         self.n_runs += r.batch_size
         return r.peak_drift, r.residual_drift, r.status
 
@@ -256,8 +186,8 @@ def _auto_levels(elastic_slope: np.ndarray, drift_limit: float, n: int) -> list[
 
 # ---------------------------------------------------------------------------- the analysis
 def run_ida(model: Clone | Building | str | os.PathLike,
-        records: str | os.PathLike | GroundMotion | Sequence[str | os.PathLike | GroundMotion],
-        config: IDAConfig | None = None) -> IDAResult:
+            records: str | os.PathLike | GroundMotion | Sequence[str | os.PathLike | GroundMotion],
+            config: IDAConfig | None = None) -> IDAResult:
     """Incremental dynamic analysis of a clone (or building) over a record set.
 
     Parameters
@@ -414,7 +344,7 @@ def _settings(cfg: IDAConfig) -> dict:
 
 
 def ida_from_config(model, cfg: IDAConfig, records=None, *, base_dir: str | Path | None = None) -> IDAResult:
-    """Run :func:`ida` on the config's own records (relative paths from ``base_dir``) unless
+    """Run :func:`run_ida` on the config's own records (relative paths from ``base_dir``) unless
     ``records`` are given."""
     recs = records if records is not None else cfg.record_specs(base_dir)
     if recs is None:

@@ -23,7 +23,7 @@ from ..motions import GroundMotion
 from . import _kernel
 
 OUTPUTS = ("full", "acc", "peaks")
-"""What :func:`simulate` keeps: every history, the floor accelerations only, or the peaks."""
+"""What :func:`simulate_response` keeps: every history, the floor accelerations only, or the peaks."""
 
 HISTORY_FIELDS = ("disp", "vel", "acc", "drift", "force", "z", "eta", "energy")
 """Response histories of a full simulation, each ``(batch, time, story)``."""
@@ -192,9 +192,10 @@ BACKENDS: dict[str, Callable] = {"numba": _run_numba, "torch": _run_torch}
 
 
 def simulate_response(buildings: Building | Sequence[Building], motions: GroundMotion | Sequence[GroundMotion],
-             scales: float | Sequence[float] | np.ndarray = 1.0, *, substeps: int = 4, pairing: str = "product",
-             outputs: str = "full", backend: str = "numba", free_vibration: float = 0.0,
-             stop_drift: float | np.ndarray | None = None, y0: np.ndarray | None = None) -> SimulationResult:
+                      scales: float | Sequence[float] | np.ndarray = 1.0, *, substeps: int = 4,
+                      pairing: str = "product", outputs: str = "full", backend: str = "numba",
+                      free_vibration: float = 0.0, stop_drift: float | np.ndarray | None = None,
+                      y0: np.ndarray | None = None) -> SimulationResult:
     """Simulate buildings under ground motions.
 
     Parameters

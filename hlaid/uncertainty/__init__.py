@@ -1,6 +1,6 @@
 """Identification uncertainty of a clone and collapse fragility with epistemic uncertainty.
 
-``clone.uncertainty`` (set by :func:`hlaid.identify`) is a Gaussian over the refined parameters
+``clone.uncertainty`` (set by :func:`hlaid.identify_clone`) is a Gaussian over the refined parameters
 in log space, from the Gauss-Newton (Laplace) covariance of the replay refinement with a
 sandwich (HAC) correction for the correlated residuals (:mod:`.laplace`).
 :func:`clone_ensemble` draws buildings from it; :func:`assess` runs IDA over such an ensemble

@@ -213,7 +213,7 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
     Parameters
     ----------
     clone : a :class:`~hlaid.clone.Clone` with ``uncertainty``
-    records : what :func:`hlaid.ida.ida` takes (``"builtin-suite"``, a folder, files, GroundMotions)
+    records : what :func:`hlaid.ida.run_ida` takes (``"builtin-suite"``, a folder, files, GroundMotions)
     n_ensemble : members drawn from the uncertainty (1..100000)
     ida_config : :class:`hlaid.ida.IDAConfig` (its records are ignored; default: 10 levels)
     own_motion : the ground motion the building just experienced (GroundMotion, [mm/s^2]);

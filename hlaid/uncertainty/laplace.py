@@ -19,7 +19,7 @@ the solution ``r(theta) ~ r0 + J (theta - theta0)``, so the estimate moves with 
     (Newey-West / HAC estimator): the right answer for coloured noise of any spectrum,
     evaluated with FFTs.
 
-Parameters are transformed first (log of positive values, see :mod:`._params`):
+Parameters are transformed first (log of positive values, see :mod:`hlaid.model.uncertainty`):
 ``J_theta = J_x * dx/dtheta``.
 
 The sandwich alone holds about two thirds of the true values in its nominal 90 % intervals on
@@ -154,11 +154,11 @@ CALIBRATION = 2.06
 random-building study; coverage was scored leave-one-case-out (docs/uncertainty.md)."""
 
 CALIBRATION_TANGENT = 1.52
-"""The same for the errors-in-variables fit (``refine.ground_noise: tangent``, the default): its
+"""The same for the errors-in-variables fit (``refine.method: eiv``, the default): its
 residuals are whitened against the ground noise, so its sandwich needs less widening (alone it
 held 75.5 % of the true values in its 90 % intervals, least squares' 66 %); fitted on the 55
-consistent fits of the 60-building study of session 9, 1.48-1.53 leave-one-case-out, which then
-held 89.9 % (docs/uncertainty.md)."""
+consistent fits of a 60-building study (scripts/study_uncertainty.py), 1.48-1.53
+leave-one-case-out, which then held 89.9 % (docs/uncertainty.md)."""
 
 CALIBRATION_MISFIT = 13.1
 """The same for a fit *not* consistent with the noise (a wrong local minimum): the local

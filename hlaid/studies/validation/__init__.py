@@ -5,7 +5,7 @@ its figures. For every structure of a :class:`ValidationConfig` and every identi
 
 1. read the event (a reader of :data:`hlaid.io.MEASUREMENT_READERS`); no masses are given,
    so HLA and the clone are mass-normalised with the structure's ``mass_ratios``;
-2. identify a clone with :func:`hlaid.identify.identify` (HLA, regressions, SVMs, replay
+2. identify a clone with :func:`hlaid.identify.identify_clone` (HLA, regressions, SVMs, replay
    refinement). When no story yielded (:class:`~hlaid.errors.NotIdentifiableError`) a
    nonlinear clone cannot be identified, and the protocol falls back, *labelled as such*, to
    a linear clone (``alpha = 1``): HLA's k0, fitted to the measured accelerations as the

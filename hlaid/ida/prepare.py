@@ -1,0 +1,82 @@
+"""The building an IDA runs: a clone or building with P-Delta, heights, gravity loads and the
+collapse model resolved, and notes on what was decided (:func:`prepare_building`)."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from ..clone import Clone
+from ..errors import InputError
+from ..limits import check_count
+from ..model import Building
+from ..model.collapse import get_collapse_model
+
+
+def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: bool | None = None,
+                     heights=None, gravity_load=None, require_heights: bool = True,
+                     collapse=None) -> tuple[Building, list[str]]:
+    """The building an IDA runs, with P-Delta resolved, and notes on what was decided.
+
+    P-Delta (``pdelta=None``): on when story heights are known, even when a clone file says
+    ``pdelta: false`` (clones identified from P-Delta-free responses store false). For a
+    mass-normalised clone the default gravity loads, relative mass x g, are per unit of total
+    mass like its stiffnesses, so P-Delta stays consistent; absolute gravity loads [N] cannot be
+    combined with it. Story heights are required (``require_heights``): IDA reports drift ratios.
+    ``collapse`` (a name, a mapping or a CollapseModel; see :mod:`hlaid.model.collapse`) replaces
+    the clone's strength-loss model; None keeps the clone's (``none`` when it has none).
+    """
+    source = None
+    if isinstance(model, (str, os.PathLike)):
+        source = str(model)
+        model = Clone.load(model)
+    if isinstance(model, Clone):
+        building, normalised = model.building, model.mass_normalised
+    elif isinstance(model, Building):
+        building, normalised = model, False
+    else:
+        raise InputError(f"expected a Clone, a Building or a clone file, got {type(model).__name__}")
+    source = source or building.source
+    check_count(building.n_stories, "STORIES", "stories", source=source)
+    notes: list[str] = []
+    if heights is not None:
+        building = building.replace(height=heights)
+    if gravity_load is not None:
+        building = building.replace(gravity_load=gravity_load)
+    if building.height is None and require_heights:
+        raise InputError("story heights are unknown; IDA reports drift ratios and needs them: give heights "
+                         "in mm (hlaid ida --heights 3000,3000,...)", source=source)
+    want = (building.height is not None) if pdelta is None else bool(pdelta)
+    if want and building.height is None:
+        raise InputError("P-Delta needs story heights; give heights in mm (--heights 3000,3000,...)", source=source)
+    if normalised and gravity_load is not None:
+        raise InputError("the clone is mass-normalised (forces per unit of total mass): absolute gravity loads "
+                         "cannot be combined with it; leave --gravity-kN out (gravity is taken as relative mass "
+                         "x g, per unit mass like the clone)", source=source)
+    if want and normalised:
+        notes.append("mass-normalised clone: P-Delta from relative mass x g, per unit of total mass")
+    if want and pdelta is None and building.pdelta is False:
+        notes.append("P-Delta on (story heights known) although the clone says pdelta: false "
+                     "(identification without P-Delta); pass pdelta=False to keep it off")
+    elif not want:
+        notes.append("P-Delta off" + (" (requested)" if pdelta is False else " (story heights unknown)"))
+    building = building.replace(pdelta=want)
+    if collapse is not None:
+        building = building.replace(collapse=get_collapse_model(collapse))
+    if building.collapse is None:
+        notes.append("collapse model 'none': the stories never lose strength, so collapse comes only from the "
+                     "drift limit or the slope criterion (optimistic); choose one with collapse: steel-mrf, "
+                     "rc-frame, rc-frame-nonductile or your own ratios (docs/collapse.md)")
+    else:
+        c = building.collapse
+        notes.append(f"collapse model {c.name!r}: cap at dy/h + {c.theta_p:g}, post-capping drift {c.theta_pc:g} "
+                     f"to zero strength, residual {c.kappa:g} k0 dy, ultimate drift {c.theta_u:g}")
+    if want:
+        kg = building.geometric_stiffness()
+        post = building.alpha * building.k0 - kg
+        notes.append("P-Delta on: P/h = " + ", ".join(f"{v:.4g}" for v in kg) + " N/mm per story")
+        if np.all(post > 0) and building.collapse is None:
+            notes.append("every story keeps a positive post-yield stiffness alpha*k0 - P/h: collapse can "
+                         "only come from the drift limit or the slope criterion")
+    return building, notes
