@@ -123,3 +123,38 @@ def test_imports_are_read_as_python_runs_them(module, is_package, source, expect
 def test_a_cycle_is_found_and_printed():
     assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": set()}) == ["a", "b", "c", "a"]
     assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+def _module_level_imports(path: Path) -> set[str]:
+    """Absolute names imported at a module's top level (not in functions, not under TYPE_CHECKING)."""
+    tree = ast.parse(path.read_text())
+    package = _module_name(path) if path.name == "__init__.py" else _module_name(path).rpartition(".")[0]
+    out: set[str] = set()
+    for node in tree.body:
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = from_module(node, package)
+            out.update([base] + [f"{base}.{a.name}" for a in node.names])
+    return out
+
+
+@pytest.mark.parametrize("module,reaches", [("hlaid.identify.config", "hlaid.identify.refiners"),
+                                            ("hlaid.hla.config", "hlaid.errors")])
+def test_config_modules_import_nothing_heavy(module, reaches):
+    """A config module and every hlaid module it imports at its top level, transitively (the
+    packages' ``__init__`` aside), import neither torch, numba nor scipy at their top level: a bad
+    config can be refused before the heavy libraries load."""
+    files = {_module_name(p): p for p in ROOT.rglob("*.py")}
+    seen, todo, heavy = set(), [module], []
+    while todo:
+        m = todo.pop()
+        if m in seen:
+            continue
+        seen.add(m)
+        for name in _module_level_imports(files[m]):
+            if name.split(".")[0] in ("torch", "numba", "scipy"):
+                heavy.append(f"{m} imports {name}")
+            elif name in files and not files[name].name == "__init__.py":
+                todo.append(name)
+    assert reaches in seen and not heavy, heavy
