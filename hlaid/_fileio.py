@@ -1,10 +1,8 @@
-"""Reading text files (plain or gzip) and writing outputs atomically."""
+"""Writing outputs atomically (inputs are read by :mod:`hlaid._inputs`)."""
 
 from __future__ import annotations
 
 import contextlib
-import gzip
-import io
 import json
 import os
 import re
@@ -17,42 +15,11 @@ from pathlib import Path
 import numpy as np
 
 from . import _progress
+from ._inputs import read_text
 from .errors import InputError
-from .limits import check_readable_file, file_limit_text, max_file_bytes
 
-
-def read_file_text(path: str | os.PathLike) -> str:
-    """Text of a file, transparently gunzipped; a clear error for missing or binary files."""
-    p = Path(path)
-    if not p.exists():
-        raise InputError("file not found", source=str(p))
-    if p.is_dir():
-        raise InputError("is a folder; expected a file", source=str(p))
-    check_readable_file(p)  # a regular file within HLAID_MAX_FILE_MB, before reading a byte
-    try:
-        raw = _read_capped(p)
-    except (OSError, EOFError) as err:
-        raise InputError(f"cannot read: {err}", source=str(p)) from None
-    if b"\x00" in raw[:4096]:
-        raise InputError("is a binary file; expected text", source=str(p))
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
-
-
-def _read_capped(p: Path) -> bytes:
-    """The bytes of ``p``, gunzipped when gzip; more than ``HLAID_MAX_FILE_MB`` (a file that grew,
-    or a small ``.gz`` that inflates to gigabytes) is an InputError."""
-    top = max_file_bytes()
-    with open(p, "rb") as fh:
-        raw = fh.read(top + 1)
-    if len(raw) <= top and raw[:2] == b"\x1f\x8b":
-        with gzip.GzipFile(fileobj=io.BytesIO(raw)) as gz:
-            raw = gz.read(top + 1)
-    if len(raw) > top:
-        raise InputError(f"holds more than {file_limit_text()}", source=str(p))
-    return raw
+read_file_text = read_text
+"""The old name of :func:`hlaid._inputs.read_text`."""
 
 
 def _creation_mode(directory: bool = False) -> int:

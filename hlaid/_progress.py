@@ -17,7 +17,7 @@ from collections.abc import Iterable, Iterator, Sized
 from typing import TypeVar
 
 from . import _interrupt
-from .errors import HlaidWarning
+from .errors import HlaidWarning, escape_controls
 
 T = TypeVar("T")
 
@@ -28,12 +28,20 @@ LEVELS = {0: logging.WARNING, 1: logging.INFO, 2: logging.DEBUG}
 """Verbosity (0 quiet, 1 normal, 2 verbose) -> logging level."""
 
 
+class _Escaping(logging.Formatter):
+    """The message alone, control characters escaped line by line (a file name quoted in a progress
+    line or a warning must not reach the terminal as an escape sequence)."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return "\n".join(escape_controls(line) for line in super().format(record).split("\n"))
+
+
 class _StderrHandler(logging.StreamHandler):
     """Plain message lines on the *current* ``sys.stderr`` (which tests and pipes may replace)."""
 
     def __init__(self) -> None:
         super().__init__()
-        self.setFormatter(logging.Formatter("%(message)s"))
+        self.setFormatter(_Escaping("%(message)s"))
 
     @property  # type: ignore[override]
     def stream(self):

@@ -12,9 +12,7 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, cast
 
@@ -22,60 +20,18 @@ import numpy as np
 
 from . import __version__, _progress
 from ._fileio import atomic_directory, write_json
-from .config import config_from_node, config_to_dict, load_yaml
-from .errors import InputError
-from .ida import IDAConfig
-from .identify import IdentifyConfig, identify
+from ._inputs import read_json
+from .config import config_to_dict
+from .identify import identify
 from .identify.replaycheck import corrcoef
 from .io import read
 from .measurement import Measurement, check_band
 from .model import Building
 from .plots import plot_time_histories, save_figure
-from .synthetic import SimulationConfig, measurement_from_config
-from .uncertainty import AssessConfig
+from .runconfig import MeasurementSource, RunConfig, load_run_config
+from .synthetic import measurement_from_config
 
 PARAMS = ("alpha", "p", "delta_eta", "dy", "k0")
-
-
-@dataclass(frozen=True, kw_only=True)
-class MeasurementSource:
-    """Where the measurement comes from: a file (``file``, optional ``format`` and reader
-    ``options``) or a simulation (``simulate``: the ``hlaid simulate`` config). ``mass_t`` and
-    ``height_mm`` add or replace floor masses [t] and story heights [mm]."""
-
-    file: str | None = None
-    format: str | None = None
-    options: dict[str, Any] = field(default_factory=dict)
-    simulate: SimulationConfig | None = None
-    mass_t: list[float] | None = None
-    height_mm: list[float] | None = None
-
-    def __post_init__(self):
-        if (self.file is None) == (self.simulate is None):
-            raise InputError("give exactly one of measurement.file or measurement.simulate")
-
-
-@dataclass(frozen=True, kw_only=True)
-class RunConfig:
-    """``hlaid run`` config: measurement, identification and (optionally) IDA settings, and the
-    ensemble assessment (``assess``, needs ``ida``)."""
-
-    measurement: MeasurementSource
-    identify: IdentifyConfig = field(default_factory=IdentifyConfig)
-    ida: IDAConfig | None = None
-    assess: AssessConfig | None = None
-    name: str = "hlaid run"
-
-
-def load_run_config(path) -> RunConfig:
-    """Load a run config; its ``ida`` block is validated against :class:`hlaid.ida.IDAConfig`
-    (errors there give the line of the offending value in the run config, like any other)."""
-    source = str(path)
-    root = load_yaml(source)
-    cfg = config_from_node(RunConfig, root, source)
-    if cfg.assess is not None and cfg.ida is None:
-        raise InputError(f"{source}: the assess block needs an ida block (records and IDA settings)")
-    return cfg
 
 
 def load_measurement(src: MeasurementSource, base_dir: Path | None) -> Measurement:
@@ -161,7 +117,7 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
             from .ida import ida_from_config
             ir = ida_from_config(res.clone, cfg.ida, base_dir=base_dir)
             ir.save(tmp / "ida", plots=True, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
-            ida_summary = json.loads((tmp / "ida" / "summary.json").read_text())
+            ida_summary = read_json(tmp / "ida" / "summary.json")
             timings["ida"] = time.perf_counter() - t
         assessment = None
         if cfg.ida is not None and cfg.assess is not None:

@@ -15,8 +15,8 @@ Ctrl-C in the seconds while the workers start is ignored (the driver ignores it 
 from __future__ import annotations
 
 import contextlib
-import json
 import logging
+import os
 import signal
 import threading
 import time
@@ -26,6 +26,7 @@ from pathlib import Path
 
 from .. import __version__, _progress
 from .._fileio import check_parent, write_json
+from .._inputs import read_json
 from ..errors import InputError
 from ..io import read
 from .assess import POINT, default_assess, engine_label, point_assess
@@ -133,12 +134,12 @@ def result_path(out: Path, job: UnitJob) -> Path:
 def stored_result(out: Path, job: UnitJob) -> dict | None:
     """The stored result of a unit, or None (none, unreadable, or not a fleet result)."""
     p = result_path(out, job)
-    if not p.is_file():
+    if not os.path.lexists(p):
         return None
     try:
-        d = json.loads(p.read_text())
-    except (OSError, ValueError):
-        _progress.warn(f"{p}: unreadable result; {job.unit} is recomputed")
+        d = read_json(p)
+    except InputError as err:
+        _progress.warn(f"unreadable result ({err}); {job.unit} is recomputed")
         return None
     return d if isinstance(d, dict) and d.get("format") == RESULT_FORMAT else None
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._fileio import read_file_text
+from .._inputs import read_text
 from ..errors import InputError, columns_text, quotable
 from ..motions.record import GroundMotion
 from ..units import acceleration_factor
@@ -68,7 +68,7 @@ def read_at2(path: str | os.PathLike, *, name: str | None = None) -> GroundMotio
     must equal NPTS.
     """
     src = str(path)
-    lines = read_file_text(path).splitlines()
+    lines = read_text(path).splitlines()
     if len(lines) < 5:
         raise InputError(f"has {len(lines)} lines; an AT2 file has 4 header lines and data", source=src)
     header = lines[3]
@@ -129,7 +129,7 @@ def read_text_record(path: str | os.PathLike, *, units: str | None = None, dt: f
     column : which acceleration column to read (0-based, not counting a time column)
     """
     src = str(path)
-    text = read_file_text(path)
+    text = read_text(path)
     comments = [ln.strip()[1:] for ln in text.splitlines() if ln.strip()[:1] in ("#", "%")]
     numbered = [(i + 1, ln.replace(",", " ")) for i, ln in enumerate(text.splitlines())
                 if ln.strip() and ln.strip()[:1] not in ("#", "%")]
@@ -193,7 +193,7 @@ def read_csv_record(path: str | os.PathLike, *, units: str | None = None, dt: fl
     may be given in the header in parentheses or brackets.
     """
     src = str(path)
-    text = read_file_text(path)
+    text = read_text(path)
     numbered = [(i + 1, ln) for i, ln in enumerate(text.splitlines()) if ln.strip() and not ln.lstrip().startswith("#")]
     lines = [ln for _, ln in numbered]
     if len(lines) < 2:

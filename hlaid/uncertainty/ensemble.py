@@ -10,8 +10,7 @@ import numpy as np
 from .. import _progress
 from ..errors import InputError
 from ..model import Building
-
-MAX_ENSEMBLE = 100_000
+from .config import MAX_ENSEMBLE
 
 
 def _check_clone(clone) -> None:
