@@ -69,10 +69,9 @@ class Bounds:
     def text(self, name: str) -> str:
         """``"0.01 <= p_fine <= 1"`` (with the unit and, for a limit, the variable that raises it)."""
         unit = f" [{self.unit}]" if self.unit else ""
-        hi = f"{_number(self.upper())}" + (f" (HLAID_MAX_{self.hi}; raise it there)" if isinstance(self.hi, str)
-                                           else "")
+        limit = f" (set HLAID_MAX_{self.hi} to raise it)" if isinstance(self.hi, str) else ""
         return (f"{_number(self.lo)} {'<' if self.lo_open else '<='} {name} {'<' if self.hi_open else '<='} "
-                f"{hi}{unit}")
+                f"{_number(self.upper())}{unit}{limit}")
 
     def offending(self, value: Any) -> tuple[int | None, Any] | None:
         """``(index, number)`` of the first number of ``value`` outside the bounds (index None for

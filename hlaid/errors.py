@@ -44,6 +44,8 @@ class InputError(ValueError):
     def __init__(self, message: str, *, source: str | None = None):
         message = one_line(message)  # always one line
         self.source = source
+        self.detail = message
+        """The message without the source."""
         super().__init__(f"{escape_controls(source)}: {message}" if source else message)
 
 

@@ -17,7 +17,6 @@ from ._fileio import atomic_write, write_npz
 from .errors import InputError
 from .limits import check_count
 from .model import Building
-from .signal import max_corner
 from .units import G_MM_S2
 
 TRUTH_FIELDS = ("disp", "drift", "force", "z", "eta")
@@ -233,6 +232,7 @@ def check_band(meas: Measurement, band_hz, field: str) -> None:
     there), before a filter design fails on it."""
     if band_hz is None:
         return
+    from .signal import max_corner  # scipy: only where a band is checked
     top = max_corner(meas.dt)
     if not float(band_hz[0]) < top:
         raise InputError(f"{field}: low corner {float(band_hz[0]):g} Hz is not below {top:.4g} Hz (0.9 x the "

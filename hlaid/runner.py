@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import io
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, cast
 
@@ -28,7 +29,7 @@ from .io import read
 from .measurement import Measurement, check_band
 from .model import Building
 from .plots import plot_time_histories, save_figure
-from .runconfig import MeasurementSource, RunConfig, load_run_config
+from .runconfig import MeasurementSource, RunConfig, input_paths, load_run_config
 from .synthetic import measurement_from_config
 
 PARAMS = ("alpha", "p", "delta_eta", "dy", "k0")
@@ -77,13 +78,16 @@ def _csv(rows: list[dict]) -> str:
 
 
 def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None = None, force: bool = False,
-                 cache_dir: str | None = None) -> dict:
-    """Run the pipeline and write everything under ``out``; returns the run summary."""
+                 cache_dir: str | None = None, inputs: Sequence[str | Path | None] = ()) -> dict:
+    """Run the pipeline and write everything under ``out``; returns the run summary. An existing
+    ``out`` is replaced only with ``force``, when hlaid wrote it and it holds none of ``inputs``
+    (the run's own input files are added to them)."""
     from .hla.plots import plot_loops, plot_stiffness
     from .report import build_report
     t_all = time.perf_counter()
     timings = {}
-    with atomic_directory(out, force=force) as tmp:
+    inputs = [*inputs, *input_paths(cfg, base_dir), cache_dir]
+    with atomic_directory(out, force=force, inputs=inputs) as tmp:
         tmp = Path(tmp)
         figs = tmp / "figures"
         figs.mkdir()
@@ -185,7 +189,7 @@ def _replay_figure(meas: Measurement, res):
 
 def run_from_file(path: str | Path, out: str | Path, *, force: bool = False, cache_dir: str | None = None) -> dict:
     cfg = load_run_config(path)
-    return run_pipeline(cfg, out, base_dir=Path(path).parent, force=force, cache_dir=cache_dir)
+    return run_pipeline(cfg, out, base_dir=Path(path).parent, force=force, cache_dir=cache_dir, inputs=[path])
 
 
 __all__ = ["RunConfig", "MeasurementSource", "load_run_config", "run_pipeline", "run_from_file", "parameter_table"]

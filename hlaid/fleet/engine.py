@@ -25,10 +25,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .. import __version__, _progress
-from .._fileio import check_parent, write_json
+from .._fileio import MARKER as OUTPUT_MARKER
+from .._fileio import check_name, check_parent, write_json
+from .._fileio import marker as output_marker
 from .._inputs import read_json
 from ..errors import InputError
 from ..io import read
+from .address import probe
 from .assess import POINT, default_assess, engine_label, point_assess
 from .config import ClusterConfig, FleetConfig, load_fleet_config
 from .report import build_fleet_report, table_rows, write_table
@@ -78,11 +81,13 @@ def _workers_ignore_sigint() -> Iterator[None]:
 def open_client(cluster: ClusterConfig, scheduler: str | None = None) -> Iterator:
     """A dask ``Client``: of the cluster at ``scheduler`` (an address such as
     ``tcp://10.0.0.5:8786``), else of an embedded ``LocalCluster`` closed on exit."""
+    if scheduler:
+        probe(scheduler)  # a valid address where a dask scheduler answers (hlaid.fleet.address)
     distributed = _dask()
     if scheduler:
         try:
             client = distributed.Client(scheduler, timeout="20s")
-        except (OSError, TimeoutError) as err:
+        except Exception as err:  # noqa: BLE001 - whatever dask raises for a failed connection is one line
             raise InputError(f"--scheduler {scheduler}: cannot connect ({type(err).__name__}: "
                              f"{' '.join(str(err).split())[:200]})") from None
         try:
@@ -106,14 +111,16 @@ def open_client(cluster: ClusterConfig, scheduler: str | None = None) -> Iterato
 
 # ---------------------------------------------------------------------------- output folder
 def check_output(out: Path, *, force: bool) -> Path:
-    """Refuse an output folder that cannot be (re)used: a file, a folder that is neither empty
-    nor a fleet output (without ``force``), a missing or unwritable parent."""
+    """Refuse an output folder that cannot be (re)used: a file, a folder that is neither empty nor a
+    fleet output (``--force`` does not change that: a fleet writes into its folder, and must not
+    overwrite someone else's ``report.html``), a missing or unwritable parent, a name too long."""
     out = Path(out)
+    check_name(out)
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a folder", source=str(out))
-    if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file() and not force:
-        raise InputError("is not empty and is not an hlaid fleet output; use --force to write into it, or "
-                         "choose another folder", source=str(out))
+    if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file():
+        raise InputError("is not empty and is not an hlaid fleet output (--force does not write into another "
+                         "program's folder); choose an empty or new folder", source=str(out))
     if not out.exists():
         check_parent(out)
     return out
@@ -124,6 +131,8 @@ def prepare_output(out: Path, *, force: bool) -> Path:
     out = check_output(out, force=force)
     out.mkdir(exist_ok=True)
     (out / "buildings").mkdir(exist_ok=True)
+    if not os.path.lexists(out / OUTPUT_MARKER):
+        write_json(out / OUTPUT_MARKER, output_marker("hlaid fleet"))
     return out
 
 

@@ -31,7 +31,6 @@ import numpy as np
 from .._inputs import read_text
 from ..errors import InputError
 from ..measurement import Measurement
-from ..signal import lowpass
 from ..units import G_MM_S2, INCH_MM
 from ._common import parse_table, pre_event_mean, second_derivative, uniform_time
 
@@ -102,6 +101,7 @@ def _lowpass(x: np.ndarray, dt: float, corner: float, src: str) -> np.ndarray:
     if not 0 < corner < nyq:
         raise InputError(f"lowpass_hz: low-pass corner {corner} Hz must be between 0 and the Nyquist frequency "
                          f"{nyq:g} Hz", source=src)
+    from ..signal import lowpass  # scipy: imported where it filters
     return lowpass(x, dt, corner)
 
 
