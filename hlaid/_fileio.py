@@ -38,22 +38,32 @@ NO_SPACE = (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC))
 """``errno`` values of a full disk or an exhausted quota."""
 
 
-def no_space_error(err: BaseException, where: str | os.PathLike) -> InputError | None:
-    """An :class:`InputError` saying the disk is full (or the quota exhausted) when ``err`` is such an
-    error of writing under ``where``, else None."""
-    if isinstance(err, OSError) and err.errno in NO_SPACE:
+def no_space_error(err: BaseException, path: str | os.PathLike, folder: str | os.PathLike) -> InputError | None:
+    """An :class:`InputError` saying the disk is full (or the quota exhausted) when ``err``, raised
+    while writing the output ``path`` in ``folder``, is such an error, else None."""
+    if isinstance(err, NoSpaceError):  # of a file inside the folder being built: said of the folder
+        what = err.what
+    elif isinstance(err, OSError) and err.errno in NO_SPACE:
         what = "no space left on the device" if err.errno == errno.ENOSPC else "disk quota exceeded"
-    elif not isinstance(err, OSError) and isinstance(err, Exception) and _disk_full(where):
+    elif not isinstance(err, (OSError, InputError)) and isinstance(err, Exception) and _disk_full(folder):
         what = "no space left on the device"  # a library that wraps the OSError (torch.save: RuntimeError)
     else:
         return None
-    return InputError(f"{what} while writing the output; nothing was written (free some space or choose "
-                      "another folder)", source=str(where))
+    return NoSpaceError(what, path)
 
 
-def _disk_full(where: str | os.PathLike) -> bool:
+class NoSpaceError(InputError):
+    """The disk filled up (or the quota ran out) while an output was written; nothing was left."""
+
+    def __init__(self, what: str, path: str | os.PathLike):
+        self.what = what
+        super().__init__(f"{what} while writing it; nothing was written (free some space or choose another "
+                         "folder)", source=str(path))
+
+
+def _disk_full(folder: str | os.PathLike) -> bool:
     try:
-        st = os.statvfs(Path(where).parent if not Path(where).is_dir() else where)
+        st = os.statvfs(folder)
     except (OSError, AttributeError):
         return False
     return st.f_bavail * st.f_frsize < 64 * 1024
@@ -211,7 +221,7 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], object], *, fo
         os.chmod(tmp, _creation_mode())
         os.replace(tmp, path)
     except BaseException as err:  # Ctrl-C too: nothing is left behind
-        full = no_space_error(err, tmp if tmp is not None else parent)
+        full = no_space_error(err, path, parent)
         if tmp is not None:
             tmp.unlink(missing_ok=True)
         if full is not None:
@@ -317,7 +327,7 @@ def atomic_directory(path: str | os.PathLike, *, force: bool = False,
         os.chmod(tmp, _creation_mode(directory=True))
         check_output_folder(path, force=force, inputs=inputs)  # what is there now may differ from before the work
     except BaseException as err:  # Ctrl-C too: nothing is left behind
-        full = no_space_error(err, tmp if tmp is not None else parent)
+        full = no_space_error(err, path, parent)
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
         if full is not None:

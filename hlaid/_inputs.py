@@ -9,8 +9,8 @@ file to the same rules before a byte is read or an array allocated:
   a symlink to a device is refused too;
 - at most ``HLAID_MAX_FILE_MB`` (:mod:`hlaid.limits`) is read, also after gunzip and for the
   inflated members of an NPZ;
-- JSON is nested at most :data:`MAX_JSON_DEPTH` levels and its integers have at most
-  :data:`MAX_JSON_DIGITS` digits;
+- JSON is nested at most :data:`MAX_JSON_DEPTH` levels, and an integer of more than
+  :data:`MAX_JSON_DIGITS` digits is read as a float (the field it is given to then refuses it);
 - every array of an NPZ is checked against its member's size before it is allocated (a tiny
   file whose header claims 10^10 samples is refused, not inflated).
 
@@ -39,7 +39,7 @@ MAX_JSON_DEPTH = 64
 """Deepest nesting of lists and mappings in a JSON file hlaid reads (its own files nest < 10)."""
 
 MAX_JSON_DIGITS = 40
-"""Longest integer (in digits) in a JSON file hlaid reads."""
+"""Longest integer (in digits) that a JSON file hlaid reads gives as an integer."""
 
 
 def _special(mode: int) -> str | None:
@@ -153,9 +153,11 @@ def file_sha256(path: str | os.PathLike) -> str:
 
 
 # ---------------------------------------------------------------------------- JSON
-def _bounded_int(text: str) -> int:
+def _bounded_int(text: str) -> int | float:
+    """An integer of at most :data:`MAX_JSON_DIGITS` digits; a longer one becomes a float (inf
+    beyond 1e308), which the field it is given to refuses by name (no 5000-digit int is built)."""
     if len(text.lstrip("-")) > MAX_JSON_DIGITS:
-        raise InputError(f"holds an integer of {len(text.lstrip('-'))} digits; at most {MAX_JSON_DIGITS} are read")
+        return float(text)
     return int(text)
 
 
@@ -172,7 +174,7 @@ def _check_depth(obj: Any) -> None:
 def loads_json(text: str, source: str | None = None) -> Any:
     """Parse JSON text with bounded depth and integer length; errors name ``source`` and the line."""
     try:
-        obj = json.loads(text, parse_int=_bounded_int)
+        obj = json.loads(text, parse_int=_bounded_int)  # type: ignore[arg-type]
         _check_depth(obj)
     except InputError as err:
         raise InputError(f"not a JSON file hlaid reads: {err}", source=source) from None

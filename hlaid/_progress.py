@@ -43,6 +43,10 @@ class _StderrHandler(logging.StreamHandler):
         super().__init__()
         self.setFormatter(_Escaping("%(message)s"))
 
+    def emit(self, record: logging.LogRecord) -> None:
+        end_line()
+        super().emit(record)
+
     @property  # type: ignore[override]
     def stream(self):
         return sys.stderr
@@ -125,5 +129,23 @@ def progress(items: Iterable[T], total: int | None = None, desc: str = "") -> It
             eta = (time.perf_counter() - t0) / done * (total - done)
             bar = "#" * int(24 * frac)
             print(f"\r{desc} [{bar:<24}] {done}/{total} eta {eta:5.1f}s", end="", file=sys.stderr, flush=True)
+            _bar.open = True
     if show and total:
         print(f"\r{desc} done in {time.perf_counter() - t0:.1f} s" + " " * 30, file=sys.stderr, flush=True)
+        _bar.open = False
+
+
+class _Bar:
+    open = False
+    """Whether a progress bar line on stderr awaits its end of line."""
+
+
+_bar = _Bar()
+
+
+def end_line() -> None:
+    """End a progress bar line left open (by an interruption or an error), so that the next
+    message starts a line of its own."""
+    if _bar.open:
+        _bar.open = False
+        print(file=sys.stderr, flush=True)

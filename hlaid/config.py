@@ -49,9 +49,8 @@ def _convert(node: yaml.Node, source: str) -> _Node:
         return _Node([_convert(v, source) for v in node.value], line)
     try:
         return _Node(yaml.SafeLoader("").construct_object(node, deep=True), line)
-    except ValueError:  # an integer of thousands of digits (Python refuses to convert it)
-        raise ConfigError(f"{source}:{line}: a number of {len(str(node.value))} characters; no hlaid setting is "
-                          "that large") from None
+    except ValueError:  # an integer of thousands of digits (Python refuses to convert it): the
+        return _Node(str(node.value), line)  # field it is given to refuses it by name (a number: inf)
 
 
 class _NoAliasLoader(yaml.SafeLoader):

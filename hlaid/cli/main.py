@@ -96,21 +96,25 @@ def _main(argv: list[str] | None) -> int:
         _fileio.command = prog  # named in the marker of every output folder
         return int(args.func(args) or 0)
     except InputError as err:
+        _progress.end_line()
         print(f"{prog}: error: {err}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into e.g. `head`
         sys.stderr.close()
         return 0
     except _interrupt.Terminated:  # SIGTERM: the same clean-up as Ctrl-C
+        _progress.end_line()
         print(f"{prog}: terminated", file=sys.stderr)
         return 143
     except KeyboardInterrupt:  # workers ignore SIGINT (hlaid._workers); outputs in progress are removed
+        _progress.end_line()
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
     except OSError as err:
         full = _no_space(err)
         if full is None:
             return _internal(prog, err, verbose)
+        _progress.end_line()
         print(f"{prog}: error: {full}", file=sys.stderr)
         return 2
     except Exception as err:  # noqa: BLE001 - the one place internal errors are reported
@@ -127,6 +131,7 @@ def _no_space(err: OSError) -> str | None:
 
 
 def _internal(prog: str, err: BaseException, verbose: bool) -> int:
+    _progress.end_line()
     if verbose:
         traceback.print_exc()
     print(f"{prog}: internal error: {type(err).__name__}: {one_line(err)} "

@@ -63,13 +63,16 @@ def parse_address(address: str) -> tuple[str, str, int]:
     return scheme, host, int(port_text)
 
 
-def probe(address: str, timeout: float = CONNECT_TIMEOUT_S) -> None:
+def probe(address: str, timeout: float | None = None) -> None:
     """Connect to the scheduler at ``address`` and read its first 8 bytes, within ``timeout``; an
     :class:`InputError` (one line) when nothing listens there, nothing answers, or what answers is
-    not a dask scheduler. ``tls://`` addresses are left to dask (its TLS handshake comes first)."""
-    scheme, host, port = parse_address(address)
+    not a dask scheduler. Other transports (``tls://``, whose TLS handshake comes first; the
+    ``inproc://`` address of a cluster in this process) are left to dask."""
+    scheme = address.strip().partition("://")[0] if "://" in address else "tcp"
     if scheme != "tcp":
         return
+    _, host, port = parse_address(address)
+    timeout = CONNECT_TIMEOUT_S if timeout is None else timeout
     try:
         sock = socket.create_connection((host, port), timeout=timeout)
     except socket.gaierror:

@@ -193,6 +193,8 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
     t0 = time.perf_counter()
     base = Path(base_dir) if base_dir is not None else None
     out = check_output(Path(out), force=force)
+    if scheduler and client is None:
+        probe(scheduler)  # before anything is read or written: a wrong address is one line at once
     records = read(cfg.record_specs(base), kind="records", units=cfg.ida.units)
     if assess is None and cfg.n_ensemble == 0:
         assess, engine = point_assess, POINT
