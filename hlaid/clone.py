@@ -121,6 +121,11 @@ class Clone:
             heights.append(None if s.get("height") is None else _number(s["height"], f"stories[{i}].height", source))
             gravity.append(None if s.get("gravity_load") is None
                            else _number(s["gravity_load"], f"stories[{i}].gravity_load", source))
+        for key, values in (("height", heights), ("gravity_load", gravity)):
+            if None in values and any(v is not None for v in values):
+                i = values.index(None)
+                raise InputError(f"stories[{i}].{key} is missing; give {key} for every story or for none",
+                                 source=source)
         damping = d.get("damping", {})
         if not isinstance(damping, dict):
             raise InputError(f"field 'damping' must be a mapping, got {kind_of(damping)}", source=source)

@@ -50,7 +50,12 @@ def _convert(node: yaml.Node, source: str) -> _Node:
     try:
         return _Node(yaml.SafeLoader("").construct_object(node, deep=True), line)
     except ValueError:  # an integer of thousands of digits (Python refuses to convert it): the
-        return _Node(str(node.value), line)  # field it is given to refuses it by name (a number: inf)
+        return _Node(_BigInt(node.value), line)  # field it is given to refuses it by name
+
+
+class _BigInt(str):
+    """The text of an integer too long for Python to convert (thousands of digits): a number field
+    reads it as a float (inf), refused by its bounds; any other field refuses it as such."""
 
 
 class _NoAliasLoader(yaml.SafeLoader):
@@ -133,6 +138,8 @@ def _build(tp, node: _Node, where: str, source: str):
     v = node.value
     err = f"{source}:{node.line}: {where or 'top level'}:"
     origin = typing.get_origin(tp)
+    if isinstance(v, _BigInt) and tp is not float and origin not in (Union, types.UnionType):
+        raise ConfigError(f"{err} an integer of {len(v)} digits is out of range")
     if origin in (Union, types.UnionType):
         args = typing.get_args(tp)
         if v is None and type(None) in args:

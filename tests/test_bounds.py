@@ -115,23 +115,23 @@ def _args(tp) -> tuple:
     return typing.get_args(tp)
 
 
-def _leaves(tp) -> list:
-    """The scalar types and dataclasses a field of type ``tp`` may hold (through unions, lists, dicts)."""
+def _leaves(tp, dicts: bool = True) -> list:
+    """The scalar types and dataclasses a field of type ``tp`` may hold (through unions, lists and,
+    with ``dicts``, the values of mappings)."""
     origin = typing.get_origin(tp)
     if origin in (Union, types.UnionType, list, tuple):
-        return [leaf for a in _args(tp) if a is not Ellipsis for leaf in _leaves(a)]
+        return [leaf for a in _args(tp) if a is not Ellipsis for leaf in _leaves(a, dicts)]
     if origin is dict:
-        return _leaves(_args(tp)[1]) if _args(tp) else []
+        return _leaves(_args(tp)[1], dicts) if _args(tp) and dicts else []
     if origin is Literal:
         return []
     return [tp]
 
 
 def _numeric(tp) -> bool:
-    """Whether a field holds numbers (``dict[str, float | str]`` of ``collapse`` is a CollapseModel's)."""
-    if typing.get_origin(tp) is dict:
-        return False
-    return any(t in (int, float) for t in _leaves(tp))
+    """Whether a field holds numbers (not counting mappings: ``collapse``'s is a CollapseModel's,
+    swept as such; a reader's ``options`` are that reader's arguments)."""
+    return any(t in (int, float) for t in _leaves(tp, dicts=False))
 
 
 def _schemas(root: type, seen: set | None = None) -> set[type]:
@@ -174,7 +174,7 @@ def test_every_numeric_field_is_bounded():
     missing = [cls.__name__ for cls in schemas if not _pending(cls) and _numeric_fields(cls) and cls not in CARRIERS]
     assert missing == [], "schemas the sweep does not reach: add them to CARRIERS"
     for cls in (Building, Damping, CollapseModel):  # the clone file's fields
-        hints = typing.get_type_hints(cls, {"np": __import__("numpy"), "torch": None})
+        hints = typing.get_type_hints(cls)
         for f in dataclasses.fields(cls):
             if f.name in ("mass", "k0", "alpha", "p", "dy", "delta_eta", "height", "gravity_load") or \
                     _numeric(hints.get(f.name, str)):
@@ -256,10 +256,11 @@ _CLONE_BOUNDS = {"stories": Building, "damping": Damping, "collapse": CollapseMo
 
 def _clone_text(table1, path: tuple, v) -> str:
     d = Clone(building=table1.replace(height=[3000.0] * 3, collapse="steel-mrf")).to_dict()
-    node = d
-    for k in path[:-1]:
-        node = node[k]
-    node[path[-1]] = [v, 2] if path[-1] == "modes" else v
+    if path[0] == "stories":  # every story's (a value given for some stories only is refused as such)
+        for s in d["stories"]:
+            s[path[-1]] = v
+    else:
+        d[path[0]][path[-1]] = [v, 2] if path[-1] == "modes" else v
     return json.dumps(d).replace(f'"{HUGE}"', "9" * 5000)
 
 
