@@ -115,15 +115,17 @@ def warn(msg: str, *, stacklevel: int = 2) -> None:
 
 def progress(items: Iterable[T], total: int | None = None, desc: str = "") -> Iterator[T]:
     """Iterate with a one-line progress bar on stderr (when progress is logged and stderr is a
-    terminal, or details are logged)."""
+    terminal; when details are logged to a file or pipe, only the closing ``done in`` line, so no
+    line is left unfinished there for another message to run into)."""
     total = total if total is not None else (len(items) if isinstance(items, Sized) else None)
     level = verbosity()
-    show = LOGGER.hasHandlers() and level >= 1 and (sys.stderr.isatty() or level >= 2)
+    tty = sys.stderr.isatty()
+    show = LOGGER.hasHandlers() and level >= 1 and (tty or level >= 2)
     t0 = time.perf_counter()
     for i, item in enumerate(items):
         _interrupt.check()
         yield item
-        if show and total:
+        if show and total and tty:
             done = i + 1
             frac = done / total
             eta = (time.perf_counter() - t0) / done * (total - done)

@@ -19,12 +19,12 @@ import numpy as np
 import pytest
 
 from hlaid._fileio import STALE_AFTER_S, atomic_directory, write_json
+from hlaid._inputs import check_archive
 from hlaid.cli import main
 from hlaid.clone import Clone
 from hlaid.errors import HlaidWarning, InputError
 from hlaid.identify.cache import MachineCache
 from hlaid.io import read
-from hlaid._inputs import check_archive
 from hlaid.limits import DEFAULTS, limit
 
 REPO = Path(__file__).resolve().parents[1]
@@ -88,7 +88,8 @@ def test_limits_default_and_environment(monkeypatch):
 def test_simulate_rate_over_the_limit(tmp_path, capsys):
     cfg = _config(tmp_path, **{"rate_hz: 200": "rate_hz: 1e6"})
     out = tmp_path / "m.npz"
-    line = _refused(capsys, ["simulate", str(cfg), "-o", str(out)], expect="rate_hz = 1000000 is out of range", dest=out)
+    line = _refused(capsys, ["simulate", str(cfg), "-o", str(out)], expect="rate_hz = 1000000 is out of range",
+                    dest=out)
     assert "HLAID_MAX_RATE_HZ" in line
 
 
