@@ -73,6 +73,16 @@ def check_readable_file(path: str | os.PathLike) -> int:
     return _check_stat(st, str(path))
 
 
+def check_input(path: str | os.PathLike) -> None:
+    """Refuse a missing input, or one that is neither a folder nor a regular file within the size
+    limit, before any reader (and the libraries it needs) is loaded."""
+    if not os.path.lexists(path):
+        raise InputError("file not found", source=str(path))
+    if os.path.islink(path) and not os.path.exists(path):
+        raise InputError("is a broken symbolic link", source=str(path))
+    check_readable_file(path)
+
+
 @contextlib.contextmanager
 def open_input(path: str | os.PathLike) -> Iterator[IO[bytes]]:
     """A regular file opened for reading (binary), within ``HLAID_MAX_FILE_MB``.

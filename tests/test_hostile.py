@@ -534,6 +534,7 @@ def test_interrupted_identify_removes_its_tensorboard_folder(tmp_path, capsys, m
     monkeypatch.setattr(cli, "check_identify_bands", lambda *a: None)
     monkeypatch.setattr(sys.modules["hlaid.identify"], "HLASVMIdentifier", Interrupted)
     (tmp_path / "runs").mkdir()
+    (tmp_path / "m.npz").write_bytes(b"read by the stand-in reader")
     rc = main(["identify", str(tmp_path / "m.npz"), "-o", str(tmp_path / "c.json"), "--tensorboard",
                str(tmp_path / "runs" / "id1")])
     assert rc == 130 and capsys.readouterr().err.strip().endswith("interrupted")

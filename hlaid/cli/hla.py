@@ -21,12 +21,14 @@ def register(sub) -> None:
 
 def run_hla(args) -> int:
     from .._fileio import atomic_directory, check_output_folder
+    from .._inputs import check_input
     from ..config import load_config
     from ..hla.config import HLAConfig
 
     inputs = [args.measurement, args.config]
     check_output_folder(args.out, force=args.force, inputs=inputs)  # fail before the analysis, not after it
     cfg = load_config(args.config, HLAConfig) if args.config else HLAConfig()
+    check_input(args.measurement)
     from ..io import read
     from ..measurement import check_band
     meas = read(args.measurement, "measurement")

@@ -37,10 +37,9 @@ def register(sub) -> None:
 
 def run_identify(args) -> int:
     from .._fileio import check_output_file
+    from .._inputs import check_input
     from ..config import load_config
     from ..errors import InputError
-    from ..io import read
-    from ..measurement import check_band
 
     out = check_output_file(args.out, force=args.force, inputs=[args.measurement, args.config])  # before the work
     if args.config and args.method != "hlasvm":
@@ -48,8 +47,11 @@ def run_identify(args) -> int:
     tb = Path(args.tensorboard) if args.tensorboard else None
     if tb is not None and tb.exists() and not tb.is_dir():
         raise InputError("exists and is not a folder; --tensorboard writes a folder of logs", source=str(tb))
+    check_input(args.measurement)
     from ..identify.config import IdentifyConfig  # light once hlaid.identify loads its names lazily
     cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
+    from ..io import read
+    from ..measurement import check_band
     meas = read(args.measurement, "measurement")
     if args.method == "hlasvm":
         check_identify_bands(meas, cfg, args.config)
