@@ -139,7 +139,7 @@ def read_text(path: str | os.PathLike) -> str:
             with gzip.GzipFile(fileobj=io.BytesIO(raw)) as gz:
                 raw = gz.read(top + 1)
         except (OSError, EOFError) as err:
-            raise InputError(f"cannot be read as gzip ({err})", source=str(path)) from None
+            raise InputError(f"cannot read it as gzip ({err})", source=str(path)) from None
         if len(raw) > top:
             raise InputError(f"holds more than {file_limit_text()}", source=str(path))
     if b"\x00" in raw[:4096]:

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .errors import InputError
+from .limits import limit
 
 KEY = "hlaid.bounds"
 """The key of a field's :class:`Bounds` in its ``metadata``."""
@@ -52,10 +53,7 @@ class Bounds:
 
     def upper(self) -> float:
         """``hi``, or the current value of the limit it names."""
-        if isinstance(self.hi, str):
-            from .limits import limit
-            return limit(self.hi)
-        return float(self.hi)
+        return limit(self.hi) if isinstance(self.hi, str) else float(self.hi)
 
     def contains(self, v: Any) -> bool:
         """Whether ``v`` (a number) lies within the bounds (never for NaN, infinities, booleans)."""

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import os
 
-from .bounds import Bounds, show
 from .errors import InputError
 
 DEFAULTS: dict[str, float] = {
@@ -46,18 +45,18 @@ DEFAULTS: dict[str, float] = {
 }
 """Default limits by name; ``HLAID_MAX_<NAME>`` overrides each."""
 
-RANGES: dict[str, Bounds] = {
-    "FILE_MB": Bounds(1e-4, 2**20, unit="MiB"),
-    "SAMPLES": Bounds(16, 1e10),
-    "RATE_HZ": Bounds(5, 1e8, unit="Hz"),
-    "STORIES": Bounds(1, 10_000),
-    "IDA_LEVELS": Bounds(2, 1e6),
-    "IDA_RECORDS": Bounds(1, 1e6),
-    "BOOTSTRAP": Bounds(1, 1e8),
-    "TRAINING": Bounds(20, 1e7),
-    "TANGENT_MB": Bounds(1, 2**20, unit="MiB"),
+RANGES: dict[str, tuple[float, float]] = {
+    "FILE_MB": (1e-4, 2**20),
+    "SAMPLES": (16, 1e10),
+    "RATE_HZ": (5, 1e8),
+    "STORIES": (1, 10_000),
+    "IDA_LEVELS": (2, 1e6),
+    "IDA_RECORDS": (1, 1e6),
+    "BOOTSTRAP": (1, 1e8),
+    "TRAINING": (20, 1e7),
+    "TANGENT_MB": (1, 2**20),
 }
-"""What each ``HLAID_MAX_<NAME>`` may be set to (a limit, however raised, stays finite)."""
+"""What each ``HLAID_MAX_<NAME>`` may be set to, ``(lowest, highest)``: a limit, however raised, stays finite."""
 
 PREFIX = "HLAID_MAX_"
 
@@ -73,10 +72,11 @@ def limit(name: str) -> float:
         value = float(text) if len(text) < 400 else float("nan")
     except ValueError:
         value = float("nan")
-    if not RANGES[name].contains(value):
+    lo, hi = RANGES[name]
+    if not lo <= value <= hi:  # NaN too
         shown = repr(text) if len(text) <= 40 and text.isprintable() else f"a value of {len(text)} characters"
         raise InputError(f"environment variable {var} = {shown}; expected a number with "
-                         f"{RANGES[name].text(var)}")
+                         f"{_show(lo)} <= {var} <= {_show(hi)}")
     return value
 
 
@@ -97,7 +97,7 @@ def check_count(value: float, name: str, what: str, *, source: str | None = None
 
 
 def _show(v: float) -> str:
-    return show(v)
+    return str(int(v)) if float(v).is_integer() and abs(v) < 1e15 else f"{v:.6g}"
 
 
 def max_file_bytes() -> int:
