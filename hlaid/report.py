@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import base64
 import html
-import json
 import os
 import re
 import shutil
@@ -19,6 +18,7 @@ import tempfile
 from pathlib import Path
 
 from ._fileio import atomic_write
+from ._inputs import read_bytes, read_json, read_text
 from .errors import InputError, kind_of
 
 _CSS = """
@@ -55,9 +55,9 @@ _PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 def _img(path: Path, source: str) -> str:
     try:
-        raw = path.read_bytes()
-    except OSError as err:
-        raise InputError(f"cannot read figure {path.relative_to(source)} ({err.strerror})", source=source) from None
+        raw = read_bytes(path)
+    except InputError as err:
+        raise InputError(f"cannot read figure {path.relative_to(source)} ({err})", source=source) from None
     if not raw.startswith(_PNG_MAGIC):
         raise InputError(f"figure {path.relative_to(source)} is not a PNG image", source=source)
     data = base64.b64encode(raw).decode()
@@ -178,16 +178,12 @@ def build_report(run_dir: str | os.PathLike) -> Path:
     if not d.is_dir():
         raise InputError("not found or not a folder; expected a run folder written by hlaid run or hlaid demo"
                          if not d.exists() else "is not a folder; expected a run folder", source=src)
+    if not os.path.lexists(d / "summary.json"):
+        raise InputError("not an hlaid run folder (no summary.json)", source=src)
     try:
-        s = json.loads((d / "summary.json").read_text())
-    except FileNotFoundError:
-        raise InputError("not an hlaid run folder (no summary.json)", source=src) from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise InputError(f"not an hlaid run folder (summary.json cannot be read: {type(err).__name__})",
-                         source=src) from None
-    except json.JSONDecodeError as err:
-        raise InputError(f"not an hlaid run folder (summary.json is not valid JSON: line {err.lineno}: {err.msg})",
-                         source=src) from None
+        s = read_json(d / "summary.json")
+    except InputError as err:
+        raise InputError(f"not an hlaid run folder ({err})", source=src) from None
     if not isinstance(s, dict) or s.get("format") != "hlaid-run":
         raise InputError("summary.json is not an hlaid run summary", source=src)
     _validate(s, _SUMMARY, "", src)
@@ -351,7 +347,7 @@ _BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-sta
 
 def embedded_figures(report: str | os.PathLike) -> list[tuple[str, int]]:
     """``(alt, bytes)`` of every PNG embedded in a report; raises if one is not a valid PNG."""
-    text = Path(report).read_text()
+    text = read_text(report)
     out = []
     for alt, data in re.findall(r'<img alt="([^"]*)" src="data:image/png;base64,([^"]+)">', text):
         raw = base64.b64decode(data)
@@ -373,7 +369,7 @@ def screenshot(report: str | os.PathLike, png: str | os.PathLike, *, browser: st
         raise InputError("no headless browser found (install Debian's chromium package, or pass browser=)",
                          source=str(report))
     report, png = Path(report).resolve(), Path(png).resolve()
-    height = height or 900 * max(report.read_text().count("<img "), 1) + 1200
+    height = height or 900 * max(read_text(report).count("<img "), 1) + 1200
     with tempfile.TemporaryDirectory() as profile:
         cmd = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", f"--user-data-dir={profile}",
                f"--window-size={width},{height}", f"--screenshot={png}", report.as_uri()]

@@ -12,9 +12,8 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import time
-from dataclasses import dataclass, field
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, cast
 
@@ -22,61 +21,19 @@ import numpy as np
 
 from . import _progress
 from ._fileio import atomic_directory, write_json
+from ._inputs import read_json
 from ._version import __version__
-from .config import config_from_node, config_to_dict, load_yaml
-from .errors import InputError
-from .ida import IDAConfig
-from .identify import IdentifyConfig, identify_clone
+from .config import config_to_dict
+from .identify import identify_clone
 from .identify.replaycheck import corrcoef
 from .io import read
 from .measurement import Measurement, check_band
 from .model import Building
 from .plots import plot_time_histories, save_figure
-from .synthetic import SimulationConfig, measurement_from_config
-from .uncertainty import AssessConfig
+from .runconfig import MeasurementSource, RunConfig, input_paths, load_run_config
+from .synthetic import measurement_from_config
 
 PARAMS = ("alpha", "p", "delta_eta", "dy", "k0")
-
-
-@dataclass(frozen=True, kw_only=True)
-class MeasurementSource:
-    """Where the measurement comes from: a file (``file``, optional ``format`` and reader
-    ``options``) or a simulation (``simulate``: the ``hlaid simulate`` config). ``mass_t`` and
-    ``height_mm`` add or replace floor masses [t] and story heights [mm]."""
-
-    file: str | None = None
-    format: str | None = None
-    options: dict[str, Any] = field(default_factory=dict)
-    simulate: SimulationConfig | None = None
-    mass_t: list[float] | None = None
-    height_mm: list[float] | None = None
-
-    def __post_init__(self):
-        if (self.file is None) == (self.simulate is None):
-            raise InputError("give exactly one of measurement.file or measurement.simulate")
-
-
-@dataclass(frozen=True, kw_only=True)
-class RunConfig:
-    """``hlaid run`` config: measurement, identification and (optionally) IDA settings, and the
-    ensemble assessment (``assess``, needs ``ida``)."""
-
-    measurement: MeasurementSource
-    identify: IdentifyConfig = field(default_factory=IdentifyConfig)
-    ida: IDAConfig | None = None
-    assess: AssessConfig | None = None
-    name: str = "hlaid run"
-
-
-def load_run_config(path) -> RunConfig:
-    """Load a run config; its ``ida`` block is validated against :class:`hlaid.ida.IDAConfig`
-    (errors there give the line of the offending value in the run config, like any other)."""
-    source = str(path)
-    root = load_yaml(source)
-    cfg = config_from_node(RunConfig, root, source)
-    if cfg.assess is not None and cfg.ida is None:
-        raise InputError(f"{source}: the assess block needs an ida block (records and IDA settings)")
-    return cfg
 
 
 def load_measurement(src: MeasurementSource, base_dir: Path | None) -> Measurement:
@@ -122,13 +79,16 @@ def _csv(rows: list[dict]) -> str:
 
 
 def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None = None, force: bool = False,
-                 cache_dir: str | None = None) -> dict:
-    """Run the pipeline and write everything under ``out``; returns the run summary."""
+                 cache_dir: str | None = None, inputs: Sequence[str | Path | None] = ()) -> dict:
+    """Run the pipeline and write everything under ``out``; returns the run summary. An existing
+    ``out`` is replaced only with ``force``, when hlaid wrote it and it holds none of ``inputs``
+    (the run's own input files are added to them)."""
     from .hla.plots import plot_loops, plot_stiffness
     from .report import build_report
     t_all = time.perf_counter()
     timings = {}
-    with atomic_directory(out, force=force) as tmp:
+    inputs = [*inputs, *input_paths(cfg, base_dir), cache_dir]
+    with atomic_directory(out, force=force, inputs=inputs) as tmp:
         tmp = Path(tmp)
         figs = tmp / "figures"
         figs.mkdir()
@@ -162,7 +122,7 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
             from .ida import ida_from_config
             ir = ida_from_config(res.clone, cfg.ida, base_dir=base_dir)
             ir.save(tmp / "ida", plots=True, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
-            ida_summary = json.loads((tmp / "ida" / "summary.json").read_text())
+            ida_summary = read_json(tmp / "ida" / "summary.json")
             timings["ida"] = time.perf_counter() - t
         assessment = None
         if cfg.ida is not None and cfg.assess is not None:
@@ -230,7 +190,7 @@ def _replay_figure(meas: Measurement, res):
 
 def run_from_file(path: str | Path, out: str | Path, *, force: bool = False, cache_dir: str | None = None) -> dict:
     cfg = load_run_config(path)
-    return run_pipeline(cfg, out, base_dir=Path(path).parent, force=force, cache_dir=cache_dir)
+    return run_pipeline(cfg, out, base_dir=Path(path).parent, force=force, cache_dir=cache_dir, inputs=[path])
 
 
 __all__ = ["RunConfig", "MeasurementSource", "load_run_config", "run_pipeline", "run_from_file", "parameter_table"]

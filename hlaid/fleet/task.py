@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from .. import _progress
+from .._inputs import file_sha256
 from .._version import __version__
 from ..config import config_to_dict
 from ..errors import InputError
@@ -82,14 +83,10 @@ def input_files(m: FleetMeasurement, base_dir: str | None) -> list[Path]:
 
 
 def _file_digest(p: Path) -> str:
-    h = hashlib.sha256()
     try:
-        with open(p, "rb") as fh:
-            for block in iter(lambda: fh.read(1 << 20), b""):
-                h.update(block)
-    except OSError:  # missing or unreadable: the worker reports it; the digest just says so
+        return file_sha256(p)
+    except InputError:  # missing, unreadable or not a regular file: the worker reports it; the digest says so
         return "missing"
-    return h.hexdigest()
 
 
 def records_digest(records: Sequence[GroundMotion]) -> str:
