@@ -29,6 +29,7 @@ from hlaid.errors import InputError
 from hlaid.fleet.config import FleetConfig
 from hlaid.hla.config import HLAConfig
 from hlaid.ida.config import IDAConfig
+from hlaid.identify.config import IdentifyConfig
 from hlaid.io.columns import ColumnsConfig
 from hlaid.io.station import StationConfig
 from hlaid.limits import DEFAULTS
@@ -43,8 +44,8 @@ HUGE = "HUGE-INTEGER"
 
 EXTREMES: list[Any] = [0, -1, float("nan"), float("inf"), float("-inf"), 1e-300, 1e300, 10**30, HUGE]
 
-PENDING = ("hlaid.identify.",)
-"""Schemas whose bounds are not declared yet (the identification config, being restructured)."""
+PENDING: tuple[str, ...] = ()
+"""Modules whose schemas do not declare their bounds yet (none)."""
 
 STORY = {"mass_t": 1.0, "k0": 1000.0, "alpha": 0.1, "p": 2.0, "dy": 1.0, "delta_eta": 0.0}
 SIM = {"building": {"stories": [dict(STORY)], "damping": {}}, "motion": {"file": "builtin:elcentro-1940-ns"},
@@ -71,11 +72,13 @@ _IDA = ["ida", "missing.json", "--config", "{cfg}", "-o", "{out}"]
 _RUN = ["run", "{cfg}", "-o", "{out}"]
 _FLEET = ["fleet", "{cfg}", "-o", "{out}"]
 _COLUMNS = ["hla", "{cfg}", "-o", "{out}"]
+_IDENTIFY = ["identify", "missing.npz", "--config", "{cfg}", "-o", "{out}"]
 
 
 def _register() -> None:
     from hlaid.fleet.config import BuildingEntry, ClusterConfig, FleetMeasurement
     from hlaid.hla.config import ForceConfig, HalfCycleConfig, PreprocessConfig, StiffnessConfig
+    from hlaid.identify.config import BinsConfig, OuterConfig, RefineConfig, SVMConfig, TrainingConfig
     from hlaid.io.columns import ChannelSpec
     from hlaid.io.station import StationChannel
     from hlaid.runconfig import MeasurementSource
@@ -92,6 +95,10 @@ def _register() -> None:
         _carry(cls, HLAConfig, _HLA, {key: {}}, key)
     _carry(HLAConfig, HLAConfig, _HLA, {})
     _carry(IDAConfig, IDAConfig, _IDA, {})
+    _carry(IdentifyConfig, IdentifyConfig, _IDENTIFY, {})
+    for cls, key in ((BinsConfig, "bins"), (TrainingConfig, "training"), (SVMConfig, "svm"), (OuterConfig, "outer"),
+                     (RefineConfig, "refine")):
+        _carry(cls, IdentifyConfig, _IDENTIFY, {key: {}}, key)
     _carry(CollapseModel, IDAConfig, _IDA, {"collapse": COLLAPSE}, "collapse")
     run = {"measurement": {"file": "m.npz"}, "ida": {}, "assess": {}}
     _carry(RunConfig, RunConfig, _RUN, run)
@@ -150,7 +157,7 @@ def _pending(cls) -> bool:
     return cls.__module__.startswith(PENDING)
 
 
-TOPS = (SimulationConfig, HLAConfig, IDAConfig, RunConfig, FleetConfig, ColumnsConfig)
+TOPS = (SimulationConfig, HLAConfig, IDAConfig, IdentifyConfig, RunConfig, FleetConfig, ColumnsConfig)
 
 
 def _all_schemas() -> set[type]:

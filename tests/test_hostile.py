@@ -311,7 +311,6 @@ def test_config_and_clone_values_out_of_bounds(tmp_path, capsys, table1, monkeyp
     refused(capsys, ["hla", "m.npz", "-o", tmp_path / "h"], ["HLAID_MAX_FILE_MB = 'inf'"], root=tmp_path)
 
 
-@pytest.mark.xfail(strict=True, reason="hlaid/identify/config.py declares no bounds yet (hlaid.bounds): pending")
 @pytest.mark.parametrize("block, field", [("bins: {p_fine: 1.0e-12}", "p_fine"),
                                           ("bins: {p_range: [1, 1.0e+300]}", "p_range"),
                                           ("training: {n_segments: 1000000}", "n_segments")])
@@ -561,6 +560,10 @@ def test_bad_inputs_are_refused_before_heavy_imports(tmp_path, table1):
     in a fresh interpreter that has not imported torch, numba or scipy by then."""
     (tmp_path / "h.yaml").write_text("stiffness: {k_window: 1000000000}\n")
     (tmp_path / "i.yaml").write_text("levels: [0.1, 1e308]\n")
+    (tmp_path / "id.yaml").write_text("bins: {p_fine: 1.0e-12}\n")
+    (tmp_path / "r.yaml").write_text("measurement: {file: m.npz}\nidentify: {training: {n_segments: 1000000}}\n")
+    (tmp_path / "fl.yaml").write_text("records: builtin-suite\nidentify: {svm: {n_bags: 0}}\nbuildings:\n"
+                                      "  - {name: B1, measurements: {ev1: {file: b.npz}}}\n")
     (tmp_path / "s.yaml").write_text("building: {stories: [{mass_t: 1, k0: 1, alpha: 0.1, p: 2, dy: 1.0e-300, "
                                      "delta_eta: 0}]}\nmotion: {file: 'builtin:elcentro-1940-ns'}\n")
     d = _clone_dict(table1)
@@ -572,6 +575,9 @@ def test_bad_inputs_are_refused_before_heavy_imports(tmp_path, table1):
     t = str(tmp_path)
     cases = [["hla", f"{t}/tiny.npz", "-o", f"{t}/o", "--config", f"{t}/h.yaml"],
              ["ida", f"{t}/c.json", "-o", f"{t}/o", "--config", f"{t}/i.yaml"],
+             ["identify", f"{t}/tiny.npz", "-o", f"{t}/c2.json", "--config", f"{t}/id.yaml"],
+             ["run", f"{t}/r.yaml", "-o", f"{t}/o"],
+             ["fleet", f"{t}/fl.yaml", "-o", f"{t}/o"],
              ["ida", f"{t}/c.json", "-o", f"{t}/o"],
              ["export-opensees", f"{t}/c.json", "-o", f"{t}/m.py"],
              ["simulate", f"{t}/s.yaml", "-o", f"{t}/m.npz"],

@@ -35,7 +35,7 @@ def run_fleet_cli(args) -> int:
     if args.scheduler:
         parse_address(args.scheduler)  # before the config is read; probed before dask connects
     from ..fleet.config import load_fleet_config
-    from ..fleet.engine import check_output
+    from ..fleet.output import check_output
 
     check_output(Path(args.out), force=args.force)
     cfg = load_fleet_config(args.config)

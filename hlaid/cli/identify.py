@@ -47,9 +47,10 @@ def run_identify(args) -> int:
     tb = Path(args.tensorboard) if args.tensorboard else None
     if tb is not None and tb.exists() and not tb.is_dir():
         raise InputError("exists and is not a folder; --tensorboard writes a folder of logs", source=str(tb))
-    check_input(args.measurement)
-    from ..identify.config import IdentifyConfig  # light once hlaid.identify loads its names lazily
+    from ..identify.config import IdentifyConfig  # light: no torch, numba or scipy
+
     cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
+    check_input(args.measurement)
     from ..io import read
     from ..measurement import check_band
     meas = read(args.measurement, "measurement")

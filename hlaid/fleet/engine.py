@@ -26,8 +26,8 @@ from pathlib import Path
 
 from .. import _progress
 from .._fileio import MARKER as OUTPUT_MARKER
-from .._fileio import check_name, check_parent, write_json
 from .._fileio import marker as output_marker
+from .._fileio import write_json
 from .._inputs import read_json
 from .._version import __version__
 from ..errors import InputError
@@ -35,11 +35,9 @@ from ..io import read
 from .address import probe
 from .assess import POINT, default_assess, engine_label, point_assess
 from .config import ClusterConfig, FleetConfig, load_fleet_config
+from .output import MARKER, check_output
 from .report import build_fleet_report, table_rows, write_table
 from .task import RESULT_FORMAT, UnitJob, make_jobs, records_digest, run_unit
-
-MARKER = "fleet.json"
-"""The file that makes a folder an hlaid fleet output (a rerun resumes it)."""
 
 
 @dataclass(frozen=True)
@@ -111,22 +109,6 @@ def open_client(cluster: ClusterConfig, scheduler: str | None = None) -> Iterato
 
 
 # ---------------------------------------------------------------------------- output folder
-def check_output(out: Path, *, force: bool) -> Path:
-    """Refuse an output folder that cannot be (re)used: a file, a folder that is neither empty nor a
-    fleet output (``--force`` does not change that: a fleet writes into its folder, and must not
-    overwrite someone else's ``report.html``), a missing or unwritable parent, a name too long."""
-    out = Path(out)
-    check_name(out)
-    if out.exists() and not out.is_dir():
-        raise InputError("exists and is not a folder", source=str(out))
-    if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file():
-        raise InputError("is not empty and is not an hlaid fleet output (--force does not write into another "
-                         "program's folder); choose an empty or new folder", source=str(out))
-    if not out.exists():
-        check_parent(out)
-    return out
-
-
 def prepare_output(out: Path, *, force: bool) -> Path:
     """Create (or reopen) the output folder (see :func:`check_output`)."""
     out = check_output(out, force=force)
