@@ -129,3 +129,47 @@ def test_loss_config_checked(kw, message):
 
     with pytest.raises(InputError, match=message):
         LossConfig(**kw)
+
+
+@needs_pelicun
+def test_fleet_table_gets_the_losses(tmp_path):
+    """A fleet config with a loss block: each unit's losses at its own event become loss.* columns."""
+    import dataclasses
+
+    pytest.importorskip("dask.distributed")
+    from test_fleet import fake_assess
+
+    from hlaid.fleet import load_fleet_config, run_fleet
+
+    def assess_with_beta(clone, records, **kw):
+        return {**fake_assess(clone, records, **kw), "beta": 0.4}
+
+    assess_with_beta.engine = "fake"
+    d = _one_building_fleet(tmp_path)
+    cfg = load_fleet_config(d / "fleet.yaml")
+    cfg = dataclasses.replace(cfg, buildings=cfg.buildings[:1], n_ensemble=0, loss=LossConfig(realizations=20))
+    s = run_fleet(cfg, tmp_path / "out", base_dir=d, cache_dir=str(tmp_path / "cache"), assess=assess_with_beta)
+    assert not s.failed, [r.get("reason") for r in s.rows]
+    with open(tmp_path / "out" / "results.csv") as fh:
+        row = next(csv.DictReader(fh))
+    assert 0 < float(row["loss.repair_cost_ratio_median"]) <= 1
+    assert float(row["loss.repair_cost_ratio_band_lo"]) <= float(row["loss.repair_cost_ratio_median"])
+    assert float(row["loss.repair_cost_median"]) == pytest.approx(
+        float(row["loss.repair_cost_ratio_median"]) * float(row["loss.replacement_cost"]), rel=1e-5)
+    assert "loss.repair_cost_ratio_median" in (tmp_path / "out" / "report.html").read_text()
+
+
+def _one_building_fleet(tmp_path):
+    """The fleet test's one-building config and measurement (as test_fleet's fixture makes them)."""
+    from conftest import window
+    from test_fleet import BUILDING, CONFIG, _building
+
+    from hlaid.motions import load_builtin
+    from hlaid.synthetic import simulate_measurement
+
+    d = tmp_path / "fleet"
+    d.mkdir()
+    gm = window(load_builtin("kocaeli-1999-dzc180").scaled_to_pga(0.5).resampled(200.0), 10.0)
+    simulate_measurement(_building("B1"), gm, noise_rms=0.05, seed=0).save(d / "B1.npz")
+    (d / "fleet.yaml").write_text(CONFIG + BUILDING.format(name="B1"))
+    return d

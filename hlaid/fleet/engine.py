@@ -183,6 +183,9 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
     t0 = time.perf_counter()
     base = Path(base_dir) if base_dir is not None else None
     out = check_output(Path(out), force=force)
+    if cfg.loss is not None:  # fail before the fleet runs when pelicun is missing
+        from ..loss.fema_p58 import require_pelicun
+        require_pelicun()
     records = read(cfg.record_specs(base), kind="records", units=cfg.ida.units)
     if assess is None and cfg.n_ensemble == 0:
         assess, engine = point_assess, POINT
