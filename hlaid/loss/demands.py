@@ -201,7 +201,7 @@ def clone_demands(clone: Clone | str | os.PathLike, records, *, level: float | N
     """
     from ..ida.analysis import upsampled
     from ..ida.config import IDAConfig
-    from ..ida.intensity import get_intensity_measure, period_for
+    from ..ida.intensity import record_intensities
     from ..io.records import as_motions
     from ..simulate import simulate
 
@@ -221,12 +221,7 @@ def clone_demands(clone: Clone | str | os.PathLike, records, *, level: float | N
     if n_ensemble:
         buildings = buildings[1:]
     motions = as_motions(records, units=cfg.units)
-    measure = get_intensity_measure(cfg.im)
-    period = period_for(measure, nominal, cfg.period)
-    im0 = measure.compute(motions, period, 0.05) / G_MM_S2
-    if np.any(~(im0 > 0)):
-        bad = [m.name for m, v in zip(motions, im0) if not v > 0]
-        raise InputError(f"record(s) with zero {measure.label}: {', '.join(bad)}")
+    measure, period, im0 = record_intensities(motions, cfg.im, nominal, cfg.period)
     scale = np.ones(len(motions)) if level is None else float(level) / im0
     tail, window = settle_time(buildings)
     notes.append(f"residual drift: free vibration for {tail:.1f} s after each record, then the mean drift over "
