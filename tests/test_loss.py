@@ -173,3 +173,20 @@ def _one_building_fleet(tmp_path):
     simulate_measurement(_building("B1"), gm, noise_rms=0.05, seed=0).save(d / "B1.npz")
     (d / "fleet.yaml").write_text(CONFIG + BUILDING.format(name="B1"))
     return d
+
+
+def test_run_config_loss_block(tmp_path):
+    from test_runner import CONFIG
+
+    from hlaid.errors import InputError
+    from hlaid.runner import load_run_config
+
+    (tmp_path / "a.yaml").write_text(CONFIG.split("ida:")[0] + "loss: {system: rc-frame}\n")
+    with pytest.raises(InputError, match="the loss block needs an ida block"):
+        load_run_config(tmp_path / "a.yaml")
+    (tmp_path / "b.yaml").write_text(CONFIG + "loss: {system: rc-frame, realizations: 200, levels: [0.5, 1.0]}\n")
+    cfg = load_run_config(tmp_path / "b.yaml")
+    assert cfg.loss == LossConfig(system="rc-frame", realizations=200, levels=[0.5, 1.0])
+    (tmp_path / "c.yaml").write_text(CONFIG + "loss: {sytem: rc-frame}\n")
+    with pytest.raises(InputError, match="sytem"):
+        load_run_config(tmp_path / "c.yaml")
