@@ -100,7 +100,21 @@ _SUMMARY = {"format": "str", "name": "str", "hlaid_version": "str", "n_stories":
                                   "p_collapse_band": _Null(_Pair("num")), "drift_limits": ["num"],
                                   "p_exceed": ["num"], "indicator": _Null("str"), "placard": _Null("str"),
                                   "reasons": ["str"], "own_residual_drift_median?": _Null("num"),
-                                  "own_peak_drift_median?": _Null("num")})}
+                                  "own_peak_drift_median?": _Null("num")}),
+            "loss?": _Null({"engine": "str", "system": "str", "inventory": "str", "replacement_cost": "num",
+                            "replacement_time": "num", "floor_area_m2": ["num"], "assumptions": ["str"],
+                            "collapse_fragility": {"median_g": _Null("num"), "beta": _Null("num"), "source": "str"},
+                            "irreparable": {"median": "num", "beta": "num"}, "n_ensemble": "int",
+                            "realizations": "int",
+                            "recorded": _Null({"im": "num", "im_label": "str", "repair_cost_median": "num",
+                                               "repair_cost_band": _Pair("num"), "repair_cost_ratio_median": "num",
+                                               "repair_cost_ratio_band": _Pair("num"), "repair_cost_mean": "num",
+                                               "repair_time_parallel_median": "num",
+                                               "repair_time_sequential_median": "num", "p_collapse": "num",
+                                               "p_irreparable": "num", "cost_unit": "str", "n_realizations": "int",
+                                               "n_demand_realisations": "int"}),
+                            "curve": [{"level_g": "num", "repair_cost_ratio_mean": "num", "p_collapse": "num",
+                                       "p_irreparable": "num"}]})}
 """What :func:`build_report` reads from ``summary.json``: keys ending in ``?`` may be absent, a
 ``*`` key stands for every key (``*num``: keys that read as numbers); other keys are ignored."""
 
@@ -162,6 +176,9 @@ def required_figures(summary: dict) -> list[str]:
     """Figures (relative paths) a run folder must hold: those of :data:`_FIGURES` under
     ``figures/``, and those under ``ida/`` when the run made an IDA."""
     out = [rel for rel, _ in _FIGURES if rel.startswith("figures/") or summary.get("ida")]
+    loss = summary.get("loss") or {}
+    out += (["loss/repair_cost.png"] if loss.get("recorded") else []) + (["loss/loss_curve.png"] if loss.get("curve")
+                                                                          else [])
     return out + ([_ASSESS_FIGURE[0]] if summary.get("assessment") else [])
 
 
@@ -232,6 +249,12 @@ def build_report(run_dir: str | os.PathLike) -> Path:
         parts.append("<h2>Collapse risk with identification uncertainty</h2>" + _assess_block(s["assessment"]))
         p = d / _ASSESS_FIGURE[0]
         parts.append(f"<figure>{_img(p, src)}<figcaption>{e(_ASSESS_FIGURE[1])}</figcaption></figure>")
+    if s.get("loss"):
+        from .report_loss import LOSS_FIGURES, loss_html
+        parts.append("<h2>Losses (FEMA P-58 through pelicun)</h2>" + loss_html(s["loss"]))
+        for rel, cap in LOSS_FIGURES:
+            if (d / rel).exists():
+                parts.append(f"<figure>{_img(d / rel, src)}<figcaption>{e(cap)}</figcaption></figure>")
     t = s["timings"]
     parts.append("<h2>Run</h2><p>" + ", ".join(f"{e(k)} {v:.1f} s" for k, v in t.items()) +
                  ". Files: <code>clone.json</code>, <code>parameters.csv</code>, <code>hla/</code>, "

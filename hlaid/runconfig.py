@@ -15,6 +15,7 @@ from .config import config_from_node, load_yaml
 from .errors import InputError
 from .ida.config import IDAConfig
 from .identify.config import IdentifyConfig
+from .loss.config import LossConfig
 from .model.schema import STORY_BOUNDS
 from .specs import SimulationConfig
 from .uncertainty.config import AssessConfig
@@ -41,13 +42,15 @@ class MeasurementSource:
 
 @dataclass(frozen=True, kw_only=True)
 class RunConfig:
-    """``hlaid run`` config: measurement, identification and (optionally) IDA settings, and the
-    ensemble assessment (``assess``, needs ``ida``)."""
+    """``hlaid run`` config: measurement, identification and (optionally) IDA settings, the
+    ensemble assessment (``assess``, needs ``ida``) and the FEMA P-58 losses (``loss``, needs ``ida``
+    and the extra ``hlaid[loss]``)."""
 
     measurement: MeasurementSource
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
     ida: IDAConfig | None = None
     assess: AssessConfig | None = None
+    loss: LossConfig | None = None
     name: str = "hlaid run"
 
 
@@ -59,6 +62,8 @@ def load_run_config(path) -> RunConfig:
     cfg = config_from_node(RunConfig, root, source)
     if cfg.assess is not None and cfg.ida is None:
         raise InputError(f"{source}: the assess block needs an ida block (records and IDA settings)")
+    if cfg.loss is not None and cfg.ida is None:
+        raise InputError(f"{source}: the loss block needs an ida block (the collapse fragility and the stripes)")
     return cfg
 
 
@@ -75,6 +80,8 @@ def input_paths(cfg: RunConfig, base_dir: str | Path | None) -> list[Path]:
     out = resolve(m.file) + (resolve(m.simulate.motion.file) if m.simulate is not None else [])
     for spec in (cfg.ida.record_specs(base_dir) or []) if cfg.ida is not None else []:
         out += resolve(spec)
+    if cfg.loss is not None:
+        out += resolve(cfg.loss.inventory)
     return out
 
 

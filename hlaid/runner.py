@@ -3,6 +3,7 @@
 measurement (file or simulation) -> HLA -> identification (clone) -> replay check -> IDA and
 collapse fragility -> (with an ``assess`` block) IDA over an ensemble of clones drawn from the
 identification uncertainty, fragility band and re-occupancy indicator at the measured record ->
+(with a ``loss`` block) FEMA P-58 losses through pelicun at the measured record and the IDA stripes ->
 figures, machine-readable files and a self-contained ``report.html``.
 Everything is written into a temporary folder that replaces the output folder only once
 complete.
@@ -24,6 +25,7 @@ from ._fileio import atomic_directory, write_json
 from ._inputs import read_json
 from ._version import __version__
 from .config import config_to_dict
+from .errors import InputError
 from .identify import identify_clone
 from .identify.replaycheck import corrcoef
 from .io import read
@@ -87,6 +89,9 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
     from .report import build_report
     t_all = time.perf_counter()
     timings = {}
+    if cfg.loss is not None:  # fail before the pipeline when pelicun is missing
+        from .loss.fema_p58 import require_pelicun
+        require_pelicun()
     inputs = [*inputs, *input_paths(cfg, base_dir), cache_dir]
     with atomic_directory(out, force=force, inputs=inputs) as tmp:
         tmp = Path(tmp)
@@ -129,13 +134,18 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
             t = time.perf_counter()
             assessment = _assess(res.clone, meas, cfg, tmp, base_dir)
             timings["assess"] = time.perf_counter() - t
+        loss = None
+        if cfg.ida is not None and cfg.loss is not None:
+            t = time.perf_counter()
+            loss = _loss(res.clone, meas, cfg, tmp, ida_summary, assessment, base_dir)
+            timings["loss"] = time.perf_counter() - t
         timings["total"] = time.perf_counter() - t_all
         summary = {"format": "hlaid-run", "version": 1, "name": cfg.name, "hlaid_version": __version__,
                    "config": config_to_dict(cfg), "source": meas.source, "n_stories": meas.n_floors,
                    "mass_normalised": res.clone.mass_normalised, "parameters": table, "paper_method": paper,
                    "replay": res.replay.to_dict(), "outer_iterations": res.iterations,
                    "identify_timings": res.timings, "timings": timings, "ida": ida_summary,
-                   "noise_rms": meas.noise_rms, "assessment": assessment}
+                   "noise_rms": meas.noise_rms, "assessment": assessment, "loss": loss}
         write_json(tmp / "summary.json", summary)
         build_report(tmp)
     _progress.info(f"wrote {out}/ (report.html, clone.json, hla/, ida/, figures/, tensorboard/) in "
@@ -171,6 +181,24 @@ def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> di
     out["own_residual_drift_median"] = float(np.median(cast(np.ndarray, res.own_residual_drift)))
     out["own_peak_drift_median"] = float(np.median(cast(np.ndarray, res.own_peak_drift)))
     return out
+
+
+def _loss(clone, meas: Measurement, cfg: RunConfig, tmp: Path, ida_summary, assessment, base_dir) -> dict:
+    """FEMA P-58 losses at the measured record and the IDA stripes (``loss/``); the summary's ``loss`` block."""
+    from .loss.assess import assess_losses, run_block, run_collapse
+    from .motions import GroundMotion
+    a, ida_cfg, lc = cfg.assess, cfg.ida, cfg.loss
+    if ida_cfg is None or lc is None:  # load_run_config allows a loss block only with an ida block
+        raise InputError("the loss block needs an ida block")
+    _progress.info("[4/4] FEMA P-58 losses through pelicun: the measured record and the IDA stripes")
+    collapse, src = run_collapse(tmp, {"assessment": assessment, "ida": ida_summary})
+    n_ens = a.n_ensemble if a is not None and assessment is not None else 0
+    levels = lc.levels if lc.levels is not None else (ida_summary or {}).get("levels_g") or []
+    own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name="measured")
+    block = assess_losses(clone, own, records=ida_cfg.record_specs(base_dir), levels=levels, collapse=collapse,
+                          cfg=lc, ida_config=ida_cfg, n_ensemble=n_ens, seed=a.seed if a is not None else 0,
+                          folder=tmp / "loss", collapse_source=src, base_dir=base_dir)
+    return run_block(block)
 
 
 def _replay_figure(meas: Measurement, res):

@@ -81,6 +81,7 @@ def _register() -> None:
     from hlaid.identify.config import BinsConfig, OuterConfig, RefineConfig, SVMConfig, TrainingConfig
     from hlaid.io.columns import ChannelSpec
     from hlaid.io.station import StationChannel
+    from hlaid.loss.config import LossConfig
     from hlaid.runconfig import MeasurementSource
     from hlaid.specs import BuildingSpec, MeasurementSpec, MotionSpec, StorySpec
     from hlaid.uncertainty.config import AssessConfig
@@ -100,10 +101,11 @@ def _register() -> None:
                      (RefineConfig, "refine")):
         _carry(cls, IdentifyConfig, _IDENTIFY, {key: {}}, key)
     _carry(CollapseModel, IDAConfig, _IDA, {"collapse": COLLAPSE}, "collapse")
-    run = {"measurement": {"file": "m.npz"}, "ida": {}, "assess": {}}
+    run = {"measurement": {"file": "m.npz"}, "ida": {}, "assess": {}, "loss": {}}
     _carry(RunConfig, RunConfig, _RUN, run)
     _carry(MeasurementSource, RunConfig, _RUN, run, "measurement")
     _carry(AssessConfig, RunConfig, _RUN, run, "assess")
+    _carry(LossConfig, RunConfig, _RUN, run, "loss")
     _carry(FleetConfig, FleetConfig, _FLEET, FLEET)
     _carry(ClusterConfig, FleetConfig, _FLEET, FLEET, "cluster")
     _carry(BuildingEntry, FleetConfig, _FLEET, FLEET, "buildings", 0)

@@ -28,6 +28,7 @@ COMMANDS = [
     "hlaid.cli.run",
     "hlaid.cli.ida",
     "hlaid.cli.fleet",
+    "hlaid.cli.loss",
 ]
 """Modules that each register one or more subcommands."""
 

@@ -11,6 +11,7 @@ folder of the config file. Example (``configs/fleet_example.yaml``)::
     seed: 0
     identify: {training: {samples: 800}}        # any key of configs/identify.yaml
     ida: {n_levels: 10, drift_limit: 0.10}      # any key of configs/ida.yaml except records
+    loss: {system: steel-mrf}                   # optional: FEMA P-58 losses at each event (hlaid[loss])
     cluster: {n_workers: 2, threads_per_worker: 1}
     buildings:
       - name: B001
@@ -41,6 +42,7 @@ from ..errors import ConfigError, InputError
 from ..ida.config import IDAConfig
 from ..identify.config import IdentifyConfig
 from ..io.station import StationConfig
+from ..loss.config import LossConfig
 from ..model.schema import STORY_BOUNDS
 from ..specs import SimulationConfig
 from ..uncertainty.config import MAX_ENSEMBLE
@@ -139,6 +141,7 @@ class FleetConfig:
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
     ida: IDAConfig = field(default_factory=IDAConfig)
     cluster: ClusterConfig = field(default_factory=ClusterConfig)
+    loss: LossConfig | None = None
     name: str = "hlaid fleet"
 
     def __post_init__(self):

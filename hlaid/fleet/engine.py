@@ -178,6 +178,9 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
     out = check_output(Path(out), force=force)
     if scheduler and client is None:
         probe(scheduler)  # before anything is read or written: a wrong address is one line at once
+    if cfg.loss is not None:  # fail before the fleet runs when pelicun is missing
+        from ..loss.fema_p58 import require_pelicun
+        require_pelicun()
     records = read(cfg.record_specs(base), kind="records", units=cfg.ida.units)
     if assess is None and cfg.n_ensemble == 0:
         assess, engine = point_assess, POINT
