@@ -149,17 +149,20 @@ def tables(cases: list[dict], lookup: dict, orders: dict[str, list[str]]) -> str
             ids = c["identified_on"]
             hr = None if h is None else float(np.mean(h["r"]))
             better = "-" if hr is None else ("peer" if p["r_mean"] > hr else "hlaid")
+            searched = c["n_grid"] > 1  # else the settings were chosen on earlier events: no oracle
+            clone = "-" if h is None else \
+                f"from {h['identified_from']} ({h.get('kind', '?')}{', self-replay' if h.get('self_replay') else ''})"
             out.append(_row(kind, ids[0] if len(ids) == 1 else f"{ids[0]}..{ids[-1]}", c["event"], f"{p['pga_g']:.3f}",
                             c["chosen"], f"{c['self_r']:.3f}", " / ".join(f"{r:.3f}" for r in p["r"]),
                             f"**{p['r_mean']:.3f}**", _pcts(p["peak_drift_error"]),
-                            f"{c['oracle_prediction']['r_mean']:.3f}", c["oracle"],
-                            "-" if h is None else f"from {h['identified_from']} ({h.get('kind', '?')})",
-                            "-" if hr is None else f"{hr:.3f}", "-" if h is None else _pcts(h["peak_drift_error"]),
-                            better))
+                            f"{c['oracle_prediction']['r_mean']:.3f}" if searched else "-",
+                            c["oracle"] if searched else "-", clone, "-" if hr is None else f"{hr:.3f}",
+                            "-" if h is None else _pcts(h["peak_drift_error"]), better))
             groups = [kind] + ([f"{kind}, next event"] if _next_event(c, orders[name]) else [])
             for g in groups:
                 summary.setdefault(g, []).append(p["r_mean"])
-                summary.setdefault(f"{g} (oracle)", []).append(c["oracle_prediction"]["r_mean"])
+                if searched:
+                    summary.setdefault(f"{g} (oracle)", []).append(c["oracle_prediction"]["r_mean"])
                 if hr is not None:
                     summary.setdefault(f"{g} (hlaid)", []).append(hr)
             if len(groups) > 1:
