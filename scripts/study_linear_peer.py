@@ -193,7 +193,7 @@ def main(argv=None) -> int:
     ap.add_argument("--tables-only", action="store_true",
                     help="rewrite --out's peer.md from its peer.json (e.g. with --hlaid), running nothing")
     ap.add_argument("--orders", default="2,4,6,8,12", help="model orders of the grid")
-    ap.add_argument("--horizons", default="50,100,200", help="OKID m / SRIM horizons of the grid [samples]")
+    ap.add_argument("--horizons", default="50,100", help="OKID m / SRIM horizons of the grid [samples]")
     ap.add_argument("--rconds", default="0.001,0.003,0.01", help="OKID pseudo-inverse cut-offs of the grid")
     ap.add_argument("--jobs", type=int, default=1, help="processes evaluating the grid (default 1)")
     ap.add_argument("--force", action="store_true", help="replace the output folder")

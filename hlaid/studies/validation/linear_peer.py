@@ -96,7 +96,7 @@ class PeerSettings:
 
 
 def peer_grid(*, methods: Sequence[str] = PEER_METHODS, orders: Sequence[int] = (2, 4, 6, 8, 12),
-              horizons: Sequence[int] = (50, 100, 200), rconds: Sequence[float] = (1e-3, 3e-3, 1e-2),
+              horizons: Sequence[int] = (50, 100), rconds: Sequence[float] = (1e-3, 3e-3, 1e-2),
               decimations: Sequence[int] = (1,)) -> list[PeerSettings]:
     """Every combination (``rconds`` for OKID-ERA only)."""
     out = []
