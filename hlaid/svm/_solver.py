@@ -1,0 +1,613 @@
+"""Compiled (numba) dual solver for batches of binary C-SVC problems, libsvm's algorithm.
+
+Each problem is libsvm's ``Solver::Solve`` for a C-SVC (Fan, Chen & Lin 2005), ported step
+by step so that it takes the same iterations as libsvm:
+
+* the dual ``min 1/2 a'Qa - e'a``, ``0 <= a <= C``, ``y'a = 0``, ``Q_ij = y_i y_j K_ij``,
+  gradient ``G = Qa - e``, started from ``a = 0``;
+* working set by second-order selection (WSS 2): ``i`` maximises ``-y_i G_i`` over
+  ``I_up``, ``j`` minimises ``-(m - (-y_j G_j))^2 / a_ij`` over ``I_low``, ``a_ij = K_ii +
+  K_jj - 2 K_ij`` (``tau = 1e-12`` where not positive), ties to the last index as libsvm;
+* libsvm's analytic two-variable update with its clipping, the gradient update over the
+  active variables, ``G_bar`` (the gradient part of the variables at ``C``) updated when a
+  variable reaches or leaves ``C``;
+* shrinking every ``min(l, 1000)`` iterations (``l`` variables) with libsvm's rule and its one-time unshrink
+  when the gap is below ``10 eps``; before stopping, the gradient of the shrunk variables is
+  reconstructed and optimality re-checked on all of them (libsvm's stopping rule
+  ``m - M < eps`` on the full problem);
+* ``rho`` as ``calculate_rho`` and the objective as libsvm's ``obj``.
+
+Variables stay in place (class ``+1`` first, then class ``-1``); libsvm's index swaps of
+shrinking are done on an index list ``act``, so every scan visits the variables in libsvm's
+order and ties break the same way. Kernel rows are computed on demand (whole rows: the
+problems' samples against each other, one ``axpy`` per feature then a vectorised ``exp``)
+and kept in a least-recently-used cache of ``cache_rows`` rows per problem, in float64
+(libsvm keeps float32 rows).
+
+A batch holds many problems (the one-vs-one pairs of several multi-class fits, with their
+own ``C`` and kernel parameters): :func:`solve_batch` runs them in parallel over the cores
+(``prange`` over problems, largest first), or one after the other.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+__all__ = ["KERNEL_CODES", "P_FLT", "P_INT", "R_FLT", "R_INT", "solve_batch"]
+
+# the kernel rows: fused multiply-add and reciprocal multiplication, as the simulator's kernels
+# (the rows are stored in float32, as libsvm's); the solver's steps: plain IEEE arithmetic in
+# libsvm's order (no contraction), so that they round as libsvm's do
+_jit_fast = nb.njit(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
+_jit = nb.njit(cache=True, error_model="numpy")
+# the scans: no NaNs and no signed zeros assumed (true here), so that max/min reductions
+# vectorise; no contraction or reassociation, so every value rounds as in libsvm
+_jit_scan = nb.njit(cache=True, fastmath={"nnan", "nsz"}, error_model="numpy")
+
+#: Kernel name -> code of the compiled kernels.
+KERNEL_CODES = {"rbf": 0, "linear": 1, "poly": 2, "sigmoid": 3}
+#: Columns of the integer problem table: offsets and sizes of the two classes' samples in
+#: ``Xt``, kernel code, degree, iteration cap, shrinking (0/1), offset of the output, bytes
+#: of kernel rows the problem may cache (float32 rows; at least two whatever it says).
+P_INT = ("start_pos", "n_pos", "start_neg", "n_neg", "kernel", "degree", "max_iter", "shrinking", "out",
+         "cache")
+#: Columns of the float problem table.
+P_FLT = ("C", "gamma", "coef0", "eps")
+#: Columns of the float results: ``rho``, dual objective, final gap ``m - M``.
+R_FLT = ("rho", "objective", "gap")
+#: Columns of the integer results: iterations, status (0 solved, 1 iteration cap), kernel
+#: rows computed.
+R_INT = ("n_iter", "status", "n_rows")
+
+TAU = 1e-12
+
+
+def _llvm_binary(name: str):
+    """A float64 binary LLVM intrinsic as a numba function. ``llvm.maximum`` / ``llvm.minimum``
+    (IEEE maximum / minimum) are what lets LLVM vectorise the scans' max / min reductions:
+    numba's ``max`` and ``a if a > b else b`` are left scalar."""
+    @intrinsic
+    def fn(typingctx, a, b):
+        def codegen(context, builder, signature, args):
+            fnty = ir.FunctionType(ir.DoubleType(), [ir.DoubleType(), ir.DoubleType()])
+            return builder.call(cgutils.get_or_insert_function(builder.module, fnty, name), args)
+        return types.float64(types.float64, types.float64), codegen
+    return fn
+
+
+_fmax = _llvm_binary("llvm.maximum.f64")
+_fmin = _llvm_binary("llvm.minimum.f64")
+_LOWER, _UPPER, _FREE = 0, 1, 2
+
+# exp: x = k ln2 + r, |r| <= ln2 / 2, 2^k from the exponent bits of k + 1.5 * 2^52
+_MAGIC = 6755399441055744.0
+_LOG2E = 1.4426950408889634
+_LN2_HI = 0.6931471803691238
+_LN2_LO = 1.9082149292705877e-10
+
+
+@_jit_fast
+def _exp_inplace(a, s):
+    """``a = exp(a)`` (arguments below -708 give ``exp(-708)``, about 3e-308), in three loops
+    that vectorise; ``s`` is scratch of ``a``'s length. Within a few ulps of ``math.exp``."""
+    n = a.shape[0]
+    for u in range(n):
+        x = max(a[u], -708.0)
+        t = x * _LOG2E + _MAGIC
+        s[u] = t
+        k = t - _MAGIC
+        r = (x - k * _LN2_HI) - k * _LN2_LO
+        a[u] = 1.0 + r * (1.0 + r * (0.5 + r * (1.0 / 6.0 + r * (1.0 / 24.0 + r * (
+            1.0 / 120.0 + r * (1.0 / 720.0 + r * (1.0 / 5040.0 + r * (1.0 / 40320.0 + r * (
+                1.0 / 362880.0 + r * (1.0 / 3628800.0 + r * (1.0 / 39916800.0 + r * (
+                    1.0 / 479001600.0))))))))))))
+    sb = s.view(np.int64)
+    for u in range(n):
+        sb[u] = (sb[u] + 1023) << 52
+    for u in range(n):
+        a[u] *= s[u]
+
+
+@_jit_fast
+def _kernel_row(Xt, xsq, c, sa, na, sb, nb_, kt, gamma, coef0, degree, row, out, tmp):
+    """``row[u] = k(x_c, x_u)`` (float32) for the problem's samples ``u`` (columns
+    ``sa..sa+na`` then ``sb..sb+nb_`` of ``Xt``); ``out`` and ``tmp`` are float64 scratch."""
+    d = Xt.shape[0]
+    o1 = out[:na]                 # slices, not offset indices: numba then needs no
+    o2 = out[na:na + nb_]         # negative-index handling and the loops vectorise
+    if kt == 0:  # rbf: -gamma (|x|^2 + |z|^2 - 2 <x, z>), then exp
+        base = -gamma * xsq[c]
+        qa = xsq[sa:sa + na]
+        qb = xsq[sb:sb + nb_]
+        for u in range(na):
+            o1[u] = base - gamma * qa[u]
+        for u in range(nb_):
+            o2[u] = base - gamma * qb[u]
+        scale = 2.0 * gamma
+    else:
+        for u in range(na + nb_):
+            out[u] = 0.0
+        scale = 1.0
+    for f in range(d):
+        v = scale * Xt[f, c]
+        xa = Xt[f, sa:sa + na]
+        xb = Xt[f, sb:sb + nb_]
+        for u in range(na):
+            o1[u] += v * xa[u]
+        for u in range(nb_):
+            o2[u] += v * xb[u]
+    n = na + nb_
+    if kt == 0:
+        _exp_inplace(out, tmp)
+    elif kt == 2:
+        for u in range(n):
+            out[u] = (gamma * out[u] + coef0) ** degree
+    elif kt == 3:
+        for u in range(n):
+            out[u] = math.tanh(gamma * out[u] + coef0)
+    for u in range(n):
+        row[u] = out[u]
+
+
+@_jit
+def _kernel_diag(Xt, xsq, c, kt, gamma, coef0, degree):
+    """``k(x_c, x_c)`` (libsvm's ``QD``, float64; exactly 1 for the RBF kernel)."""
+    if kt == 0:
+        return 1.0
+    d = Xt.shape[0]
+    s = 0.0
+    for f in range(d):
+        s += Xt[f, c] * Xt[f, c]
+    if kt == 1:
+        return s
+    if kt == 2:
+        return (gamma * s + coef0) ** degree
+    return math.tanh(gamma * s + coef0)
+
+
+@_jit
+def _fetch(v, cache, data):
+    """Kernel row of variable ``v`` (problem order, float32) from the cache: computed on a
+    miss, evicting the least recently used row when full. ``cache`` = (rows, slot_of, owner,
+    stamp, state = [rows used, clock, rows computed], scratch (2, l)); ``data`` = (Xt, xsq,
+    sa, na, sb, nb, kernel code, gamma, coef0, degree)."""
+    rows, slot_of, owner, stamp, state, tmp = cache
+    s = slot_of[v]
+    if s < 0:
+        cap = rows.shape[0]
+        if state[0] < cap:
+            s = state[0]
+            state[0] += 1
+        else:
+            s = 0
+            for k in range(1, cap):
+                if stamp[k] < stamp[s]:
+                    s = k
+            slot_of[owner[s]] = -1
+        Xt, xsq, sa, na, sb, nb_, kt, gamma, coef0, degree = data
+        c = sa + v if v < na else sb + (v - na)
+        _kernel_row(Xt, xsq, c, sa, na, sb, nb_, kt, gamma, coef0, degree, rows[s], tmp[0], tmp[1])
+        slot_of[v] = s
+        owner[s] = v
+        state[2] += 1
+    stamp[s] = state[1]
+    state[1] += 1
+    return rows[s]
+
+
+@_jit
+def _set_status(p, A, Y, UP, LO, st, C):
+    """libsvm's ``update_alpha_status`` of position ``p``, and the selection penalties:
+    ``UP = 0`` where ``-y G`` may go up (``I_up``), ``-inf`` elsewhere; ``LO = 0`` on
+    ``I_low``, ``+inf`` elsewhere."""
+    a = A[p]
+    s = _UPPER if a >= C else (_LOWER if a <= 0.0 else _FREE)
+    st[p] = s
+    pos = Y[p] > 0.0
+    UP[p] = -np.inf if (s == _UPPER and pos) or (s == _LOWER and not pos) else 0.0
+    LO[p] = np.inf if (s == _LOWER and pos) or (s == _UPPER and not pos) else 0.0
+
+
+@_jit_scan
+def _last_max(F, UP, active, vmax):
+    """Last position ``p < active`` with ``F[p] + UP[p] == vmax`` (-1 if ``vmax`` is -inf)."""
+    if vmax == -np.inf:
+        return -1
+    for p in range(active - 1, -1, -1):
+        if F[p] + UP[p] == vmax:
+            return p
+    return -1
+
+
+@_jit_scan
+def _scan_up(F, UP, active):
+    """``m = max {F_p : p in I_up}`` over the active positions."""
+    vmax = -np.inf
+    for p in range(active):
+        vmax = _fmax(vmax, F[p] + UP[p])
+    return vmax
+
+
+@_jit_scan
+def _select_j(F, LO, QD, vid, ident, Ki, i, gmax, active, OD):
+    """Second half of libsvm's ``select_working_set`` for ``i`` (row ``Ki``): ``(j, M)``,
+    ``j`` the last position minimising ``-(m - F_j)^2 / a_ij`` over ``I_low`` with
+    ``F_j < m``, ``M = min {F_p : p in I_low}``. ``OD`` is scratch; ``ident``: position =
+    variable (no shrinking swaps yet), so the row is read without ``vid``."""
+    fmin = np.inf
+    omin = np.inf
+    qi = QD[i]
+    if ident:
+        for p in range(active):
+            f = F[p]
+            lo = LO[p]
+            fmin = _fmin(fmin, f + lo)
+            gd = gmax - f
+            quad = qi + QD[p] - 2.0 * Ki[p]
+            quad = quad if quad > 0.0 else TAU
+            od = -(gd * gd) / quad
+            od = od if (gd > 0.0) & (lo == 0.0) else np.inf
+            OD[p] = od
+            omin = _fmin(omin, od)
+    else:
+        for p in range(active):
+            f = F[p]
+            lo = LO[p]
+            fmin = _fmin(fmin, f + lo)
+            gd = gmax - f
+            quad = qi + QD[p] - 2.0 * Ki[vid[p]]
+            quad = quad if quad > 0.0 else TAU
+            od = -(gd * gd) / quad
+            od = od if (gd > 0.0) & (lo == 0.0) else np.inf
+            OD[p] = od
+            omin = _fmin(omin, od)
+    if omin == np.inf:
+        return -1, fmin
+    for p in range(active - 1, -1, -1):
+        if OD[p] == omin:
+            return p, fmin
+    return -1, fmin
+
+
+@_jit_scan
+def _update_scan(F, UP, vid, ident, Ki, Kj, di, dj, active):
+    """``F_p -= di K_ip + dj K_jp`` over the active positions (libsvm's gradient update, in
+    ``F = -y G``) and the next ``m``."""
+    vmax = -np.inf
+    if ident:
+        for p in range(active):
+            f = F[p] - (di * Ki[p] + dj * Kj[p])
+            F[p] = f
+            vmax = _fmax(vmax, f + UP[p])
+    else:
+        for p in range(active):
+            q = vid[p]
+            f = F[p] - (di * Ki[q] + dj * Kj[q])
+            F[p] = f
+            vmax = _fmax(vmax, f + UP[p])
+    return vmax
+
+
+@_jit
+def _add_row(GB, Y, vid, ident, K, s):
+    """``G_bar += C Q_i`` (``s = +-C y_i``) over all positions: a variable reached or left C."""
+    if ident:
+        for p in range(GB.shape[0]):
+            GB[p] += s * Y[p] * K[p]
+    else:
+        for p in range(GB.shape[0]):
+            GB[p] += s * Y[p] * K[vid[p]]
+
+
+@_jit
+def _is_identity(vid):
+    for p in range(vid.shape[0]):
+        if vid[p] != p:
+            return False
+    return True
+
+
+@_jit
+def _swap(p, q, F, A, Y, GB, UP, LO, QD, vid, st):
+    F[p], F[q] = F[q], F[p]
+    A[p], A[q] = A[q], A[p]
+    Y[p], Y[q] = Y[q], Y[p]
+    GB[p], GB[q] = GB[q], GB[p]
+    UP[p], UP[q] = UP[q], UP[p]
+    LO[p], LO[q] = LO[q], LO[p]
+    QD[p], QD[q] = QD[q], QD[p]
+    vid[p], vid[q] = vid[q], vid[p]
+    st[p], st[q] = st[q], st[p]
+
+
+@_jit
+def _solve_one(Xt, xsq, pi, pf, alpha_out):
+    """libsvm's ``Solver::Solve`` on one problem (see the module docstring); writes ``alpha``
+    (in problem order) to ``alpha_out``; returns ``(rho, obj, gap, n_iter, status, n_rows)``.
+
+    The state is kept by position (libsvm's order after its shrinking swaps): ``F = -y G``,
+    ``A`` = alpha, ``Y``, ``GB`` = G_bar, the penalties ``UP``/``LO``, ``QD``, the variable
+    ``vid`` at each position and its status ``st``; kernel rows are by variable."""
+    sa, na, sb, nb_, kt, degree, max_iter, shrinking = pi[0], pi[1], pi[2], pi[3], pi[4], pi[5], pi[6], pi[7]
+    C, gamma, coef0, eps = pf[0], pf[1], pf[2], pf[3]
+    nv = na + nb_
+    Y = np.empty(nv)
+    Y[:na] = 1.0
+    Y[na:] = -1.0
+    F = Y.copy()                       # G = -1 at alpha = 0
+    A = np.zeros(nv)
+    GB = np.zeros(nv)
+    UP = np.empty(nv)
+    LO = np.empty(nv)
+    st = np.empty(nv, np.int8)
+    vid = np.arange(nv).astype(np.uint32)   # unsigned: gathers without negative-index checks
+    QD = np.empty(nv)
+    for p in range(nv):
+        QD[p] = _kernel_diag(Xt, xsq, sa + p if p < na else sb + (p - na), kt, gamma, coef0, degree)
+        _set_status(p, A, Y, UP, LO, st, C)
+    OD = np.empty(nv)
+    cap = max(2, min(nv, pi[9] // max(1, 4 * nv)))
+    cache = (np.empty((cap, nv), np.float32), np.full(nv, -1, np.int64), np.zeros(cap, np.int64),
+             np.zeros(cap, np.int64), np.zeros(3, np.int64), np.empty((2, nv)))
+    data = (Xt, xsq, sa, na, sb, nb_, kt, gamma, coef0, degree)
+
+    active = nv
+    ident = True
+    unshrink = False
+    it = 0
+    counter = min(nv, 1000) + 1
+    status = 0
+    gmax = _scan_up(F, UP, active)       # m of the current state, over the active positions
+    while True:
+        if it >= max_iter:
+            status = 1
+            break
+        counter -= 1
+        if counter == 0:
+            counter = min(nv, 1000)
+            if shrinking:
+                active, unshrink = _shrink(F, A, Y, GB, UP, LO, QD, vid, st, active, unshrink, eps,
+                                           cache, data)
+                ident = ident and _is_identity(vid)
+                gmax = _scan_up(F, UP, active)
+        # select_working_set
+        i = _last_max(F, UP, active, gmax)
+        j = -1
+        if i >= 0:
+            Ki = _fetch(vid[i], cache, data)
+            j, fmin = _select_j(F, LO, QD, vid, ident, Ki, i, gmax, active, OD)
+            if gmax - fmin < eps:
+                j = -1
+        if j < 0:
+            _reconstruct(F, A, Y, GB, st, vid, active, cache, data)
+            active = nv
+            gmax = _scan_up(F, UP, active)
+            i = _last_max(F, UP, active, gmax)
+            j = -1
+            if i >= 0:
+                Ki = _fetch(vid[i], cache, data)
+                j, fmin = _select_j(F, LO, QD, vid, ident, Ki, i, gmax, active, OD)
+                if gmax - fmin < eps:
+                    j = -1
+            if j < 0:
+                break
+            counter = 1  # shrink at the next iteration
+        it += 1
+        Kj = _fetch(vid[j], cache, data)
+        Ki = _fetch(vid[i], cache, data)
+        yi, yj = Y[i], Y[j]
+        old_i, old_j = A[i], A[j]
+        Qij = yi * yj * Ki[vid[j]]
+        if yi != yj:
+            quad = QD[i] + QD[j] + 2.0 * Qij
+            if quad <= 0.0:
+                quad = TAU
+            delta = (-(-yi * F[i]) - (-yj * F[j])) / quad      # (-G_i - G_j) / quad
+            diff = A[i] - A[j]
+            A[i] += delta
+            A[j] += delta
+            if diff > 0.0:
+                if A[j] < 0.0:
+                    A[j] = 0.0
+                    A[i] = diff
+            elif A[i] < 0.0:
+                A[i] = 0.0
+                A[j] = -diff
+            if diff > 0.0:  # C_i - C_j = 0: one C for both classes
+                if A[i] > C:
+                    A[i] = C
+                    A[j] = C - diff
+            elif A[j] > C:
+                A[j] = C
+                A[i] = C + diff
+        else:
+            quad = QD[i] + QD[j] - 2.0 * Qij
+            if quad <= 0.0:
+                quad = TAU
+            delta = ((-yi * F[i]) - (-yj * F[j])) / quad         # (G_i - G_j) / quad
+            total = A[i] + A[j]
+            A[i] -= delta
+            A[j] += delta
+            if total > C:
+                if A[i] > C:
+                    A[i] = C
+                    A[j] = total - C
+            elif A[j] < 0.0:
+                A[j] = 0.0
+                A[i] = total
+            if total > C:
+                if A[j] > C:
+                    A[j] = C
+                    A[i] = total - C
+            elif A[i] < 0.0:
+                A[i] = 0.0
+                A[j] = total
+        di = yi * (A[i] - old_i)
+        dj = yj * (A[j] - old_j)
+        ui, uj = st[i] == _UPPER, st[j] == _UPPER
+        _set_status(i, A, Y, UP, LO, st, C)
+        _set_status(j, A, Y, UP, LO, st, C)
+        gmax = _update_scan(F, UP, vid, ident, Ki, Kj, di, dj, active)
+        if ui != (st[i] == _UPPER):
+            _add_row(GB, Y, vid, ident, Ki, -C * yi if ui else C * yi)
+        if uj != (st[j] == _UPPER):
+            _add_row(GB, Y, vid, ident, Kj, -C * yj if uj else C * yj)
+
+    if status == 1 and active < nv:
+        _reconstruct(F, A, Y, GB, st, vid, active, cache, data)
+    # rho (libsvm's calculate_rho), objective, final gap, in libsvm's (position) order
+    ub, lb, sum_free, n_free = np.inf, -np.inf, 0.0, 0
+    gmin = np.inf
+    gmax = -np.inf
+    obj = 0.0
+    for p in range(nv):
+        yG = -F[p]
+        if UP[p] != 0.0:
+            lb = max(lb, yG)
+        elif LO[p] != 0.0:
+            ub = min(ub, yG)
+        else:
+            n_free += 1
+            sum_free += yG
+        gmax = max(gmax, F[p] + UP[p])
+        gmin = min(gmin, F[p] + LO[p])
+        obj += A[p] * (-Y[p] * F[p] - 1.0)
+        alpha_out[vid[p]] = A[p]
+    rho = sum_free / n_free if n_free > 0 else 0.5 * (ub + lb)
+    return rho, 0.5 * obj, gmax - gmin, it, status, cache[4][2]
+
+
+@_jit
+def _reconstruct(F, A, Y, GB, st, vid, active, cache, data):
+    """libsvm's ``reconstruct_gradient``: ``F`` of the shrunk positions from ``G_bar`` and the
+    free active variables."""
+    nv = F.shape[0]
+    if active == nv:
+        return
+    for p in range(active, nv):
+        F[p] = -Y[p] * (GB[p] - 1.0)
+    n_free = 0
+    for p in range(active):
+        if st[p] == _FREE:
+            n_free += 1
+    if n_free * nv > 2 * active * (nv - active):
+        for p in range(active, nv):
+            Kp = _fetch(vid[p], cache, data)
+            g = -Y[p] * F[p]
+            for q in range(active):
+                if st[q] == _FREE:
+                    g += A[q] * (Y[p] * Y[q] * Kp[vid[q]])
+            F[p] = -Y[p] * g
+    else:
+        for q in range(active):
+            if st[q] != _FREE:
+                continue
+            Kq = _fetch(vid[q], cache, data)
+            aq = A[q]
+            for p in range(active, nv):
+                F[p] -= Y[p] * (aq * (Y[q] * Y[p] * Kq[vid[p]]))
+
+
+@_jit
+def _shrink(F, A, Y, GB, UP, LO, QD, vid, st, active, unshrink, eps, cache, data):
+    """libsvm's ``do_shrinking``; returns the new active size and the unshrink flag."""
+    gmax1 = -np.inf   # max -y G over I_up
+    gmax2 = -np.inf   # max y G over I_low
+    for p in range(active):
+        gmax1 = max(gmax1, F[p] + UP[p])
+        gmax2 = max(gmax2, -(F[p] + LO[p]))
+    nv = F.shape[0]
+    if not unshrink and gmax1 + gmax2 <= eps * 10.0:
+        unshrink = True
+        _reconstruct(F, A, Y, GB, st, vid, active, cache, data)
+        active = nv
+    p = 0
+    while p < active:
+        if (UP[p] != 0.0 and F[p] > gmax1) or (LO[p] != 0.0 and -F[p] > gmax2):
+            active -= 1
+            while active > p:
+                q = active
+                if not ((UP[q] != 0.0 and F[q] > gmax1) or (LO[q] != 0.0 and -F[q] > gmax2)):
+                    _swap(p, q, F, A, Y, GB, UP, LO, QD, vid, st)
+                    break
+                active -= 1
+        p += 1
+    return active, unshrink
+
+
+@_jit
+def _solve_range(Xt, xsq, P_int, P_flt, order, q, alpha_out, res_f, res_i):
+    p = order[q]
+    pi, pf = P_int[p], P_flt[p]
+    nv = pi[1] + pi[3]
+    off = pi[8]
+    rho, obj, gap, n_iter, status, n_rows = _solve_one(Xt, xsq, pi, pf, alpha_out[off:off + nv])
+    res_f[p, 0] = rho
+    res_f[p, 1] = obj
+    res_f[p, 2] = gap
+    res_i[p, 0] = n_iter
+    res_i[p, 1] = status
+    res_i[p, 2] = n_rows
+
+
+@nb.njit(cache=True, parallel=True, error_model="numpy")
+def _solve_parallel(Xt, xsq, P_int, P_flt, order, alpha_out, res_f, res_i):
+    for q in nb.prange(order.shape[0]):
+        _solve_range(Xt, xsq, P_int, P_flt, order, q, alpha_out, res_f, res_i)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _solve_serial(Xt, xsq, P_int, P_flt, order, alpha_out, res_f, res_i):
+    for q in range(order.shape[0]):
+        _solve_range(Xt, xsq, P_int, P_flt, order, q, alpha_out, res_f, res_i)
+
+
+def solve_batch(Xt: np.ndarray, P_int: np.ndarray, P_flt: np.ndarray, *,
+                parallel: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Solve every binary problem of a batch.
+
+    Parameters
+    ----------
+    Xt : ndarray of shape (n_features, n_samples), float64
+        The samples of all problems, one column each (C-contiguous).
+    P_int : ndarray of shape (n_problems, len(P_INT)), int64
+        Per problem: columns :data:`P_INT` (the class ``+1`` samples are columns
+        ``start_pos .. start_pos + n_pos`` of ``Xt``, class ``-1`` ``start_neg ..``; the
+        solution goes to ``alpha[out : out + n_pos + n_neg]``).
+    P_flt : ndarray of shape (n_problems, len(P_FLT)), float64
+    parallel : bool
+        Problems in parallel over numba's threads (not in a forked child of a process that
+        ran a parallel region: GNU OpenMP aborts there).
+
+    Returns
+    -------
+    alpha : ndarray of shape (sum of the problems' sizes,)
+        ``0 <= alpha <= C``; the signed coefficients are ``y * alpha``.
+    res_f : ndarray of shape (n_problems, 3)
+        Columns :data:`R_FLT`.
+    res_i : ndarray of shape (n_problems, 3)
+        Columns :data:`R_INT`.
+    """
+    P = P_int.shape[0]
+    sizes = P_int[:, 1] + P_int[:, 3]
+    alpha = np.zeros(int(sizes.sum()) if P else 0)
+    res_f = np.zeros((P, len(R_FLT)))
+    res_i = np.zeros((P, len(R_INT)), np.int64)
+    if P == 0:
+        return alpha, res_f, res_i
+    xsq = np.einsum("fn,fn->n", Xt, Xt)
+    order = np.argsort(-sizes, kind="stable")   # largest first: balances the threads
+    args = (Xt, xsq, P_int, P_flt, order, alpha, res_f, res_i)
+    if parallel and P > 1:
+        with nb.parallel_chunksize(1):
+            _solve_parallel(*args)
+    else:
+        _solve_serial(*args)
+    return alpha, res_f, res_i
