@@ -19,6 +19,7 @@ import numpy as np
 import torch
 from sklearn.exceptions import ConvergenceWarning
 
+from .._threads import one_thread
 from ._kernels import Kernel, make_kernel, resolve_gamma
 from ._solver import KERNEL_CODES, P_FLT, P_INT, solve_batch
 
@@ -28,6 +29,13 @@ if TYPE_CHECKING:
 __all__ = ["fit_many"]
 
 _PID = os.getpid()
+
+#: A fit's Gram matrix (the dot products of its samples, float64) is computed by one matrix
+#: product before the solver when it has at most this many samples and the batch's Gram
+#: matrices stay within :data:`GRAM_MAX_BYTES`; otherwise the solver computes the dot
+#: products of the kernel rows it needs (a fraction of them on easy problems).
+GRAM_MAX_SAMPLES = 4096
+GRAM_MAX_BYTES = 512 * 2**20
 
 
 def parallel_ok() -> bool:
@@ -46,7 +54,8 @@ class _Fit:
     ----------
     X : (n_samples, n_features) float64 training samples; y_enc : class indices
     order : sorted position -> sample index (stable sort by class)
-    counts, starts : class sizes and first sorted positions; base : first column in ``Xt``
+    counts, starts : class sizes and first sorted positions; base : first column in ``Xt`` (set
+        by :func:`_problems`)
     kernel : the resolved kernel; dtype, device : of the fitted model
     first, n_pairs : the fit's rows in the problem table
     """
@@ -91,26 +100,37 @@ def fit_many(estimators: Sequence[Any], Xs: Sequence[Any], ys: Sequence[Any]) ->
     for k, e in enumerate(estimators):
         if k not in set(ours):
             e.fit(Xs[k], ys[k])
-    fits, base = [], 0
-    for k in ours:
-        f = estimators[k]._prepare(Xs[k], ys[k], base)
-        fits.append(f)
-        base += f.X.shape[0]
+    fits = [estimators[k]._prepare(Xs[k], ys[k]) for k in ours]
     if fits:
         _solve(fits, [estimators[k] for k in ours])
     return list(estimators)
 
 
-def _problems(fits: list[_Fit], ests: list[KernelSVC]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``Xt`` and the problem tables of all fits."""
-    d = max(f.X.shape[1] for f in fits)
-    Xt = np.zeros((d, sum(f.X.shape[0] for f in fits)))
-    rows_i, rows_f = [], []
+def _problems(fits: list[_Fit], ests: list[KernelSVC]
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """``Xt``, the problem tables and the Gram matrices of all fits (sets each fit's ``base``).
+
+    Fits on the same samples with the same labels (a cross-validation fold under several C and
+    gamma) share their columns of ``Xt`` and their Gram matrix."""
+    blocks: list[tuple[np.ndarray, int, int]] = []   # distinct sorted sets: (X, base, gram offset)
+    rows_i, rows_f, grams = [], [], []
     threads = numba.get_num_threads() if parallel_ok() else 1
-    out = row = 0
+    out = row = g_off = ncol = 0
     for f, est in zip(fits, ests):
         n = f.X.shape[0]
-        Xt[: f.X.shape[1], f.base:f.base + n] = f.X[f.order].T
+        Xs = f.X[f.order]
+        same = [blk for blk in blocks if blk[0].shape == Xs.shape and np.array_equal(blk[0], Xs)]
+        if same:
+            f.base, gram = same[0][1], same[0][2]
+        else:
+            f.base, gram = ncol, -1
+            ncol += n
+            if n <= GRAM_MAX_SAMPLES and (g_off + n * n) * 8 <= GRAM_MAX_BYTES:
+                with one_thread():
+                    xs = torch.from_numpy(Xs)
+                    grams.append(torch.mm(xs, xs.T).numpy().reshape(-1))
+                gram, g_off = g_off, g_off + n * n
+            blocks.append((Xs, f.base, gram))
         m = f.counts.shape[0]
         a, b = np.triu_indices(m, 1)          # (0,1), (0,2), ..., (1,2), ...: libsvm's order
         na, nb = f.counts[a], f.counts[b]
@@ -125,21 +145,25 @@ def _problems(fits: list[_Fit], ests: list[KernelSVC]) -> tuple[np.ndarray, np.n
         f.first, f.n_pairs = row, a.shape[0]
         row += a.shape[0]
         code = KERNEL_CODES[est.kernel]
-        rows_i.append(np.stack([f.base + f.starts[a], na, f.base + f.starts[b], nb,
-                                np.full(a.shape, code), np.full(a.shape, int(est.degree)), cap,
-                                np.full(a.shape, int(bool(est.shrinking))), offs,
-                                np.full(a.shape, cache)], 1))
+        full = np.full(a.shape, 1)
+        rows_i.append(np.stack([f.base + f.starts[a], na, f.base + f.starts[b], nb, code * full,
+                                int(est.degree) * full, cap, int(bool(est.shrinking)) * full, offs,
+                                cache * full, gram * full, f.base * full, n * full], 1))
         rows_f.append(np.tile([float(est.C), f.kernel.gamma, float(est.coef0), float(est.tol)],
                               (a.shape[0], 1)))
+    d = max(blk[0].shape[1] for blk in blocks)
+    Xt = np.zeros((d, ncol))
+    for X, base, _ in blocks:
+        Xt[: X.shape[1], base:base + X.shape[0]] = X.T
     P_int = np.concatenate(rows_i).astype(np.int64)
     P_flt = np.concatenate(rows_f).astype(np.float64)
     assert P_int.shape[1] == len(P_INT) and P_flt.shape[1] == len(P_FLT)
-    return np.ascontiguousarray(Xt), P_int, P_flt
+    return Xt, P_int, P_flt, np.concatenate(grams) if grams else None
 
 
 def _solve(fits: list[_Fit], ests: list[KernelSVC]) -> None:
-    Xt, P_int, P_flt = _problems(fits, ests)
-    alpha, res_f, res_i = solve_batch(Xt, P_int, P_flt, parallel=parallel_ok())
+    Xt, P_int, P_flt, gram = _problems(fits, ests)
+    alpha, res_f, res_i = solve_batch(Xt, P_int, P_flt, parallel=parallel_ok(), gram=gram)
     for f, est in zip(fits, ests):
         sl = slice(f.first, f.first + f.n_pairs)
         est._finish(f, P_int[sl], alpha, res_f[sl], res_i[sl])
@@ -151,7 +175,7 @@ def _solve(fits: list[_Fit], ests: list[KernelSVC]) -> None:
             "the data.", ConvergenceWarning, stacklevel=4)
 
 
-def prepare_fit(est: KernelSVC, X: np.ndarray, y_enc: np.ndarray, base: int, dtype: torch.dtype,
+def prepare_fit(est: KernelSVC, X: np.ndarray, y_enc: np.ndarray, dtype: torch.dtype,
                 device: torch.device) -> _Fit:
     """A validated fit's entry in the batch (the classes sorted, the kernel resolved)."""
     m = int(y_enc.max()) + 1
@@ -160,20 +184,22 @@ def prepare_fit(est: KernelSVC, X: np.ndarray, y_enc: np.ndarray, base: int, dty
     starts = np.cumsum(counts) - counts
     est.gamma_ = resolve_gamma(est.gamma, X)
     kern = make_kernel(est.kernel, gamma=est.gamma_, degree=est.degree, coef0=est.coef0)
-    return _Fit(X=X, y_enc=y_enc, order=order, counts=counts, starts=starts, base=base,
+    return _Fit(X=X, y_enc=y_enc, order=order, counts=counts, starts=starts, base=0,
                 kernel=kern, dtype=dtype, device=device)
 
 
 def coefficients(f: _Fit, P_int: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     """The fit's signed coefficients ``(max(m - 1, 1), n_samples)`` in sorted sample order,
     libsvm's one-vs-one layout: for machine ``(a, b)`` the coefficients of class ``a`` go to row
-    ``b - 1``, those of class ``b`` to row ``a``."""
+    ``b - 1``, those of class ``b`` (negated: ``y = -1``) to row ``a``."""
     m = f.counts.shape[0]
     coef = np.zeros((max(m - 1, 1), f.X.shape[0]))
     a, b = np.triu_indices(m, 1)
-    for k in range(a.shape[0]):
-        sa, na, sb, nb, off = (int(v) for v in P_int[k, [0, 1, 2, 3, 8]])
-        sa, sb = sa - f.base, sb - f.base
-        coef[b[k] - 1, sa:sa + na] = alpha[off:off + na]
-        coef[a[k], sb:sb + nb] = -alpha[off + na:off + na + nb]
+    na, size = P_int[:, 1], P_int[:, 1] + P_int[:, 3]
+    k = np.repeat(np.arange(a.shape[0]), size)                # pair of each variable
+    t = np.arange(k.shape[0]) - np.repeat(np.cumsum(size) - size, size)   # its place in the pair
+    first = t < na[k]
+    pos = np.where(first, P_int[k, 0] + t, P_int[k, 2] + t - na[k]) - f.base
+    val = alpha[P_int[k, 8] + t]
+    coef[np.where(first, b[k] - 1, a[k]), pos] = np.where(first, val, -val)
     return coef

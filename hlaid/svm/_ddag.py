@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import numpy as np
 import torch
 
 from ._kernels import Kernel
@@ -77,40 +78,48 @@ class PairwiseMachines:
     def __init__(self, kernel: Kernel, support_vectors: torch.Tensor, dual_coef: torch.Tensor,
                  n_support: torch.Tensor, intercept: torch.Tensor) -> None:
         dev, dt = support_vectors.device, support_vectors.dtype
-        m = int(n_support.shape[0])
+        # the layout is index work on small arrays: numpy, then one copy to the device
+        ns = n_support.detach().cpu().numpy().astype(np.int64)
+        sv_in = support_vectors.detach().cpu().numpy()
+        dc = dual_coef.detach().cpu().numpy().astype(sv_in.dtype)
+        m = int(ns.shape[0])
         self.kernel, self.m = kernel, m
-        self.pidx = pair_index(m, dev)
-        self.pairs = torch.combinations(torch.arange(m, device=dev), 2)
-        n_support = n_support.to(dev)
-        Ls = max(1, int(n_support.max()))
+        Ls = max(1, int(ns.max()))
         self.Ls = Ls
-        starts = torch.cumsum(n_support, 0) - n_support
-        n_sv = support_vectors.shape[0]
-        cls_of = torch.repeat_interleave(torch.arange(m, device=dev), n_support)
-        pos = torch.arange(n_sv, device=dev) - starts[cls_of]
-        slot = cls_of * Ls + pos
-        sv = support_vectors.new_zeros(m * Ls, support_vectors.shape[1])
-        sv[slot] = support_vectors
-        # dual_coef scattered into class-padded columns: (m - 1, m * Ls)
-        dcp = dual_coef.new_zeros(max(m - 1, 1), m * Ls)
-        dcp[:, slot] = dual_coef.to(dt)
-        dcp = dcp.view(-1, m, Ls)
-        c = torch.arange(m, device=dev)
-        rows = torch.where(c[None, :] > c[:, None], c[None, :] - 1, c[None, :])  # (c, o)
-        rows = rows.clamp_max(max(m - 2, 0))  # diagonal entries are zeroed below
-        W = dcp[rows, c[:, None].expand(m, m)]          # (m, m, Ls)
+        starts = np.cumsum(ns) - ns
+        cls_of = np.repeat(np.arange(m), ns)
+        slot = cls_of * Ls + np.arange(sv_in.shape[0]) - starts[cls_of]
+        sv = np.zeros((m * Ls, sv_in.shape[1]), sv_in.dtype)
+        sv[slot] = sv_in
+        # dual_coef scattered into class-padded columns: (m - 1, m, Ls)
+        dcp = np.zeros((max(m - 1, 1), m * Ls), sv_in.dtype)
+        dcp[:, slot] = dc
+        dcp = dcp.reshape(-1, m, Ls)
+        c = np.arange(m)
+        rows = np.where(c[None, :] > c[:, None], c[None, :] - 1, c[None, :])  # (c, o)
+        rows = np.minimum(rows, max(m - 2, 0))  # diagonal entries are zeroed below
+        W = dcp[rows, np.broadcast_to(c[:, None], (m, m))]          # (m, m, Ls)
         W[c, c] = 0.0
-        self.W = W
-        self.b = intercept.to(device=dev, dtype=dt)
         # dense (m * Ls, n_pairs) coefficients for evaluating every machine
-        coef = dual_coef.new_zeros(m * Ls, self.pairs.shape[0])
-        pa, pb = self.pairs[:, 0], self.pairs[:, 1]
-        pcol = torch.arange(self.pairs.shape[0], device=dev)
-        kk = torch.arange(Ls, device=dev)
-        coef[(pa[:, None] * Ls + kk).reshape(-1), pcol.repeat_interleave(Ls)] = W[pa, pb].reshape(-1)
-        coef[(pb[:, None] * Ls + kk).reshape(-1), pcol.repeat_interleave(Ls)] = W[pb, pa].reshape(-1)
-        self.coef = coef
-        self._sv_prep = kernel.prepare(sv)
+        pa, pb = np.triu_indices(m, 1)
+        P = pa.shape[0]
+        coef = np.zeros((m * Ls, P), sv_in.dtype)
+        kk = np.arange(Ls)
+        col = np.repeat(np.arange(P), Ls)
+        coef[(pa[:, None] * Ls + kk).reshape(-1), col] = W[pa, pb].reshape(-1)
+        coef[(pb[:, None] * Ls + kk).reshape(-1), col] = W[pb, pa].reshape(-1)
+        tab = np.full((m, m), -1, np.int64)
+        tab[pa, pb] = tab[pb, pa] = np.arange(P)
+
+        def put(a: np.ndarray) -> torch.Tensor:
+            return torch.from_numpy(a).to(dev)
+
+        self.pidx = put(tab)
+        self.pairs = put(np.stack([pa, pb], 1).astype(np.int64))
+        self.W = put(W).to(dt)
+        self.b = intercept.to(device=dev, dtype=dt)
+        self.coef = put(coef).to(dt)
+        self._sv_prep = kernel.prepare(put(sv).to(dt))
 
     def blocks(self, X: torch.Tensor):
         """Yield ``(start, K)`` with kernel blocks ``K`` (B, m, Ls) against the SVs.

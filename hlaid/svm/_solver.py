@@ -47,17 +47,19 @@ __all__ = ["KERNEL_CODES", "P_FLT", "P_INT", "R_FLT", "R_INT", "solve_batch"]
 # libsvm's order (no contraction), so that they round as libsvm's do
 _jit_fast = nb.njit(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
 _jit = nb.njit(cache=True, error_model="numpy")
-# the scans: no NaNs and no signed zeros assumed (true here), so that max/min reductions
-# vectorise; no contraction or reassociation, so every value rounds as in libsvm
-_jit_scan = nb.njit(cache=True, fastmath={"nnan", "nsz"}, error_model="numpy")
+# the small steps of an iteration are inlined into the solver (numba IR): a call would pass
+# every array with a reference count update, which costs more than the scans of a small problem
+_jit_inline = nb.njit(cache=True, error_model="numpy", inline="always")
 
 #: Kernel name -> code of the compiled kernels.
 KERNEL_CODES = {"rbf": 0, "linear": 1, "poly": 2, "sigmoid": 3}
 #: Columns of the integer problem table: offsets and sizes of the two classes' samples in
 #: ``Xt``, kernel code, degree, iteration cap, shrinking (0/1), offset of the output, bytes
-#: of kernel rows the problem may cache (float32 rows; at least two whatever it says).
+#: of kernel rows the problem may cache (float32 rows; at least two whatever it says), and
+#: the fit's Gram matrix: its offset in ``gram`` (-1: none), the fit's first column in ``Xt``
+#: and its number of samples.
 P_INT = ("start_pos", "n_pos", "start_neg", "n_neg", "kernel", "degree", "max_iter", "shrinking", "out",
-         "cache")
+         "cache", "gram", "gram_base", "gram_n")
 #: Columns of the float problem table.
 P_FLT = ("C", "gamma", "coef0", "eps")
 #: Columns of the float results: ``rho``, dual objective, final gap ``m - M``.
@@ -116,35 +118,42 @@ def _exp_inplace(a, s):
 
 
 @_jit_fast
-def _kernel_row(Xt, xsq, c, sa, na, sb, nb_, kt, gamma, coef0, degree, row, out, tmp):
+def _kernel_row(data, c, row, out, tmp):
     """``row[u] = k(x_c, x_u)`` (float32) for the problem's samples ``u`` (columns
-    ``sa..sa+na`` then ``sb..sb+nb_`` of ``Xt``); ``out`` and ``tmp`` are float64 scratch."""
-    d = Xt.shape[0]
+    ``sa..sa+na`` then ``sb..sb+nb`` of ``Xt``), libsvm's formulas; ``out`` and ``tmp`` are
+    float64 scratch. The dot products come from the fit's Gram matrix when there is one
+    (``goff >= 0``), else from ``Xt`` (one ``axpy`` per feature)."""
+    Xt, xsq, gram, sa, na, sb, nb_, goff, gbase, gn, kt, gamma, coef0, degree = data
     o1 = out[:na]                 # slices, not offset indices: numba then needs no
     o2 = out[na:na + nb_]         # negative-index handling and the loops vectorise
-    if kt == 0:  # rbf: -gamma (|x|^2 + |z|^2 - 2 <x, z>), then exp
-        base = -gamma * xsq[c]
-        qa = xsq[sa:sa + na]
-        qb = xsq[sb:sb + nb_]
+    if goff >= 0:
+        g = gram[goff + (c - gbase) * gn:goff + (c - gbase + 1) * gn]
+        ga = g[sa - gbase:sa - gbase + na]
+        gb = g[sb - gbase:sb - gbase + nb_]
         for u in range(na):
-            o1[u] = base - gamma * qa[u]
+            o1[u] = ga[u]
         for u in range(nb_):
-            o2[u] = base - gamma * qb[u]
-        scale = 2.0 * gamma
+            o2[u] = gb[u]
     else:
         for u in range(na + nb_):
             out[u] = 0.0
-        scale = 1.0
-    for f in range(d):
-        v = scale * Xt[f, c]
-        xa = Xt[f, sa:sa + na]
-        xb = Xt[f, sb:sb + nb_]
-        for u in range(na):
-            o1[u] += v * xa[u]
-        for u in range(nb_):
-            o2[u] += v * xb[u]
+        for f in range(Xt.shape[0]):
+            v = Xt[f, c]
+            xa = Xt[f, sa:sa + na]
+            xb = Xt[f, sb:sb + nb_]
+            for u in range(na):
+                o1[u] += v * xa[u]
+            for u in range(nb_):
+                o2[u] += v * xb[u]
     n = na + nb_
-    if kt == 0:
+    if kt == 0:  # exp(-gamma (|x|^2 + |z|^2 - 2 <x, z>))
+        xc = xsq[c]
+        qa = xsq[sa:sa + na]
+        qb = xsq[sb:sb + nb_]
+        for u in range(na):
+            o1[u] = -gamma * (xc + qa[u] - 2.0 * o1[u])
+        for u in range(nb_):
+            o2[u] = -gamma * (xc + qb[u] - 2.0 * o2[u])
         _exp_inplace(out, tmp)
     elif kt == 2:
         for u in range(n):
@@ -173,60 +182,58 @@ def _kernel_diag(Xt, xsq, c, kt, gamma, coef0, degree):
 
 
 @_jit
-def _fetch(v, cache, data):
-    """Kernel row of variable ``v`` (problem order, float32) from the cache: computed on a
-    miss, evicting the least recently used row when full. ``cache`` = (rows, slot_of, owner,
-    stamp, state = [rows used, clock, rows computed], scratch (2, l)); ``data`` = (Xt, xsq,
-    sa, na, sb, nb, kernel code, gamma, coef0, degree)."""
+def _miss(v, cache, data):
+    """Compute the kernel row of variable ``v`` into a row of the cache, evicting the least
+    recently used row when full; returns the row. ``cache`` = (rows (float32, by variable in
+    problem order), slot_of, owner, stamp, state = [rows used, clock, rows computed], scratch
+    (2, l)); ``data`` = (Xt, xsq, gram, sa, na, sb, nb, gram offset, first column of the fit,
+    fit size, kernel code, gamma, coef0, degree)."""
     rows, slot_of, owner, stamp, state, tmp = cache
-    s = slot_of[v]
-    if s < 0:
-        cap = rows.shape[0]
-        if state[0] < cap:
-            s = state[0]
-            state[0] += 1
-        else:
-            s = 0
-            for k in range(1, cap):
-                if stamp[k] < stamp[s]:
-                    s = k
-            slot_of[owner[s]] = -1
-        Xt, xsq, sa, na, sb, nb_, kt, gamma, coef0, degree = data
-        c = sa + v if v < na else sb + (v - na)
-        _kernel_row(Xt, xsq, c, sa, na, sb, nb_, kt, gamma, coef0, degree, rows[s], tmp[0], tmp[1])
-        slot_of[v] = s
-        owner[s] = v
-        state[2] += 1
-    stamp[s] = state[1]
-    state[1] += 1
-    return rows[s]
+    cap = rows.shape[0]
+    if state[0] < cap:
+        s = state[0]
+        state[0] += 1
+    else:
+        s = 0
+        for k in range(1, cap):
+            if stamp[k] < stamp[s]:
+                s = k
+        slot_of[owner[s]] = -1
+    sa, na, sb = data[3], data[4], data[5]
+    _kernel_row(data, sa + v if v < na else sb + (v - na), rows[s], tmp[0], tmp[1])
+    slot_of[v] = s
+    owner[s] = v
+    state[2] += 1
+    return s
 
 
 @_jit
-def _set_status(p, A, Y, UP, LO, st, C):
-    """libsvm's ``update_alpha_status`` of position ``p``, and the selection penalties:
-    ``UP = 0`` where ``-y G`` may go up (``I_up``), ``-inf`` elsewhere; ``LO = 0`` on
-    ``I_low``, ``+inf`` elsewhere."""
-    a = A[p]
+def _fetch(v, cache, data):
+    """Cache row holding the kernel row of variable ``v`` (see :func:`_miss`), marked as
+    used. The solver's loop does the same inline: a call with array arguments costs atomic
+    reference count updates, more than the scans of a small problem."""
+    rows, slot_of, owner, stamp, state, tmp = cache
+    s = slot_of[v]
+    if s < 0:
+        s = _miss(v, cache, data)
+    stamp[s] = state[1]
+    state[1] += 1
+    return s
+
+
+@_jit_inline
+def _status(a, y, C):
+    """libsvm's ``update_alpha_status`` for ``alpha = a`` (label ``y``): the status and the
+    selection penalties ``(status, up, low)``: ``up = 0`` where ``-y G`` may go up
+    (``I_up``), ``-inf`` elsewhere; ``low = 0`` on ``I_low``, ``+inf`` elsewhere."""
     s = _UPPER if a >= C else (_LOWER if a <= 0.0 else _FREE)
-    st[p] = s
-    pos = Y[p] > 0.0
-    UP[p] = -np.inf if (s == _UPPER and pos) or (s == _LOWER and not pos) else 0.0
-    LO[p] = np.inf if (s == _LOWER and pos) or (s == _UPPER and not pos) else 0.0
+    pos = y > 0.0
+    up = -np.inf if (s == _UPPER and pos) or (s == _LOWER and not pos) else 0.0
+    low = np.inf if (s == _LOWER and pos) or (s == _UPPER and not pos) else 0.0
+    return s, up, low
 
 
-@_jit_scan
-def _last_max(F, UP, active, vmax):
-    """Last position ``p < active`` with ``F[p] + UP[p] == vmax`` (-1 if ``vmax`` is -inf)."""
-    if vmax == -np.inf:
-        return -1
-    for p in range(active - 1, -1, -1):
-        if F[p] + UP[p] == vmax:
-            return p
-    return -1
-
-
-@_jit_scan
+@_jit_inline
 def _scan_up(F, UP, active):
     """``m = max {F_p : p in I_up}`` over the active positions."""
     vmax = -np.inf
@@ -235,78 +242,7 @@ def _scan_up(F, UP, active):
     return vmax
 
 
-@_jit_scan
-def _select_j(F, LO, QD, vid, ident, Ki, i, gmax, active, OD):
-    """Second half of libsvm's ``select_working_set`` for ``i`` (row ``Ki``): ``(j, M)``,
-    ``j`` the last position minimising ``-(m - F_j)^2 / a_ij`` over ``I_low`` with
-    ``F_j < m``, ``M = min {F_p : p in I_low}``. ``OD`` is scratch; ``ident``: position =
-    variable (no shrinking swaps yet), so the row is read without ``vid``."""
-    fmin = np.inf
-    omin = np.inf
-    qi = QD[i]
-    if ident:
-        for p in range(active):
-            f = F[p]
-            lo = LO[p]
-            fmin = _fmin(fmin, f + lo)
-            gd = gmax - f
-            quad = qi + QD[p] - 2.0 * Ki[p]
-            quad = quad if quad > 0.0 else TAU
-            od = -(gd * gd) / quad
-            od = od if (gd > 0.0) & (lo == 0.0) else np.inf
-            OD[p] = od
-            omin = _fmin(omin, od)
-    else:
-        for p in range(active):
-            f = F[p]
-            lo = LO[p]
-            fmin = _fmin(fmin, f + lo)
-            gd = gmax - f
-            quad = qi + QD[p] - 2.0 * Ki[vid[p]]
-            quad = quad if quad > 0.0 else TAU
-            od = -(gd * gd) / quad
-            od = od if (gd > 0.0) & (lo == 0.0) else np.inf
-            OD[p] = od
-            omin = _fmin(omin, od)
-    if omin == np.inf:
-        return -1, fmin
-    for p in range(active - 1, -1, -1):
-        if OD[p] == omin:
-            return p, fmin
-    return -1, fmin
-
-
-@_jit_scan
-def _update_scan(F, UP, vid, ident, Ki, Kj, di, dj, active):
-    """``F_p -= di K_ip + dj K_jp`` over the active positions (libsvm's gradient update, in
-    ``F = -y G``) and the next ``m``."""
-    vmax = -np.inf
-    if ident:
-        for p in range(active):
-            f = F[p] - (di * Ki[p] + dj * Kj[p])
-            F[p] = f
-            vmax = _fmax(vmax, f + UP[p])
-    else:
-        for p in range(active):
-            q = vid[p]
-            f = F[p] - (di * Ki[q] + dj * Kj[q])
-            F[p] = f
-            vmax = _fmax(vmax, f + UP[p])
-    return vmax
-
-
-@_jit
-def _add_row(GB, Y, vid, ident, K, s):
-    """``G_bar += C Q_i`` (``s = +-C y_i``) over all positions: a variable reached or left C."""
-    if ident:
-        for p in range(GB.shape[0]):
-            GB[p] += s * Y[p] * K[p]
-    else:
-        for p in range(GB.shape[0]):
-            GB[p] += s * Y[p] * K[vid[p]]
-
-
-@_jit
+@_jit_inline
 def _is_identity(vid):
     for p in range(vid.shape[0]):
         if vid[p] != p:
@@ -314,7 +250,7 @@ def _is_identity(vid):
     return True
 
 
-@_jit
+@_jit_inline
 def _swap(p, q, F, A, Y, GB, UP, LO, QD, vid, st):
     F[p], F[q] = F[q], F[p]
     A[p], A[q] = A[q], A[p]
@@ -328,13 +264,17 @@ def _swap(p, q, F, A, Y, GB, UP, LO, QD, vid, st):
 
 
 @_jit
-def _solve_one(Xt, xsq, pi, pf, alpha_out):
+def _solve_one(Xt, xsq, gram, pi, pf, alpha_out):
     """libsvm's ``Solver::Solve`` on one problem (see the module docstring); writes ``alpha``
     (in problem order) to ``alpha_out``; returns ``(rho, obj, gap, n_iter, status, n_rows)``.
 
     The state is kept by position (libsvm's order after its shrinking swaps): ``F = -y G``,
     ``A`` = alpha, ``Y``, ``GB`` = G_bar, the penalties ``UP``/``LO``, ``QD``, the variable
-    ``vid`` at each position and its status ``st``; kernel rows are by variable."""
+    ``vid`` at each position and its status ``st``; kernel rows are by variable, read by row
+    index (``rows[s, v]``). The steps of an iteration are written out here rather than called:
+    every call with array arguments costs atomic reference count updates (measured: about
+    half the time of the pipeline's small problems). ``ident``: positions are still the
+    variables (no shrinking swap yet), so the scans read the rows without ``vid``."""
     sa, na, sb, nb_, kt, degree, max_iter, shrinking = pi[0], pi[1], pi[2], pi[3], pi[4], pi[5], pi[6], pi[7]
     C, gamma, coef0, eps = pf[0], pf[1], pf[2], pf[3]
     nv = na + nb_
@@ -351,12 +291,17 @@ def _solve_one(Xt, xsq, pi, pf, alpha_out):
     QD = np.empty(nv)
     for p in range(nv):
         QD[p] = _kernel_diag(Xt, xsq, sa + p if p < na else sb + (p - na), kt, gamma, coef0, degree)
-        _set_status(p, A, Y, UP, LO, st, C)
+        st[p], UP[p], LO[p] = _status(0.0, Y[p], C)
     OD = np.empty(nv)
     cap = max(2, min(nv, pi[9] // max(1, 4 * nv)))
-    cache = (np.empty((cap, nv), np.float32), np.full(nv, -1, np.int64), np.zeros(cap, np.int64),
-             np.zeros(cap, np.int64), np.zeros(3, np.int64), np.empty((2, nv)))
-    data = (Xt, xsq, sa, na, sb, nb_, kt, gamma, coef0, degree)
+    rows = np.empty((cap, nv), np.float32)
+    slot_of = np.full(nv, -1, np.int64)
+    owner = np.zeros(cap, np.int64)
+    stamp = np.zeros(cap, np.int64)
+    state = np.zeros(3, np.int64)
+    tmp = np.empty((2, nv))
+    cache = (rows, slot_of, owner, stamp, state, tmp)
+    data = (Xt, xsq, gram, sa, na, sb, nb_, pi[10], pi[11], pi[12], kt, gamma, coef0, degree)
 
     active = nv
     ident = True
@@ -365,6 +310,7 @@ def _solve_one(Xt, xsq, pi, pf, alpha_out):
     counter = min(nv, 1000) + 1
     status = 0
     gmax = _scan_up(F, UP, active)       # m of the current state, over the active positions
+    rescan = False
     while True:
         if it >= max_iter:
             status = 1
@@ -377,34 +323,79 @@ def _solve_one(Xt, xsq, pi, pf, alpha_out):
                                            cache, data)
                 ident = ident and _is_identity(vid)
                 gmax = _scan_up(F, UP, active)
-        # select_working_set
-        i = _last_max(F, UP, active, gmax)
-        j = -1
-        if i >= 0:
-            Ki = _fetch(vid[i], cache, data)
-            j, fmin = _select_j(F, LO, QD, vid, ident, Ki, i, gmax, active, OD)
-            if gmax - fmin < eps:
-                j = -1
-        if j < 0:
-            _reconstruct(F, A, Y, GB, st, vid, active, cache, data)
-            active = nv
-            gmax = _scan_up(F, UP, active)
-            i = _last_max(F, UP, active, gmax)
+        # select_working_set (twice at most: again on all variables after reconstruction)
+        i = j = si = -1
+        for attempt in range(2):
+            if rescan:
+                gmax = _scan_up(F, UP, active)
+                rescan = False
+            # i: the last position of the largest F over I_up
+            i = -1
+            if gmax > -np.inf:
+                for p in range(active - 1, -1, -1):
+                    if F[p] + UP[p] == gmax:
+                        i = p
+                        break
             j = -1
             if i >= 0:
-                Ki = _fetch(vid[i], cache, data)
-                j, fmin = _select_j(F, LO, QD, vid, ident, Ki, i, gmax, active, OD)
-                if gmax - fmin < eps:
-                    j = -1
-            if j < 0:
+                v = vid[i]
+                si = slot_of[v]
+                if si < 0:
+                    si = _miss(v, cache, data)
+                stamp[si] = state[1]
+                state[1] += 1
+                # j: the last position of the smallest -(m - F_j)^2 / a_ij over I_low, F_j < m
+                fmin = np.inf
+                omin = np.inf
+                qi = QD[i]
+                if ident:
+                    for p in range(active):
+                        f = F[p]
+                        lo = LO[p]
+                        fmin = _fmin(fmin, f + lo)
+                        gd = gmax - f
+                        quad = qi + QD[p] - 2.0 * rows[si, p]
+                        quad = quad if quad > 0.0 else TAU
+                        od = -(gd * gd) / quad
+                        od = od if (gd > 0.0) & (lo == 0.0) else np.inf
+                        OD[p] = od
+                        omin = _fmin(omin, od)
+                else:
+                    for p in range(active):
+                        f = F[p]
+                        lo = LO[p]
+                        fmin = _fmin(fmin, f + lo)
+                        gd = gmax - f
+                        quad = qi + QD[p] - 2.0 * rows[si, vid[p]]
+                        quad = quad if quad > 0.0 else TAU
+                        od = -(gd * gd) / quad
+                        od = od if (gd > 0.0) & (lo == 0.0) else np.inf
+                        OD[p] = od
+                        omin = _fmin(omin, od)
+                if omin < np.inf and gmax - fmin >= eps:
+                    for p in range(active - 1, -1, -1):
+                        if OD[p] == omin:
+                            j = p
+                            break
+            if j >= 0 or attempt == 1:
                 break
-            counter = 1  # shrink at the next iteration
+            # optimal on the active set: gradient of all variables, check again on all
+            _reconstruct(F, A, Y, GB, st, vid, active, cache, data)
+            active = nv
+            rescan = True
+            counter = 1  # shrink at the next iteration (if not optimal)
+        if j < 0:
+            break
         it += 1
-        Kj = _fetch(vid[j], cache, data)
-        Ki = _fetch(vid[i], cache, data)
+        v = vid[j]
+        sj = slot_of[v]
+        if sj < 0:
+            sj = _miss(v, cache, data)
+        stamp[sj] = state[1]
+        state[1] += 1
         yi, yj = Y[i], Y[j]
         old_i, old_j = A[i], A[j]
-        Qij = yi * yj * Ki[vid[j]]
+        Qij = yi * yj * rows[si, vid[j]]
         if yi != yj:
             quad = QD[i] + QD[j] + 2.0 * Qij
             if quad <= 0.0:
@@ -452,13 +443,31 @@ def _solve_one(Xt, xsq, pi, pf, alpha_out):
         di = yi * (A[i] - old_i)
         dj = yj * (A[j] - old_j)
         ui, uj = st[i] == _UPPER, st[j] == _UPPER
-        _set_status(i, A, Y, UP, LO, st, C)
-        _set_status(j, A, Y, UP, LO, st, C)
-        gmax = _update_scan(F, UP, vid, ident, Ki, Kj, di, dj, active)
-        if ui != (st[i] == _UPPER):
-            _add_row(GB, Y, vid, ident, Ki, -C * yi if ui else C * yi)
-        if uj != (st[j] == _UPPER):
-            _add_row(GB, Y, vid, ident, Kj, -C * yj if uj else C * yj)
+        st[i], UP[i], LO[i] = _status(A[i], yi, C)
+        st[j], UP[j], LO[j] = _status(A[j], yj, C)
+        # libsvm's gradient update over the active positions (F = -y G), and the next m
+        gmax = -np.inf
+        if ident:
+            for p in range(active):
+                f = F[p] - (di * rows[si, p] + dj * rows[sj, p])
+                F[p] = f
+                gmax = _fmax(gmax, f + UP[p])
+        else:
+            for p in range(active):
+                q = vid[p]
+                f = F[p] - (di * rows[si, q] + dj * rows[sj, q])
+                F[p] = f
+                gmax = _fmax(gmax, f + UP[p])
+        # G_bar += +-C Q_i over all positions where a variable reached or left C
+        for s, r, was, y_ in ((si, i, ui, yi), (sj, j, uj, yj)):
+            if was != (st[r] == _UPPER):
+                c = -C * y_ if was else C * y_
+                if ident:
+                    for p in range(nv):
+                        GB[p] += c * Y[p] * rows[s, p]
+                else:
+                    for p in range(nv):
+                        GB[p] += c * Y[p] * rows[s, vid[p]]
 
     if status == 1 and active < nv:
         _reconstruct(F, A, Y, GB, st, vid, active, cache, data)
@@ -481,13 +490,14 @@ def _solve_one(Xt, xsq, pi, pf, alpha_out):
         obj += A[p] * (-Y[p] * F[p] - 1.0)
         alpha_out[vid[p]] = A[p]
     rho = sum_free / n_free if n_free > 0 else 0.5 * (ub + lb)
-    return rho, 0.5 * obj, gmax - gmin, it, status, cache[4][2]
+    return rho, 0.5 * obj, gmax - gmin, it, status, state[2]
 
 
 @_jit
 def _reconstruct(F, A, Y, GB, st, vid, active, cache, data):
     """libsvm's ``reconstruct_gradient``: ``F`` of the shrunk positions from ``G_bar`` and the
     free active variables."""
+    rows = cache[0]
     nv = F.shape[0]
     if active == nv:
         return
@@ -499,7 +509,7 @@ def _reconstruct(F, A, Y, GB, st, vid, active, cache, data):
             n_free += 1
     if n_free * nv > 2 * active * (nv - active):
         for p in range(active, nv):
-            Kp = _fetch(vid[p], cache, data)
+            Kp = rows[_fetch(vid[p], cache, data)]
             g = -Y[p] * F[p]
             for q in range(active):
                 if st[q] == _FREE:
@@ -509,7 +519,7 @@ def _reconstruct(F, A, Y, GB, st, vid, active, cache, data):
         for q in range(active):
             if st[q] != _FREE:
                 continue
-            Kq = _fetch(vid[q], cache, data)
+            Kq = rows[_fetch(vid[q], cache, data)]
             aq = A[q]
             for p in range(active, nv):
                 F[p] -= Y[p] * (aq * (Y[q] * Y[p] * Kq[vid[p]]))
@@ -543,12 +553,12 @@ def _shrink(F, A, Y, GB, UP, LO, QD, vid, st, active, unshrink, eps, cache, data
 
 
 @_jit
-def _solve_range(Xt, xsq, P_int, P_flt, order, q, alpha_out, res_f, res_i):
+def _solve_range(Xt, xsq, gram, P_int, P_flt, order, q, alpha_out, res_f, res_i):
     p = order[q]
     pi, pf = P_int[p], P_flt[p]
     nv = pi[1] + pi[3]
     off = pi[8]
-    rho, obj, gap, n_iter, status, n_rows = _solve_one(Xt, xsq, pi, pf, alpha_out[off:off + nv])
+    rho, obj, gap, n_iter, status, n_rows = _solve_one(Xt, xsq, gram, pi, pf, alpha_out[off:off + nv])
     res_f[p, 0] = rho
     res_f[p, 1] = obj
     res_f[p, 2] = gap
@@ -558,19 +568,19 @@ def _solve_range(Xt, xsq, P_int, P_flt, order, q, alpha_out, res_f, res_i):
 
 
 @nb.njit(cache=True, parallel=True, error_model="numpy")
-def _solve_parallel(Xt, xsq, P_int, P_flt, order, alpha_out, res_f, res_i):
+def _solve_parallel(Xt, xsq, gram, P_int, P_flt, order, alpha_out, res_f, res_i):
     for q in nb.prange(order.shape[0]):
-        _solve_range(Xt, xsq, P_int, P_flt, order, q, alpha_out, res_f, res_i)
+        _solve_range(Xt, xsq, gram, P_int, P_flt, order, q, alpha_out, res_f, res_i)
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _solve_serial(Xt, xsq, P_int, P_flt, order, alpha_out, res_f, res_i):
+def _solve_serial(Xt, xsq, gram, P_int, P_flt, order, alpha_out, res_f, res_i):
     for q in range(order.shape[0]):
-        _solve_range(Xt, xsq, P_int, P_flt, order, q, alpha_out, res_f, res_i)
+        _solve_range(Xt, xsq, gram, P_int, P_flt, order, q, alpha_out, res_f, res_i)
 
 
-def solve_batch(Xt: np.ndarray, P_int: np.ndarray, P_flt: np.ndarray, *,
-                parallel: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def solve_batch(Xt: np.ndarray, P_int: np.ndarray, P_flt: np.ndarray, *, parallel: bool,
+                gram: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Solve every binary problem of a batch.
 
     Parameters
@@ -585,6 +595,10 @@ def solve_batch(Xt: np.ndarray, P_int: np.ndarray, P_flt: np.ndarray, *,
     parallel : bool
         Problems in parallel over numba's threads (not in a forked child of a process that
         ran a parallel region: GNU OpenMP aborts there).
+    gram : ndarray, optional
+        Gram matrices ``Xt[:, base:base + n].T @ Xt[:, base:base + n]`` of some fits, flat,
+        float64; a problem whose ``gram`` column is ``>= 0`` reads its dot products at that
+        offset (row stride ``gram_n``) instead of computing them.
 
     Returns
     -------
@@ -604,7 +618,7 @@ def solve_batch(Xt: np.ndarray, P_int: np.ndarray, P_flt: np.ndarray, *,
         return alpha, res_f, res_i
     xsq = np.einsum("fn,fn->n", Xt, Xt)
     order = np.argsort(-sizes, kind="stable")   # largest first: balances the threads
-    args = (Xt, xsq, P_int, P_flt, order, alpha, res_f, res_i)
+    args = (Xt, xsq, np.zeros(1) if gram is None else gram, P_int, P_flt, order, alpha, res_f, res_i)
     if parallel and P > 1:
         with nb.parallel_chunksize(1):
             _solve_parallel(*args)
