@@ -42,7 +42,7 @@ def table(problems, cache_bytes=1 << 24):
         cols += [Xp, Xn]
         na, nb = len(Xp), len(Xn)
         rows_i.append([start, na, start + na, nb, KERNEL_CODES[kernel], degree, 10**7, 1, out,
-                       cache_bytes])
+                       cache_bytes, -1, 0, 0])     # no Gram matrix: dot products from Xt
         rows_f.append([C, gamma, coef0, tol])
         start += na + nb
         out += na + nb
@@ -235,3 +235,20 @@ def test_torch_threads_restored():
         assert torch.get_num_threads() == 2
     finally:
         torch.set_num_threads(before)
+
+
+def test_gram_and_on_demand_rows_agree(monkeypatch):
+    """Dot products from the fit's Gram matrix (small fits) or computed per kernel row (large
+    fits): the same machines (libsvm's), also with a cache too small to keep the rows."""
+    import hlaid.svm._batch as batch
+
+    X, y = overlapping(700, 6, seed=2)
+    sk = SVC(C=10.0).fit(X, y)
+    gram = KernelSVC(C=10.0).fit(X, y)
+    monkeypatch.setattr(batch, "GRAM_MAX_SAMPLES", 0)
+    rows = KernelSVC(C=10.0).fit(X, y)
+    tiny = KernelSVC(C=10.0, cache_size=0.01).fit(X, y)
+    for est in (gram, rows, tiny):
+        np.testing.assert_array_equal(est.n_iter_, sk.n_iter_)
+        np.testing.assert_array_equal(est.support_, sk.support_)
+        np.testing.assert_allclose(est.dual_coef_, sk.dual_coef_, rtol=0, atol=1e-9)
