@@ -244,6 +244,7 @@ def test_gram_and_on_demand_rows_agree(monkeypatch):
 
     X, y = overlapping(700, 6, seed=2)
     sk = SVC(C=10.0).fit(X, y)
+    monkeypatch.setattr(batch, "GRAM_MIN_FEATURES", 1)
     gram = KernelSVC(C=10.0).fit(X, y)
     monkeypatch.setattr(batch, "GRAM_MAX_SAMPLES", 0)
     rows = KernelSVC(C=10.0).fit(X, y)
