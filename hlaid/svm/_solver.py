@@ -234,6 +234,29 @@ def _status(a, y, C):
 
 
 @_jit_inline
+def _clip_sum(a, b, total, C):
+    """One of libsvm's clippings of ``a + b = total`` into the box (the other swaps the
+    roles): ``a`` at ``C`` when above it (total > C), else ``b`` at 0 when below."""
+    if total > C:
+        if a > C:
+            return C, total - C
+    elif b < 0.0:
+        return total, 0.0
+    return a, b
+
+
+@_jit_inline
+def _wss2(f, lo, gmax, quad):
+    """libsvm's second-order selection for one candidate ``j`` (``f = F_j``, ``lo`` its
+    ``I_low`` penalty, ``quad = a_ij`` before the ``tau`` floor): ``(F_j + lo, obj_diff)``,
+    ``obj_diff = -(m - F_j)^2 / a_ij`` where ``j`` may be chosen, ``+inf`` elsewhere."""
+    gd = gmax - f
+    quad = quad if quad > 0.0 else TAU
+    od = -(gd * gd) / quad
+    return f + lo, (od if (gd > 0.0) & (lo == 0.0) else np.inf)
+
+
+@_jit_inline
 def _scan_up(F, UP, active):
     """``m = max {F_p : p in I_up}`` over the active positions."""
     vmax = -np.inf
@@ -338,40 +361,21 @@ def _solve_one(Xt, xsq, gram, pi, pf, alpha_out):
                         break
             j = -1
             if i >= 0:
-                v = vid[i]
-                si = slot_of[v]
-                if si < 0:
-                    si = _miss(v, cache, data)
-                stamp[si] = state[1]
-                state[1] += 1
+                v = vid[i]                                  # its kernel row, marked as used
+                si = slot_of[v] if slot_of[v] >= 0 else _miss(v, cache, data)
+                stamp[si], state[1] = state[1], state[1] + 1
                 # j: the last position of the smallest -(m - F_j)^2 / a_ij over I_low, F_j < m
                 fmin = np.inf
                 omin = np.inf
                 qi = QD[i]
                 if ident:
                     for p in range(active):
-                        f = F[p]
-                        lo = LO[p]
-                        fmin = _fmin(fmin, f + lo)
-                        gd = gmax - f
-                        quad = qi + QD[p] - 2.0 * rows[si, p]
-                        quad = quad if quad > 0.0 else TAU
-                        od = -(gd * gd) / quad
-                        od = od if (gd > 0.0) & (lo == 0.0) else np.inf
-                        OD[p] = od
-                        omin = _fmin(omin, od)
+                        fl, od = _wss2(F[p], LO[p], gmax, qi + QD[p] - 2.0 * rows[si, p])
+                        fmin, omin, OD[p] = _fmin(fmin, fl), _fmin(omin, od), od
                 else:
                     for p in range(active):
-                        f = F[p]
-                        lo = LO[p]
-                        fmin = _fmin(fmin, f + lo)
-                        gd = gmax - f
-                        quad = qi + QD[p] - 2.0 * rows[si, vid[p]]
-                        quad = quad if quad > 0.0 else TAU
-                        od = -(gd * gd) / quad
-                        od = od if (gd > 0.0) & (lo == 0.0) else np.inf
-                        OD[p] = od
-                        omin = _fmin(omin, od)
+                        fl, od = _wss2(F[p], LO[p], gmax, qi + QD[p] - 2.0 * rows[si, vid[p]])
+                        fmin, omin, OD[p] = _fmin(fmin, fl), _fmin(omin, od), od
                 if omin < np.inf and gmax - fmin >= eps:
                     for p in range(active - 1, -1, -1):
                         if OD[p] == omin:
@@ -388,11 +392,8 @@ def _solve_one(Xt, xsq, gram, pi, pf, alpha_out):
             break
         it += 1
         v = vid[j]
-        sj = slot_of[v]
-        if sj < 0:
-            sj = _miss(v, cache, data)
-        stamp[sj] = state[1]
-        state[1] += 1
+        sj = slot_of[v] if slot_of[v] >= 0 else _miss(v, cache, data)
+        stamp[sj], state[1] = state[1], state[1] + 1
         yi, yj = Y[i], Y[j]
         old_i, old_j = A[i], A[j]
         Qij = yi * yj * rows[si, vid[j]]
@@ -426,20 +427,8 @@ def _solve_one(Xt, xsq, gram, pi, pf, alpha_out):
             total = A[i] + A[j]
             A[i] -= delta
             A[j] += delta
-            if total > C:
-                if A[i] > C:
-                    A[i] = C
-                    A[j] = total - C
-            elif A[j] < 0.0:
-                A[j] = 0.0
-                A[i] = total
-            if total > C:
-                if A[j] > C:
-                    A[j] = C
-                    A[i] = total - C
-            elif A[i] < 0.0:
-                A[i] = 0.0
-                A[j] = total
+            A[i], A[j] = _clip_sum(A[i], A[j], total, C)   # libsvm's two symmetric clippings
+            A[j], A[i] = _clip_sum(A[j], A[i], total, C)
         di = yi * (A[i] - old_i)
         dj = yj * (A[j] - old_j)
         ui, uj = st[i] == _UPPER, st[j] == _UPPER
