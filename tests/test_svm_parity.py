@@ -239,6 +239,6 @@ def test_small_kernel_cache():
     Xtr, _, ytr, _ = MULTI["synthetic15"]
     X, y = Xtr[:900], ytr[:900]
     sk = SVC().fit(X, y)
-    me = KernelSVC(cache_size=0.01).fit(X, y)       # about 10 kB: 2 rows of 120 per machine
+    me = KernelSVC(cache_size=0.01).fit(X, y)       # 10 kB: about 10 rows of 120 per machine
     assert_same_machines(me, sk)
     np.testing.assert_array_equal(me.dual_coef_, KernelSVC().fit(X, y).dual_coef_)

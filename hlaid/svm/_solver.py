@@ -1,32 +1,39 @@
 """Compiled (numba) dual solver for batches of binary C-SVC problems, libsvm's algorithm.
 
 Each problem is libsvm's ``Solver::Solve`` for a C-SVC (Fan, Chen & Lin 2005), ported step
-by step so that it takes the same iterations as libsvm:
+by step so that it takes libsvm's iterations and reaches libsvm's solution:
 
 * the dual ``min 1/2 a'Qa - e'a``, ``0 <= a <= C``, ``y'a = 0``, ``Q_ij = y_i y_j K_ij``,
   gradient ``G = Qa - e``, started from ``a = 0``;
 * working set by second-order selection (WSS 2): ``i`` maximises ``-y_i G_i`` over
   ``I_up``, ``j`` minimises ``-(m - (-y_j G_j))^2 / a_ij`` over ``I_low``, ``a_ij = K_ii +
-  K_jj - 2 K_ij`` (``tau = 1e-12`` where not positive), ties to the last index as libsvm;
+  K_jj - 2 K_ij`` (``tau = 1e-12`` where not positive), ties to the last position as libsvm;
 * libsvm's analytic two-variable update with its clipping, the gradient update over the
   active variables, ``G_bar`` (the gradient part of the variables at ``C``) updated when a
   variable reaches or leaves ``C``;
-* shrinking every ``min(l, 1000)`` iterations (``l`` variables) with libsvm's rule and its one-time unshrink
-  when the gap is below ``10 eps``; before stopping, the gradient of the shrunk variables is
-  reconstructed and optimality re-checked on all of them (libsvm's stopping rule
-  ``m - M < eps`` on the full problem);
+* shrinking every ``min(l, 1000)`` iterations (``l`` variables) with libsvm's rule, its index
+  swaps and its one-time unshrink when the gap is below ``10 eps``; before stopping, the
+  gradient of the shrunk variables is reconstructed and optimality checked again on all of
+  them (libsvm's stopping rule ``m - M < eps`` on the full problem);
 * ``rho`` as ``calculate_rho`` and the objective as libsvm's ``obj``.
 
-Variables stay in place (class ``+1`` first, then class ``-1``); libsvm's index swaps of
-shrinking are done on an index list ``act``, so every scan visits the variables in libsvm's
-order and ties break the same way. Kernel rows are computed on demand (whole rows: the
-problems' samples against each other, one ``axpy`` per feature then a vectorised ``exp``)
-and kept in a least-recently-used cache of ``cache_rows`` rows per problem, in float64
-(libsvm keeps float32 rows).
+The arithmetic is libsvm's, operation for operation (no contraction into fused
+multiply-adds; the state is kept as ``F = -y G``, which differs from ``G`` by exact sign
+changes only), and kernel rows are stored in float32 as libsvm's ``Qfloat``: the iterates
+round as libsvm's do. Kernel values are computed in float64 with libsvm's formulas, from a
+fit's Gram matrix (many features, see :mod:`hlaid.svm._batch`) or from the samples (one
+``axpy`` per feature, then a vectorised ``exp``), whole rows on first use, kept in a
+least-recently-used cache per problem.
+
+Speed comes from the layout, not from fewer iterations: the scans (selection of ``i`` and
+``j``, gradient update and next ``m``) are loops that LLVM vectorises (max / min reductions
+through ``llvm.maximum`` / ``llvm.minimum``, contiguous rows until the first shrinking swap),
+and the iteration is written out in one function (see :func:`_solve_one`).
 
 A batch holds many problems (the one-vs-one pairs of several multi-class fits, with their
-own ``C`` and kernel parameters): :func:`solve_batch` runs them in parallel over the cores
-(``prange`` over problems, largest first), or one after the other.
+own ``C`` and kernel parameters): :func:`solve_batch` runs them in parallel over numba's
+threads (``prange`` over problems, largest first, one at a time per thread), or one after
+the other.
 """
 
 from __future__ import annotations
@@ -47,8 +54,8 @@ __all__ = ["KERNEL_CODES", "P_FLT", "P_INT", "R_FLT", "R_INT", "solve_batch"]
 # libsvm's order (no contraction), so that they round as libsvm's do
 _jit_fast = nb.njit(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
 _jit = nb.njit(cache=True, error_model="numpy")
-# the small steps of an iteration are inlined into the solver (numba IR): a call would pass
-# every array with a reference count update, which costs more than the scans of a small problem
+# small helpers inlined into the solver (numba IR); those of the iteration take scalars only:
+# passing an array, even to an inlined function, costs atomic reference count updates
 _jit_inline = nb.njit(cache=True, error_model="numpy", inline="always")
 
 #: Kernel name -> code of the compiled kernels.

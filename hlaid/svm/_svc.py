@@ -15,9 +15,10 @@ from sklearn.utils.validation import check_is_fitted, column_or_1d
 from .._threads import one_thread
 from ..errors import InputError
 from ._batch import coefficients, fit_many, prepare_fit
+from ._checks import np_dtype, plain_fit_input, plain_predict_input, resolve_dtype, to_numpy
 from ._ddag import PairwiseMachines, ovr_decision, resolve_multiclass
 from ._kernels import KERNELS, make_kernel
-from ._persist import read_state, write_state
+from ._persist import model_state, read_state, write_state
 
 try:  # scikit-learn >= 1.6
     from sklearn.utils.validation import validate_data as _validate_data
@@ -26,33 +27,6 @@ except ImportError:  # pragma: no cover - older scikit-learn
         return estimator._validate_data(X, y, **kw)
 
 __all__ = ["KernelSVC"]
-
-_DTYPES = {"float64": torch.float64, "float32": torch.float32}
-
-
-def _to_numpy(a: Any) -> Any:
-    """Tensors to numpy (host copy); anything else unchanged."""
-    if isinstance(a, torch.Tensor):
-        return a.detach().cpu().numpy()
-    return a
-
-
-def _plain(X: Any, y: Any) -> bool:
-    """Finite float64 samples (2-D, not empty) and integer labels of the same length: the
-    input of a pipeline's fits, accepted as it is (scikit-learn's checks cost about a
-    millisecond a fit); anything else goes through them."""
-    return (type(X) is np.ndarray and X.dtype == np.float64 and X.ndim == 2 and X.shape[0] > 0
-            and X.shape[1] > 0 and type(y) is np.ndarray and y.ndim == 1 and y.dtype.kind in "iu"
-            and y.shape[0] == X.shape[0] and bool(np.isfinite(X).all()))
-
-
-def _resolve_dtype(dtype: Any) -> torch.dtype:
-    if isinstance(dtype, torch.dtype) and dtype in _DTYPES.values():
-        return dtype
-    if isinstance(dtype, str) and dtype in _DTYPES:
-        return _DTYPES[dtype]
-    raise ValueError(f"dtype must be torch.float64 or torch.float32; got {dtype!r}.")
-
 
 class KernelSVC(ClassifierMixin, BaseEstimator):
     """Multi-class kernel C-SVC: libsvm's solver compiled, the model in torch.
@@ -195,7 +169,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         if self.decision_function_shape not in ("ovr", "ovo"):
             raise ValueError("decision_function_shape must be 'ovr' or 'ovo'; got "
                              f"{self.decision_function_shape!r}.")
-        _resolve_dtype(self.dtype)
+        resolve_dtype(self.dtype)
 
     def _resolve_device(self, X: Any) -> torch.device:
         if self.device is None:
@@ -226,10 +200,10 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
     def _prepare(self, X: Any, y: Any) -> Any:
         """Check the parameters and the data; the fit's entry in a batch (:func:`fit_many`)."""
         self._check_params()
-        dtype = _resolve_dtype(self.dtype)
+        dtype = resolve_dtype(self.dtype)
         device = self._resolve_device(X)
-        X, y = _to_numpy(X), _to_numpy(y)
-        if _plain(X, y):   # what scikit-learn's checks would accept unchanged, checked directly
+        X, y = to_numpy(X), to_numpy(y)
+        if plain_fit_input(X, y):
             self.n_features_in_ = X.shape[1]
             if hasattr(self, "feature_names_in_"):
                 del self.feature_names_in_
@@ -252,7 +226,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         coef = coefficients(f, P_int, alpha)
         sv_pos = np.flatnonzero((coef != 0).any(0))
         self.support_ = f.order[sv_pos].astype(np.int32)
-        self.support_vectors_ = f.X[self.support_].astype(_np_dtype(f.dtype))
+        self.support_vectors_ = f.X[self.support_].astype(np_dtype(f.dtype))
         dual = coef[:, sv_pos]
         intercept = -res_f[:, 0]
         if not (np.isfinite(dual).all() and np.isfinite(intercept).all()):
@@ -290,11 +264,8 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         """The samples as a tensor of the model's dtype and device (call under
         :class:`one_thread`: a copy on the CPU is a parallel region)."""
         check_is_fitted(self)
-        X = _to_numpy(X)
-        plain = (type(X) is np.ndarray and X.dtype == np.float64 and X.ndim == 2
-                 and X.shape[0] > 0 and X.shape[1] == self.n_features_in_
-                 and not hasattr(self, "feature_names_in_") and bool(np.isfinite(X).all()))
-        if not plain:
+        X = to_numpy(X)
+        if not plain_predict_input(X, self.n_features_in_, hasattr(self, "feature_names_in_")):
             X = _validate_data(self, X, dtype=np.float64, order="C", reset=False)
         return torch.as_tensor(np.ascontiguousarray(X)).to(device=self._device,
                                                            dtype=self._dual_coef.dtype)
@@ -363,26 +334,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
             Replace an existing file (otherwise an existing ``path`` is an error).
         """
         check_is_fitted(self)
-        params = self.get_params()
-        params["dtype"] = str(params["dtype"]).replace("torch.", "")
-        params["device"] = None if params["device"] is None else str(params["device"])
-        write_state(path, {
-            "params": params,
-            "classes": self.classes_,
-            "gamma_": float(self.gamma_),
-            "n_features_in_": int(self.n_features_in_),
-            "feature_names_in_": (self.feature_names_in_.tolist()
-                                  if hasattr(self, "feature_names_in_") else None),
-            "support_": torch.from_numpy(self.support_.astype(np.int64)),
-            "support_vectors_": torch.from_numpy(np.ascontiguousarray(self.support_vectors_)),
-            "n_support_": torch.from_numpy(self.n_support_.astype(np.int64)),
-            "dual_coef": self._dual_coef.cpu(),
-            "intercept": self._intercept.cpu(),
-            "n_iter_": torch.from_numpy(np.asarray(self.n_iter_, dtype=np.int64)),
-            "dual_objective_": torch.from_numpy(np.asarray(self.dual_objective_)),
-            "fit_status_": int(self.fit_status_),
-            "shape_fit_": list(self.shape_fit_),
-        }, force=force)
+        write_state(path, model_state(self), force=force)
 
     @classmethod
     def load(cls, path: str | os.PathLike, *,
@@ -413,7 +365,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         state = read_state(src)
         try:
             params = dict(state["params"])
-            params["dtype"] = _resolve_dtype(params["dtype"])
+            params["dtype"] = resolve_dtype(params["dtype"])
             if device is not None:
                 params["device"] = device
             est = cls(**params)
@@ -438,7 +390,3 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
             raise InputError(f"corrupt KernelSVC model file ({type(exc).__name__}: {exc})",
                              source=src) from None
         return est
-
-
-def _np_dtype(dtype: torch.dtype) -> np.dtype:
-    return np.dtype(np.float32) if dtype == torch.float32 else np.dtype(np.float64)
