@@ -12,7 +12,7 @@ import os
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol, runtime_checkable
 
 import numba
 import numpy as np
@@ -22,9 +22,6 @@ from sklearn.exceptions import ConvergenceWarning
 from .._threads import one_thread
 from ._kernels import Kernel, make_kernel, resolve_gamma
 from ._solver import KERNEL_CODES, P_FLT, P_INT, solve_batch
-
-if TYPE_CHECKING:
-    from ._svc import KernelSVC
 
 __all__ = ["fit_many"]
 
@@ -78,6 +75,15 @@ class _Fit:
     n_pairs: int = 0
 
 
+@runtime_checkable
+class _Trainable(Protocol):
+    """What :func:`fit_many` trains in the compiled solver: a :class:`~hlaid.svm.KernelSVC` (its
+    ``_prepare`` validates the data and lays out its one-vs-one problems); anything else is fitted
+    with its own ``fit``. A protocol, so this module needs no import of the estimator's."""
+
+    def _prepare(self, X: Any, y: Any) -> Any: ...
+
+
 def fit_many(estimators: Sequence[Any], Xs: Sequence[Any], ys: Sequence[Any]) -> list:
     """Fit ``estimators[k]`` on ``(Xs[k], ys[k])`` for every ``k``.
 
@@ -96,12 +102,10 @@ def fit_many(estimators: Sequence[Any], Xs: Sequence[Any], ys: Sequence[Any]) ->
     list
         The fitted estimators (the same objects), in order.
     """
-    from ._svc import KernelSVC
-
     if not len(estimators) == len(Xs) == len(ys):
         raise ValueError(f"fit_many: {len(estimators)} estimators, {len(Xs)} X and {len(ys)} y; "
                          "expected one X and one y per estimator.")
-    ours = [k for k, e in enumerate(estimators) if isinstance(e, KernelSVC)]
+    ours = [k for k, e in enumerate(estimators) if isinstance(e, _Trainable)]
     for k, e in enumerate(estimators):
         if k not in set(ours):
             e.fit(Xs[k], ys[k])
@@ -111,7 +115,7 @@ def fit_many(estimators: Sequence[Any], Xs: Sequence[Any], ys: Sequence[Any]) ->
     return list(estimators)
 
 
-def _problems(fits: list[_Fit], ests: list[KernelSVC]
+def _problems(fits: list[_Fit], ests: list[Any]
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     """``Xt``, the problem tables and the Gram matrices of all fits (sets each fit's ``base``).
 
@@ -167,7 +171,7 @@ def _problems(fits: list[_Fit], ests: list[KernelSVC]
     return Xt, P_int, P_flt, np.concatenate(grams) if grams else None
 
 
-def _solve(fits: list[_Fit], ests: list[KernelSVC]) -> None:
+def _solve(fits: list[_Fit], ests: list[Any]) -> None:
     Xt, P_int, P_flt, gram = _problems(fits, ests)
     alpha, res_f, res_i = solve_batch(Xt, P_int, P_flt, parallel=parallel_ok(), gram=gram)
     for f, est in zip(fits, ests):
@@ -181,7 +185,7 @@ def _solve(fits: list[_Fit], ests: list[KernelSVC]) -> None:
             "the data.", ConvergenceWarning, stacklevel=4)
 
 
-def prepare_fit(est: KernelSVC, X: np.ndarray, y_enc: np.ndarray, dtype: torch.dtype,
+def prepare_fit(est: Any, X: np.ndarray, y_enc: np.ndarray, dtype: torch.dtype,
                 device: torch.device) -> _Fit:
     """A validated fit's entry in the batch (the classes sorted, the kernel resolved)."""
     m = int(y_enc.max()) + 1
