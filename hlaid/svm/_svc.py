@@ -384,8 +384,9 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
             est.fit_status_ = state["fit_status_"]
             est.shape_fit_ = tuple(state["shape_fit_"])
             kern = make_kernel(est.kernel, gamma=est.gamma_, degree=est.degree, coef0=est.coef0)
-            est._set_model(state["dual_coef"], state["intercept"], state["support_vectors_"],
-                           dev, dtype, kern)
+            with one_thread(dev):  # small tensor operations (see fit)
+                est._set_model(state["dual_coef"], state["intercept"], state["support_vectors_"],
+                               dev, dtype, kern)
         except (KeyError, TypeError, ValueError, AttributeError, RuntimeError) as exc:
             raise InputError(f"corrupt KernelSVC model file ({type(exc).__name__}: {exc})",
                              source=src) from None
