@@ -28,7 +28,6 @@ from pathlib import Path
 
 import numpy as np
 
-import hlaid.identify as hid
 from hlaid import _progress
 from hlaid.identify import IdentifyConfig, classify
 from hlaid.io import read
@@ -38,7 +37,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def run(meas, cache, cfg=None):
-    ident = getattr(hid, "identify_clone", None) or hid.identify  # older checkouts (--baseline) name it identify
+    hid = sys.modules["hlaid.identify"]  # the module (older checkouts, --baseline, name the function identify)
+    ident = getattr(hid, "identify_clone", None) or hid.identify
     t = time.perf_counter()
     res = ident(meas, cfg or IdentifyConfig(), cache_dir=cache)
     return time.perf_counter() - t, res
