@@ -73,7 +73,7 @@ def paired_cached(baseline: str, rounds: int) -> list[tuple[str, np.ndarray]]:
                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=path)
     times: dict = {k: [] for k in workers}
     try:
-        for w in workers.values():  # warm-up runs one after the other (no overlap)
+        for w in workers.values():  # their from-scratch warm-up runs (side by side, not timed)
             if w.stdout is None or w.stdout.readline().strip() != "ready":
                 raise RuntimeError("a --baseline worker failed (see its error above)")
         for _ in range(rounds):
