@@ -44,6 +44,8 @@ class EventPrediction:
     r : (floor,) correlation of predicted and measured displacement relative to the ground
     peak_drift_measured, peak_drift_predicted : (story,) peak inter-story drift [mm]
     peak_drift_error : (story,) ``predicted / measured - 1``
+    r_true : (floor,) correlation of the predicted with the true displacement (simulated data,
+        unfiltered; None for recorded data)
     coverage : (floor,) share of the measured displacement inside the predictive band (None
         without an ensemble)
     n_ensemble : clones in the ensemble (0: none)
@@ -61,6 +63,7 @@ class EventPrediction:
     peak_drift_measured: np.ndarray
     peak_drift_predicted: np.ndarray
     peak_drift_error: np.ndarray
+    r_true: np.ndarray | None
     coverage: np.ndarray | None
     n_ensemble: int
     status: int
@@ -79,7 +82,8 @@ class EventPrediction:
                "start": self.start, "band_hz": list(self.band_hz), "pga_g": self.pga_g, "r": self.r.tolist(),
                "r_mean": self.r_mean, "peak_drift_measured": self.peak_drift_measured.tolist(),
                "peak_drift_predicted": self.peak_drift_predicted.tolist(),
-               "peak_drift_error": self.peak_drift_error.tolist(), "n_ensemble": self.n_ensemble,
+               "peak_drift_error": self.peak_drift_error.tolist(),
+               "r_true": None if self.r_true is None else self.r_true.tolist(), "n_ensemble": self.n_ensemble,
                "band_level": BAND_LEVEL if self.n_ensemble else None,
                "coverage": None if self.coverage is None else self.coverage.tolist(),
                "coverage_mean": None if self.coverage is None else float(np.mean(self.coverage)),
@@ -109,8 +113,23 @@ def _compared(sim_disp: np.ndarray, sim_acc: np.ndarray, ground: np.ndarray, dt:
     return out
 
 
+def identification_misfit(clone: Clone) -> np.ndarray | float:
+    """How far the clone's replays of its own events were from the measured displacements, per
+    floor a fraction of their RMS: ``sqrt(2 (1 - R))`` of the replay's correlation ``R`` (the
+    relative RMS difference of two signals of equal RMS), the mean over its events; 0 where the
+    clone does not say."""
+    d = clone.diagnostics or {}
+    rs = [e.get("R_measured") for e in ((d.get("joint") or {}).get("events") or []) if isinstance(e, dict)]
+    if not rs and isinstance(d.get("replay"), dict):
+        rs = [d["replay"].get("r_measured")]
+    rs = [np.asarray(r, dtype=float) for r in rs if isinstance(r, list) and r]
+    if not rs or len({r.shape for r in rs}) != 1:
+        return 0.0
+    return np.mean([np.sqrt(np.clip(2.0 * (1.0 - r), 0.0, None)) for r in rs], axis=0)
+
+
 def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str = "carried", n_ensemble: int = 0,
-                  seed: int = 0, hla_config: HLAConfig | None = None) -> EventPrediction:
+                  seed: int = 0, hla_config: HLAConfig | None = None, misfit: float | None = None) -> EventPrediction:
     """Replay ``clone`` under ``meas``'s ground motion and compare with what was measured.
 
     Parameters
@@ -121,8 +140,13 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
         the default HLA settings when None); the ground motion is low-passed at its upper corner
     start : ``"carried"``: from the state the clone's last event left it in (undamaged where it
         has none); ``"undamaged"``: at rest
-    n_ensemble : clones drawn from ``clone.uncertainty`` for the predictive band (0: none)
+    n_ensemble : clones drawn from ``clone.uncertainty`` for the predictive band (0: none). The
+        band holds the central :data:`BAND_LEVEL` of the ensemble's predictions, widened on each
+        side by the same quantile of a Gaussian error of ``misfit`` times each floor's predicted RMS:
+        the parameters' uncertainty and the model's own misfit (as the clone replayed its events)
     seed : of the draws
+    misfit : the model's error as a fraction of a floor's RMS, one number or ``(floor,)`` (None:
+        :func:`identification_misfit`, what the clone missed its own events by)
     """
     from .hla.analysis import resolved_band
     from .hla.config import HLAConfig
@@ -154,20 +178,26 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
     assert sim.disp is not None and sim.acc is not None
     measured, integrated = measured_displacement(meas, band, order)
     predicted = _compared(sim.disp, sim.acc, ground, dt, band, integrated, order)
-    from .identify.replaycheck import corrcoef
     from .hla import preprocess as pp
+    from .identify.replaycheck import corrcoef
 
     r = corrcoef(predicted[0], measured)
+    r_true = None if meas.truth is None else corrcoef(np.nan_to_num(sim.disp[0]), meas.truth.disp)
     pm = np.max(np.abs(pp.story_drift(measured)), axis=0)
     pk = np.max(np.abs(pp.story_drift(predicted[0])), axis=0)
     lower = upper = coverage = None
     if n_ensemble:
+        from scipy.stats import norm
+
         q = 0.5 * (1.0 - BAND_LEVEL)
         lower, upper = np.quantile(predicted[1:], [q, 1.0 - q], axis=0)
+        sigma = identification_misfit(clone) if misfit is None else np.asarray(misfit, dtype=float)
+        pad = float(norm.ppf(1.0 - q)) * np.asarray(sigma) * np.sqrt(np.mean(predicted[0] ** 2, axis=0))
+        lower, upper = lower - pad, upper + pad
         coverage = np.mean((measured >= lower) & (measured <= upper), axis=0)
     return EventPrediction(event=meas.name, source=meas.source, start="undamaged" if y0 is None else start,
                            band_hz=band, pga_g=float(np.max(np.abs(meas.ground_acc)) / G_MM_S2), r=r,
                            peak_drift_measured=pm, peak_drift_predicted=pk, peak_drift_error=pk / pm - 1.0,
-                           coverage=coverage, n_ensemble=int(n_ensemble), status=int(sim.status[0]),
+                           r_true=r_true, coverage=coverage, n_ensemble=int(n_ensemble), status=int(sim.status[0]),
                            time=np.arange(meas.n_samples) * dt, disp_measured=measured, disp_predicted=predicted[0],
                            band_lower=lower, band_upper=upper)

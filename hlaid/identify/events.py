@@ -83,6 +83,27 @@ def prior_start(hla: HLAResult, meas: Measurement, prior: StructuralPrior, dampi
     return b.replace(dy=dy)
 
 
+PLAUSIBLE_SD = 3.0
+"""A start more than this many prior standard deviations from the system's medians (in any
+entry) is implausible: the prior's median building is tried beside it."""
+
+
+def plausible_starts(single: IdentificationResult | None, event: Event, meas: Measurement,
+                     system: StructuralPrior, cfg: IdentifyConfig) -> list[Building]:
+    """Where the joint fit starts: the single-event clone of the most informative event; also the
+    prior's median building (HLA's k0 of the first event) where there is none or the prior finds
+    it implausible (a record whose misfit is model error can drive a single-event fit to extreme
+    values, from which the joint search would not leave)."""
+    median = prior_start(event.hla, meas, system, None)
+    if single is None:
+        return [median]
+    b = single.clone.building
+    prior = SystemPrior(system, PriorVector(b, damping=cfg.refine.damping), event.hla.k0)
+    if np.max(np.abs(prior.residuals(prior.vector.x0))) <= PLAUSIBLE_SD:
+        return [b]
+    return [median, b]
+
+
 def posterior_uncertainty(fit: JointFit, level: float = 0.9) -> ParameterUncertainty:
     """The Laplace posterior of a joint fit as a Gaussian over the clone's parameters: per story
     ``log k0, logit(alpha / 0.95), log(p - 1), log dy, log delta_eta`` (and ``log zeta``), an exact

@@ -28,7 +28,7 @@ from .. import _progress
 from ..errors import InputError
 from ..measurement import Measurement
 from ..model import Building
-from ..model.state import BuildingState
+from ..model.state import BuildingState, settle_time
 from ..signal import lowpass
 from .priors import StructuralPrior, elf_profile, from_units, system_residuals, to_units
 from .refine import RefineResult, fit_residuals
@@ -38,10 +38,6 @@ REPLAY_RATE_RATIO = 16.0
 """Replays of a fit run at least this many samples per period of the fitted band's upper corner:
 a record sampled far above its band (a shake table at 256 Hz fitted below 2.5 Hz) is low-passed
 and decimated first (:func:`at_replay_rate`), a sixth of the work with the same residuals."""
-
-MIN_TAIL_S, MAX_TAIL_S = 2.0, 10.0
-"""Free vibration after each event before the next one starts: four first-mode decay times of the
-building, within these bounds [s]."""
 
 WEIGHT_ROUNDS = 3
 """At most this many searches, each with the weights of the last one's optimum."""
@@ -59,25 +55,19 @@ def at_replay_rate(meas: Measurement, hi_hz: float) -> Measurement:
                                floor_disp=None, truth=None)
 
 
-def settle_time(building: Building) -> float:
-    """Seconds of free vibration that bring ``building`` to rest after an event: four first-mode
-    decay times ``T1 / (2 pi zeta)``, within :data:`MIN_TAIL_S`-:data:`MAX_TAIL_S`."""
-    zeta = building.damping.ratio if building.damping.kind != "none" else 0.0
-    t1 = float(building.periods()[0])
-    return float(np.clip(4.0 * t1 / (2.0 * np.pi * zeta) if zeta > 0 else np.inf, MIN_TAIL_S, MAX_TAIL_S))
-
-
 def effective_samples(r: np.ndarray) -> float:
     """Effective number of independent samples of residuals ``r`` ``(time, channel)``: per
-    channel the spectral degrees of freedom ``2 (sum P)^2 / sum P^2`` (``2 B T`` for noise of
-    bandwidth ``B`` over ``T`` seconds, ``N`` for white noise), summed and scaled by the
-    channels' effective count over their number (``(sum l)^2 / sum l^2`` of the eigenvalues of
-    their covariance: floors that move as one mode count once)."""
+    channel the spectral degrees of freedom ``2 (sum S)^2 / sum S^2`` of its spectrum ``S``
+    (``2 B T`` for noise of bandwidth ``B`` over ``T`` seconds, ``N`` for white noise), taken
+    from the periodogram ``P`` as ``4 (sum P)^2 / sum P^2`` (a Gaussian's periodogram ordinates
+    have ``E P^2 = 2 S^2``), summed and scaled by the channels' effective count over their number
+    (``(sum l)^2 / sum l^2`` of the eigenvalues of their covariance: floors that move as one mode
+    count once)."""
     r = np.asarray(r, dtype=float)
     if r.ndim == 1:
         r = r[:, None]
     P = np.abs(np.fft.rfft(r - r.mean(axis=0), axis=0)) ** 2
-    dof = 2.0 * P.sum(axis=0) ** 2 / np.maximum((P**2).sum(axis=0), 1e-300)
+    dof = 4.0 * P.sum(axis=0) ** 2 / np.maximum((P**2).sum(axis=0), 1e-300)
     lam = np.clip(np.linalg.eigvalsh(np.atleast_2d(np.cov(r.T))), 0.0, None)
     channels = lam.sum() ** 2 / max(float((lam**2).sum()), 1e-300) if lam.sum() > 0 else 1.0
     return float(min(dof.sum() * channels / r.shape[1], r.shape[0] * r.shape[1]))
@@ -338,7 +328,7 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
     band_hz : band of the compared floor accelerations [Hz]
     ground_noise : ``"ignore"`` (least squares of each event's residuals) or ``"tangent"``
         (each event's residuals whitened against its ground sensor's noise, errors in variables,
-        the tangent taken along the start's replay from the state carried into that event)
+        the tangent taken once, along the start's replay from the state it carries into that event)
     damping : the damping ratio is fitted (else held at ``start``'s)
     y0 : the state before the first event (``(4*story,)``; None: at rest)
     names : the events' labels (for the states)
@@ -357,11 +347,10 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
     rr: RefineResult | None = None
     weights: np.ndarray | None = None
     fits = 0
+    series = _series(start, events, band_hz, ground_noise, substeps, jac_substeps, y0, tangent_max_mb)
     for _ in range(WEIGHT_ROUNDS):
-        series = _series(current, events, band_hz, ground_noise, substeps, jac_substeps, y0, tangent_max_mb)
         info = series.reweigh(current)
-        settled = weights is not None and bool(np.all(np.abs(np.log(series.weights / weights)) < np.log(1.2)))
-        if settled:
+        if weights is not None and bool(np.all(np.abs(np.log(series.weights / weights)) < np.log(1.2))):
             break
         weights = series.weights.copy()
         fits += 1

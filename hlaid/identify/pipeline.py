@@ -35,7 +35,7 @@ from ..model import Building
 from ..uncertainty.laplace import uncertainty_of_refinement
 from .cache import MachineCache, default_cache_dir
 from .config import IdentifyConfig
-from .events import best_fit, check_series, joint_fit, most_informative, prior_start, result_of_joint, state_after
+from .events import best_fit, check_series, joint_fit, most_informative, plausible_starts, result_of_joint, state_after
 from .passes import ClassifierPasses, voted
 from .priors import get_prior
 from .refiners import Refinement, RefineProblem, get_refiner
@@ -145,9 +145,7 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
         tb.close()
         return single
     system = get_prior(cfg.system or "generic")
-    starts = [prior_start(events[0].hla, meas[0], system, None)]
-    if single is not None:
-        starts.append(single.clone.building)
+    starts = plausible_starts(single, events[0], meas[0], system, cfg)
     names = [m.name or f"event {k + 1}" for k, m in enumerate(meas)]
     t = time.perf_counter()
     fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=events[0].hla.k0) for b in starts]

@@ -26,6 +26,18 @@ from ..errors import InputError
 from ._equations import degradation
 from .params import Building
 
+SETTLE_LIMITS_S = (2.0, 10.0)
+"""Free vibration after an event before the next one: four first-mode decay times of the
+building, within these bounds [s]."""
+
+
+def settle_time(building: Building) -> float:
+    """Seconds of free vibration that bring ``building`` to rest after an event: four first-mode
+    decay times ``T1 / (2 pi zeta)``, within :data:`SETTLE_LIMITS_S`."""
+    zeta = building.damping.ratio if building.damping.kind != "none" else 0.0
+    t1 = float(building.periods()[0])
+    return float(np.clip(4.0 * t1 / (2.0 * np.pi * zeta) if zeta > 0 else np.inf, *SETTLE_LIMITS_S))
+
 
 @dataclass(frozen=True, eq=False)
 class BuildingState:

@@ -86,7 +86,7 @@ class GroundTangent:
 
 def ground_tangent(building: Building, motion: GroundMotion, *, lags: int, shape: np.ndarray | None = None,
                    substeps: int = 4, stride: int = 1, lowpass_hz: float | None = None,
-                   max_mb: float | None = None) -> GroundTangent:
+                   max_mb: float | None = None, y0: np.ndarray | None = None) -> GroundTangent:
     """Tangent of the floors' absolute accelerations along ``building``'s replay of ``motion``.
 
     Parameters
