@@ -1,58 +1,73 @@
-"""Reading text files (plain or gzip) and writing outputs atomically."""
+"""Writing outputs atomically, and what an output may replace (inputs are read by :mod:`hlaid._inputs`).
+
+Every output is built under a temporary name next to its destination and renamed into place when
+complete, so a reader sees the old result or the whole new one and a failure (a full disk, Ctrl-C,
+SIGTERM) leaves nothing behind. An output folder carries a marker (:data:`MARKER`) naming the hlaid
+command that wrote it: ``--force`` replaces only such a folder or an empty one, and never one that
+holds an input of the same run or the current folder; an output file is never an input of its run.
+"""
 
 from __future__ import annotations
 
 import contextlib
-import gzip
-import io
+import errno
+import hashlib
 import json
 import os
 import re
 import shutil
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
-import numpy as np
-
 from . import _progress
+from ._inputs import read_json, read_text
+from ._version import __version__
 from .errors import InputError
-from .limits import check_readable_file, file_limit_text, max_file_bytes
+
+read_file_text = read_text
+"""The old name of :func:`hlaid._inputs.read_text`."""
+
+MARKER = ".hlaid-output.json"
+"""The file that makes a folder an output of hlaid (``--force`` may replace it)."""
+
+command = "hlaid"
+"""The command writing outputs now (set by the command line, e.g. ``"hlaid hla"``), named in :data:`MARKER`."""
+
+NO_SPACE = (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC))
+"""``errno`` values of a full disk or an exhausted quota."""
 
 
-def read_file_text(path: str | os.PathLike) -> str:
-    """Text of a file, transparently gunzipped; a clear error for missing or binary files."""
-    p = Path(path)
-    if not p.exists():
-        raise InputError("file not found", source=str(p))
-    if p.is_dir():
-        raise InputError("is a folder; expected a file", source=str(p))
-    check_readable_file(p)  # a regular file within HLAID_MAX_FILE_MB, before reading a byte
+def no_space_error(err: BaseException, path: str | os.PathLike, folder: str | os.PathLike) -> InputError | None:
+    """An :class:`InputError` saying the disk is full (or the quota exhausted) when ``err``, raised
+    while writing the output ``path`` in ``folder``, is such an error, else None."""
+    if isinstance(err, NoSpaceError):  # of a file inside the folder being built: said of the folder
+        what = err.what
+    elif isinstance(err, OSError) and err.errno in NO_SPACE:
+        what = "no space left on the device" if err.errno == errno.ENOSPC else "disk quota exceeded"
+    elif not isinstance(err, (OSError, InputError)) and isinstance(err, Exception) and _disk_full(folder):
+        what = "no space left on the device"  # a library that wraps the OSError (torch.save: RuntimeError)
+    else:
+        return None
+    return NoSpaceError(what, path)
+
+
+class NoSpaceError(InputError):
+    """The disk filled up (or the quota ran out) while an output was written; nothing was left."""
+
+    def __init__(self, what: str, path: str | os.PathLike):
+        self.what = what
+        super().__init__(f"{what} while writing it; nothing was written (free some space or choose another "
+                         "folder)", source=str(path))
+
+
+def _disk_full(folder: str | os.PathLike) -> bool:
     try:
-        raw = _read_capped(p)
-    except (OSError, EOFError) as err:
-        raise InputError(f"cannot read: {err}", source=str(p)) from None
-    if b"\x00" in raw[:4096]:
-        raise InputError("is a binary file; expected text", source=str(p))
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
-
-
-def _read_capped(p: Path) -> bytes:
-    """The bytes of ``p``, gunzipped when gzip; more than ``HLAID_MAX_FILE_MB`` (a file that grew,
-    or a small ``.gz`` that inflates to gigabytes) is an InputError."""
-    top = max_file_bytes()
-    with open(p, "rb") as fh:
-        raw = fh.read(top + 1)
-    if len(raw) <= top and raw[:2] == b"\x1f\x8b":
-        with gzip.GzipFile(fileobj=io.BytesIO(raw)) as gz:
-            raw = gz.read(top + 1)
-    if len(raw) > top:
-        raise InputError(f"holds more than {file_limit_text()}", source=str(p))
-    return raw
+        st = os.statvfs(folder)
+    except (OSError, AttributeError):
+        return False
+    return st.f_bavail * st.f_frsize < 64 * 1024
 
 
 def _creation_mode(directory: bool = False) -> int:
@@ -78,12 +93,59 @@ def check_parent(path: Path) -> Path:
     return parent
 
 
-def check_output_file(path: str | os.PathLike, *, force: bool = False) -> Path:
+def _name_max(folder: Path) -> int:
+    try:
+        return int(os.pathconf(folder, "PC_NAME_MAX"))
+    except (OSError, ValueError, AttributeError):
+        return 255
+
+
+def check_name(path: Path) -> None:
+    """Refuse an output name longer than the file system allows (before the work, not after it)."""
+    parent = path.parent if str(path.parent) else Path(".")
+    top = _name_max(parent if parent.is_dir() else Path("."))
+    size = len(os.fsencode(path.name))
+    if size > top:
+        raise InputError(f"the name is {size} bytes long; the file system allows at most {top}", source=str(path))
+
+
+def _stem(name: str) -> str:
+    """``name`` in the temporary names of its output: shortened (with a hash, so different names stay
+    different) when ``.NAME.PID-XXXXXXXX.tmp.SUFFIX`` would exceed the file system's limit."""
+    raw = os.fsencode(name)
+    if len(raw) <= 200:
+        return name
+    digest = hashlib.sha1(raw).hexdigest()[:10]
+    return os.fsdecode(raw[:180]) + "~" + digest
+
+
+def _real(p: str | os.PathLike) -> str:
+    return os.path.realpath(os.path.abspath(p))
+
+
+def _inside(child: str, folder: str) -> bool:
+    return child == folder or child.startswith(folder.rstrip(os.sep) + os.sep)
+
+
+def _input_paths(inputs: Iterable[str | os.PathLike | None]) -> list[str]:
+    return [str(p) for p in inputs if p and not str(p).startswith("builtin")]
+
+
+def check_output_file(path: str | os.PathLike, *, force: bool = False,
+                      inputs: Iterable[str | os.PathLike | None] = ()) -> Path:
     """Refuse an output file that :func:`atomic_write` would refuse (an existing file without
-    ``force``, a folder in its place, a missing or unwritable folder), so a long job fails before it runs."""
+    ``force``, a folder in its place, a missing or unwritable folder, a name too long), or that is
+    one of the run's ``inputs`` (even with ``force``), so a long job fails before it runs."""
     path = Path(path)
+    check_name(path)
     if path.is_dir():
         raise InputError("is a folder; expected an output file name", source=str(path))
+    if os.path.lexists(path):
+        real = _real(path)
+        for p in _input_paths(inputs):
+            if _real(p) == real or (os.path.exists(p) and os.path.samefile(p, path)):
+                raise InputError(f"is an input of this run ({p}); write the output to another file "
+                                 "(--force never replaces an input)", source=str(path))
     if path.exists() and not force:
         raise InputError("already exists; use --force to overwrite", source=str(path))
     check_parent(path)
@@ -114,7 +176,7 @@ def remove_stale(parent: Path, name: str) -> list[str]:
     ``.NAME.old-PID`` (a replaced folder), each only when older than :data:`STALE_AFTER_S` and
     its process ``PID`` is no longer running.
     """
-    pat = re.compile(re.escape(f".{name}.") + r"(?:(\d+)-\w+\.tmp.*|old-(\d+))\Z", re.S)
+    pat = re.compile(re.escape(f".{_stem(name)}.") + r"(?:(\d+)-\w+\.tmp.*|old-(\d+))\Z", re.S)
     try:
         entries = list(os.scandir(parent))
     except OSError:
@@ -152,16 +214,19 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], object], *, fo
     remove_stale(parent, path.name)
     tmp = None
     try:
-        fd, name = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}-", suffix=".tmp" + "".join(path.suffixes),
+        fd, name = tempfile.mkstemp(prefix=f".{_stem(path.name)}.{os.getpid()}-", suffix=".tmp" + path.suffix[:16],
                                     dir=parent)
         os.close(fd)
         tmp = Path(name)
         write(tmp)
         os.chmod(tmp, _creation_mode())
         os.replace(tmp, path)
-    except BaseException:  # Ctrl-C too: nothing is left behind
+    except BaseException as err:  # Ctrl-C too: nothing is left behind
+        full = no_space_error(err, path, parent)
         if tmp is not None:
             tmp.unlink(missing_ok=True)
+        if full is not None:
+            raise full from None
         raise
     return path
 
@@ -177,12 +242,14 @@ def write_npz(path, arrays: dict, *, force: bool = True) -> Path:
     """Atomically write a compressed NPZ."""
     def w(tmp: Path):
         with open(tmp, "wb") as fh:
+            import numpy as np
             np.savez_compressed(fh, **arrays)
     return atomic_write(path, w, force=force)
 
 
 def json_default(o):
     """``json.dumps`` ``default=``: numpy arrays and scalars as lists and numbers, paths as text."""
+    import numpy as np  # loaded already by whoever built the arrays
     if isinstance(o, np.ndarray):
         return o.tolist()
     if isinstance(o, (np.floating, np.integer, np.bool_)):
@@ -192,42 +259,88 @@ def json_default(o):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
-def check_output_folder(path: str | os.PathLike, *, force: bool = False) -> Path:
-    """Refuse an output folder that :func:`atomic_directory` would refuse (a file, a non-empty
-    folder without ``force``, a missing or unwritable parent), so a long job fails before it runs."""
+def is_hlaid_output(folder: str | os.PathLike) -> bool:
+    """Whether ``folder`` carries the :data:`MARKER` of an hlaid command (a readable, regular file)."""
+    try:
+        d = read_json(Path(folder) / MARKER)
+    except InputError:
+        return False
+    return isinstance(d, dict) and d.get("format") == "hlaid-output"
+
+
+def marker(what: str | None = None) -> dict:
+    """The content of :data:`MARKER`: which hlaid command wrote the folder, and when."""
+    return {"format": "hlaid-output", "version": 1, "command": what or command, "hlaid_version": __version__,
+            "written": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+
+
+def check_output_folder(path: str | os.PathLike, *, force: bool = False,
+                        inputs: Iterable[str | os.PathLike | None] = ()) -> Path:
+    """Refuse an output folder that :func:`atomic_directory` would refuse, so a long job fails
+    before it runs: a file in its place, a missing or unwritable parent, a name too long; a folder
+    that holds one of the run's ``inputs`` or the current folder; a non-empty folder without
+    ``force``, or with ``force`` one that is not an hlaid output (no :data:`MARKER`)."""
     path = Path(path)
+    check_name(path)
     if path.exists() and not path.is_dir():
         raise InputError("exists and is not a folder", source=str(path))
-    if path.exists() and any(path.iterdir()) and not force:
-        raise InputError("output folder exists and is not empty; use --force to replace it", source=str(path))
+    if path.is_dir():
+        real = _real(path)
+        for p in _input_paths(inputs):
+            if _inside(_real(p), real):
+                raise InputError(f"holds {p}, an input of this run; choose another output folder (--force never "
+                                 "replaces an input)", source=str(path))
+        if _inside(_real("."), real):
+            raise InputError("holds the current folder; choose another output folder", source=str(path))
+        if any(path.iterdir()):
+            if not force:
+                raise InputError("output folder exists and is not empty; use --force to replace it", source=str(path))
+            if not is_hlaid_output(path):
+                raise InputError(f"is not an output folder of hlaid (it has no {MARKER}): --force replaces only a "
+                                 "folder hlaid wrote, or an empty one; move its contents away or choose another "
+                                 "folder", source=str(path))
     check_parent(path)
     return path
 
 
 @contextlib.contextmanager
-def atomic_directory(path: str | os.PathLike, *, force: bool = False) -> Iterator[Path]:
+def atomic_directory(path: str | os.PathLike, *, force: bool = False,
+                     inputs: Iterable[str | os.PathLike | None] = (), what: str | None = None) -> Iterator[Path]:
     """Build an output folder in a temporary sibling and move it into place on success.
 
-    With ``force`` an existing folder is replaced only once the new one is complete; without
-    it an existing, non-empty folder is an error. On failure the temporary folder is removed
-    and the existing folder, if any, is untouched.
+    The folder gets a :data:`MARKER` naming the command that wrote it (``what``, default
+    :data:`command`). With ``force`` an existing folder is replaced only when
+    :func:`check_output_folder` allows it (an hlaid output holding none of ``inputs``, or an empty
+    folder), checked before and again after the work, and only once the new one is complete;
+    without it an existing, non-empty folder is an error. On failure the temporary folder is
+    removed and the existing folder, if any, is untouched. A symlink in ``path``'s place is
+    replaced by the folder; what it pointed to is left alone.
     """
-    path = check_output_folder(path, force=force)
+    inputs = list(inputs)
+    path = check_output_folder(path, force=force, inputs=inputs)
     parent = path.parent if str(path.parent) else Path(".")
     remove_stale(parent, path.name)
     tmp = None
     try:
-        tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.{os.getpid()}-", suffix=".tmp", dir=parent))
+        tmp = Path(tempfile.mkdtemp(prefix=f".{_stem(path.name)}.{os.getpid()}-", suffix=".tmp", dir=parent))
         yield tmp
+        write_json(tmp / MARKER, marker(what))
         os.chmod(tmp, _creation_mode(directory=True))
-    except BaseException:  # Ctrl-C too: nothing is left behind
+        check_output_folder(path, force=force, inputs=inputs)  # what is there now may differ from before the work
+    except BaseException as err:  # Ctrl-C too: nothing is left behind
+        full = no_space_error(err, path, parent)
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
+        if full is not None:
+            raise full from None
         raise
     old = None
-    if path.exists():
-        old = path.with_name(f".{path.name}.old-{os.getpid()}")
+    if os.path.lexists(path):
+        old = path.with_name(f".{_stem(path.name)}.old-{os.getpid()}")
         os.replace(path, old)
     os.replace(tmp, path)
     if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+        if old.is_symlink() or not old.is_dir():
+            old.unlink(missing_ok=True)
+        else:
+            shutil.rmtree(old, ignore_errors=True)

@@ -1,4 +1,4 @@
-"""Ctrl-C that cannot be lost.
+"""Ctrl-C (and SIGTERM) that cannot be lost.
 
 Python raises ``KeyboardInterrupt`` wherever the main thread is when SIGINT arrives. When that
 is a weakref callback or a ``__del__`` run by the garbage collector, the exception is printed as
@@ -7,8 +7,12 @@ is a weakref callback or a ``__del__`` run by the garbage collector, the excepti
 tries, all of them 6.8-7.0 s in). Under :func:`sticky_sigint` (the command line) the handler also
 remembers the interruption, and :func:`check`, called with every progress message of the
 library and while the parent waits for worker processes, raises it again where it was dropped;
-Python's "Exception ignored" traceback of the dropped one is not printed then (it was seen once in
-10 Ctrl-C tries during the tangent stage).
+Python's "Exception ignored" traceback of the dropped one is not printed then (seen once in 10
+Ctrl-C tries during the tangent stage).
+
+SIGTERM (``kill PID``, a job scheduler's stop) is handled the same way: it raises
+:class:`Terminated`, a ``KeyboardInterrupt``, so every clean-up that Ctrl-C runs (worker pools
+stopped, outputs in progress removed) runs for it too, and the command line exits with 143.
 """
 
 from __future__ import annotations
@@ -19,37 +23,46 @@ import sys
 import threading
 from collections.abc import Iterator
 
-_pending = False
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM arrived: stop as for Ctrl-C (exit status 143 on the command line)."""
+
+
+_pending: type[KeyboardInterrupt] | None = None
 
 
 def _handler(signum, frame) -> None:
     global _pending
-    _pending = True
-    raise KeyboardInterrupt
+    _pending = Terminated if signum == getattr(signal, "SIGTERM", None) else KeyboardInterrupt
+    raise _pending
 
 
 def check() -> None:
-    """Raise ``KeyboardInterrupt`` when SIGINT arrived under :func:`sticky_sigint` and its
-    exception was dropped. Not while an exception is being handled: the clean-up after the
-    interruption itself (``except``/``finally`` blocks) runs undisturbed."""
+    """Raise ``KeyboardInterrupt`` (:class:`Terminated` for SIGTERM) when the signal arrived under
+    :func:`sticky_sigint` and its exception was dropped. Not while an exception is being handled:
+    the clean-up after the interruption itself (``except``/``finally`` blocks) runs undisturbed."""
     global _pending
-    if _pending and sys.exc_info()[0] is None:
-        _pending = False
-        raise KeyboardInterrupt
+    if _pending is not None and sys.exc_info()[0] is None:
+        kind, _pending = _pending, None
+        raise kind
 
 
 @contextlib.contextmanager
 def sticky_sigint() -> Iterator[None]:
-    """Within the block SIGINT raises ``KeyboardInterrupt`` as usual and is remembered for
-    :func:`check`. Only in the main thread and over Python's default handler (an application's
-    own handler is left alone)."""
+    """Within the block SIGINT raises ``KeyboardInterrupt`` as usual, SIGTERM :class:`Terminated`
+    (where its handler is the default one), and each is remembered for :func:`check`. Only in the
+    main thread and over Python's default handler (an application's own handler is left alone)."""
     global _pending
     if threading.current_thread() is not threading.main_thread() or \
             signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
         yield
         return
-    _pending = False
+    _pending = None
     old = signal.signal(signal.SIGINT, _handler)
+    term = getattr(signal, "SIGTERM", None)
+    old_term = signal.getsignal(term) if term is not None else None
+    if term is not None and old_term == signal.SIG_DFL:
+        signal.signal(term, _handler)
     old_hook = sys.unraisablehook
 
     def quiet(unraisable) -> None:  # the dropped Ctrl-C is raised again by check(): no "Exception ignored"
@@ -61,5 +74,7 @@ def sticky_sigint() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGINT, old)
+        if term is not None and old_term == signal.SIG_DFL:
+            signal.signal(term, signal.SIG_DFL)
         sys.unraisablehook = old_hook
-        _pending = False
+        _pending = None

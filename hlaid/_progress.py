@@ -17,7 +17,7 @@ from collections.abc import Iterable, Iterator, Sized
 from typing import TypeVar
 
 from . import _interrupt
-from .errors import HlaidWarning
+from .errors import HlaidWarning, escape_controls
 
 T = TypeVar("T")
 
@@ -28,12 +28,24 @@ LEVELS = {0: logging.WARNING, 1: logging.INFO, 2: logging.DEBUG}
 """Verbosity (0 quiet, 1 normal, 2 verbose) -> logging level."""
 
 
+class _Escaping(logging.Formatter):
+    """The message alone, control characters escaped line by line (a file name quoted in a progress
+    line or a warning must not reach the terminal as an escape sequence)."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return "\n".join(escape_controls(line) for line in super().format(record).split("\n"))
+
+
 class _StderrHandler(logging.StreamHandler):
     """Plain message lines on the *current* ``sys.stderr`` (which tests and pipes may replace)."""
 
     def __init__(self) -> None:
         super().__init__()
-        self.setFormatter(logging.Formatter("%(message)s"))
+        self.setFormatter(_Escaping("%(message)s"))
+
+    def emit(self, record: logging.LogRecord) -> None:
+        end_line()
+        super().emit(record)
 
     @property  # type: ignore[override]
     def stream(self):
@@ -103,19 +115,39 @@ def warn(msg: str, *, stacklevel: int = 2) -> None:
 
 def progress(items: Iterable[T], total: int | None = None, desc: str = "") -> Iterator[T]:
     """Iterate with a one-line progress bar on stderr (when progress is logged and stderr is a
-    terminal, or details are logged)."""
+    terminal; when details are logged to a file or pipe, only the closing ``done in`` line, so no
+    line is left unfinished there for another message to run into)."""
     total = total if total is not None else (len(items) if isinstance(items, Sized) else None)
     level = verbosity()
-    show = LOGGER.hasHandlers() and level >= 1 and (sys.stderr.isatty() or level >= 2)
+    tty = sys.stderr.isatty()
+    show = LOGGER.hasHandlers() and level >= 1 and (tty or level >= 2)
     t0 = time.perf_counter()
     for i, item in enumerate(items):
         _interrupt.check()
         yield item
-        if show and total:
+        if show and total and tty:
             done = i + 1
             frac = done / total
             eta = (time.perf_counter() - t0) / done * (total - done)
             bar = "#" * int(24 * frac)
             print(f"\r{desc} [{bar:<24}] {done}/{total} eta {eta:5.1f}s", end="", file=sys.stderr, flush=True)
+            _bar.open = True
     if show and total:
         print(f"\r{desc} done in {time.perf_counter() - t0:.1f} s" + " " * 30, file=sys.stderr, flush=True)
+        _bar.open = False
+
+
+class _Bar:
+    open = False
+    """Whether a progress bar line on stderr awaits its end of line."""
+
+
+_bar = _Bar()
+
+
+def end_line() -> None:
+    """End a progress bar line left open (by an interruption or an error), so that the next
+    message starts a line of its own."""
+    if _bar.open:
+        _bar.open = False
+        print(file=sys.stderr, flush=True)

@@ -33,18 +33,22 @@ _POLL_S = 0.1  # how often a waiting parent looks at its signal flag
 _GRACE_S = 3.0  # how long Pool.terminate may take before the workers are killed
 
 _MASK = hasattr(signal, "pthread_sigmask")  # POSIX only
+_SIGNALS = {signal.SIGINT, signal.SIGTERM}
 
 
 def _ignore_sigint() -> None:
-    """Pool initializer: SIGINT is the parent's business; one torch thread per worker.
+    """Pool initializer: SIGINT is the parent's business (SIGTERM, which the parent's clean-up
+    sends, ends the worker); one torch thread per worker.
 
     The workers are one per core, so a second intra-op thread each would only oversubscribe;
     and a forked child must not enter an OpenMP parallel region of the parent's thread pool
     (libgomp is not fork-safe: the first large tensor copy in the worker hung for ever).
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(signal, "SIGTERM"):  # Pool.terminate's SIGTERM ends a worker at once, quietly
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
     if _MASK:
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, _SIGNALS)
     import torch
 
     torch.set_num_threads(1)
@@ -53,13 +57,13 @@ def _ignore_sigint() -> None:
 def process_pool(n_jobs: int) -> multiprocessing.pool.Pool:
     """A pool of ``n_jobs`` worker processes (forked where the platform can) that ignore SIGINT.
 
-    SIGINT is blocked while the workers start, so a Ctrl-C between a fork and the worker's
-    initializer reaches the parent (once unblocked) rather than the new worker.
+    SIGINT and SIGTERM are blocked while the workers start, so a signal between a fork and the
+    worker's initializer reaches the parent (once unblocked) rather than the new worker.
     """
     ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else mp.get_context()
     if not _MASK:
         return ctx.Pool(n_jobs, initializer=_ignore_sigint)
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
     try:
         return ctx.Pool(n_jobs, initializer=_ignore_sigint)
     finally:

@@ -37,7 +37,6 @@ the one above (it may be left out), or a field of the wrong type (``"pdelta": "y
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import os
 from dataclasses import dataclass, field
@@ -46,8 +45,9 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from ._fileio import read_file_text, write_json
-from .errors import InputError, kind_of
+from ._fileio import write_json
+from ._inputs import read_json
+from .errors import InputError, escape_controls, kind_of
 from .model import Building, Damping
 from .model.state import BuildingState
 from .units import UNITS_JSON
@@ -154,6 +154,11 @@ class Clone:
             heights.append(None if s.get("height") is None else _number(s["height"], f"stories[{i}].height", source))
             gravity.append(None if s.get("gravity_load") is None
                            else _number(s["gravity_load"], f"stories[{i}].gravity_load", source))
+        for key, values in (("height", heights), ("gravity_load", gravity)):
+            if None in values and any(v is not None for v in values):
+                i = values.index(None)
+                raise InputError(f"stories[{i}].{key} is missing; give {key} for every story or for none",
+                                 source=source)
         damping = d.get("damping", {})
         if not isinstance(damping, dict):
             raise InputError(f"field 'damping' must be a mapping, got {kind_of(damping)}", source=source)
@@ -179,7 +184,7 @@ class Clone:
                          damping=Damping(**damping), pdelta=d.get("pdelta"),
                          collapse=_collapse_block(d.get("collapse"), source), name=d.get("name") or "", source=source)
         except InputError as err:
-            raise InputError(str(err).removeprefix(f"{source}: "), source=source) from None
+            raise InputError(str(err).removeprefix(f"{escape_controls(source)}: "), source=source) from None
         unc = None
         if d.get("uncertainty") is not None:
             from .model.uncertainty import ParameterUncertainty
@@ -195,12 +200,7 @@ class Clone:
     @classmethod
     def load(cls, path: str | os.PathLike) -> Clone:
         """Read and validate a clone JSON file."""
-        src = str(path)
-        try:
-            d = json.loads(read_file_text(path))
-        except json.JSONDecodeError as err:
-            raise InputError(f"not valid JSON (line {err.lineno}: {err.msg})", source=src) from None
-        return cls.from_dict(d, source=src)
+        return cls.from_dict(read_json(path), source=str(path))
 
 
 START_STATES = ("carried", "undamaged")

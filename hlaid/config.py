@@ -15,12 +15,12 @@ import os
 import re
 import types
 import typing
-from pathlib import Path
 from typing import Any, Literal, TypeVar, Union
 
 import yaml
 
-from ._fileio import read_file_text
+from ._inputs import read_text
+from .bounds import bounds_of, show
 from .errors import ConfigError, InputError, kind_of
 
 T = TypeVar("T")
@@ -47,7 +47,15 @@ def _convert(node: yaml.Node, source: str) -> _Node:
         return _Node(out, line, keys)
     if isinstance(node, yaml.SequenceNode):
         return _Node([_convert(v, source) for v in node.value], line)
-    return _Node(yaml.SafeLoader("").construct_object(node, deep=True), line)
+    try:
+        return _Node(yaml.SafeLoader("").construct_object(node, deep=True), line)
+    except ValueError:  # an integer of thousands of digits (Python refuses to convert it): the
+        return _Node(_BigInt(node.value), line)  # field it is given to refuses it by name
+
+
+class _BigInt(str):
+    """The text of an integer too long for Python to convert (thousands of digits): a number field
+    reads it as a float (inf), refused by its bounds; any other field refuses it as such."""
 
 
 class _NoAliasLoader(yaml.SafeLoader):
@@ -130,6 +138,8 @@ def _build(tp, node: _Node, where: str, source: str):
     v = node.value
     err = f"{source}:{node.line}: {where or 'top level'}:"
     origin = typing.get_origin(tp)
+    if isinstance(v, _BigInt) and tp is not float and origin not in (Union, types.UnionType):
+        raise ConfigError(f"{err} an integer of {len(v)} digits is out of range")
     if origin in (Union, types.UnionType):
         args = typing.get_args(tp)
         if v is None and type(None) in args:
@@ -167,7 +177,10 @@ def _build(tp, node: _Node, where: str, source: str):
                 except ValueError:
                     pass
             raise ConfigError(f"{err} expected a number, got {_show(v)}")
-        return float(v)
+        try:
+            return float(v)
+        except OverflowError:  # an integer beyond any float
+            raise ConfigError(f"{err} {show(v)} is out of range") from None
     if tp is str:
         if not isinstance(v, str):
             raise ConfigError(f"{err} expected a string, got {_show(v)}")
@@ -231,6 +244,7 @@ def _build_dataclass(cls, node: _Node, where: str, source: str):
             raise ConfigError(f"{source}:{keys.get(key, node.line)}: unknown key {path!r}; "
                               f"expected one of: {', '.join(fields)}")
         kwargs[key] = _build(hints[key], sub, path, source)
+        _check_field(fields[key], kwargs[key], sub, path, source)
     missing = [k for k, f in fields.items()
                if k not in kwargs and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
     if missing:
@@ -241,6 +255,16 @@ def _build_dataclass(cls, node: _Node, where: str, source: str):
         key = _key_named_in(str(e), node.value)
         line = node.value[key].line if key is not None else node.line
         raise ConfigError(f"{source}:{line}: {where or 'top level'}: {e}") from None
+
+
+def _check_field(f: dataclasses.Field, value, node: _Node, path: str, source: str) -> None:
+    """The field's bounds (:mod:`hlaid.bounds`), checked with the line of the offending value."""
+    b = bounds_of(f)
+    bad = None if b is None else b.offending(value)
+    if b is not None and bad is not None:
+        i, v = bad
+        line = node.value[i].line if i is not None and isinstance(node.value, list) else node.line
+        raise ConfigError(f"{source}:{line}: {b.message(path if i is None else f'{path}[{i}]', v)}")
 
 
 def _key_named_in(message: str, values: dict) -> str | None:
@@ -270,9 +294,9 @@ def config_from_dict(cls: type[T], data: dict, source: str = "<dict>") -> T:
 def load_yaml(path: str | os.PathLike) -> _Node:
     """The line-annotated YAML tree of a config file (see :func:`parse_yaml`)."""
     source = str(path)
-    if not Path(source).is_file():
+    if not os.path.lexists(source):
         raise ConfigError("config file not found", source=source)
-    return parse_yaml(read_file_text(source), source)
+    return parse_yaml(read_text(source), source)  # a regular file within HLAID_MAX_FILE_MB (hlaid._inputs)
 
 
 def config_from_node(cls: type[T], node: _Node, source: str, where: str = "") -> T:

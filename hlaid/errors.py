@@ -9,15 +9,44 @@ it into a single line on stderr and exit status 2; anything else is an internal 
 from __future__ import annotations
 
 import re
+import unicodedata
+
+_BIDI = frozenset("\u061c\u200e\u200f\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
+
+
+def _escaped(ch: str) -> str:
+    if ch in _BIDI or unicodedata.category(ch) in ("Cc", "Cs"):
+        code = ord(ch)
+        return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}"
+    return ch
+
+
+def escape_controls(text) -> str:
+    """``text`` with control characters (C0, C1, DEL), lone surrogates (undecodable bytes of a
+    file name) and bidirectional overrides written as ``\\x1b``-style escapes, so that a file
+    name such as ``'\\x1b]0;...\\x07'`` cannot retitle, clear or reorder the user's terminal."""
+    text = str(text)
+    if text.isprintable() and text.isascii():
+        return text
+    return "".join(_escaped(ch) for ch in text)
+
+
+def one_line(text) -> str:
+    """``text`` as one line: runs of whitespace (newlines included) become one space, and control
+    characters are escaped (:func:`escape_controls`)."""
+    return escape_controls(" ".join(str(text).split()))
 
 
 class InputError(ValueError):
-    """Bad user input. ``str(err)`` is one line naming the file or field and what is wrong."""
+    """Bad user input. ``str(err)`` is one line naming the file or field and what is wrong
+    (control characters escaped: it may quote a hostile file name)."""
 
     def __init__(self, message: str, *, source: str | None = None):
-        message = " ".join(str(message).split())  # always one line
+        message = one_line(message)  # always one line
         self.source = source
-        super().__init__(f"{source}: {message}" if source else message)
+        self.detail = message
+        """The message without the source."""
+        super().__init__(f"{escape_controls(source)}: {message}" if source else message)
 
 
 class ConfigError(InputError):

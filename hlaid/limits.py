@@ -29,9 +29,6 @@ a device, a FIFO or a socket is refused before any byte is read.
 from __future__ import annotations
 
 import os
-import stat
-import zipfile
-from pathlib import Path
 
 from .errors import InputError
 
@@ -48,20 +45,47 @@ DEFAULTS: dict[str, float] = {
 }
 """Default limits by name; ``HLAID_MAX_<NAME>`` overrides each."""
 
+RANGES: dict[str, tuple[float, float]] = {
+    "FILE_MB": (1e-4, 2**20),
+    "SAMPLES": (16, 1e10),
+    "RATE_HZ": (5, 1e8),
+    "STORIES": (1, 10_000),
+    "IDA_LEVELS": (2, 1e6),
+    "IDA_RECORDS": (1, 1e6),
+    "BOOTSTRAP": (1, 1e8),
+    "TRAINING": (20, 1e7),
+    "TANGENT_MB": (1, 2**20),
+}
+"""What each ``HLAID_MAX_<NAME>`` may be set to, ``(lowest, highest)``: a limit, however raised, stays finite."""
+
+PREFIX = "HLAID_MAX_"
+
 
 def limit(name: str) -> float:
-    """The limit ``name`` (a key of :data:`DEFAULTS`): ``HLAID_MAX_<NAME>`` when set, else the default."""
-    var = f"HLAID_MAX_{name}"
+    """The limit ``name`` (a key of :data:`DEFAULTS`): ``HLAID_MAX_<NAME>`` when set, else the default.
+    A value that is no number or lies outside :data:`RANGES` is an :class:`InputError` naming the variable."""
+    var = f"{PREFIX}{name}"
     text = os.environ.get(var, "").strip()
     if not text:
         return DEFAULTS[name]
     try:
-        value = float(text)
+        value = float(text) if len(text) < 400 else float("nan")
     except ValueError:
         value = float("nan")
-    if not value > 0:
-        raise InputError(f"environment variable {var} = {text!r}; expected a positive number")
+    lo, hi = RANGES[name]
+    if not lo <= value <= hi:  # NaN too
+        shown = repr(text) if len(text) <= 40 and text.isprintable() else f"a value of {len(text)} characters"
+        raise InputError(f"environment variable {var} = {shown}; expected a number with "
+                         f"{_show(lo)} <= {var} <= {_show(hi)}")
     return value
+
+
+def check_environment() -> list[str]:
+    """Check every ``HLAID_MAX_*`` variable that is set (an :class:`InputError` naming the first bad
+    one); returns the names of set variables that are no limit (typos such as ``HLAID_MAX_SAMPLE``)."""
+    for name in DEFAULTS:
+        limit(name)
+    return sorted(k for k in os.environ if k.startswith(PREFIX) and k[len(PREFIX):] not in DEFAULTS)
 
 
 def check_count(value: float, name: str, what: str, *, source: str | None = None) -> None:
@@ -86,41 +110,4 @@ def file_limit_text() -> str:
     return f"the limit of {_show(limit('FILE_MB'))} MiB (set HLAID_MAX_FILE_MB to raise it)"
 
 
-def check_readable_file(path: str | os.PathLike) -> int:
-    """Refuse anything but a regular file within the size limit, before reading it; returns its size.
-
-    A missing path or a folder is left to the caller's own message.
-    """
-    p = Path(path)
-    try:
-        st = p.stat()
-    except OSError:
-        return 0
-    if stat.S_ISDIR(st.st_mode):
-        return 0
-    if not stat.S_ISREG(st.st_mode):
-        kind = ("a character device" if stat.S_ISCHR(st.st_mode) else "a block device" if stat.S_ISBLK(st.st_mode)
-                else "a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)
-                else "a special file")
-        raise InputError(f"is {kind}; expected a regular file", source=str(p))
-    top = max_file_bytes()
-    if st.st_size > top:
-        raise InputError(f"is {st.st_size / 2**20:.3g} MiB, over {file_limit_text()}", source=str(p))
-    return int(st.st_size)
-
-
-def check_archive(path: str | os.PathLike) -> None:
-    """Refuse a zip archive (an NPZ) whose members inflate past ``HLAID_MAX_FILE_MB``, before
-    inflating any; an unreadable archive is left to the reader's own message."""
-    try:
-        with zipfile.ZipFile(path) as zf:
-            total = sum(info.file_size for info in zf.infolist())
-    except (zipfile.BadZipFile, OSError, ValueError):
-        return
-    top = max_file_bytes()
-    if total > top:
-        raise InputError(f"inflates to {total / 2**20:.3g} MiB, over {file_limit_text()}", source=str(path))
-
-
-__all__ = ["DEFAULTS", "limit", "check_count", "check_readable_file", "check_archive", "max_file_bytes",
-           "file_limit_text"]
+__all__ = ["DEFAULTS", "RANGES", "limit", "check_environment", "check_count", "max_file_bytes", "file_limit_text"]

@@ -18,7 +18,6 @@ from .errors import InputError
 from .limits import check_count
 from .model import Building
 from .motions.record import GroundMotion
-from .signal import lowpass, max_corner
 from .units import G_MM_S2
 
 TRUTH_FIELDS = ("disp", "drift", "force", "z", "eta")
@@ -242,6 +241,7 @@ def check_band(meas: Measurement, band_hz, field: str) -> None:
     there), before a filter design fails on it."""
     if band_hz is None:
         return
+    from .signal import max_corner  # scipy: only where a band is checked
     top = max_corner(meas.dt)
     if not float(band_hz[0]) < top:
         raise InputError(f"{field}: low corner {float(band_hz[0]):g} Hz is not below {top:.4g} Hz (0.9 x the "
@@ -255,4 +255,6 @@ def measured_ground(meas: Measurement, hi_hz: float, *, name: str = "measured") 
 
     ``hi_hz`` is used as given; pass ``cap_corner(band[1], meas.dt)`` for the Nyquist rule.
     """
+    from .signal import lowpass  # scipy: only where a ground motion is filtered
+
     return GroundMotion(dt=meas.dt, acc=lowpass(np.asarray(meas.ground_acc), meas.dt, hi_hz), name=name)

@@ -78,3 +78,26 @@ def plot_time_histories(t: np.ndarray, series: list[np.ndarray], labels: list[st
     if title:
         fig.suptitle(title)
     return fig
+
+
+def plot_measured_predicted(time: np.ndarray, measured: np.ndarray, predicted: np.ndarray, r: np.ndarray, *,
+                            label: str, title: str, levels: list[str] | None = None, pad_s: float = 3.0):
+    """Measured (black) against predicted (dashed) floor displacement, one panel per floor with
+    its R, over the strong part of the record (roof above 10 % of its peak, ``pad_s`` around).
+    ``measured``/``predicted`` are ``(time, floor)`` [mm]."""
+    roof = np.abs(measured[:, -1])
+    idx = np.flatnonzero(roof > 0.1 * roof.max())
+    pad = int(pad_s / (time[1] - time[0]))
+    w = slice(max(idx[0] - pad, 0), min(idx[-1] + pad, roof.size))
+    fig, axes = story_axes(measured.shape[1], ncols=1, size=(9, 1.9), sharex=True)
+    for i, ax in enumerate(axes):
+        ax.plot(time[w], measured[w, i], color="k", lw=0.7, label="measured")
+        ax.plot(time[w], predicted[w, i], color="C3", lw=0.7, ls="--", label=label)
+        ax.set_ylabel(f"{levels[i] if levels else f'floor {i + 1}'}\n[mm]", fontsize=8)
+        ax.text(0.99, 0.92, f"R = {r[i]:.3f}", transform=ax.transAxes, ha="right", va="top", fontsize=8,
+                bbox={"fc": "white", "alpha": 0.8, "lw": 0})
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7, loc="upper left", ncol=2)
+    axes[-1].set_xlabel("time [s]")
+    fig.suptitle(title, fontsize=10)
+    return fig

@@ -119,10 +119,10 @@ def identification_misfit(clone: Clone) -> np.ndarray | float:
     relative RMS difference of two signals of equal RMS), the mean over its events; 0 where the
     clone does not say."""
     d = clone.diagnostics or {}
-    rs = [e.get("R_measured") for e in ((d.get("joint") or {}).get("events") or []) if isinstance(e, dict)]
-    if not rs and isinstance(d.get("replay"), dict):
-        rs = [d["replay"].get("r_measured")]
-    rs = [np.asarray(r, dtype=float) for r in rs if isinstance(r, list) and r]
+    found = [e.get("R_measured") for e in ((d.get("joint") or {}).get("events") or []) if isinstance(e, dict)]
+    if not found and isinstance(d.get("replay"), dict):
+        found = [d["replay"].get("r_measured")]
+    rs = [np.asarray(r, dtype=float) for r in found if isinstance(r, list) and r]
     if not rs or len({r.shape for r in rs}) != 1:
         return 0.0
     return np.mean([np.sqrt(np.clip(2.0 * (1.0 - r), 0.0, None)) for r in rs], axis=0)

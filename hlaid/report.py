@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import base64
 import html
-import json
 import os
 import re
 import shutil
@@ -19,6 +18,7 @@ import tempfile
 from pathlib import Path
 
 from ._fileio import atomic_write
+from ._inputs import read_bytes, read_json, read_text
 from .errors import InputError, kind_of
 
 _CSS = """
@@ -55,9 +55,9 @@ _PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 def _img(path: Path, source: str) -> str:
     try:
-        raw = path.read_bytes()
-    except OSError as err:
-        raise InputError(f"cannot read figure {path.relative_to(source)} ({err.strerror})", source=source) from None
+        raw = read_bytes(path)
+    except InputError as err:
+        raise InputError(f"cannot read figure {path.relative_to(source)} ({err})", source=source) from None
     if not raw.startswith(_PNG_MAGIC):
         raise InputError(f"figure {path.relative_to(source)} is not a PNG image", source=source)
     data = base64.b64encode(raw).decode()
@@ -100,7 +100,21 @@ _SUMMARY = {"format": "str", "name": "str", "hlaid_version": "str", "n_stories":
                                   "p_collapse_band": _Null(_Pair("num")), "drift_limits": ["num"],
                                   "p_exceed": ["num"], "indicator": _Null("str"), "placard": _Null("str"),
                                   "reasons": ["str"], "own_residual_drift_median?": _Null("num"),
-                                  "own_peak_drift_median?": _Null("num")})}
+                                  "own_peak_drift_median?": _Null("num")}),
+            "loss?": _Null({"engine": "str", "system": "str", "inventory": "str", "replacement_cost": "num",
+                            "replacement_time": "num", "floor_area_m2": ["num"], "assumptions": ["str"],
+                            "collapse_fragility": {"median_g": _Null("num"), "beta": _Null("num"), "source": "str"},
+                            "irreparable": {"median": "num", "beta": "num"}, "n_ensemble": "int",
+                            "realizations": "int",
+                            "recorded": _Null({"im": "num", "im_label": "str", "repair_cost_median": "num",
+                                               "repair_cost_band": _Pair("num"), "repair_cost_ratio_median": "num",
+                                               "repair_cost_ratio_band": _Pair("num"), "repair_cost_mean": "num",
+                                               "repair_time_parallel_median": "num",
+                                               "repair_time_sequential_median": "num", "p_collapse": "num",
+                                               "p_irreparable": "num", "cost_unit": "str", "n_realizations": "int",
+                                               "n_demand_realisations": "int"}),
+                            "curve": [{"level_g": "num", "repair_cost_ratio_mean": "num", "p_collapse": "num",
+                                       "p_irreparable": "num"}]})}
 """What :func:`build_report` reads from ``summary.json``: keys ending in ``?`` may be absent, a
 ``*`` key stands for every key (``*num``: keys that read as numbers); other keys are ignored."""
 
@@ -162,6 +176,9 @@ def required_figures(summary: dict) -> list[str]:
     """Figures (relative paths) a run folder must hold: those of :data:`_FIGURES` under
     ``figures/``, and those under ``ida/`` when the run made an IDA."""
     out = [rel for rel, _ in _FIGURES if rel.startswith("figures/") or summary.get("ida")]
+    loss = summary.get("loss") or {}
+    out += (["loss/repair_cost.png"] if loss.get("recorded") else []) + (["loss/loss_curve.png"] if loss.get("curve")
+                                                                          else [])
     return out + ([_ASSESS_FIGURE[0]] if summary.get("assessment") else [])
 
 
@@ -178,16 +195,12 @@ def build_report(run_dir: str | os.PathLike) -> Path:
     if not d.is_dir():
         raise InputError("not found or not a folder; expected a run folder written by hlaid run or hlaid demo"
                          if not d.exists() else "is not a folder; expected a run folder", source=src)
+    if not os.path.lexists(d / "summary.json"):
+        raise InputError("not an hlaid run folder (no summary.json)", source=src)
     try:
-        s = json.loads((d / "summary.json").read_text())
-    except FileNotFoundError:
-        raise InputError("not an hlaid run folder (no summary.json)", source=src) from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise InputError(f"not an hlaid run folder (summary.json cannot be read: {type(err).__name__})",
-                         source=src) from None
-    except json.JSONDecodeError as err:
-        raise InputError(f"not an hlaid run folder (summary.json is not valid JSON: line {err.lineno}: {err.msg})",
-                         source=src) from None
+        s = read_json(d / "summary.json")
+    except InputError as err:
+        raise InputError(f"not an hlaid run folder ({err})", source=src) from None
     if not isinstance(s, dict) or s.get("format") != "hlaid-run":
         raise InputError("summary.json is not an hlaid run summary", source=src)
     _validate(s, _SUMMARY, "", src)
@@ -236,6 +249,12 @@ def build_report(run_dir: str | os.PathLike) -> Path:
         parts.append("<h2>Collapse risk with identification uncertainty</h2>" + _assess_block(s["assessment"]))
         p = d / _ASSESS_FIGURE[0]
         parts.append(f"<figure>{_img(p, src)}<figcaption>{e(_ASSESS_FIGURE[1])}</figcaption></figure>")
+    if s.get("loss"):
+        from .report_loss import LOSS_FIGURES, loss_html
+        parts.append("<h2>Losses (FEMA P-58 through pelicun)</h2>" + loss_html(s["loss"]))
+        for rel, cap in LOSS_FIGURES:
+            if (d / rel).exists():
+                parts.append(f"<figure>{_img(d / rel, src)}<figcaption>{e(cap)}</figcaption></figure>")
     t = s["timings"]
     parts.append("<h2>Run</h2><p>" + ", ".join(f"{e(k)} {v:.1f} s" for k, v in t.items()) +
                  ". Files: <code>clone.json</code>, <code>parameters.csv</code>, <code>hla/</code>, "
@@ -351,7 +370,7 @@ _BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-sta
 
 def embedded_figures(report: str | os.PathLike) -> list[tuple[str, int]]:
     """``(alt, bytes)`` of every PNG embedded in a report; raises if one is not a valid PNG."""
-    text = Path(report).read_text()
+    text = read_text(report)
     out = []
     for alt, data in re.findall(r'<img alt="([^"]*)" src="data:image/png;base64,([^"]+)">', text):
         raw = base64.b64decode(data)
@@ -373,7 +392,7 @@ def screenshot(report: str | os.PathLike, png: str | os.PathLike, *, browser: st
         raise InputError("no headless browser found (install Debian's chromium package, or pass browser=)",
                          source=str(report))
     report, png = Path(report).resolve(), Path(png).resolve()
-    height = height or 900 * max(report.read_text().count("<img "), 1) + 1200
+    height = height or 900 * max(read_text(report).count("<img "), 1) + 1200
     with tempfile.TemporaryDirectory() as profile:
         cmd = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", f"--user-data-dir={profile}",
                f"--window-size={width},{height}", f"--screenshot={png}", report.as_uri()]

@@ -3,6 +3,7 @@
 measurement (file or simulation) -> HLA -> identification (clone) -> replay check -> IDA and
 collapse fragility -> (with an ``assess`` block) IDA over an ensemble of clones drawn from the
 identification uncertainty, fragility band and re-occupancy indicator at the measured record ->
+(with a ``loss`` block) FEMA P-58 losses through pelicun at the measured record and the IDA stripes ->
 figures, machine-readable files and a self-contained ``report.html``.
 Everything is written into a temporary folder that replaces the output folder only once
 complete.
@@ -12,9 +13,8 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import time
-from dataclasses import dataclass, field
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, cast
 
@@ -22,61 +22,20 @@ import numpy as np
 
 from . import _progress
 from ._fileio import atomic_directory, write_json
+from ._inputs import read_json
 from ._version import __version__
-from .config import config_from_node, config_to_dict, load_yaml
+from .config import config_to_dict
 from .errors import InputError
-from .ida import IDAConfig
-from .identify import IdentifyConfig, identify_clone
+from .identify import identify_clone
 from .identify.replaycheck import corrcoef
 from .io import read
 from .measurement import Measurement, check_band
 from .model import Building
 from .plots import plot_time_histories, save_figure
-from .synthetic import SimulationConfig, measurement_from_config
-from .uncertainty import AssessConfig
+from .runconfig import MeasurementSource, RunConfig, input_paths, load_run_config
+from .synthetic import measurement_from_config
 
 PARAMS = ("alpha", "p", "delta_eta", "dy", "k0")
-
-
-@dataclass(frozen=True, kw_only=True)
-class MeasurementSource:
-    """Where the measurement comes from: a file (``file``, optional ``format`` and reader
-    ``options``) or a simulation (``simulate``: the ``hlaid simulate`` config). ``mass_t`` and
-    ``height_mm`` add or replace floor masses [t] and story heights [mm]."""
-
-    file: str | None = None
-    format: str | None = None
-    options: dict[str, Any] = field(default_factory=dict)
-    simulate: SimulationConfig | None = None
-    mass_t: list[float] | None = None
-    height_mm: list[float] | None = None
-
-    def __post_init__(self):
-        if (self.file is None) == (self.simulate is None):
-            raise InputError("give exactly one of measurement.file or measurement.simulate")
-
-
-@dataclass(frozen=True, kw_only=True)
-class RunConfig:
-    """``hlaid run`` config: measurement, identification and (optionally) IDA settings, and the
-    ensemble assessment (``assess``, needs ``ida``)."""
-
-    measurement: MeasurementSource
-    identify: IdentifyConfig = field(default_factory=IdentifyConfig)
-    ida: IDAConfig | None = None
-    assess: AssessConfig | None = None
-    name: str = "hlaid run"
-
-
-def load_run_config(path) -> RunConfig:
-    """Load a run config; its ``ida`` block is validated against :class:`hlaid.ida.IDAConfig`
-    (errors there give the line of the offending value in the run config, like any other)."""
-    source = str(path)
-    root = load_yaml(source)
-    cfg = config_from_node(RunConfig, root, source)
-    if cfg.assess is not None and cfg.ida is None:
-        raise InputError(f"{source}: the assess block needs an ida block (records and IDA settings)")
-    return cfg
 
 
 def load_measurement(src: MeasurementSource, base_dir: Path | None) -> Measurement:
@@ -122,13 +81,19 @@ def _csv(rows: list[dict]) -> str:
 
 
 def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None = None, force: bool = False,
-                 cache_dir: str | None = None) -> dict:
-    """Run the pipeline and write everything under ``out``; returns the run summary."""
+                 cache_dir: str | None = None, inputs: Sequence[str | Path | None] = ()) -> dict:
+    """Run the pipeline and write everything under ``out``; returns the run summary. An existing
+    ``out`` is replaced only with ``force``, when hlaid wrote it and it holds none of ``inputs``
+    (the run's own input files are added to them)."""
     from .hla.plots import plot_loops, plot_stiffness
     from .report import build_report
     t_all = time.perf_counter()
     timings = {}
-    with atomic_directory(out, force=force) as tmp:
+    if cfg.loss is not None:  # fail before the pipeline when pelicun is missing
+        from .loss.fema_p58 import require_pelicun
+        require_pelicun()
+    inputs = [*inputs, *input_paths(cfg, base_dir), cache_dir]
+    with atomic_directory(out, force=force, inputs=inputs) as tmp:
         tmp = Path(tmp)
         figs = tmp / "figures"
         figs.mkdir()
@@ -162,20 +127,25 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
             from .ida import ida_from_config
             ir = ida_from_config(res.clone, cfg.ida, base_dir=base_dir)
             ir.save(tmp / "ida", plots=True, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
-            ida_summary = json.loads((tmp / "ida" / "summary.json").read_text())
+            ida_summary = read_json(tmp / "ida" / "summary.json")
             timings["ida"] = time.perf_counter() - t
         assessment = None
         if cfg.ida is not None and cfg.assess is not None:
             t = time.perf_counter()
             assessment = _assess(res.clone, meas, cfg, tmp, base_dir)
             timings["assess"] = time.perf_counter() - t
+        loss = None
+        if cfg.ida is not None and cfg.loss is not None:
+            t = time.perf_counter()
+            loss = _loss(res.clone, meas, cfg, tmp, ida_summary, assessment, base_dir)
+            timings["loss"] = time.perf_counter() - t
         timings["total"] = time.perf_counter() - t_all
         summary = {"format": "hlaid-run", "version": 1, "name": cfg.name, "hlaid_version": __version__,
                    "config": config_to_dict(cfg), "source": meas.source, "n_stories": meas.n_floors,
                    "mass_normalised": res.clone.mass_normalised, "parameters": table, "paper_method": paper,
                    "replay": res.replay.to_dict(), "outer_iterations": res.iterations,
                    "identify_timings": res.timings, "timings": timings, "ida": ida_summary,
-                   "noise_rms": meas.noise_rms, "assessment": assessment}
+                   "noise_rms": meas.noise_rms, "assessment": assessment, "loss": loss}
         write_json(tmp / "summary.json", summary)
         build_report(tmp)
     _progress.info(f"wrote {out}/ (report.html, clone.json, hla/, ida/, figures/, tensorboard/) in "
@@ -213,6 +183,24 @@ def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> di
     return out
 
 
+def _loss(clone, meas: Measurement, cfg: RunConfig, tmp: Path, ida_summary, assessment, base_dir) -> dict:
+    """FEMA P-58 losses at the measured record and the IDA stripes (``loss/``); the summary's ``loss`` block."""
+    from .loss.assess import assess_losses, run_block, run_collapse
+    from .motions import GroundMotion
+    a, ida_cfg, lc = cfg.assess, cfg.ida, cfg.loss
+    if ida_cfg is None or lc is None:  # load_run_config allows a loss block only with an ida block
+        raise InputError("the loss block needs an ida block")
+    _progress.info("[4/4] FEMA P-58 losses through pelicun: the measured record and the IDA stripes")
+    collapse, src = run_collapse(tmp, {"assessment": assessment, "ida": ida_summary})
+    n_ens = a.n_ensemble if a is not None and assessment is not None else 0
+    levels = lc.levels if lc.levels is not None else (ida_summary or {}).get("levels_g") or []
+    own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name="measured")
+    block = assess_losses(clone, own, records=ida_cfg.record_specs(base_dir), levels=levels, collapse=collapse,
+                          cfg=lc, ida_config=ida_cfg, n_ensemble=n_ens, seed=a.seed if a is not None else 0,
+                          folder=tmp / "loss", collapse_source=src, base_dir=base_dir)
+    return run_block(block)
+
+
 def _replay_figure(meas: Measurement, res):
     from .hla.analysis import floor_motion
     from .signal import bandpass
@@ -230,7 +218,7 @@ def _replay_figure(meas: Measurement, res):
 
 def run_from_file(path: str | Path, out: str | Path, *, force: bool = False, cache_dir: str | None = None) -> dict:
     cfg = load_run_config(path)
-    return run_pipeline(cfg, out, base_dir=Path(path).parent, force=force, cache_dir=cache_dir)
+    return run_pipeline(cfg, out, base_dir=Path(path).parent, force=force, cache_dir=cache_dir, inputs=[path])
 
 
 __all__ = ["RunConfig", "MeasurementSource", "load_run_config", "run_pipeline", "run_from_file", "parameter_table"]

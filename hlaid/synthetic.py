@@ -5,20 +5,17 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .config import load_config
 from .errors import InputError
-from .limits import check_count
 from .measurement import Measurement, Truth
 from .model import Building
 from .model.state import BuildingState, settle_time
 from .motions import GroundMotion
 from .simulate import simulate_response
-from .specs import BuildingSpec, MotionSpec
+from .specs import MeasurementSpec, SimulationConfig, load_simulation_config
 
 
 def add_noise(x: np.ndarray, noise_rms: float, rng: np.random.Generator) -> np.ndarray:
@@ -91,38 +88,6 @@ def simulate_events(building: Building, motions: Sequence[GroundMotion], *, rate
     return meas, states
 
 
-@dataclass(frozen=True, kw_only=True)
-class MeasurementSpec:
-    """Sampling and noise of simulated accelerometers."""
-
-    rate_hz: float = 200.0
-    noise_rms: float = 0.10
-    substeps: int = 4
-
-    def __post_init__(self):
-        if not self.rate_hz > 0:
-            raise InputError(f"rate_hz = {self.rate_hz}; expected a positive rate")
-        check_count(self.rate_hz, "RATE_HZ", "rate_hz")
-        if not 0 <= self.noise_rms < 10:
-            raise InputError(f"noise_rms = {self.noise_rms}; expected a fraction such as 0.10")
-        if self.substeps < 1:
-            raise InputError(f"substeps = {self.substeps}; expected >= 1")
-
-
-@dataclass(frozen=True, kw_only=True)
-class SimulationConfig:
-    """``hlaid simulate`` config: a building, a ground motion, the sensors and a seed."""
-
-    building: BuildingSpec
-    motion: MotionSpec
-    measurement: MeasurementSpec = field(default_factory=MeasurementSpec)
-    seed: int = 0
-
-
-def load_simulation_config(path) -> SimulationConfig:
-    return load_config(path, SimulationConfig)
-
-
 def measurement_from_config(cfg: SimulationConfig, *, base_dir: str | Path | None = None,
                             seed: int | None = None, source: str | None = None) -> Measurement:
     """Run the simulation a :class:`SimulationConfig` describes."""
@@ -131,3 +96,7 @@ def measurement_from_config(cfg: SimulationConfig, *, base_dir: str | Path | Non
     m = cfg.measurement
     return simulate_measurement(building, motion, rate_hz=m.rate_hz, noise_rms=m.noise_rms,
                                 seed=cfg.seed if seed is None else seed, substeps=m.substeps)
+
+
+__all__ = ["add_noise", "simulate_measurement", "simulate_events", "measurement_from_config", "MeasurementSpec",
+           "SimulationConfig", "load_simulation_config"]

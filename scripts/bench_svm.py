@@ -14,20 +14,27 @@ curve, Gaussian noise (``--noise``, default 0.2) so that the classes overlap
 heavily (held-out accuracy about 40 %), ``C = 10``, ``gamma="scale"``; one
 table row per size and seed, then the mean and worst fit ratio.
 
+The machine's load average is printed before and after (other jobs on the cores move
+the absolute times; compare the ratios, taken in the same run). ``--json PATH`` also writes
+the rows as JSON.
+
 Usage::
 
-    python scripts/bench_svm.py                       # 1500, 5000, 15000 samples
+    python scripts/bench_svm.py                       # 1500, 3000, 5000, 10000, 15000 samples
     python scripts/bench_svm.py --sizes 1500 --repeat 5
-    python scripts/bench_svm.py --pipeline            # 1500 and 3000 samples, seeds 0 1 2
+    python scripts/bench_svm.py --pipeline            # the same sizes, seeds 0 1 2
     python scripts/bench_svm.py --parity              # parity table (tests' datasets)
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import time
 from functools import partial
 
+import numba
 import numpy as np
 import torch
 from sklearn.datasets import make_classification
@@ -66,65 +73,77 @@ def pipeline_problem(n_train: int, n_test: int, seed: int, noise: float = 0.2,
     return X[:n_train], y[:n_train], X[n_train:], y[n_train:]
 
 
-def pipeline(args) -> None:
+def run_size(Xtr, ytr, Xte, yte, C: float, args) -> dict:
+    """Fit and predict times of both libraries on one problem, and how their machines agree."""
+    t_fit, me = best_time(partial(KernelSVC(C=C, device=args.device).fit, Xtr, ytr), args.repeat)
+    t_sk, sk = best_time(partial(SVC(C=C).fit, Xtr, ytr), args.repeat)
+    t_dd, p_dd = best_time(partial(me.set_params(multiclass="ddag").predict, Xte), args.repeat)
+    t_ovo, p_ovo = best_time(partial(me.set_params(multiclass="ovo").predict, Xte), args.repeat)
+    t_psk, p_sk = best_time(partial(sk.predict, Xte), args.repeat)
+    return {"n": len(ytr), "fit_hlaid_s": t_fit, "fit_sklearn_s": t_sk, "fit_ratio": t_fit / t_sk,
+            "predict_ddag_s": t_dd, "predict_ovo_s": t_ovo, "predict_sklearn_s": t_psk,
+            "predict_ratio_ddag": t_dd / t_psk, "acc_ddag": float(np.mean(p_dd == yte)),
+            "acc_ovo": float(np.mean(p_ovo == yte)), "acc_sklearn": float(np.mean(p_sk == yte)),
+            "ovo_equals_sklearn": float(np.mean(p_ovo == p_sk)),
+            "same_iterations": float(np.mean(me.n_iter_ == sk.n_iter_)),
+            "n_sv": [int(me.support_.size), int(sk.support_.size)]}
+
+
+def table(rows: list[dict], keys: list[tuple[str, str]]) -> None:
+    print("| " + " | ".join(h for h, _ in keys) + " |")
+    print("|" + "---|" * len(keys))
+    for r in rows:
+        cells = []
+        for _, k in keys:
+            v = r[k]
+            cells.append(f"{v[0]} / {v[1]}" if isinstance(v, list) else
+                         f"{v:.4f}" if isinstance(v, float) and k.startswith(("acc", "ovo", "same", "predict_"))
+                         and not k.endswith("ratio_ddag") else f"{v:.3f}" if isinstance(v, float) and
+                         k.endswith("_s") else f"{v:.2f}" if isinstance(v, float) else str(v))
+        print("| " + " | ".join(cells) + " |", flush=True)
+
+
+COLUMNS = [("n", "n"), ("fit hlaid [s]", "fit_hlaid_s"), ("fit sklearn [s]", "fit_sklearn_s"),
+           ("fit ratio", "fit_ratio"), ("predict hlaid ddag [s]", "predict_ddag_s"),
+           ("predict hlaid ovo [s]", "predict_ovo_s"), ("predict sklearn [s]", "predict_sklearn_s"),
+           ("predict ratio (ddag)", "predict_ratio_ddag"), ("acc hlaid ddag", "acc_ddag"),
+           ("acc hlaid ovo", "acc_ovo"), ("acc sklearn", "acc_sklearn"), ("ovo = sklearn", "ovo_equals_sklearn"),
+           ("machines with libsvm's iterations", "same_iterations"), ("n_SV hlaid / sklearn", "n_sv")]
+
+
+def header(args, what: str) -> None:
+    print(f"# {what}; held-out set {args.n_test} samples, best of {args.repeat}; torch "
+          f"{torch.__version__} ({torch.get_num_threads()} threads), numba {numba.__version__} "
+          f"({numba.get_num_threads()} threads), {os.cpu_count()} CPUs, device {args.device or 'cpu'}; "
+          f"load average {os.getloadavg()[0]:.1f}")
+
+
+def pipeline(args) -> list[dict]:
     """Fit/predict times on pipeline-like problems, several seeds."""
-    dev = args.device
     Xw, yw, _, _ = pipeline_problem(300, 10, 0, args.noise)
-    KernelSVC(C=10.0, device=dev).fit(Xw, yw)
+    KernelSVC(C=10.0, device=args.device).fit(Xw, yw)      # warm-up: compiled code, allocator
     SVC(C=10.0).fit(Xw, yw)
-    print(f"# pipeline-like: 12 classes, 11 features, noise {args.noise}, C=10, gamma='scale', "
-          f"held-out set {args.n_test} samples, best of {args.repeat}; torch {torch.__version__} "
-          f"({torch.get_num_threads()} threads, device {dev or 'cpu'})")
-    head = ("| n | seed | fit hlaid [s] | fit sklearn [s] | fit ratio | predict hlaid ddag [s] | "
-            "predict sklearn [s] | acc hlaid ddag | acc sklearn | ovo = sklearn | n_SV hlaid / sklearn |")
-    print(head)
-    print("|" + "---|" * (head.count("|") - 1))
-    ratios = {}
+    header(args, f"pipeline-like: 12 classes, 11 features, noise {args.noise}, C=10, gamma='scale'")
+    rows = []
     for n in args.sizes:
         for seed in args.seeds:
-            Xtr, ytr, Xte, yte = pipeline_problem(n, args.n_test, seed, args.noise)
-            t_fit, me = best_time(partial(KernelSVC(C=10.0, device=dev).fit, Xtr, ytr), args.repeat)
-            t_sk, sk = best_time(partial(SVC(C=10.0).fit, Xtr, ytr), args.repeat)
-            t_dd, p_dd = best_time(partial(me.predict, Xte), args.repeat)
-            t_psk, p_sk = best_time(partial(sk.predict, Xte), args.repeat)
-            p_ovo = me.set_params(multiclass="ovo").predict(Xte)
-            ratios.setdefault(n, []).append(t_fit / t_sk)
-            print(f"| {n} | {seed} | {t_fit:.3f} | {t_sk:.3f} | {t_fit / t_sk:.2f} | {t_dd:.4f} | "
-                  f"{t_psk:.4f} | {np.mean(p_dd == yte):.4f} | {np.mean(p_sk == yte):.4f} | "
-                  f"{np.mean(p_ovo == p_sk):.4f} | {me.support_.size} / {sk.support_.size} |",
-                  flush=True)
-    for n, r in ratios.items():
-        print(f"# n={n}: fit ratio mean {np.mean(r):.2f}, worst {np.max(r):.2f} "
-              f"over seeds {list(args.seeds)}")
-
-
-def bench(args) -> None:
-    dev = args.device
-    # warm-up (first torch calls, allocator)
-    Xw, yw, _, _ = make_problem(300, 10, args.classes, args.features)
-    KernelSVC(C=args.C, device=dev).fit(Xw, yw)
-    SVC(C=args.C).fit(Xw, yw)
-    print(f"# {args.classes} classes, {args.features} features, C={args.C}, gamma='scale', "
-          f"held-out set {args.n_test} samples, best of {args.repeat}; "
-          f"torch {torch.__version__} ({torch.get_num_threads()} threads, device {dev or 'cpu'})")
-    head = ("| n | fit hlaid [s] | fit sklearn [s] | fit ratio | predict hlaid ddag [s] | "
-            "predict hlaid ovo [s] | predict sklearn [s] | predict ratio (ddag) | "
-            "acc hlaid ddag | acc hlaid ovo | acc sklearn | ovo = sklearn |")
-    print(head)
-    print("|" + "---|" * (head.count("|") - 1))
+            rows.append({"seed": seed, **run_size(*pipeline_problem(n, args.n_test, seed, args.noise), 10.0, args)})
+    table(rows, COLUMNS[:1] + [("seed", "seed")] + COLUMNS[1:])
     for n in args.sizes:
-        Xtr, ytr, Xte, yte = make_problem(n, args.n_test, args.classes, args.features)
-        t_fit, me = best_time(partial(KernelSVC(C=args.C, device=dev).fit, Xtr, ytr), args.repeat)
-        t_sk, sk = best_time(partial(SVC(C=args.C).fit, Xtr, ytr), args.repeat)
-        me.set_params(multiclass="ddag")
-        t_dd, p_dd = best_time(partial(me.predict, Xte), args.repeat)
-        me.set_params(multiclass="ovo")
-        t_ovo, p_ovo = best_time(partial(me.predict, Xte), args.repeat)
-        t_psk, p_sk = best_time(partial(sk.predict, Xte), args.repeat)
-        acc = [np.mean(p == yte) for p in (p_dd, p_ovo, p_sk)]
-        print(f"| {n} | {t_fit:.3f} | {t_sk:.3f} | {t_fit / t_sk:.2f} | {t_dd:.4f} | "
-              f"{t_ovo:.4f} | {t_psk:.4f} | {t_dd / t_psk:.2f} | {acc[0]:.4f} | {acc[1]:.4f} | "
-              f"{acc[2]:.4f} | {np.mean(p_ovo == p_sk):.4f} |", flush=True)
+        r = [row["fit_ratio"] for row in rows if row["n"] == n]
+        print(f"# n={n}: fit ratio mean {np.mean(r):.2f}, worst {np.max(r):.2f} over seeds {list(args.seeds)}")
+    return rows
+
+
+def bench(args) -> list[dict]:
+    Xw, yw, _, _ = make_problem(300, 10, args.classes, args.features)
+    KernelSVC(C=args.C, device=args.device).fit(Xw, yw)    # warm-up: compiled code, allocator
+    SVC(C=args.C).fit(Xw, yw)
+    header(args, f"{args.classes} classes, {args.features} features, C={args.C}, gamma='scale'")
+    rows = [run_size(*make_problem(n, args.n_test, args.classes, args.features), args.C, args)
+            for n in args.sizes]
+    table(rows, COLUMNS)
+    return rows
 
 
 def parity(args) -> None:
@@ -158,9 +177,19 @@ def parity(args) -> None:
         a, b = set(a.tolist()), set(b.tolist())
         return len(a & b) / len(a | b)
 
+    def same(sk, me):
+        """Machines with libsvm's iteration count, and the largest coefficient and intercept
+        differences (when the support sets are equal)."""
+        it = f"{int(np.sum(me.n_iter_ == sk.n_iter_))} / {sk.n_iter_.size}"
+        if not np.array_equal(me.support_, sk.support_):
+            return f"{it} | - | -"
+        return (f"{it} | {np.abs(me.dual_coef_ - sk.dual_coef_).max():.1e} | "
+                f"{np.abs(me.intercept_ - sk.intercept_).max():.1e}")
+
     print("## binary (training set), RBF, gamma='scale'")
-    print("| problem | C | obj rel. diff | max dec diff / range | SV Jaccard | n_SV sklearn / hlaid |")
-    print("|---|---|---|---|---|---|")
+    print("| problem | C | obj rel. diff | max dec diff / range | SV Jaccard | n_SV sklearn / hlaid | "
+          "machines with libsvm's iterations | max coef diff | max intercept diff |")
+    print("|---|---|---|---|---|---|---|---|---|")
     bc = load_breast_cancer()
     binary = {"classification": make_classification(400, 8, random_state=0),
               "moons": make_moons(300, noise=0.3, random_state=0),
@@ -173,12 +202,13 @@ def parity(args) -> None:
             print(f"| {name} | {C} | {abs(me.dual_objective_[0] - o) / abs(o):.1e} | "
                   f"{np.abs(d_me - d_sk).max() / np.ptp(d_sk):.1e} | "
                   f"{jaccard(sk.support_, me.support_):.4f} | {sk.support_.size} / "
-                  f"{me.support_.size} |")
+                  f"{me.support_.size} | {same(sk, me)} |")
     print()
     print("## multi-class (held-out set), RBF, C=1, gamma='scale'")
     print("| dataset | n train / test | OvO = sklearn | acc sklearn | acc hlaid ovo | "
-          "acc hlaid ddag | max obj rel. diff | max ovo dec diff / range | SV Jaccard |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "acc hlaid ddag | max obj rel. diff | max ovo dec diff / range | SV Jaccard | "
+          "machines with libsvm's iterations | max coef diff | max intercept diff |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     Xs, ys = make_classification(n_samples=2000, n_features=20, n_informative=15,
                                  n_redundant=2, n_classes=15, n_clusters_per_class=1,
                                  class_sep=2.0, random_state=0)
@@ -200,13 +230,13 @@ def parity(args) -> None:
               f"{np.mean(p_dd == yte):.4f} | "
               f"{np.max(np.abs(me.dual_objective_ - o) / np.abs(o)):.1e} | "
               f"{np.abs(d_me - d_sk).max() / np.ptp(d_sk):.1e} | "
-              f"{jaccard(sk.support_, me.support_):.4f} |")
+              f"{jaccard(sk.support_, me.support_):.4f} | {same(sk, me)} |")
 
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--sizes", type=int, nargs="+", default=None,
-                    help="training set sizes (default: 1500 5000 15000; --pipeline: 1500 3000)")
+    ap.add_argument("--sizes", type=int, nargs="+", default=[1500, 3000, 5000, 10000, 15000],
+                    help="training set sizes (default: 1500 3000 5000 10000 15000)")
     ap.add_argument("--pipeline", action="store_true",
                     help="pipeline-like problems (overlapping classes, C=10) instead")
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2],
@@ -220,20 +250,23 @@ def main(argv=None) -> None:
     ap.add_argument("--C", type=float, default=1.0)
     ap.add_argument("--device", default=None, help="torch device for hlaid (default cpu)")
     ap.add_argument("--threads", type=int, default=None,
-                    help="torch.set_num_threads for this run (default: torch's default)")
+                    help="torch and numba threads for this run (default: theirs)")
+    ap.add_argument("--json", default=None, help="also write the timing rows to this JSON file")
     ap.add_argument("--parity", action="store_true",
                     help="print the parity table instead of timings")
     args = ap.parse_args(argv)
     if args.threads:
         torch.set_num_threads(args.threads)
-    if args.sizes is None:
-        args.sizes = [1500, 3000] if args.pipeline else [1500, 5000, 15000]
+        numba.set_num_threads(args.threads)
     if args.parity:
         parity(args)
-    elif args.pipeline:
-        pipeline(args)
-    else:
-        bench(args)
+        return
+    rows = pipeline(args) if args.pipeline else bench(args)
+    print(f"# load average after the run {os.getloadavg()[0]:.1f}")
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump({"set": "pipeline" if args.pipeline else "default", "rows": rows,
+                       "load_average": os.getloadavg()[0]}, fh, indent=1)
 
 
 if __name__ == "__main__":

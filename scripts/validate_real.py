@@ -25,7 +25,7 @@ from hlaid import _progress
 from hlaid._fileio import atomic_directory, write_json
 from hlaid.errors import InputError
 from hlaid.hla.plots import plot_stiffness
-from hlaid.plots import plt, save_figure, story_axes
+from hlaid.plots import plot_measured_predicted, plt, save_figure, story_axes
 from hlaid.studies.validation import (
     ValidationResult,
     format_tables,
@@ -44,22 +44,10 @@ def _window(p, pad_s: float = 3.0) -> slice:
 
 def plot_displacement(p, levels=None):
     """Measured against predicted floor displacement (relative to the ground), one panel per floor."""
-    w = _window(p)
-    n = p.r.shape[0]
-    fig, axes = story_axes(n, ncols=1, size=(9, 1.9), sharex=True)
-    for i, ax in enumerate(axes):
-        ax.plot(p.time[w], p.disp_measured[w, i], color="k", lw=0.7, label="measured")
-        ax.plot(p.time[w], p.disp_predicted[w, i], color="C3", lw=0.7, ls="--", label=f"clone ({p.kind})")
-        ax.set_ylabel(f"{levels[i] if levels else f'floor {i + 1}'}\n[mm]", fontsize=8)
-        ax.text(0.99, 0.92, f"R = {p.r[i]:.3f}", transform=ax.transAxes, ha="right", va="top", fontsize=8,
-                bbox={"fc": "white", "alpha": 0.8, "lw": 0})
-        ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=7, loc="upper left", ncol=2)
-    axes[-1].set_xlabel("time [s]")
     what = "self-replay" if p.self_replay else "prediction"
-    fig.suptitle(f"{p.structure}: clone from {p.identified_from}, {what} of {p.event} "
-                 f"({p.band_hz[0]:.2g}-{p.band_hz[1]:.2g} Hz)", fontsize=10)
-    return fig
+    return plot_measured_predicted(p.time, p.disp_measured, p.disp_predicted, p.r, label=f"clone ({p.kind})",
+                                   levels=levels, title=f"{p.structure}: clone from {p.identified_from}, {what} of "
+                                   f"{p.event} ({p.band_hz[0]:.2g}-{p.band_hz[1]:.2g} Hz)")
 
 
 def plot_loops(p):

@@ -50,10 +50,11 @@ def import_optional(name: str):
     return pytest.importorskip(name)
 
 
-def requires(available: bool, reason: str) -> pytest.MarkDecorator:
+def requires(available: bool, reason: str, *, in_ci: bool = True) -> pytest.MarkDecorator:
     """Marker: the test needs something optional; when not ``available`` it is skipped with
-    ``reason`` (failed under ``CI=true``, see :func:`skip_or_fail`)."""
-    return pytest.mark.requires(available=bool(available), reason=reason)
+    ``reason`` (failed under ``CI=true``, see :func:`skip_or_fail`, unless ``in_ci`` is False:
+    a tool that CI does not install, whose tests are skipped there too)."""
+    return pytest.mark.requires(available=bool(available), reason=reason, in_ci=in_ci)
 
 
 def _opensees_usable() -> bool:
@@ -73,7 +74,9 @@ needs_opensees = requires(_opensees_usable(), "openseespy not usable")
 def pytest_runtest_setup(item: pytest.Item) -> None:
     for mark in item.iter_markers("requires"):
         if not mark.kwargs["available"]:
-            skip_or_fail(mark.kwargs["reason"])
+            if mark.kwargs.get("in_ci", True):
+                skip_or_fail(mark.kwargs["reason"])
+            pytest.skip(mark.kwargs["reason"])
 
 
 requires_data = requires(GROUND_MOTIONS.is_dir(), f"shared data not found at {DATA}")

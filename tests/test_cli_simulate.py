@@ -88,8 +88,8 @@ def test_existing_output_needs_force(tmp_path, capsys):
 
 @pytest.mark.parametrize("replace,match", [
     ({"alpha: 0.17": "alpah: 0.17"}, "cfg.yaml:9: unknown key 'building.stories[1].alpah'"),
-    ({"alpha: 0.17": "alpha: 1.7"}, "cfg.yaml:9: building.stories[1]: alpha = 1.7 is out of range"),
-    ({"dy: 3.0": "dy: 0"}, "cfg.yaml:10: building.stories[2]: dy = 0 is out of range; expected dy > 0"),
+    ({"alpha: 0.17": "alpha: 1.7"}, "cfg.yaml:9: building.stories[1].alpha = 1.7 is out of range"),
+    ({"dy: 3.0": "dy: 0"}, "cfg.yaml:10: building.stories[2].dy = 0 is out of range; expected 1e-06 <= dy"),
     ({"rate_hz: 200": "rate_hz: fast"}, "measurement.rate_hz: expected a number, got 'fast'"),
     ({'file: "rec.txt"': 'file: "bad.AT2"'}, "bad.AT2: header says NPTS = 12 but the file holds 10 values"),
     ({'file: "rec.txt"': 'file: "missing.AT2"'}, "missing.AT2: file not found"),
@@ -128,7 +128,7 @@ def test_subprocess_exit_status_and_stderr(tmp_path):
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in proc.stderr
     assert lines[0].startswith("hlaid simulate: error: ")
-    assert "cfg.yaml:8: building.stories[0]: alpha = -0.23" in lines[0]
+    assert "cfg.yaml:8: building.stories[0].alpha = -0.23" in lines[0]
     assert not out.exists()
 
 

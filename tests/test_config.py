@@ -58,12 +58,12 @@ def test_minimal_config_and_defaults(tmp_path):
     ("alpha: 0.12", "alhpa: 0.12", 4, "unknown key 'building.stories[1].alhpa'; expected one of: k0, alpha"),
     ("seed: 3", "seed: 3\nsed: 4", 7, "unknown key 'sed'; expected one of: building, motion, measurement, seed"),
     ("pga_g: 0.62}", "pga_g: 0.62, scael: 2}", 5, "unknown key 'motion.scael'"),
-    ("alpha: 0.12", "alpha: 1.12", 4, "building.stories[1]: alpha = 1.12 is out of range; expected 0 <= alpha <= 1"),
-    ("dy: 7.0", "dy: -7.0", 3, "building.stories[0]: dy = -7 is out of range; expected dy > 0"),
-    ("p: 1.9", "p: 0.5", 4, "p = 0.5 is out of range; expected p >= 1"),
+    ("alpha: 0.12", "alpha: 1.12", 4, "building.stories[1].alpha = 1.12 is out of range; expected 0 <= alpha <= 1"),
+    ("dy: 7.0", "dy: -7.0", 3, "building.stories[0].dy = -7 is out of range; expected 1e-06 <= dy <= 100000 [mm]"),
+    ("p: 1.9", "p: 0.5", 4, "p = 0.5 is out of range; expected 1 <= p <= 50"),
     ("delta_eta: 1.54", "delta_eta: -1", 4, "delta_eta = -1 is out of range"),
-    ("k0: 1.37e4", "k0: 0", 4, "k0 = 0 is out of range; expected k0 > 0"),
-    ("weight_kN: 90.0", "weight_kN: -90.0", 4, "mass = -90 is out of range"),
+    ("k0: 1.37e4", "k0: 0", 4, "k0 = 0 is out of range; expected 1e-06 <= k0"),
+    ("weight_kN: 90.0", "weight_kN: -90.0", 4, "weight_kN = -90 is out of range"),
     ("weight_kN: 90.0, ", "", 4, "give exactly one of mass_t or weight_kN"),
     ("seed: 3", "seed: three", 6, "seed: expected an integer, got 'three'"),
     ("seed: 3", "seed: 3.5", 6, "seed: expected an integer, got 3.5"),
@@ -72,7 +72,7 @@ def test_minimal_config_and_defaults(tmp_path):
     ("pga_g: 0.62}", "pga_g: 0.62, scale: 2.0}", 5, "give pga_g or scale, not both"),
     ("seed: 3", "seed: 3\nseed: 4", 7, "key 'seed' appears twice"),
     ("seed: 3", "seed: [3", 6, "invalid YAML"),
-    ("seed: 3", "measurement: {rate_hz: 0}", 6, "rate_hz = 0.0; expected a positive rate"),
+    ("seed: 3", "measurement: {rate_hz: 0}", 6, "measurement.rate_hz = 0 is out of range; expected 5 <= rate_hz"),
 ])
 def test_config_errors_name_file_line_and_key(tmp_path, old, new, line, match):
     text = _BASE.replace(old, new)

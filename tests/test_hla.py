@@ -186,7 +186,8 @@ def test_cli_writes_results_and_plots(tmp_path, table1, elcentro):
     assert main(["hla", str(src), "-o", str(out), "--plot", "-q"]) == 0
     summary = json.loads((out / "hla.json").read_text())
     assert summary["format"] == "hlaid-hla" and len(summary["stories"]) == 3
-    assert {p.name for p in out.iterdir()} == {"hla.json", "hla.npz", "loops.png", "stiffness.png"}
+    assert {p.name for p in out.iterdir()} == {".hlaid-output.json", "hla.json", "hla.npz", "loops.png",
+                                               "stiffness.png"}
     with np.load(out / "hla.npz") as z:
         assert z["force"].shape == (meas.n_samples, 3) and "story1_hc_ke" in z.files
     assert main(["hla", str(src), "-o", str(out), "-q"]) == 2  # exists, no --force

@@ -213,7 +213,8 @@ def test_save_is_atomic_and_complete(result, tmp_path, monkeypatch):
     out = tmp_path / "ida"
     result.save(out, n_boot=50)
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["exceedance.png", "fragility.png", "ida.npz", "ida_curves.png", "points.csv", "summary.json"]
+    assert names == [".hlaid-output.json", "exceedance.png", "fragility.png", "ida.npz", "ida_curves.png",
+                     "points.csv", "summary.json"]
     rows = (out / "points.csv").read_text().splitlines()
     assert len(rows) == 1 + result.point_im.size
     s = json.loads((out / "summary.json").read_text())

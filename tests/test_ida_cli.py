@@ -35,7 +35,7 @@ def test_ida_command_writes_the_result(clone_file, tmp_path, capsys):
     assert s["levels_g"] == [1.0, 2.0, 3.0] and s["collapse_criteria"]["drift_limit"] == 0.03
     assert [r["name"] for r in s["records"]] == ["elcentro-1940-ns", "kocaeli-1999-dzc180"]
     assert s["building"]["pdelta"] is True  # on by default: heights are known
-    assert sorted(p.name for p in out.iterdir()) == ["ida.npz", "points.csv", "summary.json"]
+    assert sorted(p.name for p in out.iterdir()) == [".hlaid-output.json", "ida.npz", "points.csv", "summary.json"]
     # the existing result is kept unless --force
     assert main(["ida", str(clone_file), "--records", *RECS, "-o", str(out)]) == 2
     assert "not empty; use --force" in _err_line(capsys)

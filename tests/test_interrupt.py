@@ -46,9 +46,10 @@ def _group_alive(pgid: int) -> bool:
 
 
 def _interrupt(args: list[str], cwd: Path, *, after: str, workers: int = 0, delay: float = 0.5,
-               timeout: float = 180.0) -> tuple[int, float, list[str]]:
-    """Run ``hlaid ARGS`` in a new session, send SIGINT to its group once stderr shows ``after``
-    (and ``workers`` child processes exist), and return (status, seconds to exit, stderr lines)."""
+               timeout: float = 180.0, signum: int = signal.SIGINT, group: bool = True) -> tuple[int, float, list[str]]:
+    """Run ``hlaid ARGS`` in a new session, send ``signum`` (SIGINT) to its group (``group``, as a
+    terminal does; else to the command alone, as ``kill PID`` does) once stderr shows ``after`` (and
+    ``workers`` child processes exist), and return (status, seconds to exit, stderr lines)."""
     env = {**os.environ, "HLAID_CACHE": str(cwd / "cache"), "PYTHONUNBUFFERED": "1"}
     p = subprocess.Popen([sys.executable, "-m", "hlaid", *args], cwd=cwd, env=env, start_new_session=True,
                          stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
@@ -70,12 +71,15 @@ def _interrupt(args: list[str], cwd: Path, *, after: str, workers: int = 0, dela
             assert time.monotonic() - t0 < timeout, f"never got to {after!r}: {lines[-5:]}"
             time.sleep(0.1)
         time.sleep(delay)
-        os.killpg(p.pid, signal.SIGINT)
+        if group:
+            os.killpg(p.pid, signum)
+        else:
+            os.kill(p.pid, signum)
         t1 = time.monotonic()
         try:
             rc = p.wait(timeout=20)
         except subprocess.TimeoutExpired:
-            pytest.fail(f"still running 20 s after Ctrl-C; stderr ends {lines[-5:]}")
+            pytest.fail(f"still running 20 s after signal {signum}; stderr ends {lines[-5:]}")
         elapsed = time.monotonic() - t1
         reader.join(5)
         t2 = time.monotonic()

@@ -79,7 +79,8 @@ def test_index_columns_whitespace_dt_and_offsets(tmp_path):
 @pytest.mark.parametrize("yaml_text, message", [
     (YAML + "colour: red\n", ":13: unknown key 'colour'"),
     (YAML.replace("units: g}", "units: furlongs}"), "unknown acceleration unit"),
-    (YAML.replace("sign: -1", "sign: 2"), "sign must be 1 or -1"),
+    (YAML.replace("sign: -1", "sign: 2"), "sign = 2 is out of range; expected -1 <= sign <= 1"),
+    (YAML.replace("sign: -1", "sign: 0.5"), "sign must be 1 or -1"),
     (YAML.replace("time: t\n", ""), "exactly one of time"),
     (YAML.replace("  - {column: d2_in, units: in}\n", ""), "one displacement per floor"),
     (YAML.replace("weight_kN: [171.85, 90]", "weight_kN: [171.85]"), "weight_kN has 1 values"),

@@ -19,12 +19,13 @@ import numpy as np
 import pytest
 
 from hlaid._fileio import STALE_AFTER_S, atomic_directory, write_json
+from hlaid._inputs import check_archive
 from hlaid.cli import main
 from hlaid.clone import Clone
 from hlaid.errors import HlaidWarning, InputError
 from hlaid.identify.cache import MachineCache
 from hlaid.io import read
-from hlaid.limits import DEFAULTS, check_archive, limit
+from hlaid.limits import DEFAULTS, limit
 
 REPO = Path(__file__).resolve().parents[1]
 POC = (REPO / "configs" / "poc_3story.yaml").read_text()
@@ -80,14 +81,15 @@ def test_limits_default_and_environment(monkeypatch):
     monkeypatch.setenv("HLAID_MAX_SAMPLES", "5e3")
     assert limit("SAMPLES") == 5000
     monkeypatch.setenv("HLAID_MAX_SAMPLES", "lots")
-    with pytest.raises(InputError, match="HLAID_MAX_SAMPLES = 'lots'; expected a positive number"):
+    with pytest.raises(InputError, match="HLAID_MAX_SAMPLES = 'lots'; expected a number with 16 <= HLAID_MAX_SAMPLES"):
         limit("SAMPLES")
 
 
 def test_simulate_rate_over_the_limit(tmp_path, capsys):
     cfg = _config(tmp_path, **{"rate_hz: 200": "rate_hz: 1e6"})
     out = tmp_path / "m.npz"
-    line = _refused(capsys, ["simulate", str(cfg), "-o", str(out)], expect="rate_hz = 1000000 exceeds", dest=out)
+    line = _refused(capsys, ["simulate", str(cfg), "-o", str(out)], expect="rate_hz = 1000000 is out of range",
+                    dest=out)
     assert "HLAID_MAX_RATE_HZ" in line
 
 
@@ -146,8 +148,10 @@ def test_gzip_and_npz_are_limited_by_their_inflated_size(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("args, expect", [
-    (["--bootstrap", "100000000"], "bootstrap = 100000000 exceeds the limit of 100000 (set HLAID_MAX_BOOTSTRAP"),
-    (["--n-levels", "100000000"], "n_levels = 100000000 exceeds the limit of 1000 (set HLAID_MAX_IDA_LEVELS"),
+    (["--bootstrap", "100000000"], "bootstrap = 100000000 is out of range; expected 0 <= bootstrap <= 100000 "
+                                   "(set HLAID_MAX_BOOTSTRAP"),
+    (["--n-levels", "100000000"], "n_levels = 100000000 is out of range; expected 2 <= n_levels <= 1000 "
+                                  "(set HLAID_MAX_IDA_LEVELS"),
     (["--levels", "0:1e9:1e-3"], "--levels 0:1e9:1e-3: number of values = "),
 ])
 def test_ida_counts_over_the_limit(clone_file, tmp_path, capsys, args, expect):
@@ -163,7 +167,7 @@ def test_ida_config_counts_over_the_limit(clone_file, tmp_path, capsys):
     cfg.write_text("records: builtin:elcentro-1940-ns\nmax_hunt: 100000000\n")
     out = tmp_path / "ida"
     _refused(capsys, ["ida", str(clone_file), "--config", str(cfg), "-o", str(out)],
-             expect=f"{cfg}:2: top level: max_hunt = 100000000 exceeds the limit", dest=out)
+             expect=f"{cfg}:2: max_hunt = 100000000 is out of range", dest=out)
 
 
 def test_ida_too_many_records(clone_file, tmp_path, capsys, monkeypatch):

@@ -49,10 +49,11 @@ def test_arrays_are_frozen(table1):
         table1.k0 = np.ones(3)  # frozen dataclass
 
 
-_BAD = [("mass", 0.0, "mass > 0"), ("mass", -1.0, "mass > 0"), ("k0", 0.0, "k0 > 0"),
-        ("alpha", -0.1, "0 <= alpha <= 1"), ("alpha", 1.2, "0 <= alpha <= 1"), ("p", 0.9, "p >= 1"),
-        ("dy", 0.0, "dy > 0"), ("delta_eta", -0.01, "delta_eta >= 0"), ("k0", np.nan, "k0 > 0"),
-        ("dy", np.inf, "dy > 0")]
+_BAD = [("mass", 0.0, "1e-06 <= mass <= 100000000 [t]"), ("mass", -1.0, "1e-06 <= mass"),
+        ("k0", 0.0, "1e-06 <= k0 <= 1000000000000 [N/mm]"), ("alpha", -0.1, "0 <= alpha <= 1"),
+        ("alpha", 1.2, "0 <= alpha <= 1"), ("p", 0.9, "1 <= p <= 50"), ("dy", 0.0, "1e-06 <= dy <= 100000 [mm]"),
+        ("delta_eta", -0.01, "0 <= delta_eta"), ("k0", np.nan, "1e-06 <= k0"), ("dy", np.inf, "<= dy <="),
+        ("dy", 1e-300, "1e-06 <= dy"), ("p", 1e300, "p <= 50")]
 
 
 @pytest.mark.parametrize("field,value,form", _BAD)
@@ -96,8 +97,12 @@ def test_shape_and_story_errors():
         Building(mass=[1.0], k0=[1.0], alpha=[0.1], p=[2.0], dy=[1.0], delta_eta=[0.0], pdelta=True)
     with pytest.raises(InputError, match="damping kind 'viscous' is unknown"):
         Damping(kind="viscous")
-    with pytest.raises(InputError, match="damping ratio"):
+    with pytest.raises(InputError, match="damping.ratio"):
         Damping(ratio=1.5)
+    with pytest.raises(InputError, match=r"damping.modes = \[1, 99\]: a building of 3 stories has modes 1..3"):
+        Building(mass=[1.0] * 3, k0=[1.0] * 3, alpha=[0.1] * 3, p=[2.0] * 3, dy=[1.0] * 3, delta_eta=[0.0] * 3,
+                 damping=Damping(modes=(1, 99)))
+    Building(mass=[1.0], k0=[1.0], alpha=[0.1], p=[2.0], dy=[1.0], delta_eta=[0.0])  # one story: modes (1, 2) as ever
 
 
 # ---------------------------------------------------------------------- matrices and damping

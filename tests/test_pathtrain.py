@@ -247,6 +247,20 @@ def test_hyper_parameters_without_grids_and_reused_choice():
             SVMConfig(gamma_grid=bad)
 
 
+def test_config_kernel_names_are_the_svm_kernels():
+    """The identify config names the kernels without importing torch; they are the machines' kernels,
+    and an unknown one is refused by name."""
+    from hlaid.errors import InputError
+    from hlaid.identify.config import KERNEL_NAMES, SVMConfig
+    from hlaid.svm import KERNELS
+
+    assert sorted(KERNEL_NAMES) == sorted(KERNELS)
+    for name in KERNEL_NAMES:
+        assert SVMConfig(kernel=name).kernel == name
+    with pytest.raises(InputError, match="svm.kernel = 'gauss' is unknown; expected one of linear, poly, rbf"):
+        SVMConfig(kernel="gauss")
+
+
 def test_loop_fit_recovers_all_five_parameters_along_the_true_path(table1):
     """All five story parameters, started 10 % off, come back along the true drift against the
     true restoring force (noise-free), on every story: the estimator behind

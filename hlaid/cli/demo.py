@@ -17,8 +17,8 @@ def register(sub) -> None:
 
 def run_demo_command(args) -> int:
     from .._fileio import check_output_folder
-    from ..demo import run_demo
 
-    check_output_folder(args.out, force=args.force)  # fail before the pipeline, not after it
+    check_output_folder(args.out, force=args.force, inputs=[args.cache])  # fail before the pipeline, not after it
+    from ..demo import run_demo
     run_demo(args.out, force=args.force, cache_dir=args.cache)
     return 0

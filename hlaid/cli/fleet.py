@@ -24,12 +24,20 @@ def register(sub) -> None:
                    help="threads per worker of the embedded cluster (config: cluster.threads_per_worker)")
     p.add_argument("--cache", metavar="DIR", help="classifier cache folder (default ~/.cache/hlaid/svm)")
     p.add_argument("--force", action="store_true",
-                   help="recompute buildings whose stored result came from other inputs; write into a non-fleet folder")
+                   help="recompute buildings whose stored result came from other inputs (a folder that is not a "
+                        "fleet output is never written into)")
     p.set_defaults(func=run_fleet_cli)
 
 
 def run_fleet_cli(args) -> int:
-    from ..fleet import load_fleet_config, run_fleet
+    from ..fleet.address import parse_address
+
+    if args.scheduler:
+        parse_address(args.scheduler)  # before the config is read; probed before dask connects
+    from ..fleet.config import load_fleet_config
+    from ..fleet.output import check_output
+
+    check_output(Path(args.out), force=args.force)
     cfg = load_fleet_config(args.config)
     changes = {}
     for opt, key in (("workers", "n_workers"), ("threads", "threads_per_worker")):
@@ -40,6 +48,7 @@ def run_fleet_cli(args) -> int:
             changes[key] = v
     if changes:
         cfg = dataclasses.replace(cfg, cluster=dataclasses.replace(cfg.cluster, **changes))
+    from ..fleet.engine import run_fleet  # dask, torch: once the config is known to be good
     summary = run_fleet(cfg, args.out, base_dir=Path(args.config).parent, scheduler=args.scheduler,
                         force=args.force, cache_dir=args.cache)
     if summary.failed and not (summary.computed or summary.skipped):

@@ -21,20 +21,24 @@ def register(sub) -> None:
 
 def run_hla(args) -> int:
     from .._fileio import atomic_directory, check_output_folder
+    from .._inputs import check_input
     from ..config import load_config
-    from ..hla import HLAConfig, run_hla
-    from ..hla.plots import plot_loops, plot_stiffness
+    from ..hla.config import HLAConfig
+
+    inputs = [args.measurement, args.config]
+    check_output_folder(args.out, force=args.force, inputs=inputs)  # fail before the analysis, not after it
+    cfg = load_config(args.config, HLAConfig) if args.config else HLAConfig()
+    check_input(args.measurement)
     from ..io import read
     from ..measurement import check_band
-    from ..plots import save_figure
-
-    check_output_folder(args.out, force=args.force)  # fail before the analysis, not after it
-    cfg = load_config(args.config, HLAConfig) if args.config else HLAConfig()
     meas = read(args.measurement, "measurement")
     check_band(meas, cfg.preprocess.band_hz, f"preprocess.band_hz (in {args.config})")
+    from ..hla import run_hla  # the heavy libraries, once the inputs are known to be good
+    from ..hla.plots import plot_loops, plot_stiffness
+    from ..plots import save_figure
     _progress.info(f"HLA of {meas.n_floors} stories, {meas.n_samples} samples at {1 / meas.dt:g} Hz")
     res = run_hla(meas, cfg)
-    with atomic_directory(args.out, force=args.force) as tmp:
+    with atomic_directory(args.out, force=args.force, inputs=inputs) as tmp:
         res.save(tmp)
         if args.plot:
             save_figure(plot_loops(res), Path(tmp) / "loops.png")

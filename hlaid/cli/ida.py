@@ -76,9 +76,11 @@ def register(sub) -> None:
 
 def run_ida(args) -> int:
     from .._fileio import check_output_folder
-    from ..ida import IDAConfig, ida_from_config, load_ida_config, prepare_building
+    from ..clone import load_clone
+    from ..ida.config import IDAConfig, load_ida_config
 
-    out = check_output_folder(args.out, force=args.force)  # fail before the analysis, not after it
+    inputs = [args.clone, args.config, *(args.records or [])]
+    out = check_output_folder(args.out, force=args.force, inputs=inputs)  # fail before the analysis, not after it
     cfg = load_ida_config(args.config) if args.config else IDAConfig()
     levels = _numbers(" ".join(args.levels), "--levels") if args.levels else None
     cfg = cfg.replace(im=args.im, levels=levels, n_levels=args.n_levels, drift_limit=args.drift_limit,
@@ -87,12 +89,19 @@ def run_ida(args) -> int:
                       gravity_kN=_numbers(args.gravity_kN, "--gravity-kN") if args.gravity_kN else None,
                       units=args.units, period=args.period, bootstrap=args.bootstrap, seed=args.seed,
                       collapse=args.collapse)
+    base = Path(args.config).parent if args.config else None
+    if args.records is None:
+        inputs += cfg.record_specs(base) or []
+        check_output_folder(args.out, force=args.force, inputs=inputs)
+    load_clone(args.clone)  # a bad clone file is refused before the heavy libraries load
+    from ..ida import ida_from_config, prepare_building
+
     # fail on a bad clone before reading records
     prepare_building(args.clone, pdelta=cfg.pdelta, heights=cfg.heights_mm, collapse=cfg.collapse,
                      gravity_load=cfg.gravity_load_n())
-    base = Path(args.config).parent if args.config else None
     res = ida_from_config(args.clone, cfg, records=args.records, base_dir=base)
-    res.save(out, force=args.force, plots=not args.no_plots, n_boot=cfg.bootstrap, ci=cfg.ci, seed=cfg.seed)
+    res.save(out, force=args.force, plots=not args.no_plots, n_boot=cfg.bootstrap, ci=cfg.ci, seed=cfg.seed,
+             inputs=inputs)
     s = res.summary(n_boot=0)
     f = s["collapse_fragility"]["capacities"]
     if "median_g" in f:
@@ -107,11 +116,14 @@ def run_ida(args) -> int:
 
 def run_export(args) -> int:
     from .._fileio import check_output_file
-    from ..ida import prepare_building
-    from ..opensees import export_opensees
+    from ..clone import load_clone
     from ..units import kn_to_n
 
-    check_output_file(args.out, force=args.force)
+    check_output_file(args.out, force=args.force, inputs=[args.clone])
+    load_clone(args.clone)  # a bad clone file is refused before the heavy libraries load
+    from ..ida import prepare_building
+    from ..opensees import export_opensees
+
     b, _ = prepare_building(args.clone, pdelta=args.pdelta, require_heights=False,
                             heights=_numbers(args.heights, "--heights") if args.heights else None,
                             gravity_load=[kn_to_n(v) for v in _numbers(args.gravity_kN, "--gravity-kN")]

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import shutil
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .. import _progress
@@ -34,26 +37,40 @@ def register(sub) -> None:
 
 def run_identify(args) -> int:
     from .._fileio import check_output_file
+    from .._inputs import check_input
     from ..config import load_config
     from ..errors import InputError
-    from ..identify import HLASVMIdentifier, IdentifyConfig, get_identifier
-    from ..io import read
-    from ..measurement import check_band
 
-    out = check_output_file(args.out, force=args.force)  # fail before the identification, not after it
+    out = check_output_file(args.out, force=args.force, inputs=[args.measurement, args.config])  # before the work
     if args.config and args.method != "hlasvm":
         raise InputError(f"--config configures --method hlasvm, not {args.method}")
+    tb = Path(args.tensorboard) if args.tensorboard else None
+    if tb is not None and tb.exists() and not tb.is_dir():
+        raise InputError("exists and is not a folder; --tensorboard writes a folder of logs", source=str(tb))
+    from ..identify.config import IdentifyConfig  # light: no torch, numba or scipy
+
     cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
+    check_input(args.measurement)
+    from ..io import read
+    from ..measurement import check_band
     meas = read(args.measurement, "measurement")
     if args.method == "hlasvm":
         check_identify_bands(meas, cfg, args.config)
+    from ..identify import HLASVMIdentifier, get_identifier  # the heavy libraries, once the inputs are good
+    if args.method == "hlasvm":
         cache = "" if args.no_cache else args.cache
         est = HLASVMIdentifier(config=cfg, refine=None, cache_dir=cache, tensorboard=args.tensorboard)
     else:
         est = get_identifier(args.method, tensorboard=args.tensorboard)
         check_band(meas, est.band_hz, f"band_hz (--method {args.method})")
-    est.fit(meas)
-    est.clone_.save(out, force=args.force)
+    new_tb = tb is not None and not os.path.lexists(tb)
+    try:
+        est.fit(meas)
+        est.clone_.save(out, force=args.force)
+    except BaseException:  # Ctrl-C, SIGTERM, an error: no half-written TensorBoard folder either
+        if new_tb and tb is not None:
+            shutil.rmtree(tb, ignore_errors=True)
+        raise
     if args.method == "hlasvm":
         print_summary(est.result_)
     else:

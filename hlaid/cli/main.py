@@ -1,9 +1,11 @@
 """The ``hlaid`` command line: a thin layer over library functions.
 
-Exit status: 0 success, 2 bad input (one line on stderr, no traceback), 1 internal error,
-130 interrupted. Each subcommand lives in its own module with a ``register(subparsers)``
-function, listed in :data:`COMMANDS`; registering imports nothing heavy (torch, numba, scipy,
-matplotlib, scikit-learn, dask): the command functions import what they run.
+Exit status: 0 success, 2 bad input (one line on stderr, no traceback; a full disk too), 1
+internal error, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM). Every message has its control
+characters escaped (a hostile file name cannot drive the terminal). Each subcommand lives in its
+own module with a ``register(subparsers)`` function, listed in :data:`COMMANDS`; registering
+imports nothing heavy (torch, numba, scipy, matplotlib, scikit-learn, dask): the command
+functions check their inputs, outputs and configs first, then import what they run.
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ import traceback
 
 from .. import _interrupt, _progress
 from .._version import __version__
-from ..errors import InputError
+from ..errors import InputError, escape_controls, one_line
+from ..limits import check_environment
 
 COMMANDS = [
     "hlaid.cli.simulate",
@@ -25,6 +28,7 @@ COMMANDS = [
     "hlaid.cli.run",
     "hlaid.cli.ida",
     "hlaid.cli.fleet",
+    "hlaid.cli.loss",
 ]
 """Modules that each register one or more subcommands."""
 
@@ -36,7 +40,7 @@ class Parser(argparse.ArgumentParser):
     """The subcommand names (set on the top-level parser by :func:`build_parser`)."""
 
     def error(self, message):  # noqa: D401
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        self.exit(2, f"{self.prog}: error: {one_line(message)} (see {self.prog} --help)\n")
 
 
 def add_common(p: argparse.ArgumentParser) -> None:
@@ -88,22 +92,53 @@ def _main(argv: list[str] | None) -> int:
             parser.print_help()
             return 2
         prog = f"hlaid {args.command}"
+        for name in check_environment():  # a bad HLAID_MAX_* is exit 2 before any work
+            _progress.warn(f"environment variable {name} is no limit of hlaid (a typo?); it is ignored")
+        from .. import _fileio
+        _fileio.command = prog  # named in the marker of every output folder
         return int(args.func(args) or 0)
     except InputError as err:
+        _progress.end_line()
         print(f"{prog}: error: {err}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into e.g. `head`
         sys.stderr.close()
         return 0
+    except _interrupt.Terminated:  # SIGTERM: the same clean-up as Ctrl-C
+        _progress.end_line()
+        print(f"{prog}: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:  # workers ignore SIGINT (hlaid._workers); outputs in progress are removed
+        _progress.end_line()
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
+    except OSError as err:
+        full = _no_space(err)
+        if full is None:
+            return _internal(prog, err, verbose)
+        _progress.end_line()
+        print(f"{prog}: error: {full}", file=sys.stderr)
+        return 2
     except Exception as err:  # noqa: BLE001 - the one place internal errors are reported
-        if verbose:
-            traceback.print_exc()
-        print(f"{prog}: internal error: {type(err).__name__}: {' '.join(str(err).split())} "
-              f"(please report it; --verbose shows the traceback)", file=sys.stderr)
-        return 1
+        return _internal(prog, err, verbose)
+
+
+def _no_space(err: OSError) -> str | None:
+    """One line for a full disk or an exhausted quota (outside hlaid's atomic writers), else None."""
+    from .._fileio import NO_SPACE
+    if err.errno not in NO_SPACE:
+        return None
+    where = f"{escape_controls(err.filename)}: " if err.filename else ""
+    return f"{where}{err.strerror or 'no space left on the device'}; free some space or choose another output folder"
+
+
+def _internal(prog: str, err: BaseException, verbose: bool) -> int:
+    _progress.end_line()
+    if verbose:
+        traceback.print_exc()
+    print(f"{prog}: internal error: {type(err).__name__}: {one_line(err)} "
+          f"(please report it; --verbose shows the traceback)", file=sys.stderr)
+    return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -21,11 +21,19 @@ def register(sub) -> None:
 
 
 def run_run(args) -> int:
-    from .._fileio import check_output_folder
-    from ..runner import run_from_file
+    from pathlib import Path
 
-    check_output_folder(args.out, force=args.force)  # fail before the pipeline, not after it
-    run_from_file(args.config, args.out, force=args.force, cache_dir=args.cache)
+    from .._fileio import check_output_folder
+    from ..runconfig import input_paths, load_run_config
+
+    inputs = [args.config, args.cache]
+    check_output_folder(args.out, force=args.force, inputs=inputs)  # fail before the pipeline, not after it
+    cfg = load_run_config(args.config)
+    base = Path(args.config).parent
+    inputs += input_paths(cfg, base)
+    check_output_folder(args.out, force=args.force, inputs=inputs)
+    from ..runner import run_pipeline  # the heavy libraries, once the inputs are known to be good
+    run_pipeline(cfg, args.out, base_dir=base, force=args.force, cache_dir=args.cache, inputs=inputs)
     return 0
 
 

@@ -24,10 +24,15 @@ def register(sub) -> None:
 
 def run_simulate(args) -> int:
     from .._fileio import check_output_file
-    from ..synthetic import load_simulation_config, measurement_from_config
+    from ..bounds import SEED
+    from ..specs import load_simulation_config
 
-    out = check_output_file(args.out, force=args.force)  # fail before the simulation, not after it
+    out = check_output_file(args.out, force=args.force, inputs=[args.config])  # before the simulation, not after it
+    if args.seed is not None:
+        SEED.check("--seed", args.seed)
     cfg = load_simulation_config(args.config)
+    check_output_file(args.out, force=args.force, inputs=[args.config, cfg.motion.path(Path(args.config).parent)])
+    from ..synthetic import measurement_from_config  # the heavy libraries, once the inputs are known to be good
     _progress.info(f"simulating {cfg.building.name or 'building'} under {cfg.motion.file}")
     meas = measurement_from_config(cfg, base_dir=Path(args.config).parent, seed=args.seed, source=args.config)
     meas.save(out, force=args.force)

@@ -11,6 +11,7 @@ folder of the config file. Example (``configs/fleet_example.yaml``)::
     seed: 0
     identify: {training: {samples: 800}}        # any key of configs/identify.yaml
     ida: {n_levels: 10, drift_limit: 0.10}      # any key of configs/ida.yaml except records
+    loss: {system: steel-mrf}                   # optional: FEMA P-58 losses at each event (hlaid[loss])
     cluster: {n_workers: 2, threads_per_worker: 1}
     buildings:
       - name: B001
@@ -35,12 +36,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..bounds import SEED, bounded, check_bounds, with_bounds
 from ..config import config_from_node, load_yaml
 from ..errors import ConfigError, InputError
-from ..ida import IDAConfig
-from ..identify import IdentifyConfig
+from ..ida.config import IDAConfig
+from ..identify.config import IdentifyConfig
 from ..io.station import StationConfig
-from ..synthetic import SimulationConfig
+from ..loss.config import LossConfig
+from ..model.schema import STORY_BOUNDS
+from ..specs import SimulationConfig
+from ..uncertainty.config import MAX_ENSEMBLE
 
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 """Building and event names: they name result files (``buildings/NAME@EVENT.json``)."""
@@ -74,10 +79,11 @@ class FleetMeasurement:
     options: dict[str, Any] = field(default_factory=dict)
     station: StationConfig | None = None
     simulate: SimulationConfig | None = None
-    mass_t: list[float] | None = None
-    height_mm: list[float] | None = None
+    mass_t: list[float] | None = with_bounds(STORY_BOUNDS["mass"], None)
+    height_mm: list[float] | None = with_bounds(STORY_BOUNDS["height"], None)
 
     def __post_init__(self):
+        check_bounds(self)
         given = [k for k in ("file", "station", "simulate") if getattr(self, k) is not None]
         if len(given) != 1:
             raise InputError("give exactly one of file, station or simulate"
@@ -91,11 +97,12 @@ class BuildingEntry:
 
     name: str
     measurements: dict[str, FleetMeasurement]
-    mass_t: list[float] | None = None
-    height_mm: list[float] | None = None
+    mass_t: list[float] | None = with_bounds(STORY_BOUNDS["mass"], None)
+    height_mm: list[float] | None = with_bounds(STORY_BOUNDS["height"], None)
     description: str = ""
 
     def __post_init__(self):
+        check_bounds(self)
         _check_name("building", self.name)
         if not self.measurements:
             raise InputError("measurements: give at least one event's record (event name: {file: ...})")
@@ -112,16 +119,14 @@ class ClusterConfig:
     the cores); a building's records stay on one worker. ``processes: false`` runs the workers
     as threads of this process (tests)."""
 
-    n_workers: int = 2
-    threads_per_worker: int = 1
+    n_workers: int = bounded(2, lo=1, hi=1024)
+    threads_per_worker: int = bounded(1, lo=1, hi=1024)
     memory_limit: str = "auto"
     processes: bool = True
-    task_threads: int = 1
+    task_threads: int = bounded(1, lo=1, hi=1024)
 
     def __post_init__(self):
-        for k in ("n_workers", "threads_per_worker", "task_threads"):
-            if getattr(self, k) < 1:
-                raise InputError(f"{k} = {getattr(self, k)}; expected an integer >= 1")
+        check_bounds(self)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -131,18 +136,18 @@ class FleetConfig:
     buildings: list[BuildingEntry]
     records: str | list[str] | None = None
     events: list[EventSpec] | None = None
-    n_ensemble: int = 20
-    seed: int = 0
+    n_ensemble: int = bounded(20, lo=0, hi=MAX_ENSEMBLE)
+    seed: int = with_bounds(SEED, 0)
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
     ida: IDAConfig = field(default_factory=IDAConfig)
     cluster: ClusterConfig = field(default_factory=ClusterConfig)
+    loss: LossConfig | None = None
     name: str = "hlaid fleet"
 
     def __post_init__(self):
         if not self.buildings:
             raise InputError("buildings: list at least one building")
-        if self.n_ensemble < 0:
-            raise InputError(f"n_ensemble = {self.n_ensemble}; expected an integer >= 0 (0: the point clone only)")
+        check_bounds(self)
 
     def units(self) -> list[tuple[BuildingEntry, str]]:
         """Every (building, event) pair to assess, in config order."""

@@ -15,8 +15,8 @@ Ctrl-C in the seconds while the workers start is ignored (the driver ignores it 
 from __future__ import annotations
 
 import contextlib
-import json
 import logging
+import os
 import signal
 import threading
 import time
@@ -25,17 +25,19 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .. import _progress
-from .._fileio import check_parent, write_json
+from .._fileio import MARKER as OUTPUT_MARKER
+from .._fileio import marker as output_marker
+from .._fileio import write_json
+from .._inputs import read_json
 from .._version import __version__
 from ..errors import InputError
 from ..io import read
+from .address import probe
 from .assess import POINT, default_assess, engine_label, point_assess
 from .config import ClusterConfig, FleetConfig, load_fleet_config
+from .output import MARKER, check_output
 from .report import build_fleet_report, table_rows, write_table
 from .task import RESULT_FORMAT, UnitJob, make_jobs, records_digest, run_unit
-
-MARKER = "fleet.json"
-"""The file that makes a folder an hlaid fleet output (a rerun resumes it)."""
 
 
 @dataclass(frozen=True)
@@ -78,11 +80,13 @@ def _workers_ignore_sigint() -> Iterator[None]:
 def open_client(cluster: ClusterConfig, scheduler: str | None = None) -> Iterator:
     """A dask ``Client``: of the cluster at ``scheduler`` (an address such as
     ``tcp://10.0.0.5:8786``), else of an embedded ``LocalCluster`` closed on exit."""
+    if scheduler:
+        probe(scheduler)  # a valid address where a dask scheduler answers (hlaid.fleet.address)
     distributed = _dask()
     if scheduler:
         try:
             client = distributed.Client(scheduler, timeout="20s")
-        except (OSError, TimeoutError) as err:
+        except Exception as err:  # noqa: BLE001 - whatever dask raises for a failed connection is one line
             raise InputError(f"--scheduler {scheduler}: cannot connect ({type(err).__name__}: "
                              f"{' '.join(str(err).split())[:200]})") from None
         try:
@@ -105,25 +109,13 @@ def open_client(cluster: ClusterConfig, scheduler: str | None = None) -> Iterato
 
 
 # ---------------------------------------------------------------------------- output folder
-def check_output(out: Path, *, force: bool) -> Path:
-    """Refuse an output folder that cannot be (re)used: a file, a folder that is neither empty
-    nor a fleet output (without ``force``), a missing or unwritable parent."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError("exists and is not a folder", source=str(out))
-    if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file() and not force:
-        raise InputError("is not empty and is not an hlaid fleet output; use --force to write into it, or "
-                         "choose another folder", source=str(out))
-    if not out.exists():
-        check_parent(out)
-    return out
-
-
 def prepare_output(out: Path, *, force: bool) -> Path:
     """Create (or reopen) the output folder (see :func:`check_output`)."""
     out = check_output(out, force=force)
     out.mkdir(exist_ok=True)
     (out / "buildings").mkdir(exist_ok=True)
+    if not os.path.lexists(out / OUTPUT_MARKER):
+        write_json(out / OUTPUT_MARKER, output_marker("hlaid fleet"))
     return out
 
 
@@ -134,12 +126,12 @@ def result_path(out: Path, job: UnitJob) -> Path:
 def stored_result(out: Path, job: UnitJob) -> dict | None:
     """The stored result of a unit, or None (none, unreadable, or not a fleet result)."""
     p = result_path(out, job)
-    if not p.is_file():
+    if not os.path.lexists(p):
         return None
     try:
-        d = json.loads(p.read_text())
-    except (OSError, ValueError):
-        _progress.warn(f"{p}: unreadable result; {job.unit} is recomputed")
+        d = read_json(p)
+    except InputError as err:
+        _progress.warn(f"unreadable result ({err}); {job.unit} is recomputed")
         return None
     return d if isinstance(d, dict) and d.get("format") == RESULT_FORMAT else None
 
@@ -184,6 +176,11 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
     t0 = time.perf_counter()
     base = Path(base_dir) if base_dir is not None else None
     out = check_output(Path(out), force=force)
+    if scheduler and client is None:
+        probe(scheduler)  # before anything is read or written: a wrong address is one line at once
+    if cfg.loss is not None:  # fail before the fleet runs when pelicun is missing
+        from ..loss.fema_p58 import require_pelicun
+        require_pelicun()
     records = read(cfg.record_specs(base), kind="records", units=cfg.ida.units)
     if assess is None and cfg.n_ensemble == 0:
         assess, engine = point_assess, POINT

@@ -24,6 +24,11 @@ LEADING = ["rank", "building", "event", "status", "reason", "indicator", "p_coll
            "n_stories", "T1_s", "replay_r_min", "identify_s", "assess_s", "total_s", "total_cpu_s", "worker", "digest"]
 """Columns that come first in the table (others, e.g. ``p_exceed_0.01``, follow in order of appearance)."""
 
+LOSS_COLUMNS = ("loss.repair_cost_median", "loss.repair_cost_ratio_median", "loss.repair_cost_ratio_band_lo",
+                "loss.repair_cost_ratio_band_hi", "loss.repair_time_parallel_median", "loss.p_irreparable",
+                "loss.p_collapse")
+"""The FEMA P-58 loss columns (a ``loss`` block in the fleet config) shown in the report's table."""
+
 RISK_KEYS = ("p_collapse",)
 CAPACITY_KEYS = ("collapse_median",)
 OWN_KEYS = ("own_im",)
@@ -229,6 +234,7 @@ def build_fleet_report(out: Path, rows: list[dict], meta: dict) -> Path:
                         "collapse_median_band_hi", "ensemble", "n_stories", "T1_s", "replay_r_min", "total_s")
             if any(c in r for r in ok)]
     cols += [c for c in columns(ok) if c.startswith("p_exceed_") and "_band" not in c]
+    cols += [c for c in LOSS_COLUMNS if any(c in r for r in ok)]
     parts.append("<h2>Ranked by risk</h2><table><tr>" + "".join(f"<th>{e(c)}</th>" for c in cols) + "</tr>")
     for r in ok:
         cls = e(str(r.get("indicator", "")))

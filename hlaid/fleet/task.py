@@ -24,11 +24,13 @@ from typing import Any
 import numpy as np
 
 from .. import _progress
+from .._inputs import file_sha256
 from .._version import __version__
 from ..config import config_to_dict
 from ..errors import InputError
 from ..ida import IDAConfig
 from ..identify import IdentifyConfig
+from ..loss.config import LossConfig
 from ..measurement import Measurement
 from ..motions import GroundMotion
 from .assess import assess_clone, flatten
@@ -59,6 +61,7 @@ class UnitJob:
     digest: str = ""
     verbosity: int = 1
     driver_pid: int = 0
+    loss: LossConfig | None = None
 
 
 def unit_seed(seed: int, unit: str) -> int:
@@ -82,14 +85,10 @@ def input_files(m: FleetMeasurement, base_dir: str | None) -> list[Path]:
 
 
 def _file_digest(p: Path) -> str:
-    h = hashlib.sha256()
     try:
-        with open(p, "rb") as fh:
-            for block in iter(lambda: fh.read(1 << 20), b""):
-                h.update(block)
-    except OSError:  # missing or unreadable: the worker reports it; the digest just says so
+        return file_sha256(p)
+    except InputError:  # missing, unreadable or not a regular file: the worker reports it; the digest says so
         return "missing"
-    return h.hexdigest()
 
 
 def records_digest(records: Sequence[GroundMotion]) -> str:
@@ -116,11 +115,12 @@ def make_jobs(cfg: FleetConfig, base_dir: Path | None, records_sha: str, engine:
                       height_mm=m.height_mm if m.height_mm is not None else b.height_mm,
                       identify=dataclasses.replace(cfg.identify, n_jobs=1), ida=cfg.ida, n_ensemble=cfg.n_ensemble,
                       seed=unit_seed(cfg.seed, uid), base_dir=base, cache_dir=cache_dir,
-                      task_threads=cfg.cluster.task_threads, engine=engine)
+                      task_threads=cfg.cluster.task_threads, engine=engine, loss=cfg.loss)
         key = {"unit": uid, "measurement": config_to_dict(m), "mass_t": job.mass_t, "height_mm": job.height_mm,
                "identify": config_to_dict(job.identify),
                "ida": config_to_dict(dataclasses.replace(cfg.ida, records=None)),
                "n_ensemble": cfg.n_ensemble, "seed": job.seed, "engine": engine, "hlaid": __version__,
+               "loss": None if cfg.loss is None else config_to_dict(cfg.loss),
                "records": records_sha, "files": {str(p): _file_digest(p) for p in input_files(m, base)}}
         digest = hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()
         jobs.append(dataclasses.replace(job, digest=digest, verbosity=_progress.verbosity(), driver_pid=os.getpid()))
@@ -149,6 +149,28 @@ def load_unit_measurement(job: UnitJob) -> Measurement:
 def _one_line(err: BaseException) -> str:
     text = " ".join(str(err).split())
     return text if isinstance(err, InputError) else f"{type(err).__name__}: {text}"
+
+
+def unit_loss(clone, own: GroundMotion, a: dict, job: UnitJob) -> dict:
+    """FEMA P-58 losses of the event through pelicun, with the assessment's collapse fragility; the
+    scalar figures become the ``loss.*`` columns of the fleet table (pelicun's inputs stay on the worker
+    only for the time of the assessment)."""
+    import tempfile
+
+    from ..loss.assess import assess_losses
+    if not (a.get("collapse_median") and a.get("beta")):
+        raise InputError("no collapse fragility fitted: the losses need one")
+    with tempfile.TemporaryDirectory(prefix="hlaid-loss-") as tmp:
+        block = assess_losses(clone, own, collapse=(float(a["collapse_median"]), float(a["beta"])), cfg=job.loss,
+                              ida_config=job.ida, n_ensemble=job.n_ensemble if clone.uncertainty is not None else 0,
+                              seed=job.seed, folder=tmp, collapse_source="the unit's assessment",
+                              base_dir=job.base_dir)
+    r = block["recorded"]
+    keep = ("repair_cost_median", "repair_cost_band", "repair_cost_ratio_median", "repair_cost_ratio_band",
+            "repair_cost_ratio_mean", "repair_time_parallel_median", "repair_time_sequential_median", "p_collapse",
+            "p_irreparable", "p_replacement")
+    return {**{k: r[k] for k in keep}, "replacement_cost": block["replacement_cost"], "system": block["system"],
+            "cost_unit": r["cost_unit"]}
 
 
 def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | None = None) -> dict:
@@ -196,6 +218,11 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
         a = assess_clone(res.clone, records, n_ensemble=job.n_ensemble, ida_config=job.ida, own_motion=own,
                          seed=job.seed, assess=assess, engine=job.engine or None)
         clock("assess", t, c)
+        if job.loss is not None:
+            stage = "loss"
+            t, c = time.perf_counter(), cpu_time()
+            a["loss"] = unit_loss(res.clone, own, a, job)
+            clock("loss", t, c)
     except Exception as err:  # noqa: BLE001 - one building's failure must not stop the fleet
         clock("total", t_all, c_all)
         return {**out, "status": "failed", "stage": stage, "reason": f"{stage}: {_one_line(err)}", "timings": timings}
@@ -213,5 +240,5 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
                             "n_floors": meas.n_floors}}
 
 
-__all__ = ["UnitJob", "make_jobs", "run_unit", "records_digest", "unit_seed", "load_unit_measurement",
+__all__ = ["UnitJob", "make_jobs", "run_unit", "unit_loss", "records_digest", "unit_seed", "load_unit_measurement",
            "RESULT_FORMAT", "RESULT_VERSION"]

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
+from ..bounds import bounded, check_bounds
 from ..errors import InputError
 
 
@@ -32,20 +33,17 @@ class PreprocessConfig:
         when the data hold them, or ``"auto"`` (measured when present).
     """
 
-    band_hz: tuple[float, float] | None = None
-    highpass_ratio: float = 0.25
-    order: int = 4
+    band_hz: tuple[float, float] | None = bounded(None, lo=0.0, hi=50_000.0, unit="Hz")
+    highpass_ratio: float = bounded(0.25, lo=1e-3, hi=1.0, hi_open=True)
+    order: int = bounded(4, lo=1, hi=10)
     displacement: Literal["auto", "integrate", "measured"] = "auto"
 
     def __post_init__(self):
+        check_bounds(self)
         if self.band_hz is not None:
             lo, hi = self.band_hz
             if not 0 <= lo < hi:
                 raise InputError(f"band_hz = {list(self.band_hz)}; expected [low, high] with 0 <= low < high")
-        if not 0 < self.highpass_ratio < 1:
-            raise InputError(f"highpass_ratio = {self.highpass_ratio}; expected a fraction in (0, 1)")
-        if not 1 <= self.order <= 10:
-            raise InputError(f"order = {self.order}; expected 1..10")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -67,21 +65,14 @@ class ForceConfig:
     """
 
     damping: Literal["none", "rayleigh", "regression"] = "rayleigh"
-    damping_ratio: float = 0.05
-    damping_modes: tuple[int, int] = (1, 2)
-    mass_ratios: list[float] | None = None
+    damping_ratio: float = bounded(0.05, lo=0.0, hi=1.0, hi_open=True)
+    damping_modes: tuple[int, int] = bounded((1, 2), lo=1, hi="STORIES")
+    mass_ratios: list[float] | None = bounded(None, lo=1e-6, hi=1e6)
     pdelta: Literal["auto", "on", "off"] = "auto"
-    max_iterations: int = 6
+    max_iterations: int = bounded(6, lo=1, hi=100)
 
     def __post_init__(self):
-        if not 0 <= self.damping_ratio < 1:
-            raise InputError(f"damping_ratio = {self.damping_ratio}; expected 0 <= ratio < 1")
-        if self.mass_ratios is not None and not all(m > 0 for m in self.mass_ratios):
-            raise InputError("mass_ratios must be positive numbers")
-        if not all(m >= 1 for m in self.damping_modes):
-            raise InputError(f"damping_modes = {list(self.damping_modes)}; expected mode numbers >= 1")
-        if self.max_iterations < 1:
-            raise InputError(f"max_iterations = {self.max_iterations}; expected >= 1")
+        check_bounds(self)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -95,11 +86,10 @@ class HalfCycleConfig:
         merged into the half cycle they interrupt).
     """
 
-    min_increment: float = 0.2
+    min_increment: float = bounded(0.2, lo=1e-4, hi=1.0, hi_open=True)
 
     def __post_init__(self):
-        if not 0 < self.min_increment < 1:
-            raise InputError(f"min_increment = {self.min_increment}; expected a fraction in (0, 1)")
+        check_bounds(self)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -129,25 +119,16 @@ class StiffnessConfig:
         leaves of noise and takes away of plastic drift) that are locally a linear trend.
     """
 
-    ke_force_fraction: float = 0.5
-    ke_min_samples: int = 6
-    k_window: int = 15
-    k0_min_amplitude: float = 0.08
-    yield_ratio: float = 0.6
+    ke_force_fraction: float = bounded(0.5, lo=1e-3, hi=1.0)
+    ke_min_samples: int = bounded(6, lo=3, hi=100_000)
+    k_window: int = bounded(15, lo=3, hi=100_000)
+    k0_min_amplitude: float = bounded(0.08, lo=0.0, hi=1.0, hi_open=True)
+    yield_ratio: float = bounded(0.6, lo=1e-3, hi=1.0)
     ke_smoothing: Literal["energy", "monotone", "none"] = "energy"
-    ke_trend_z: float = 0.0
+    ke_trend_z: float = bounded(0.0, lo=0.0, hi=1000.0)
 
     def __post_init__(self):
-        if not 0 < self.ke_force_fraction <= 1:
-            raise InputError(f"ke_force_fraction = {self.ke_force_fraction}; expected (0, 1]")
-        if self.ke_min_samples < 3 or self.k_window < 3:
-            raise InputError("ke_min_samples and k_window must be >= 3")
-        if not 0 <= self.k0_min_amplitude < 1:
-            raise InputError(f"k0_min_amplitude = {self.k0_min_amplitude}; expected a fraction in [0, 1)")
-        if not 0 < self.yield_ratio <= 1:
-            raise InputError(f"yield_ratio = {self.yield_ratio}; expected a fraction in (0, 1]")
-        if self.ke_trend_z < 0:
-            raise InputError(f"ke_trend_z = {self.ke_trend_z}; expected >= 0 (0: never fit the trend)")
+        check_bounds(self)
 
 
 @dataclass(frozen=True, kw_only=True)

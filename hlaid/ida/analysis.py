@@ -46,9 +46,8 @@ from ..io.records import as_motions
 from ..model import Building
 from ..motions import GroundMotion
 from ..simulate import simulate_response
-from ..units import G_MM_S2
 from .config import DEFAULT_EXCEEDANCE, IDAConfig, check_levels
-from .intensity import get_intensity_measure, period_for
+from .intensity import record_intensities
 from .prepare import prepare_building
 from .results import IDAResult
 
@@ -223,12 +222,7 @@ def run_ida(model: Clone | Building | str | os.PathLike,
     building, notes = prepare_building(model, pdelta=cfg.pdelta, heights=cfg.heights_mm,
                                        gravity_load=cfg.gravity_load_n(), collapse=cfg.collapse)
     motions = as_motions(records, units=cfg.units)
-    measure = get_intensity_measure(cfg.im)
-    T1 = period_for(measure, building, cfg.period)
-    im0 = measure.compute(motions, T1, 0.05) / G_MM_S2
-    if np.any(~(im0 > 0)):
-        bad = [m.name for m, v in zip(motions, im0) if not v > 0]
-        raise InputError(f"record(s) with zero {measure.label}: {', '.join(bad)}")
+    measure, T1, im0 = record_intensities(motions, cfg.im, building, cfg.period)
     levels: Sequence[float] | np.ndarray | None  # the configured levels, then their array
     levels, n_levels, slope_ratio, refine = cfg.levels, cfg.n_levels, cfg.slope_ratio, cfg.refine
     hunt_factor, max_hunt, tolerance, max_fill = cfg.hunt_factor, cfg.max_hunt, cfg.tolerance, cfg.max_fill

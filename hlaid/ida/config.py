@@ -8,18 +8,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
+from ..bounds import SEED, bounded, check_bounds, with_bounds
 from ..config import load_config
 from ..errors import InputError
 from ..limits import check_count
+from ..model.schema import STORY_BOUNDS, WEIGHT_KN
 from ..units import kn_to_n
 
 DEFAULT_EXCEEDANCE = (0.005, 0.01, 0.02, 0.04)
 """Drift-ratio limits whose probability of exceedance is reported (0.5, 1, 2, 4 %)."""
-
-
-def _positive(name, v, *, upper=math.inf):
-    if v is not None and not (math.isfinite(v) and 0 < v < upper):
-        raise InputError(f"{name} = {v}; expected a number in (0, {upper:g})")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -56,42 +53,28 @@ class IDAConfig:
     records: str | list[str] | None = None
     units: str | None = None
     im: Literal["sa_t1", "pga"] = "sa_t1"
-    levels: list[float] | None = None
-    n_levels: int = 20
-    drift_limit: float = 0.10
-    slope_ratio: float = 0.20
-    exceedance_limits: list[float] | None = None
+    levels: list[float] | None = bounded(None, lo=1e-6, hi=100.0, unit="g")
+    n_levels: int = bounded(20, lo=2, hi="IDA_LEVELS")
+    drift_limit: float = bounded(0.10, lo=1e-4, hi=10.0, hi_open=True)
+    slope_ratio: float = bounded(0.20, lo=1e-3, hi=1.0, hi_open=True)
+    exceedance_limits: list[float] | None = bounded(None, lo=1e-5, hi=10.0, hi_open=True)
     refine: bool = True
-    hunt_factor: float = 1.5
-    max_hunt: int = 10
-    tolerance: float = 0.02
-    max_fill: int = 12
-    max_step: float = 0.0025
+    hunt_factor: float = bounded(1.5, lo=1.0, hi=100.0, lo_open=True)
+    max_hunt: int = bounded(10, lo=0, hi="IDA_LEVELS")
+    tolerance: float = bounded(0.02, lo=1e-4, hi=1.0, hi_open=True)
+    max_fill: int = bounded(12, lo=0, hi="IDA_LEVELS")
+    max_step: float = bounded(0.0025, lo=1e-6, hi=1.0, unit="s")
     pdelta: bool | None = None
-    heights_mm: list[float] | None = None
-    gravity_kN: list[float] | None = None
-    period: float | None = None
+    heights_mm: list[float] | None = with_bounds(STORY_BOUNDS["height"], None)
+    gravity_kN: list[float] | None = bounded(None, lo=0.0, hi=WEIGHT_KN.hi, unit="kN")
+    period: float | None = bounded(None, lo=1e-3, hi=100.0, unit="s")
     collapse: str | dict[str, float | str] | None = None
-    bootstrap: int = 1000
-    ci: float = 0.90
-    seed: int = 0
+    bootstrap: int = bounded(1000, lo=0, hi="BOOTSTRAP")
+    ci: float = bounded(0.90, lo=0.01, hi=0.999)
+    seed: int = with_bounds(SEED, 0)
 
     def __post_init__(self):
-        _positive("drift_limit", self.drift_limit, upper=10.0)
-        _positive("slope_ratio", self.slope_ratio, upper=1.0)
-        _positive("tolerance", self.tolerance, upper=1.0)
-        _positive("max_step", self.max_step)
-        _positive("period", self.period)
-        _positive("ci", self.ci, upper=1.0)
-        if not self.hunt_factor > 1:
-            raise InputError(f"hunt_factor = {self.hunt_factor}; expected a factor > 1")
-        for name in ("n_levels", "max_hunt", "max_fill", "bootstrap"):
-            if getattr(self, name) < 0 or (name == "n_levels" and self.n_levels < 2):
-                raise InputError(f"{name} = {getattr(self, name)}; expected a non-negative integer"
-                                 + (" >= 2" if name == "n_levels" else ""))
-        for name in ("n_levels", "max_hunt", "max_fill"):
-            check_count(getattr(self, name), "IDA_LEVELS", name)
-        check_count(self.bootstrap, "BOOTSTRAP", "bootstrap")
+        check_bounds(self)
         if self.levels is not None:
             check_count(len(self.levels), "IDA_LEVELS", "number of levels")
             check_levels(self.levels)
@@ -99,7 +82,8 @@ class IDAConfig:
             from ..model.collapse import get_collapse_model
             get_collapse_model(self.collapse)
         for d in self.exceedance_limits or ():
-            _positive("exceedance_limits", d, upper=self.drift_limit)
+            if not d < self.drift_limit:
+                raise InputError(f"exceedance_limits: {d:g} is not below drift_limit = {self.drift_limit:g}")
 
     def replace(self, **changes) -> IDAConfig:
         """A copy with the given fields changed (None values are ignored)."""

@@ -24,7 +24,8 @@ from ..motions import GroundMotion
 from ..units import G_MM_S2
 from ._spectrum import response_spectrum
 
-__all__ = ["INTENSITY_MEASURES", "IntensityMeasure", "get_intensity_measure", "intensity", "response_spectrum"]
+__all__ = ["INTENSITY_MEASURES", "IntensityMeasure", "get_intensity_measure", "intensity", "record_intensities",
+           "response_spectrum"]
 
 
 @dataclass(frozen=True)
@@ -105,3 +106,16 @@ def period_for(m: IntensityMeasure, building: Building | None, period: float | N
     if building is None:
         raise InputError(f"intensity measure {m.name!r} needs a building (for T1) or a period")
     return float(building.periods()[0])
+
+
+def record_intensities(motions: list[GroundMotion], im: str, building: Building,
+                       period: float | None = None) -> tuple[IntensityMeasure, float, np.ndarray]:
+    """``(measure, period [s], (record,) IM [g])`` of records for ``building`` (its T1 unless
+    ``period``); a record of zero intensity (it could not be scaled) is an InputError naming it."""
+    measure = get_intensity_measure(im)
+    T = period_for(measure, building, period)
+    im0 = measure.compute(motions, T, 0.05) / G_MM_S2
+    if np.any(~(im0 > 0)):
+        bad = [m.name for m, v in zip(motions, im0) if not v > 0]
+        raise InputError(f"record(s) with zero {measure.label}: {', '.join(bad)}")
+    return measure, T, im0

@@ -11,12 +11,16 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
 
-from .. import __version__, _progress
+from .. import _progress
 from .._fileio import json_default, write_json
+from .._inputs import file_sha256, read_json
+from .._version import __version__
+from ..errors import InputError
 from ..svm import KernelSVC
 
 
@@ -50,12 +54,14 @@ def array_digest(a: np.ndarray) -> str:
     return hashlib.sha256(np.ascontiguousarray(a, dtype=np.float64).tobytes()).hexdigest()[:16]
 
 
-def _sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+def _clear(path: Path) -> None:
+    """Remove what stands where a cache file is to be written, unless it is a regular file (a
+    folder, a FIFO or a device put there would make every later store fail)."""
+    if path.is_symlink() or (path.exists() and not path.is_file()):
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink()
 
 
 def _sha256_json(obj) -> str:
@@ -85,7 +91,7 @@ class MachineCache:
         if self.root is None:
             return None
         d = self.root / key
-        if not (d / "meta.json").exists():
+        if not os.path.lexists(d / "meta.json"):
             return None
         try:
             return self._verified(d, key)
@@ -95,10 +101,10 @@ class MachineCache:
 
     @staticmethod
     def _verified(d: Path, key: str):
-        try:
-            meta = json.loads((d / "meta.json").read_text())
-        except (OSError, ValueError) as err:
-            raise _Untrusted(f"meta.json is unreadable: {type(err).__name__}") from None
+        try:  # a regular file within HLAID_MAX_FILE_MB, nested and numbered as hlaid writes it
+            meta = read_json(d / "meta.json")
+        except InputError as err:
+            raise _Untrusted(f"meta.json is unreadable: {err.detail}") from None
         if not isinstance(meta, dict) or not isinstance(meta.get("integrity"), dict):
             raise _Untrusted("no checksums (an entry of an older hlaid, or not an hlaid cache entry)")
         seal = meta.pop("integrity")
@@ -116,9 +122,9 @@ class MachineCache:
                 continue
             path = d / f"{name}.svm"
             try:
-                ok = _sha256_file(path) == files[name]
-            except OSError:
-                raise _Untrusted(f"{path.name} is missing or unreadable") from None
+                ok = file_sha256(path) == files[name]
+            except InputError as err:
+                raise _Untrusted(f"{path.name} is missing or unreadable: {err.detail}") from None
             if not ok:
                 raise _Untrusted(f"{path.name} does not match its checksum")
             try:
@@ -133,14 +139,16 @@ class MachineCache:
         d = self.root / key
         try:
             d.mkdir(parents=True, exist_ok=True)
+            _clear(d / "meta.json")
             (d / "meta.json").unlink(missing_ok=True)  # an entry half rewritten is a plain miss, not a stale one
             files = {}
             for name, m in machines.items():
                 if m is not None:
+                    _clear(d / f"{name}.svm")
                     m.save(d / f"{name}.svm", force=True)  # replaces a stale entry's file
-                    files[name] = _sha256_file(d / f"{name}.svm")
+                    files[name] = file_sha256(d / f"{name}.svm")
             body = json.loads(json.dumps({**meta, "machines": list(machines)}, default=json_default))
             seal = {"key": key, "meta_sha256": _sha256_json(body), "files": files}
             write_json(d / "meta.json", {**body, "integrity": seal})
-        except OSError:  # a read-only cache is not an error
-            pass
+        except (OSError, InputError) as err:  # a read-only (or damaged) cache is not an error
+            _progress.debug(f"classifier cache entry {key} not stored: {err}")

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import NotIdentifiableError
-from ..svm import KernelSVC, resolve_gamma
+from ..svm import KernelSVC, fit_many, resolve_gamma
 from .config import SVMConfig
 from .training import TrainingSet
 
@@ -147,15 +147,15 @@ def choose_hyper(X: np.ndarray, y: np.ndarray, cfg: SVMConfig) -> Hyper:
         keep = np.linspace(0, len(y) - 1, cfg.cv_samples).astype(int)
         X, y = X[keep], y[keep]
     folds = np.arange(len(y)) % cfg.cv_folds
-    scores = []
-    for C, g in pairs:
-        acc = []
-        for k in range(cfg.cv_folds):
-            tr, te = folds != k, folds == k
-            if len(np.unique(y[tr])) < 2 or not te.any():
-                continue
-            acc.append(float(np.mean(make_svc(cfg, C, gamma_of(g)).fit(X[tr], y[tr]).predict(X[te]) == y[te])))
-        scores.append({"C": C, "gamma_factor": g, "accuracy": float(np.mean(acc)) if acc else 0.0})
+    jobs = [(C, g, k) for C, g in pairs for k in range(cfg.cv_folds)
+            if len(np.unique(y[folds != k])) >= 2 and (folds == k).any()]
+    fitted = fit_many([make_svc(cfg, C, gamma_of(g)) for C, g, _ in jobs],  # all folds in one call
+                      [X[folds != k] for *_, k in jobs], [y[folds != k] for *_, k in jobs])
+    acc: dict = {}
+    for (C, g, k), m in zip(jobs, fitted):
+        acc.setdefault((C, g), []).append(float(np.mean(m.predict(X[folds == k]) == y[folds == k])))
+    scores = [{"C": C, "gamma_factor": g, "accuracy": float(np.mean(acc[C, g])) if (C, g) in acc else 0.0}
+              for C, g in pairs]
     best = max(r["accuracy"] for r in scores)
     C, g = min((r["C"], r["gamma_factor"]) for r in scores if r["accuracy"] >= best - 1e-12)
     return Hyper(C, gamma_of(g), g, scores)
@@ -219,11 +219,10 @@ def fit_ensemble(train: TrainingSet, param: str, bins: Bins, cfg: SVMConfig, tes
                       "seconds": time.perf_counter() - t0, "single": int(y[0])}
     h = choose_hyper(X[idx], y[idx], cfg)
     rng = np.random.default_rng(seed)
-    machines = []
-    for _ in range(cfg.n_bags):
-        sub = rng.choice(idx, size=max(int(cfg.bag_fraction * idx.size), 2), replace=False)
-        if len(np.unique(y[sub])) >= 2:
-            machines.append(make_svc(cfg, h.C, h.gamma).fit(X[sub], y[sub]))
+    subs = [rng.choice(idx, size=max(int(cfg.bag_fraction * idx.size), 2), replace=False) for _ in range(cfg.n_bags)]
+    subs = [sub for sub in subs if len(np.unique(y[sub])) >= 2]
+    machines = fit_many([make_svc(cfg, h.C, h.gamma) for _ in subs], [X[sub] for sub in subs],  # one call
+                        [y[sub] for sub in subs])
 
     def predict(rows):
         votes = np.stack([m.predict(X[rows]).astype(int) for m in machines])

@@ -1,6 +1,7 @@
 """Configuration of automated identification (``configs/identify.yaml``).
 
-Import-light: this module and what it imports load neither torch, numba nor scipy.
+Import-light: this module and what it imports load neither torch, numba nor scipy, so a bad
+config is refused before they load. Every numeric field declares its range (:mod:`hlaid.bounds`).
 """
 
 from __future__ import annotations
@@ -9,10 +10,18 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
+from ..bounds import SEED, bounded, check_bounds, with_bounds
 from ..errors import InputError
 from ..hla.config import HLAConfig
-from ..limits import check_count
 from .refiners import REFINERS
+
+KERNEL_NAMES = ("linear", "poly", "rbf", "sigmoid")
+"""The kernels of :data:`hlaid.svm.KERNELS`, kept here so that loading a config imports no torch
+(a test checks the two agree)."""
+
+MAX_CLASSES = 100
+"""Most classes one classifier of a pass may have (bins of alpha or of p): a pairwise multiclass
+machine trains ``n (n - 1) / 2`` binary machines, and every class needs training samples."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -28,18 +37,25 @@ class BinsConfig:
     p_range : the p range of the model [1, 3] (p > 3 is nearly bilinear)
     """
 
-    alpha_coarse: float = 0.05
-    p_coarse: float = 0.4
-    alpha_fine: float = 0.01
-    p_fine: float = 0.1
-    p_range: tuple[float, float] = (1.0, 3.0)
+    alpha_coarse: float = bounded(0.05, lo=0.01, hi=0.5)
+    p_coarse: float = bounded(0.4, lo=0.05, hi=1.0)
+    alpha_fine: float = bounded(0.01, lo=0.002, hi=0.1)
+    p_fine: float = bounded(0.1, lo=0.01, hi=0.5)
+    p_range: tuple[float, float] = bounded((1.0, 3.0), lo=1.0, hi=50.0)
 
     def __post_init__(self):
-        for name in ("alpha_coarse", "p_coarse", "alpha_fine", "p_fine"):
-            if not getattr(self, name) > 0:
-                raise InputError(f"{name} = {getattr(self, name)}; expected a positive bin width")
-        if not 1.0 <= self.p_range[0] < self.p_range[1]:
-            raise InputError(f"p_range = {list(self.p_range)}; expected [low, high] with 1 <= low < high")
+        check_bounds(self, prefix="bins.")
+        if not self.p_range[0] < self.p_range[1]:
+            raise InputError(f"bins.p_range = {list(self.p_range)}; expected [low, high] with 1 <= low < high")
+        classes = {"alpha_coarse": (1.0, self.alpha_coarse),  # alpha over [0, inf(ke/k0)], at most [0, 1]
+                   "p_coarse": (self.p_range[1] - self.p_range[0], self.p_coarse),
+                   "alpha_fine": (3 * self.alpha_coarse, self.alpha_fine),  # a coarse bin and its neighbours
+                   "p_fine": (3 * self.p_coarse, self.p_fine)}
+        for name, (width, step) in classes.items():
+            n = math.ceil(width / step - 1e-9)
+            if n > MAX_CLASSES:
+                raise InputError(f"bins.{name} = {step:g} makes {n} classes over a width of {width:g}; expected at "
+                                 f"most {MAX_CLASSES} (a wider bin)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -68,27 +84,16 @@ class TrainingConfig:
     seed : seed of the samples (identification is reproducible)
     """
 
-    crossover_hz: float = 1.0
-    samples: int = 800
-    n_segments: int = 10
-    spread: float = 0.2
-    test_fraction: float = 0.2
-    noise_rms: float | None = None
-    seed: int = 0
+    crossover_hz: float = bounded(1.0, lo=1e-3, hi=10.0, unit="Hz")
+    samples: int = bounded(800, lo=20, hi="TRAINING")
+    n_segments: int = bounded(10, lo=3, hi=100)
+    spread: float = bounded(0.2, lo=0.0, hi=1.0, hi_open=True)
+    test_fraction: float = bounded(0.2, lo=0.01, hi=0.9)
+    noise_rms: float | None = bounded(None, lo=0.0, hi=10.0, hi_open=True)
+    seed: int = with_bounds(SEED, 0)
 
     def __post_init__(self):
-        check_count(self.samples, "TRAINING", "training.samples")
-        if self.samples < 20 or self.n_segments < 3:
-            raise InputError("training.samples must be >= 20 and training.n_segments >= 3")
-        if not 0 <= self.spread < 1 or not 0 < self.test_fraction < 1:
-            raise InputError("training.spread must be in [0, 1) and training.test_fraction in (0, 1)")
-        if self.noise_rms is not None and not 0 <= self.noise_rms < 10:
-            raise InputError(f"noise_rms = {self.noise_rms}; expected a fraction such as 0.10, or null")
-        if self.seed < 0:
-            raise InputError(f"seed = {self.seed}; expected an integer >= 0")
-        if not 0 < self.crossover_hz <= 10:
-            raise InputError(f"training.crossover_hz = {self.crossover_hz}; expected a frequency in (0, 10] Hz "
-                             "(below the band that carries the loops' shape)")
+        check_bounds(self, prefix="training.")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -116,36 +121,26 @@ class SVMConfig:
         five sevenths of the time
     """
 
-    C: float = 10.0
-    gamma: float | Literal["scale", "auto"] = "scale"
+    C: float = bounded(10.0, lo=1e-6, hi=1e9)
+    gamma: float | Literal["scale", "auto"] = bounded("scale", lo=1e-9, hi=1e9)
     kernel: str = "rbf"
     multiclass: Literal["ddag", "ovo"] = "ddag"
     standardize: bool = True
-    C_grid: tuple[float, ...] | None = (1000.0, 10000.0)
-    gamma_grid: tuple[float, ...] | None = (0.03, 0.1)
-    cv_folds: int = 2
-    cv_samples: int = 400
-    n_bags: int = 5
-    bag_fraction: float = 0.5
+    C_grid: tuple[float, ...] | None = bounded((1000.0, 10000.0), lo=1e-6, hi=1e9)
+    gamma_grid: tuple[float, ...] | None = bounded((0.03, 0.1), lo=1e-6, hi=1e6)
+    cv_folds: int = bounded(2, lo=2, hi=10)
+    cv_samples: int = bounded(400, lo=20, hi="TRAINING")
+    n_bags: int = bounded(5, lo=1, hi=100)
+    bag_fraction: float = bounded(0.5, lo=0.01, hi=1.0)
 
     def __post_init__(self):
-        from ..svm import KERNELS
-        if not 0 < self.C < math.inf:
-            raise InputError(f"C = {self.C}; expected a positive number")
-        if not isinstance(self.gamma, str) and not 0 < self.gamma < math.inf:
-            raise InputError(f"gamma = {self.gamma}; expected a positive number, 'scale' or 'auto'")
-        if self.kernel not in KERNELS:
-            raise InputError(f"kernel = {self.kernel!r} is unknown; expected one of {', '.join(sorted(KERNELS))}")
-        if self.C_grid is not None and (len(self.C_grid) == 0 or not all(c > 0 for c in self.C_grid)):
-            raise InputError(f"svm.C_grid = {list(self.C_grid)}; expected positive values (or null)")
-        if self.gamma_grid is not None and (len(self.gamma_grid) == 0 or not all(0 < g < math.inf
-                                                                                 for g in self.gamma_grid)):
-            raise InputError(f"svm.gamma_grid = {list(self.gamma_grid)}; expected positive factors of gamma "
-                             "(or null)")
-        if not 2 <= self.cv_folds <= 10:
-            raise InputError(f"svm.cv_folds = {self.cv_folds}; expected 2..10")
-        if self.cv_samples < 20 or not 1 <= self.n_bags <= 100 or not 0 < self.bag_fraction <= 1:
-            raise InputError("svm.cv_samples must be >= 20, svm.n_bags in 1..100 and svm.bag_fraction in (0, 1]")
+        check_bounds(self, prefix="svm.")
+        if self.kernel not in KERNEL_NAMES:
+            raise InputError(f"svm.kernel = {self.kernel!r} is unknown; expected one of {', '.join(KERNEL_NAMES)}")
+        if self.C_grid is not None and len(self.C_grid) == 0:
+            raise InputError("svm.C_grid = []; expected positive values (or null)")
+        if self.gamma_grid is not None and len(self.gamma_grid) == 0:
+            raise InputError("svm.gamma_grid = []; expected positive factors of gamma (or null)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -161,14 +156,11 @@ class OuterConfig:
         change of a parameter is below ``tol``
     """
 
-    max_iterations: int = 3
-    tol: float = 0.02
+    max_iterations: int = bounded(3, lo=1, hi=100)
+    tol: float = bounded(0.02, lo=1e-9, hi=10.0)
 
     def __post_init__(self):
-        if self.max_iterations < 1:
-            raise InputError(f"max_iterations = {self.max_iterations}; expected an integer >= 1")
-        if not 0 < self.tol < math.inf:
-            raise InputError(f"tol = {self.tol}; expected a positive relative change such as 0.02")
+        check_bounds(self, prefix="outer.")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -217,27 +209,22 @@ class RefineConfig:
     method: str = "eiv"
     parameters: tuple[str, ...] = ("k0", "alpha", "p", "dy", "delta_eta")
     damping: bool = False
-    band_hz: tuple[float, float] = (0.1, 20.0)
-    max_iterations: int = 40
-    tangent_max_mb: float = 1024.0
-    restart_ratio: float | None = 1.0
+    band_hz: tuple[float, float] = bounded((0.1, 20.0), lo=0.0, hi=50_000.0, unit="Hz")
+    max_iterations: int = bounded(40, lo=1, hi=10_000)
+    tangent_max_mb: float = bounded(1024.0, lo=1.0, hi="TANGENT_MB", unit="MiB")
+    restart_ratio: float | None = bounded(1.0, lo=1e-6, hi=1e6)
 
     def __post_init__(self):
+        check_bounds(self, prefix="refine.")
         if self.method not in REFINERS:
             raise InputError(f"refine.method = {self.method!r} is unknown; expected one of "
                              f"{', '.join(repr(k) for k in REFINERS)}")
-        if self.restart_ratio is not None and not 0 < self.restart_ratio < math.inf:
-            raise InputError(f"refine.restart_ratio = {self.restart_ratio}; expected a positive number (or null)")
-        if not 0 < self.tangent_max_mb < math.inf:
-            raise InputError(f"refine.tangent_max_mb = {self.tangent_max_mb}; expected MiB > 0, e.g. 1024")
         bad = set(self.parameters) - {"k0", "alpha", "p", "dy", "delta_eta"}
         if bad:
             raise InputError(f"refine.parameters: unknown {sorted(bad)}; expected k0, alpha, p, dy, delta_eta")
         lo, hi = self.band_hz
-        if not (0 <= lo < hi < math.inf):
-            raise InputError(f"band_hz = {list(self.band_hz)}; expected [low, high] with 0 <= low < high")
-        if self.max_iterations < 1:
-            raise InputError(f"max_iterations = {self.max_iterations}; expected an integer >= 1")
+        if not lo < hi:
+            raise InputError(f"refine.band_hz = {list(self.band_hz)}; expected [low, high] with 0 <= low < high")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -268,18 +255,16 @@ class IdentifyConfig:
     outer: OuterConfig = field(default_factory=OuterConfig)
     refine: RefineConfig = field(default_factory=RefineConfig)
     aggregate: Literal["mean", "majority"] = "mean"
-    damping_ratio: float = 0.05
+    damping_ratio: float = bounded(0.05, lo=0.0, hi=1.0, hi_open=True)
     cache_dir: str | None = None
-    n_jobs: int = 2
+    n_jobs: int = bounded(2, lo=1, hi=1024)
+
     system: str | None = None
 
     def __post_init__(self):
+        check_bounds(self)
         from .priors import SYSTEMS
 
         if self.system is not None and self.system not in SYSTEMS:
             raise InputError(f"system = {self.system!r} is unknown; expected one of "
                              f"{', '.join(map(repr, SYSTEMS))} (or null)")
-        if not 0 <= self.damping_ratio < 1:
-            raise InputError(f"damping_ratio = {self.damping_ratio}; expected a ratio in [0, 1) such as 0.05")
-        if self.n_jobs < 1:
-            raise InputError(f"n_jobs = {self.n_jobs}; expected an integer >= 1")

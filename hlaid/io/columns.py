@@ -32,10 +32,12 @@ from typing import Any, Literal, cast
 
 import numpy as np
 
-from .._fileio import read_file_text
+from .._inputs import read_text
+from ..bounds import bounded, check_bounds, with_bounds
 from ..config import load_config
 from ..errors import InputError
 from ..measurement import Measurement
+from ..model.schema import STORY_BOUNDS, WEIGHT_KN
 from ..units import acceleration_factor, length_factor, weight_kn_to_mass_t
 from ._common import parse_table, remove_offset, uniform_time
 
@@ -46,11 +48,12 @@ _DELIMITERS = {"csv": ",", "tsv": "\t", "whitespace": None}
 class ChannelSpec:
     """One column: its name or 0-based index, its units and its sign (+1 or -1)."""
 
-    column: str | int
+    column: str | int = bounded(lo=0, hi=100_000)
     units: str
-    sign: float = 1.0
+    sign: float = bounded(1.0, lo=-1.0, hi=1.0)
 
     def __post_init__(self):
+        check_bounds(self)
         if self.sign not in (1.0, -1.0):
             raise InputError(f"sign must be 1 or -1, got {self.sign}")
         if isinstance(self.column, int) and self.column < 0:
@@ -64,21 +67,22 @@ class ColumnsConfig:
     file: str
     ground: ChannelSpec
     floors: list[ChannelSpec]
-    time: str | int | None = None
-    dt: float | None = None
+    time: str | int | None = bounded(None, lo=0, hi=100_000)
+    dt: float | None = bounded(None, lo=1e-6, hi=1.0, unit="s")
     format: Literal["csv", "tsv", "whitespace"] | None = None
     header: bool = True
     comment: str = "#"
     floor_disp: list[ChannelSpec] | None = None
     ground_disp: ChannelSpec | None = None
-    mass_t: list[float] | None = None
-    weight_kN: list[float] | None = None
-    height_mm: list[float] | None = None
+    mass_t: list[float] | None = with_bounds(STORY_BOUNDS["mass"], None)
+    weight_kN: list[float] | None = with_bounds(WEIGHT_KN, None)
+    height_mm: list[float] | None = with_bounds(STORY_BOUNDS["height"], None)
     offset: Literal["none", "mean", "pre-event"] = "none"
-    pre_event_s: float = 1.0
+    pre_event_s: float = bounded(1.0, lo=1e-3, hi=3600.0, unit="s")
     name: str = ""
 
     def __post_init__(self):
+        check_bounds(self)
         if (self.time is None) == (self.dt is None):
             raise InputError("give exactly one of time (a time column) or dt (the sample interval in s)")
         if self.dt is not None and not self.dt > 0:
@@ -160,7 +164,7 @@ def read_columns(config: str | os.PathLike | ColumnsConfig, *, base: str | os.Pa
     if not data_path.is_absolute():
         data_path = folder / data_path
     src = str(data_path)
-    table = parse_table(read_file_text(data_path), src, delimiter=_delimiter(cfg, data_path), comment=cfg.comment,
+    table = parse_table(read_text(data_path), src, delimiter=_delimiter(cfg, data_path), comment=cfg.comment,
                         header=cfg.header)
     specs = [cfg.ground, *cfg.floors]
     acc = np.stack([table.column(s.column, src) * s.sign * acceleration_factor(s.units) for s in specs], axis=1)

@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._inputs import read_bytes
 from ..errors import InputError
-from ..limits import check_readable_file
 from ..measurement import Measurement
 from ..motions import GroundMotion
 from ..units import acceleration_factor
@@ -158,8 +158,7 @@ def read_csmip_channels(path: str | os.PathLike) -> list[CsmipChannel]:
     p = Path(src)
     if not p.is_file():
         raise InputError("file not found" if not p.exists() else "is not a file", source=src)
-    check_readable_file(p)
-    data = p.read_bytes()
+    data = read_bytes(p)
     if data[:4] == b"PK\x03\x04" or p.suffix.lower() == ".zip":
         members = _walk_zip(data, "", src)
         if not members:

@@ -7,9 +7,8 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
-from .._fileio import read_file_text
+from .._inputs import check_readable_file, read_text
 from ..errors import InputError
-from ..limits import check_readable_file
 from ..measurement import Measurement
 from .columns import read_columns
 from .csmip import csmip_measurement, read_csmip_channels
@@ -38,7 +37,7 @@ MEASUREMENT_READERS: dict[str, Callable[..., Measurement]] = {
 
 def _head(p: Path) -> str:
     try:
-        return "\n".join(read_file_text(p).splitlines()[:40])
+        return "\n".join(read_text(p).splitlines()[:40])
     except InputError:
         return ""
 

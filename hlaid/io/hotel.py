@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._inputs import read_bytes
 from ..errors import InputError
-from ..limits import check_readable_file
 from ..measurement import Measurement
 from ..units import length_factor
 from ._common import spectral_second_derivative
@@ -48,8 +48,7 @@ def _load(path: str | os.PathLike) -> dict:
     src = str(path)
     if not Path(src).is_file():
         raise InputError("file not found", source=src)
-    check_readable_file(src)
-    raw = Path(src).read_bytes()
+    raw = read_bytes(src)
     if is_mat5(raw):
         check_mat5(raw, src)         # scipy's reader can crash on a damaged level-5 file
     try:

@@ -15,17 +15,14 @@ File layouts (units mm/s^2, t, mm, N, s):
 
 from __future__ import annotations
 
-import json
 import os
 import re
-import zipfile
 from pathlib import Path
 
 import numpy as np
 
-from .._fileio import read_file_text
+from .._inputs import load_npz, loads_json, read_text
 from ..errors import InputError, column_label
-from ..limits import check_archive, check_readable_file
 from ..measurement import TRUTH_FIELDS, Measurement, Truth
 from ..model import Building
 
@@ -35,33 +32,23 @@ __all__ = ["read_native"]
 def read_native(path: str | os.PathLike) -> Measurement:
     """Read a measurement from hlaid's NPZ or CSV layout (by extension; see the module docstring)."""
     p = Path(path)
-    if not p.exists():
-        raise InputError("file not found", source=str(p))
-    check_readable_file(p)  # size limits before reading (hlaid.limits)
     if p.suffix.lower() == ".csv":
         return _read_csv(p)
-    check_archive(p)
     return _read_npz(p)
 
 
 def _read_npz(p: Path) -> Measurement:
     src = str(p)
-    if not zipfile.is_zipfile(p):  # np.load would read a .npy array, or try to unpickle the file
-        raise InputError("not a readable NPZ measurement file (not a zip archive of named arrays); give a .npz "
-                         "written by hlaid or numpy.savez, a .csv measurement, or format= for another layout",
-                         source=src)
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            d = {k: z[k] for k in z.files}
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as err:
-        raise InputError(f"not a readable NPZ measurement file ({err})", source=src) from None
+    # every member checked against its header before it is allocated; never unpickled
+    d = load_npz(p, not_npz="not a readable NPZ measurement file (not a zip archive of named arrays); give a .npz "
+                            "written by hlaid or numpy.savez, a .csv measurement, or format= for another layout")
     for key in ("dt", "ground_acc", "floor_acc"):
         if key not in d:
             raise InputError(f"missing field {key!r}; a measurement needs dt, ground_acc and floor_acc", source=src)
     truth = None
     if "true_params" in d and all(f"true_{k}" in d for k in TRUTH_FIELDS):
         try:
-            b = Building.from_dict(json.loads(str(d["true_params"])), source=src)
+            b = Building.from_dict(loads_json(str(d["true_params"]), src), source=src)
         except (ValueError, KeyError, TypeError) as err:
             raise InputError(f"true_params is not a valid building ({err})", source=src) from None
         truth = Truth(building=b, **{k: d[f"true_{k}"] for k in TRUTH_FIELDS})
@@ -115,7 +102,7 @@ def _header_numbers(value: str, key: str, src: str) -> np.ndarray:
 
 def _read_csv(p: Path) -> Measurement:
     src = str(p)
-    text = read_file_text(p)
+    text = read_text(p)
     meta: dict[str, str] = {}
     rows: list[str] = []
     linenos: list[int] = []  # file line of each row, for messages
@@ -163,7 +150,7 @@ def _read_csv(p: Path) -> Measurement:
     truth = None
     if "true_params" in meta and all(f"true_{k}_1" in col for k in TRUTH_FIELDS):
         try:
-            b = Building.from_dict(json.loads(meta["true_params"]), source=src)
+            b = Building.from_dict(loads_json(meta["true_params"], src), source=src)
         except (ValueError, KeyError, TypeError) as err:  # InputError is a ValueError too
             raise InputError(f"'# true_params:' is not a valid building ({err})", source=src) from None
         truth = Truth(building=b, **{k: data[:, [col[f"true_{k}_{j + 1}"] for j in range(n)]] for k in TRUTH_FIELDS})

@@ -30,10 +30,13 @@ from typing import Any, cast
 import numpy as np
 
 from .. import _progress
+from .._inputs import check_readable_file
+from ..bounds import bounded, check_bounds, with_bounds
 from ..config import load_config
 from ..errors import InputError, quotable
-from ..limits import check_count, check_readable_file
+from ..limits import check_count
 from ..measurement import Measurement
+from ..model.schema import STORY_BOUNDS
 from ..units import acceleration_factor
 from ._common import remove_offset
 
@@ -45,10 +48,11 @@ class StationChannel:
 
     channel: str
     units: str = "m/s^2"
-    gain: float = 1.0
-    sign: float = 1.0
+    gain: float = bounded(1.0, lo=1e-12, hi=1e12)
+    sign: float = bounded(1.0, lo=-1.0, hi=1.0)
 
     def __post_init__(self):
+        check_bounds(self)
         if not self.channel.strip():
             raise InputError("channel: give a SEED id NET.STA.LOC.CHA (wildcards * and ? allowed)")
         if not (np.isfinite(self.gain) and self.gain != 0):
@@ -74,13 +78,14 @@ class StationConfig:
     floors: list[StationChannel]
     format: str | None = None
     offset: str = "mean"
-    pre_event_s: float = 1.0
-    mass_t: list[float] | None = None
-    height_mm: list[float] | None = None
+    pre_event_s: float = bounded(1.0, lo=1e-3, hi=3600.0, unit="s")
+    mass_t: list[float] | None = with_bounds(STORY_BOUNDS["mass"], None)
+    height_mm: list[float] | None = with_bounds(STORY_BOUNDS["height"], None)
     name: str = ""
     options: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self):
+        check_bounds(self)
         if not self.files:
             raise InputError("files: list at least one miniSEED/SAC file")
         if not self.floors:

@@ -28,10 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._fileio import read_file_text
+from .._inputs import read_text
 from ..errors import InputError
 from ..measurement import Measurement
-from ..signal import lowpass
 from ..units import G_MM_S2, INCH_MM
 from ._common import parse_table, pre_event_mean, second_derivative, uniform_time
 
@@ -70,7 +69,7 @@ def read_steel_frame(path: str | os.PathLike, *, lowpass_hz: float | None = 10.0
         ``resampled``, ``lowpass_hz`` and ``columns``.
     """
     src = str(path)
-    table = parse_table(read_file_text(path), src, delimiter="\t", comment="#")
+    table = parse_table(read_text(path), src, delimiter="\t", comment="#")
     for col in (TIME, TABLE_ACC):
         table.index(col, src)
     levels = _level_columns(table.names)
@@ -102,6 +101,7 @@ def _lowpass(x: np.ndarray, dt: float, corner: float, src: str) -> np.ndarray:
     if not 0 < corner < nyq:
         raise InputError(f"lowpass_hz: low-pass corner {corner} Hz must be between 0 and the Nyquist frequency "
                          f"{nyq:g} Hz", source=src)
+    from ..signal import lowpass  # scipy: imported where it filters
     return lowpass(x, dt, corner)
 
 

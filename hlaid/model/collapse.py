@@ -27,12 +27,12 @@ frames: the story's plastic drift is the hinges' plastic rotation); see docs/col
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 
 import numpy as np
 
+from ..bounds import bounded, check_bounds
 from ..errors import InputError
 
 NO_CAP = 1e290
@@ -59,22 +59,14 @@ class CollapseModel:
     """
 
     name: str = "user"
-    theta_p: float
-    theta_pc: float
-    kappa: float
-    theta_u: float
+    theta_p: float = bounded(lo=1e-5, hi=1.0, hi_open=True)
+    theta_pc: float = bounded(lo=1e-5, hi=10.0, hi_open=True)
+    kappa: float = bounded(lo=0.0, hi=1.0, hi_open=True)
+    theta_u: float = bounded(lo=1e-5, hi=10.0, hi_open=True)
     source: str = ""
 
     def __post_init__(self):
-        for f, lo, hi, form in (("theta_p", 0.0, 1.0, "0 < theta_p < 1"),
-                                ("theta_pc", 0.0, 10.0, "0 < theta_pc < 10"),
-                                ("theta_u", 0.0, 10.0, "0 < theta_u < 10")):
-            v = getattr(self, f)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and lo < v < hi):
-                raise InputError(f"collapse.{f} = {v!r} is out of range; expected a drift ratio {form}")
-        k = self.kappa
-        if isinstance(k, bool) or not isinstance(k, (int, float)) or not (math.isfinite(k) and 0.0 <= k < 1.0):
-            raise InputError(f"collapse.kappa = {k!r} is out of range; expected 0 <= kappa < 1")
+        check_bounds(self, prefix="collapse.")  # also refuses a value that is no number
         if self.theta_u <= self.theta_p:
             raise InputError(f"collapse.theta_u = {self.theta_u:g} must exceed theta_p = {self.theta_p:g} "
                              "(the ultimate drift lies beyond the cap)")

@@ -5,39 +5,21 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import torch
 
-from ..errors import InputError
+from ..bounds import with_bounds
+from ..errors import InputError, escape_controls
 from ..units import G_MM_S2, kn_to_n, n_to_kn, weight_kn_to_mass_t
-from . import _structure as S
 from .collapse import CollapseModel, get_collapse_model, no_collapse
+from .schema import STORY_BOUNDS, Damping, check_story_value
+
+if TYPE_CHECKING:  # torch is imported where a building is simulated, not where one is checked
+    import torch
 
 STORY_FIELDS = ("mass", "k0", "alpha", "p", "dy", "delta_eta")
 """Per-story parameters of the hysteretic model, in this order."""
-
-_RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
-    # name: (low, high, low_inclusive, high_inclusive, human form)
-    "mass": (0.0, np.inf, False, False, "mass > 0 [t]"),
-    "k0": (0.0, np.inf, False, False, "k0 > 0 [N/mm]"),
-    "alpha": (0.0, 1.0, True, True, "0 <= alpha <= 1"),
-    "p": (1.0, np.inf, True, False, "p >= 1"),
-    "dy": (0.0, np.inf, False, False, "dy > 0 [mm]"),
-    "delta_eta": (0.0, np.inf, True, False, "delta_eta >= 0 [s^2/m^2]"),
-    "height": (0.0, np.inf, False, False, "height > 0 [mm]"),
-    "gravity_load": (0.0, np.inf, True, False, "gravity_load >= 0 [N]"),
-}
-
-
-def check_story_value(name: str, value: float) -> None:
-    """Raise :class:`InputError` if a per-story parameter is out of its range."""
-    lo, hi, lo_in, hi_in, form = _RANGES[name]
-    ok = np.isfinite(value) and (value >= lo if lo_in else value > lo) and (value <= hi if hi_in else value < hi)
-    if not ok:
-        raise InputError(f"{name} = {value:g} is out of range; expected {form}")
-
 
 def _check_range(name: str, values: np.ndarray, source: str | None) -> None:
     for i, v in enumerate(values):
@@ -56,36 +38,6 @@ def _frozen_array(values: Any, name: str, n: int | None, source: str | None) -> 
         raise InputError(f"{name} has {a.shape[0]} values but the building has {n} stories", source=source)
     a.setflags(write=False)
     return a
-
-
-@dataclass(frozen=True, kw_only=True)
-class Damping:
-    """Viscous damping of the shear building: ``C = a0 M + a1 K0``.
-
-    Attributes
-    ----------
-    kind : ``"rayleigh"`` (``ratio`` on the two ``modes``), ``"stiffness"`` or ``"mass"``
-        (proportional, ``ratio`` on ``modes[0]``), or ``"none"``.
-    ratio : damping ratio (0.05 is 5 %).
-    modes : the two modes (1-based) that get ``ratio``.
-    """
-
-    kind: str = "rayleigh"
-    ratio: float = 0.05
-    modes: tuple[int, int] = (1, 2)
-
-    def __post_init__(self):
-        if self.kind not in S.DAMPING_KINDS:
-            raise InputError(f"damping kind {self.kind!r} is unknown; expected one of {sorted(S.DAMPING_KINDS)}")
-        if not (0.0 <= self.ratio < 1.0):
-            raise InputError(f"damping ratio = {self.ratio:g} is out of range; expected 0 <= ratio < 1")
-        modes = tuple(int(m) for m in self.modes)
-        if len(modes) != 2 or min(modes) < 1:
-            raise InputError(f"damping modes = {list(self.modes)}; expected two mode numbers >= 1")
-        object.__setattr__(self, "modes", modes)
-
-    def to_dict(self) -> dict:
-        return {"kind": self.kind, "ratio": self.ratio, "modes": list(self.modes)}
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -112,14 +64,14 @@ class Building:
     name : a label
     """
 
-    mass: np.ndarray
-    k0: np.ndarray
-    alpha: np.ndarray
-    p: np.ndarray
-    dy: np.ndarray
-    delta_eta: np.ndarray
-    height: np.ndarray | None = None
-    gravity_load: np.ndarray | None = None
+    mass: np.ndarray = with_bounds(STORY_BOUNDS["mass"])
+    k0: np.ndarray = with_bounds(STORY_BOUNDS["k0"])
+    alpha: np.ndarray = with_bounds(STORY_BOUNDS["alpha"])
+    p: np.ndarray = with_bounds(STORY_BOUNDS["p"])
+    dy: np.ndarray = with_bounds(STORY_BOUNDS["dy"])
+    delta_eta: np.ndarray = with_bounds(STORY_BOUNDS["delta_eta"])
+    height: np.ndarray | None = with_bounds(STORY_BOUNDS["height"], None)
+    gravity_load: np.ndarray | None = with_bounds(STORY_BOUNDS["gravity_load"], None)
     damping: Damping = field(default_factory=Damping)
     pdelta: bool | None = None
     collapse: CollapseModel | None = None
@@ -137,7 +89,7 @@ class Building:
         for name in ("height", "gravity_load"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, _frozen_array(getattr(self, name), name, n, self.source))
-        for name in _RANGES:
+        for name in STORY_BOUNDS:
             a = getattr(self, name)
             if a is not None:
                 _check_range(name, a, self.source)
@@ -147,6 +99,10 @@ class Building:
         if not isinstance(self.damping, Damping):
             raise InputError(f"damping must be a Damping, got {type(self.damping).__name__}", source=self.source)
         try:
+            self.damping.check_modes(self.n_stories)
+        except InputError as e:
+            raise InputError(str(e), source=self.source) from None
+        try:
             object.__setattr__(self, "collapse", get_collapse_model(self.collapse))
             if self.collapse is not None:
                 if self.height is None:
@@ -154,7 +110,7 @@ class Building:
                                      "give height for every story")
                 self.collapse_values()
         except InputError as e:
-            raise InputError(str(e).removeprefix(f"{self.source}: "), source=self.source) from None
+            raise InputError(str(e).removeprefix(f"{escape_controls(self.source)}: "), source=self.source) from None
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -246,16 +202,21 @@ class Building:
         return self.collapse.resolve(k0=self.k0, alpha=self.alpha, dy=self.dy, height=self.height)
 
     def _t(self, name):
+        import torch
         return torch.tensor(np.asarray(getattr(self, name)), dtype=torch.float64)[None]
 
     def rayleigh(self) -> tuple[float, float]:
         """Damping coefficients ``(a0, a1)`` of ``C = a0 M + a1 K0``."""
+        from . import _structure as S
         a0, a1 = S.rayleigh_coefficients(self._t("k0"), self._t("mass"), self.damping.kind,
                                          self.damping.ratio, self.damping.modes)
         return float(a0[0]), float(a1[0])
 
     def damping_matrix(self) -> np.ndarray:
         """``C`` [N s/mm], ``(story, story)``."""
+        import torch
+
+        from . import _structure as S
         a0, a1 = self.rayleigh()
         return S.damping_matrix(self._t("k0"), self._t("mass"), torch.tensor([a0], dtype=torch.float64),
                                 torch.tensor([a1], dtype=torch.float64))[0].numpy()
@@ -263,6 +224,9 @@ class Building:
     def stiffness_matrix(self, pdelta: bool = False) -> np.ndarray:
         """Initial elastic stiffness matrix ``K0`` [N/mm], ``(story, story)``; with ``pdelta``
         less the P-Delta stiffness (:meth:`geometric_stiffness`, zero when inactive)."""
+        import torch
+
+        from . import _structure as S
         k = self._t("k0")
         if pdelta:
             k = k - torch.as_tensor(self.geometric_stiffness(), dtype=torch.float64)[None]
@@ -270,6 +234,7 @@ class Building:
 
     def periods(self) -> np.ndarray:
         """Initial elastic periods [s], longest first, ``(story,)``."""
+        from . import _structure as S
         w = S.natural_frequencies(self._t("k0"), self._t("mass"))[0].numpy()
         return 2.0 * np.pi / w
 
@@ -301,7 +266,9 @@ class BuildingTensors:
     collapse: torch.Tensor | None = None
 
     @classmethod
-    def stack(cls, buildings: Sequence[Building], dtype=torch.float64, device=None) -> BuildingTensors:
+    def stack(cls, buildings: Sequence[Building], dtype=None, device=None) -> BuildingTensors:
+        import torch
+        dtype = torch.float64 if dtype is None else dtype
         buildings = list(buildings)
         if not buildings:
             raise InputError("no buildings given")
@@ -336,6 +303,7 @@ class BuildingTensors:
 
     def index(self, idx) -> BuildingTensors:
         """Select (or repeat) batch rows: ``idx`` is a 1-D index tensor or array."""
+        import torch
         idx = torch.as_tensor(idx, dtype=torch.long, device=self.mass.device)
         fields: dict[str, Any] = {f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[idx]
                                   for f in dataclasses.fields(self)}

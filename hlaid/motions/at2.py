@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._fileio import read_file_text
+from .._inputs import read_text
 from ..errors import InputError
 from ..units import acceleration_factor
 from .record import GroundMotion
@@ -57,7 +57,7 @@ def read_at2(path: str | os.PathLike, *, name: str | None = None) -> GroundMotio
     must equal NPTS.
     """
     src = str(path)
-    lines = read_file_text(path).splitlines()
+    lines = read_text(path).splitlines()
     if len(lines) < 5:
         raise InputError(f"has {len(lines)} lines; an AT2 file has 4 header lines and data", source=src)
     header = lines[3]

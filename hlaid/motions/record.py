@@ -6,7 +6,6 @@ from dataclasses import dataclass, replace
 from fractions import Fraction
 
 import numpy as np
-from scipy import signal
 
 from ..errors import InputError
 from ..limits import check_count
@@ -107,6 +106,7 @@ class GroundMotion:
         if ratio == 1:
             return replace(self, dt=1.0 / rate_hz)
         up, down = ratio.numerator, ratio.denominator
+        from scipy import signal  # imported where a record is resampled, not where one is read
         acc = signal.resample_poly(self.acc, up, down)
         return replace(self, dt=1.0 / rate_hz, acc=acc)
 

@@ -1,24 +1,28 @@
 """Combining the one-vs-one binary machines into a multi-class decision.
 
-:class:`PairwiseMachines` holds the ``m (m - 1) / 2`` trained machines in a
-class-padded layout built from scikit-learn's SVC attributes
-(``support_vectors_``, ``dual_coef_``, ``n_support_``, ``intercept_``):
+:class:`PairwiseMachines` holds the ``m (m - 1) / 2`` trained machines, built from
+scikit-learn's SVC attributes (``support_vectors_``, ``dual_coef_``, ``n_support_``,
+``intercept_``):
 
-* ``sv``  (m * Ls, n_features): support vectors of class ``c`` in rows
-  ``c * Ls ...`` (``Ls`` = largest per-class SV count, zero padding);
-* ``W``   (m, m, Ls): ``W[c, o, k]`` is the coefficient of the ``k``-th SV of
-  class ``c`` in the machine separating ``c`` from ``o``;
-* ``b``   (n_pairs,): machine offsets (``intercept_`` before scikit-learn's
-  binary sign flip), the machine ``(a, b)``, ``a < b``, says ``a`` when
-  ``sum W K + b > 0``.
+* the support vectors, grouped by class (``starts[c] .. starts[c] + n_support[c]``);
+* ``V`` (n_SV, m): ``V[k, o]`` is the coefficient of support vector ``k`` (of class ``c``)
+  in the machine separating ``c`` from ``o`` (0 for ``o = c``);
+* ``b`` (n_pairs,): machine offsets (``intercept_`` before scikit-learn's binary sign
+  flip); the machine ``(a, b)``, ``a < b``, says ``a`` when its value is positive.
+
+For a block of samples the kernel against all support vectors is one matrix product, and
+``S[:, c, o] = K[:, class c] @ V[class c, o]`` (one small product per class) holds every
+machine's two halves: machine ``(a, b)`` is ``S[:, a, b] + S[:, b, a] + b_ab``. That is
+``n_SV * m`` multiply-adds a sample for all machines (a dense coefficient matrix would be
+``n_SV * n_pairs``).
 
 Combination rules (registry :data:`MULTICLASS`):
 
 * ``"ddag"``: Decision Directed Acyclic Graph (Platt, Cristianini &
   Shawe-Taylor, 2000).  Each sample starts with the candidate list
   ``[0, ..., m-1]`` and evaluates the machine (first, last); the loser is
-  removed, so ``m - 1`` binary evaluations per sample, each one restricted to
-  the support vectors of its two classes, all samples in a block at once.
+  removed, so ``m - 1`` binary evaluations per sample (read from ``S``), all
+  samples in a block at once.
 * ``"ovo"``: libsvm's max-wins voting over all machines (ties go to the
   smaller class index), identical to :meth:`sklearn.svm.SVC.predict`.
 """
@@ -27,6 +31,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import numpy as np
 import torch
 
 from ._kernels import Kernel
@@ -77,52 +82,50 @@ class PairwiseMachines:
     def __init__(self, kernel: Kernel, support_vectors: torch.Tensor, dual_coef: torch.Tensor,
                  n_support: torch.Tensor, intercept: torch.Tensor) -> None:
         dev, dt = support_vectors.device, support_vectors.dtype
-        m = int(n_support.shape[0])
+        # the layout is index work on small arrays: numpy, then one copy to the device
+        ns = n_support.detach().cpu().numpy().astype(np.int64)
+        dc = dual_coef.detach().cpu().numpy()
+        m = int(ns.shape[0])
         self.kernel, self.m = kernel, m
-        self.pidx = pair_index(m, dev)
-        self.pairs = torch.combinations(torch.arange(m, device=dev), 2)
-        n_support = n_support.to(dev)
-        Ls = max(1, int(n_support.max()))
-        self.Ls = Ls
-        starts = torch.cumsum(n_support, 0) - n_support
-        n_sv = support_vectors.shape[0]
-        cls_of = torch.repeat_interleave(torch.arange(m, device=dev), n_support)
-        pos = torch.arange(n_sv, device=dev) - starts[cls_of]
-        slot = cls_of * Ls + pos
-        sv = support_vectors.new_zeros(m * Ls, support_vectors.shape[1])
-        sv[slot] = support_vectors
-        # dual_coef scattered into class-padded columns: (m - 1, m * Ls)
-        dcp = dual_coef.new_zeros(max(m - 1, 1), m * Ls)
-        dcp[:, slot] = dual_coef.to(dt)
-        dcp = dcp.view(-1, m, Ls)
-        c = torch.arange(m, device=dev)
-        rows = torch.where(c[None, :] > c[:, None], c[None, :] - 1, c[None, :])  # (c, o)
-        rows = rows.clamp_max(max(m - 2, 0))  # diagonal entries are zeroed below
-        W = dcp[rows, c[:, None].expand(m, m)]          # (m, m, Ls)
-        W[c, c] = 0.0
-        self.W = W
-        self.b = intercept.to(device=dev, dtype=dt)
-        # dense (m * Ls, n_pairs) coefficients for evaluating every machine
-        coef = dual_coef.new_zeros(m * Ls, self.pairs.shape[0])
-        pa, pb = self.pairs[:, 0], self.pairs[:, 1]
-        pcol = torch.arange(self.pairs.shape[0], device=dev)
-        kk = torch.arange(Ls, device=dev)
-        coef[(pa[:, None] * Ls + kk).reshape(-1), pcol.repeat_interleave(Ls)] = W[pa, pb].reshape(-1)
-        coef[(pb[:, None] * Ls + kk).reshape(-1), pcol.repeat_interleave(Ls)] = W[pb, pa].reshape(-1)
-        self.coef = coef
-        self._sv_prep = kernel.prepare(sv)
+        self.starts = (np.cumsum(ns) - ns).tolist()
+        self.counts = ns.tolist()
+        cls_of = np.repeat(np.arange(m), ns)
+        # V[k, o]: libsvm keeps the coefficient of SV k (class c) in machine (c, o) in row
+        # o - 1 of dual_coef when o > c, in row o when o < c
+        o = np.arange(m)
+        row = np.where(o[None, :] > cls_of[:, None], o[None, :] - 1, o[None, :])
+        V = dc[np.minimum(row, max(m - 2, 0)), np.arange(cls_of.shape[0])[:, None]]
+        V[np.arange(cls_of.shape[0]), cls_of] = 0.0
+        pa, pb = np.triu_indices(m, 1)
+        tab = np.full((m, m), -1, np.int64)
+        tab[pa, pb] = tab[pb, pa] = np.arange(pa.shape[0])
 
-    def blocks(self, X: torch.Tensor):
-        """Yield ``(start, K)`` with kernel blocks ``K`` (B, m, Ls) against the SVs.
+        def put(a: np.ndarray) -> torch.Tensor:
+            return torch.from_numpy(np.ascontiguousarray(a)).to(dev)
+
+        self.pidx = put(tab)
+        self.pairs = put(np.stack([pa, pb], 1).astype(np.int64))
+        self.V = put(V).to(dt)
+        self.b = intercept.to(device=dev, dtype=dt)
+        self._sv_prep = kernel.prepare(support_vectors.to(device=dev, dtype=dt))
+
+    def partial_sums(self, X: torch.Tensor):
+        """Yield ``(start, S)`` for blocks of samples: ``S`` (B, m, m) as in the module
+        docstring.
 
         Parameters
         ----------
         X : Tensor of shape (n_samples, n_features)
         """
-        B = max(1, BLOCK_ELEMENTS // (self.m * self.Ls))
+        B = max(1, BLOCK_ELEMENTS // max(1, self.V.shape[0]))
+        m = self.m
         for s in range(0, X.shape[0], B):
             Kb = self.kernel(self.kernel.prepare_left(X[s:s + B]), self._sv_prep, prepared=True)
-            yield s, Kb.view(-1, self.m, self.Ls)
+            S = Kb.new_zeros(Kb.shape[0], m, m)
+            for c, (k0, n) in enumerate(zip(self.starts, self.counts)):
+                if n:
+                    S[:, c] = Kb[:, k0:k0 + n] @ self.V[k0:k0 + n]
+            yield s, S
 
     def decision_ovo(self, X: torch.Tensor) -> torch.Tensor:
         """Decision values of every machine.
@@ -136,9 +139,10 @@ class PairwiseMachines:
         Tensor of shape (n_samples, n_pairs)
             Column ``p`` is machine ``pairs[p] = (a, b)``; positive means ``a``.
         """
+        pa, pb = self.pairs[:, 0], self.pairs[:, 1]
         out = X.new_empty(X.shape[0], self.pairs.shape[0])
-        for s, Kb in self.blocks(X):
-            torch.addmm(self.b, Kb.reshape(Kb.shape[0], -1), self.coef, out=out[s:s + Kb.shape[0]])
+        for s, S in self.partial_sums(X):
+            out[s:s + S.shape[0]] = S[:, pa, pb] + S[:, pb, pa] + self.b
         return out
 
 
@@ -202,21 +206,19 @@ def predict_ddag(machines: PairwiseMachines, X: torch.Tensor) -> torch.Tensor:
     LongTensor of shape (n_samples,)
         Class indices.
     """
-    m, Ls = machines.m, machines.Ls
-    W = machines.W.reshape(m * m, Ls)              # row c * m + o: class c SVs vs o
+    m = machines.m
     bias = machines.b.index_select(0, machines.pidx.clamp_min(0).view(-1))   # (m * m,)
     out = torch.empty(X.shape[0], dtype=torch.long, device=X.device)
-    for s, Kb in machines.blocks(X):
-        B = Kb.shape[0]
+    for s, S in machines.partial_sums(X):
+        B = S.shape[0]
+        flat = S.reshape(B, m * m)
         lo = torch.zeros(B, dtype=torch.long, device=X.device)
         hi = torch.full((B,), m - 1, dtype=torch.long, device=X.device)
         for _ in range(m - 1):
-            # machine (lo, hi) on the SVs of classes lo and hi only
-            k_lo = Kb.gather(1, lo[:, None, None].expand(B, 1, Ls)).squeeze(1)
-            k_hi = Kb.gather(1, hi[:, None, None].expand(B, 1, Ls)).squeeze(1)
+            # machine (lo, hi): its two halves and its offset
             key = lo * m + hi
-            d = ((k_lo * W.index_select(0, key)).sum(1)
-                 + (k_hi * W.index_select(0, hi * m + lo)).sum(1) + bias.index_select(0, key))
+            d = (flat.gather(1, key[:, None]).squeeze(1) + flat.gather(1, (hi * m + lo)[:, None]).squeeze(1)
+                 + bias.index_select(0, key))
             lo_wins = (d > 0).long()
             hi = hi - lo_wins
             lo = lo + 1 - lo_wins

@@ -15,6 +15,31 @@ FORMAT = "hlaid.svm.KernelSVC"
 FORMAT_VERSION = 1
 
 
+def model_state(est) -> dict:
+    """The state dictionary of a fitted :class:`~hlaid.svm.KernelSVC` (what :func:`write_state`
+    stores)."""
+    params = est.get_params()
+    params["dtype"] = str(params["dtype"]).replace("torch.", "")
+    params["device"] = None if params["device"] is None else str(params["device"])
+    return {
+        "params": params,
+        "classes": est.classes_,
+        "gamma_": float(est.gamma_),
+        "n_features_in_": int(est.n_features_in_),
+        "feature_names_in_": (est.feature_names_in_.tolist()
+                              if hasattr(est, "feature_names_in_") else None),
+        "support_": torch.from_numpy(est.support_.astype(np.int64)),
+        "support_vectors_": torch.from_numpy(np.ascontiguousarray(est.support_vectors_)),
+        "n_support_": torch.from_numpy(est.n_support_.astype(np.int64)),
+        "dual_coef": est._dual_coef.cpu(),
+        "intercept": est._intercept.cpu(),
+        "n_iter_": torch.from_numpy(np.asarray(est.n_iter_, dtype=np.int64)),
+        "dual_objective_": torch.from_numpy(np.asarray(est.dual_objective_)),
+        "fit_status_": int(est.fit_status_),
+        "shape_fit_": list(est.shape_fit_),
+    }
+
+
 def write_state(path: str | os.PathLike, state: dict, *, force: bool) -> None:
     """Write a fitted model's ``state`` (its ``classes`` as an array) to ``path`` atomically.
 

@@ -14,10 +14,11 @@ from sklearn.utils.validation import check_is_fitted, column_or_1d
 
 from .._threads import one_thread
 from ..errors import InputError
+from ._batch import coefficients, fit_many, prepare_fit
+from ._checks import np_dtype, plain_fit_input, plain_predict_input, resolve_dtype, to_numpy
 from ._ddag import PairwiseMachines, ovr_decision, resolve_multiclass
-from ._kernels import KERNELS, make_kernel, resolve_gamma
-from ._persist import read_state, write_state
-from ._smo import smo_ovo
+from ._kernels import KERNELS, make_kernel
+from ._persist import model_state, read_state, write_state
 
 try:  # scikit-learn >= 1.6
     from sklearn.utils.validation import validate_data as _validate_data
@@ -27,35 +28,19 @@ except ImportError:  # pragma: no cover - older scikit-learn
 
 __all__ = ["KernelSVC"]
 
-_DTYPES = {"float64": torch.float64, "float32": torch.float32}
-
-
-def _to_numpy(a: Any) -> Any:
-    """Tensors to numpy (host copy); anything else unchanged."""
-    if isinstance(a, torch.Tensor):
-        return a.detach().cpu().numpy()
-    return a
-
-
-def _resolve_dtype(dtype: Any) -> torch.dtype:
-    if isinstance(dtype, torch.dtype) and dtype in _DTYPES.values():
-        return dtype
-    if isinstance(dtype, str) and dtype in _DTYPES:
-        return _DTYPES[dtype]
-    raise ValueError(f"dtype must be torch.float64 or torch.float32; got {dtype!r}.")
-
-
 class KernelSVC(ClassifierMixin, BaseEstimator):
-    """Multi-class kernel C-SVC trained by batched SMO in torch.
+    """Multi-class kernel C-SVC: libsvm's solver compiled, the model in torch.
 
-    All ``n_classes (n_classes - 1) / 2`` one-vs-one binary machines are
-    trained together as one batched SMO problem (second-order working-set
-    selection of Fan, Chen & Lin 2005, libsvm's stopping rule and intercept;
-    problems that SMO has brought near their optimum are finished by a
-    batched active-set solve, checked with the same stopping rule), and combined
-    by a Decision Directed Acyclic Graph (Platt et al. 2000) or by libsvm's
-    one-vs-one voting.  Fitted attributes follow the layout of
-    :class:`sklearn.svm.SVC`, so the two can be compared directly.
+    The ``n_classes (n_classes - 1) / 2`` one-vs-one binary machines are
+    trained by a compiled port of libsvm's SMO solver (second-order
+    working-set selection of Fan, Chen & Lin 2005, shrinking, a kernel-row
+    cache, libsvm's stopping rule and intercept: the same iterations as
+    scikit-learn's ``SVC``), all of them in one call, in parallel over the
+    cores (:func:`hlaid.svm.fit_many` trains the machines of many fits
+    together). They are combined by a Decision Directed Acyclic Graph (Platt
+    et al. 2000) or by libsvm's one-vs-one voting.  Fitted attributes follow
+    the layout of :class:`sklearn.svm.SVC`, so the two can be compared
+    directly.
 
     Parameters
     ----------
@@ -72,16 +57,16 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
     coef0 : float, default=0.0
         Independent term of ``poly`` and ``sigmoid``.
     tol : float, default=1e-3
-        SMO stops when the maximal violating pair gap ``m(alpha) - M(alpha)``
-        is below ``tol`` (per binary problem).
+        The solver stops when the maximal violating pair gap
+        ``m(alpha) - M(alpha)`` is below ``tol`` (per binary problem).
     max_iter : int, default=-1
         Cap on ``n_iter_`` per binary problem; ``-1`` (or None) means libsvm's
         safety cap ``max(1e7, 100 * n)``.  Stopping on the cap issues a
         :class:`~sklearn.exceptions.ConvergenceWarning`.
     shrinking : bool, default=True
-        Use libsvm's shrinking heuristic (drops bounded variables that cannot
-        be selected from the working tensors; optimality is always checked on
-        all variables).
+        Use libsvm's shrinking heuristic (bounded variables that cannot be
+        selected leave the scans; optimality is always checked on all
+        variables).
     multiclass : {"ddag", "ovo"}, default="ddag"
         Combination rule used by :meth:`predict` (see
         :data:`hlaid.svm.MULTICLASS`).
@@ -89,13 +74,16 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         Shape of :meth:`decision_function` for more than two classes, as in
         :class:`sklearn.svm.SVC`.
     cache_size : float, default=1024.0
-        Memory for kernel rows during training, in MB.  If the full kernel
-        does not fit in float64 the rows are stored in float32.
+        Memory for kernel rows during training, in MB, shared by the machines
+        trained at the same time (one per thread); rows are float32, as
+        libsvm's.
     device : str or torch.device, optional
-        Device of the computation; by default the device of ``X`` when it is
-        a tensor, else the CPU.
+        Device of the fitted model and of prediction; by default the device
+        of ``X`` when it is a tensor, else the CPU.  Training always runs on
+        the CPU.
     dtype : torch.dtype, default=torch.float64
-        Working dtype (``torch.float64`` or ``torch.float32``).
+        dtype of the fitted model and of prediction (``torch.float64`` or
+        ``torch.float32``); training is in float64.
 
     Attributes
     ----------
@@ -114,9 +102,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
     gamma_ : float
         The resolved kernel coefficient.
     n_iter_ : ndarray of shape (n_classes * (n_classes - 1) / 2,)
-        Iterations per binary problem: SMO steps plus the iterations of the
-        active-set refinement that finishes hard problems (see
-        :mod:`hlaid.svm._active_set`).
+        Solver iterations per binary problem (libsvm's).
     dual_objective_ : ndarray of shape (n_classes * (n_classes - 1) / 2,)
         Final dual objective ``1/2 a^T Q a - e^T a`` per binary problem
         (libsvm's ``obj``).
@@ -125,10 +111,12 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
 
     Notes
     -----
-    On the CPU, :meth:`fit`, :meth:`predict` and :meth:`decision_function`
-    run on one torch thread and restore torch's setting on return: they are
-    long chains of small tensor operations, which extra threads slow down
-    (by 10-25x on a busy 2-core machine; ``docs/svm.md``).
+    On the CPU, :meth:`predict` and :meth:`decision_function` run on one
+    torch thread and restore torch's setting on return: they are chains of
+    small tensor operations, which extra threads slow down on a busy machine
+    (``docs/svm.md``).  :meth:`fit` runs the machines in parallel over
+    numba's threads, except in a child process (pool workers are one per
+    core).
     """
 
     def __init__(self, *, C: float = 1.0, kernel: str = "rbf", degree: int = 3,
@@ -181,7 +169,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         if self.decision_function_shape not in ("ovr", "ovo"):
             raise ValueError("decision_function_shape must be 'ovr' or 'ovo'; got "
                              f"{self.decision_function_shape!r}.")
-        _resolve_dtype(self.dtype)
+        resolve_dtype(self.dtype)
 
     def _resolve_device(self, X: Any) -> torch.device:
         if self.device is None:
@@ -206,58 +194,53 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         -------
         self : KernelSVC
         """
-        self._check_params()
-        dtype = _resolve_dtype(self.dtype)
-        device = self._resolve_device(X)
-        with one_thread(device):
-            return self._fit(X, y, dtype, device)
+        fit_many([self], [X], [y])
+        return self
 
-    def _fit(self, X: Any, y: Any, dtype: torch.dtype, device: torch.device) -> KernelSVC:
-        X, y = _validate_data(self, _to_numpy(X), _to_numpy(y), dtype=np.float64,
-                              order="C", y_numeric=False)
-        y = column_or_1d(y, warn=True)
-        check_classification_targets(y)
+    def _prepare(self, X: Any, y: Any) -> Any:
+        """Check the parameters and the data; the fit's entry in a batch (:func:`fit_many`)."""
+        self._check_params()
+        dtype = resolve_dtype(self.dtype)
+        device = self._resolve_device(X)
+        X, y = to_numpy(X), to_numpy(y)
+        if plain_fit_input(X, y):
+            self.n_features_in_ = X.shape[1]
+            if hasattr(self, "feature_names_in_"):
+                del self.feature_names_in_
+            X = np.ascontiguousarray(X)
+        else:
+            X, y = _validate_data(self, X, y, dtype=np.float64, order="C", y_numeric=False)
+            y = column_or_1d(y, warn=True)
+            check_classification_targets(y)
         classes, y_enc = np.unique(y, return_inverse=True)
         if classes.shape[0] < 2:
             raise ValueError("The number of classes has to be greater than one; got "
                              f"{classes.shape[0]} class.")
         self.classes_ = classes
-        m = classes.shape[0]
-        self.gamma_ = resolve_gamma(self.gamma, X)
-        kern = make_kernel(self.kernel, gamma=self.gamma_, degree=self.degree, coef0=self.coef0)
-        Xt = torch.tensor(X, dtype=dtype, device=device)
-        yt = torch.tensor(y_enc, dtype=torch.long, device=device)
-        res, layout = smo_ovo(Xt, yt, m, kernel=kern, C=float(self.C), tol=float(self.tol),
-                              max_iter=-1 if self.max_iter is None else int(self.max_iter),
-                              shrinking=bool(self.shrinking), cache_size=float(self.cache_size))
+        return prepare_fit(self, X, y_enc.astype(np.int64), dtype, device)
 
-        # --- libsvm / scikit-learn attribute layout ----------------------
-        Lc = layout.Lc
-        pa, pb = layout.pairs[:, 0], layout.pairs[:, 1]
-        side_b = torch.zeros_like(layout.valid)
-        side_b[:, Lc:] = True
-        # coefficients of class a go to row b - 1, those of class b to row a
-        row = torch.where(side_b, pa[:, None], pb[:, None] - 1)
-        coef_sorted = torch.zeros(max(m - 1, 1), X.shape[0], dtype=dtype, device=device)
-        v = layout.valid
-        coef_sorted[row[v], layout.gmap[v]] = res.beta[v]
-        sv_pos = (coef_sorted != 0).any(0).nonzero().squeeze(1)
-        support = layout.order[sv_pos]
-        self.support_ = support.cpu().numpy().astype(np.int32)
-        self.support_vectors_ = X[self.support_].astype(_np_dtype(dtype))
-        dual = coef_sorted[:, sv_pos]
-        intercept = -res.rho
-        if not (bool(torch.isfinite(dual).all()) and bool(torch.isfinite(intercept).all())):
+    def _finish(self, f: Any, P_int: np.ndarray, alpha: np.ndarray, res_f: np.ndarray,
+                res_i: np.ndarray) -> None:
+        """Set the fitted attributes from the solved problems of this fit (scikit-learn's
+        layout)."""
+        coef = coefficients(f, P_int, alpha)
+        sv_pos = np.flatnonzero((coef != 0).any(0))
+        self.support_ = f.order[sv_pos].astype(np.int32)
+        self.support_vectors_ = f.X[self.support_].astype(np_dtype(f.dtype))
+        dual = coef[:, sv_pos]
+        intercept = -res_f[:, 0]
+        if not (np.isfinite(dual).all() and np.isfinite(intercept).all()):
             raise ValueError("The dual coefficients or intercepts are not finite; the input "
                              "data may contain values too large for the kernel (scale X).")
-        self.n_support_ = np.bincount(y_enc[self.support_], minlength=m).astype(np.int32)
-        self.n_iter_ = res.n_iter.cpu().numpy()
-        self.dual_objective_ = res.objective.cpu().numpy()
-        self.fit_status_ = 0 if res.converged else 1
-        self.shape_fit_ = X.shape
-        self._set_model(dual, intercept, torch.tensor(self.support_vectors_, device=device),
-                        device, dtype, kern)
-        return self
+        m = self.classes_.shape[0]
+        self.n_support_ = np.bincount(f.y_enc[self.support_], minlength=m).astype(np.int32)
+        self.n_iter_ = res_i[:, 0].copy()
+        self.dual_objective_ = res_f[:, 1].copy()
+        self.fit_status_ = int((res_i[:, 1] != 0).any())
+        self.shape_fit_ = f.X.shape
+        with one_thread(f.device):
+            self._set_model(torch.from_numpy(dual), torch.from_numpy(intercept),
+                            torch.from_numpy(self.support_vectors_), f.device, f.dtype, f.kernel)
 
     def _set_model(self, dual: torch.Tensor, intercept: torch.Tensor, sv: torch.Tensor,
                    device: torch.device, dtype: torch.dtype, kern) -> None:
@@ -278,9 +261,14 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
 
     # ----------------------------------------------------------------- predict
     def _predict_input(self, X: Any) -> torch.Tensor:
+        """The samples as a tensor of the model's dtype and device (call under
+        :class:`one_thread`: a copy on the CPU is a parallel region)."""
         check_is_fitted(self)
-        X = _validate_data(self, _to_numpy(X), dtype=np.float64, order="C", reset=False)
-        return torch.tensor(X, dtype=self._dual_coef.dtype, device=self._device)
+        X = to_numpy(X)
+        if not plain_predict_input(X, self.n_features_in_, hasattr(self, "feature_names_in_")):
+            X = _validate_data(self, X, dtype=np.float64, order="C", reset=False)
+        return torch.as_tensor(np.ascontiguousarray(X)).to(device=self._device,
+                                                           dtype=self._dual_coef.dtype)
 
     def decision_function(self, X: Any) -> np.ndarray:
         """Decision values.
@@ -296,10 +284,10 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
             gives one column per machine ``(a, b)``, ``a < b`` (positive means
             ``a``), and ``"ovr"`` scikit-learn's vote-plus-confidence transform.
         """
-        Xt = self._predict_input(X)
+        check_is_fitted(self)
         m = len(self.classes_)
         with torch.inference_mode(), one_thread(self._device):
-            dec = self._machines.decision_ovo(Xt)
+            dec = self._machines.decision_ovo(self._predict_input(X))
             if m == 2:
                 dec = -dec[:, 0]
             elif self.decision_function_shape == "ovr":
@@ -318,10 +306,10 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         ndarray of shape (n_samples,)
             Labels from ``classes_``.
         """
-        Xt = self._predict_input(X)
+        check_is_fitted(self)
         rule = resolve_multiclass(self.multiclass)
         with torch.inference_mode(), one_thread(self._device):
-            idx = rule(self._machines, Xt).cpu().numpy()
+            idx = rule(self._machines, self._predict_input(X)).cpu().numpy()
         return self.classes_[idx]
 
     def __sklearn_tags__(self):
@@ -346,26 +334,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
             Replace an existing file (otherwise an existing ``path`` is an error).
         """
         check_is_fitted(self)
-        params = self.get_params()
-        params["dtype"] = str(params["dtype"]).replace("torch.", "")
-        params["device"] = None if params["device"] is None else str(params["device"])
-        write_state(path, {
-            "params": params,
-            "classes": self.classes_,
-            "gamma_": float(self.gamma_),
-            "n_features_in_": int(self.n_features_in_),
-            "feature_names_in_": (self.feature_names_in_.tolist()
-                                  if hasattr(self, "feature_names_in_") else None),
-            "support_": torch.from_numpy(self.support_.astype(np.int64)),
-            "support_vectors_": torch.from_numpy(np.ascontiguousarray(self.support_vectors_)),
-            "n_support_": torch.from_numpy(self.n_support_.astype(np.int64)),
-            "dual_coef": self._dual_coef.cpu(),
-            "intercept": self._intercept.cpu(),
-            "n_iter_": torch.from_numpy(np.asarray(self.n_iter_, dtype=np.int64)),
-            "dual_objective_": torch.from_numpy(np.asarray(self.dual_objective_)),
-            "fit_status_": int(self.fit_status_),
-            "shape_fit_": list(self.shape_fit_),
-        }, force=force)
+        write_state(path, model_state(self), force=force)
 
     @classmethod
     def load(cls, path: str | os.PathLike, *,
@@ -396,7 +365,7 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
         state = read_state(src)
         try:
             params = dict(state["params"])
-            params["dtype"] = _resolve_dtype(params["dtype"])
+            params["dtype"] = resolve_dtype(params["dtype"])
             if device is not None:
                 params["device"] = device
             est = cls(**params)
@@ -421,7 +390,3 @@ class KernelSVC(ClassifierMixin, BaseEstimator):
             raise InputError(f"corrupt KernelSVC model file ({type(exc).__name__}: {exc})",
                              source=src) from None
         return est
-
-
-def _np_dtype(dtype: torch.dtype) -> np.dtype:
-    return np.dtype(np.float32) if dtype == torch.float32 else np.dtype(np.float64)

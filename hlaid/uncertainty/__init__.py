@@ -5,15 +5,33 @@ in log space, from the Gauss-Newton (Laplace) covariance of the replay refinemen
 sandwich (HAC) correction for the correlated residuals (:mod:`.laplace`).
 :func:`clone_ensemble` draws buildings from it; :func:`assess` runs IDA over such an ensemble
 and returns the fragility band, the probabilities at the building's own record intensity and a
-re-occupancy indicator. Method and measured coverage: ``docs/uncertainty.md``.
+re-occupancy indicator. Method and measured coverage: ``docs/uncertainty.md``. Names are
+imported on first use: :mod:`hlaid.uncertainty.config` (the ``assess:`` schema) loads without torch.
 """
 
-from ..model.uncertainty import ParameterUncertainty
-from .assess import AssessConfig, Assessment, ReoccupancyThresholds, assess
-from .coverage import calibration_factor, coverage, zscores
-from .ensemble import clone_ensemble
-from .laplace import covariance, from_refinement, uncertainty_of_refinement
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_exports
+
+if TYPE_CHECKING:
+    from ..model.uncertainty import ParameterUncertainty
+    from .assess import Assessment, ReoccupancyThresholds, assess
+    from .config import AssessConfig
+    from .coverage import calibration_factor, coverage, zscores
+    from .ensemble import clone_ensemble
+    from .laplace import covariance, from_refinement, uncertainty_of_refinement
 
 __all__ = ["AssessConfig", "Assessment", "ParameterUncertainty", "ReoccupancyThresholds", "assess",
            "calibration_factor", "clone_ensemble", "coverage", "covariance", "from_refinement",
            "uncertainty_of_refinement", "zscores"]
+
+__getattr__, __dir__ = lazy_exports(__name__, {name: module for module, names in {
+    "..model.uncertainty": ("ParameterUncertainty",),
+    ".assess": ("Assessment", "ReoccupancyThresholds", "assess"),
+    ".config": ("AssessConfig",),
+    ".coverage": ("calibration_factor", "coverage", "zscores"),
+    ".ensemble": ("clone_ensemble",),
+    ".laplace": ("covariance", "from_refinement", "uncertainty_of_refinement"),
+}.items() for name in names})

@@ -67,31 +67,6 @@ class ReoccupancyThresholds:
             raise InputError("reoccupancy thresholds: yellow must not exceed red")
 
 
-@dataclass(frozen=True, kw_only=True)
-class AssessConfig:
-    """The ``assess:`` block of a run config (``hlaid run``, ``hlaid demo``): :func:`assess` settings.
-
-    n_ensemble : clones drawn from the identification uncertainty, each given a full IDA
-    n_boot : record bootstrap resamples per member for the bands
-    ci : level of the bands
-    seed : seed of the ensemble and the bootstrap
-    """
-
-    n_ensemble: int = 10
-    n_boot: int = 30
-    ci: float = 0.90
-    seed: int = 0
-
-    def __post_init__(self):
-        check_ensemble_size(self.n_ensemble, "assess.n_ensemble")
-        if isinstance(self.n_boot, bool) or not isinstance(self.n_boot, int) or not 0 <= self.n_boot <= 10_000:
-            raise InputError(f"assess.n_boot = {self.n_boot!r}; expected a whole number in 0..10000")
-        if isinstance(self.ci, bool) or not isinstance(self.ci, (int, float)) or not 0 < self.ci < 1:
-            raise InputError(f"assess.ci = {self.ci!r}; expected a confidence level in (0, 1), e.g. 0.9")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise InputError(f"assess.seed = {self.seed!r}; expected a whole number >= 0")
-
-
 @dataclass(frozen=True, eq=False)
 class Assessment:
     """What :func:`assess` found (IM in g, drift ratios dimensionless).

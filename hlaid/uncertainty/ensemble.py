@@ -6,8 +6,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..model import Building
-
-MAX_ENSEMBLE = 100_000
+from .config import MAX_ENSEMBLE
 
 
 def check_uncertain_clone(clone) -> None:

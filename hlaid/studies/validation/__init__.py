@@ -22,10 +22,12 @@ Every number is in the package units, per unit of the (relative) masses when mas
 
 Modules: :mod:`.schema` (the config), :mod:`.clones` (identification and the linear
 fallback), :mod:`.predict` (replay and metrics), :mod:`.protocol` (the run),
-:mod:`.tables` (Markdown).
+:mod:`.tables` (Markdown), :mod:`.linear_peer` (a linear state-space peer from the optional
+``mdof``, on the same events and metric; ``scripts/study_linear_peer.py``).
 """
 
 from .clones import FALLBACK_FITS, IdentifiedClone, identify_event, linear_clone
+from .linear_peer import LinearPeer, PeerCase, PeerPrediction, PeerSettings, compare_peer, peer_cases, peer_grid
 from .predict import Prediction, predict_event
 from .protocol import ValidationResult, run_validation
 from .schema import (
@@ -41,4 +43,5 @@ from .tables import format_tables
 
 __all__ = ["EventSpec", "StructureSpec", "PaperTargets", "ValidationConfig", "load_validation_config",
            "identify_config_of", "read_event", "FALLBACK_FITS", "IdentifiedClone", "linear_clone", "identify_event",
-           "Prediction", "predict_event", "ValidationResult", "run_validation", "format_tables"]
+           "Prediction", "predict_event", "ValidationResult", "run_validation", "format_tables",
+           "LinearPeer", "PeerSettings", "PeerPrediction", "PeerCase", "compare_peer", "peer_cases", "peer_grid"]

@@ -1,0 +1,274 @@
+"""Reading input files: the one path every file hlaid opens goes through.
+
+Measurements, records, configs, clones, run summaries, classifier cache entries and fleet
+results are all opened by :func:`open_input` and read by the functions below, which hold every
+file to the same rules before a byte is read or an array allocated:
+
+- only a regular file is read: a folder, a FIFO, a device (``/dev/zero``) or a socket is refused,
+  judged by the descriptor actually opened (a FIFO is opened without waiting for a writer), so
+  a symlink to a device is refused too;
+- at most ``HLAID_MAX_FILE_MB`` (:mod:`hlaid.limits`) is read, also after gunzip and for the
+  inflated members of an NPZ;
+- JSON is nested at most :data:`MAX_JSON_DEPTH` levels, and an integer of more than
+  :data:`MAX_JSON_DIGITS` digits is read as a float (the field it is given to then refuses it);
+- every array of an NPZ is checked against its member's size before it is allocated (a tiny
+  file whose header claims 10^10 samples is refused, not inflated).
+
+Third-party readers that take a path (``scipy.io.loadmat``, ObsPy) are given a file only after
+:func:`check_readable_file`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import gzip
+import hashlib
+import io
+import json
+import math
+import os
+import stat
+import zipfile
+from collections.abc import Iterator
+from typing import IO, Any
+
+from .errors import InputError
+from .limits import file_limit_text, max_file_bytes
+
+MAX_JSON_DEPTH = 64
+"""Deepest nesting of lists and mappings in a JSON file hlaid reads (its own files nest < 10)."""
+
+MAX_JSON_DIGITS = 40
+"""Longest integer (in digits) that a JSON file hlaid reads gives as an integer."""
+
+
+def _special(mode: int) -> str | None:
+    """What a file of ``mode`` is when it is neither a regular file nor a folder, else None."""
+    if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+        return None
+    return ("a character device" if stat.S_ISCHR(mode) else "a block device" if stat.S_ISBLK(mode)
+            else "a FIFO (named pipe)" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode)
+            else "a special file")
+
+
+def _check_stat(st: os.stat_result, source: str) -> int:
+    kind = _special(st.st_mode)
+    if kind is not None:
+        raise InputError(f"is {kind}; expected a regular file", source=source)
+    top = max_file_bytes()
+    if stat.S_ISREG(st.st_mode) and st.st_size > top:
+        raise InputError(f"is {st.st_size / 2**20:.3g} MiB, over {file_limit_text()}", source=source)
+    return int(st.st_size)
+
+
+def check_readable_file(path: str | os.PathLike) -> int:
+    """Refuse anything but a regular file within the size limit, before a third-party reader
+    opens it; returns its size. A missing path or a folder is left to the caller's own message."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return 0
+    if stat.S_ISDIR(st.st_mode):
+        return 0
+    return _check_stat(st, str(path))
+
+
+def check_input(path: str | os.PathLike) -> None:
+    """Refuse a missing input, or one that is neither a folder nor a regular file within the size
+    limit, before any reader (and the libraries it needs) is loaded."""
+    if not os.path.lexists(path):
+        raise InputError("file not found", source=str(path))
+    if os.path.islink(path) and not os.path.exists(path):
+        raise InputError("is a broken symbolic link", source=str(path))
+    check_readable_file(path)
+
+
+@contextlib.contextmanager
+def open_input(path: str | os.PathLike) -> Iterator[IO[bytes]]:
+    """A regular file opened for reading (binary), within ``HLAID_MAX_FILE_MB``.
+
+    Missing files, folders, FIFOs, devices and sockets are :class:`InputError` s naming the
+    path, raised before anything is read (a FIFO is opened non-blocking, so it cannot hang).
+    """
+    source = str(path)
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0) | getattr(os, "O_BINARY", 0)
+    try:
+        fd = os.open(path, flags)
+    except FileNotFoundError:
+        raise InputError("file not found", source=source) from None
+    except IsADirectoryError:
+        raise InputError("is a folder; expected a file", source=source) from None
+    except PermissionError:
+        raise InputError("cannot be read (permission denied)", source=source) from None
+    except (OSError, ValueError) as err:
+        raise InputError(f"cannot be opened ({getattr(err, 'strerror', None) or err})", source=source) from None
+    try:
+        st = os.fstat(fd)
+        if stat.S_ISDIR(st.st_mode):
+            raise InputError("is a folder; expected a file", source=source)
+        _check_stat(st, source)
+        if hasattr(os, "set_blocking"):
+            os.set_blocking(fd, True)
+        fh = os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+    with fh:
+        yield fh
+
+
+def read_bytes(path: str | os.PathLike) -> bytes:
+    """The bytes of a regular file within ``HLAID_MAX_FILE_MB`` (see :func:`open_input`)."""
+    top = max_file_bytes()
+    with open_input(path) as fh:
+        try:
+            raw = fh.read(top + 1)
+        except OSError as err:
+            raise InputError(f"cannot be read ({err.strerror or err})", source=str(path)) from None
+    if len(raw) > top:  # it grew after it was opened
+        raise InputError(f"holds more than {file_limit_text()}", source=str(path))
+    return raw
+
+
+def read_text(path: str | os.PathLike) -> str:
+    """Text of a file, transparently gunzipped (inflated size limited too); binary files refused."""
+    raw = read_bytes(path)
+    if raw[:2] == b"\x1f\x8b":
+        top = max_file_bytes()
+        try:
+            with gzip.GzipFile(fileobj=io.BytesIO(raw)) as gz:
+                raw = gz.read(top + 1)
+        except (OSError, EOFError) as err:
+            raise InputError(f"cannot read it as gzip ({err})", source=str(path)) from None
+        if len(raw) > top:
+            raise InputError(f"holds more than {file_limit_text()}", source=str(path))
+    if b"\x00" in raw[:4096]:
+        raise InputError("is a binary file; expected text", source=str(path))
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """SHA-256 (hex) of a regular file within ``HLAID_MAX_FILE_MB``, read in blocks."""
+    h = hashlib.sha256()
+    with open_input(path) as fh:
+        try:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+        except OSError as err:
+            raise InputError(f"cannot be read ({err.strerror or err})", source=str(path)) from None
+    return h.hexdigest()
+
+
+# ---------------------------------------------------------------------------- JSON
+def _bounded_int(text: str) -> int | float:
+    """An integer of at most :data:`MAX_JSON_DIGITS` digits; a longer one becomes a float (inf
+    beyond 1e308), which the field it is given to refuses by name (no 5000-digit int is built)."""
+    if len(text.lstrip("-")) > MAX_JSON_DIGITS:
+        return float(text)
+    return int(text)
+
+
+def _check_depth(obj: Any) -> None:
+    stack = [(obj, 1)]
+    while stack:
+        o, depth = stack.pop()
+        if depth > MAX_JSON_DEPTH:
+            raise InputError(f"is nested more than {MAX_JSON_DEPTH} levels deep")
+        items = o.values() if isinstance(o, dict) else o if isinstance(o, list) else ()
+        stack.extend((x, depth + 1) for x in items if isinstance(x, (dict, list)))
+
+
+def loads_json(text: str, source: str | None = None) -> Any:
+    """Parse JSON text with bounded depth and integer length; errors name ``source`` and the line."""
+    try:
+        obj = json.loads(text, parse_int=_bounded_int)  # type: ignore[arg-type]
+        _check_depth(obj)
+    except InputError as err:
+        raise InputError(f"not a JSON file hlaid reads: {err}", source=source) from None
+    except RecursionError:
+        raise InputError(f"not a JSON file hlaid reads: it is nested more than {MAX_JSON_DEPTH} levels deep",
+                         source=source) from None
+    except json.JSONDecodeError as err:
+        raise InputError(f"not valid JSON (line {err.lineno}: {err.msg})", source=source) from None
+    return obj
+
+
+def read_json(path: str | os.PathLike) -> Any:
+    """The JSON value in a file (read by :func:`read_text`, parsed by :func:`loads_json`)."""
+    return loads_json(read_text(path), str(path))
+
+
+# ---------------------------------------------------------------------------- NPZ
+def _inflated_total(zf: zipfile.ZipFile, source: str) -> None:
+    total = sum(info.file_size for info in zf.infolist())
+    if total > max_file_bytes():
+        raise InputError(f"inflates to {total / 2**20:.3g} MiB, over {file_limit_text()}", source=source)
+
+
+def check_archive(path: str | os.PathLike) -> None:
+    """Refuse a zip archive (an NPZ) whose members inflate past ``HLAID_MAX_FILE_MB``, before
+    inflating any; an unreadable archive is left to the reader's own message."""
+    try:
+        with open_input(path) as fh, zipfile.ZipFile(fh) as zf:
+            _inflated_total(zf, str(path))
+    except (zipfile.BadZipFile, OSError, ValueError) as err:
+        if isinstance(err, InputError):
+            raise
+        return
+
+
+def _npy_header(member: IO[bytes], name: str, size: int, source: str):
+    """``(shape, fortran_order, dtype)`` of an ``.npy`` member, checked against its ``size``."""
+    import numpy as np
+    fmt = np.lib.format
+    try:
+        version = fmt.read_magic(member)
+        if version == (1, 0):
+            shape, fortran, dtype = fmt.read_array_header_1_0(member)
+        elif version == (2, 0):
+            shape, fortran, dtype = fmt.read_array_header_2_0(member)
+        else:
+            raise ValueError(f"array format version {version}")
+        header = member.tell()
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as err:
+        raise InputError(f"array {name!r} has no readable header ({' '.join(str(err).split())[:80]})",
+                         source=source) from None
+    if dtype.hasobject or dtype.kind not in "biufcUS" or dtype.itemsize == 0:
+        raise InputError(f"array {name!r} holds {dtype.kind!r} values; only numbers and text are read", source=source)
+    claimed = math.prod(int(n) for n in shape) * dtype.itemsize
+    if claimed != size - header:
+        raise InputError(f"array {name!r}: its header claims shape {tuple(shape)} ({claimed} bytes) but the file "
+                         f"holds {size - header} bytes of it", source=source)
+    return shape, fortran, dtype
+
+
+def load_npz(path: str | os.PathLike, *, not_npz: str = "not an NPZ file (a zip archive of named arrays)") -> dict:
+    """The arrays of an NPZ file by name, each checked against its member's size before it is
+    allocated (see the module docstring); ``not_npz`` is the message for a file that is no zip."""
+    import numpy as np
+    source = str(path)
+    with open_input(path) as fh:
+        try:
+            zf = zipfile.ZipFile(fh)
+        except (zipfile.BadZipFile, OSError, ValueError):
+            raise InputError(not_npz, source=source) from None
+        with zf:
+            _inflated_total(zf, source)
+            out = {}
+            for info in zf.infolist():
+                if not info.filename.endswith(".npy"):
+                    continue
+                name = info.filename[:-4]
+                try:
+                    with zf.open(info) as member:
+                        shape, fortran, dtype = _npy_header(member, name, info.file_size, source)
+                        data = member.read()
+                except (zipfile.BadZipFile, OSError, EOFError, RuntimeError, NotImplementedError) as err:
+                    raise InputError(f"array {name!r} cannot be read ({' '.join(str(err).split())[:80]})",
+                                     source=source) from None
+                a = np.frombuffer(data, dtype=dtype)
+                out[name] = a.reshape(shape, order="F" if fortran else "C").copy()
+            return out

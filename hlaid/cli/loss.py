@@ -1,0 +1,153 @@
+"""``hlaid demands`` and ``hlaid loss``: demands in pelicun's format, FEMA P-58 losses through pelicun."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .. import _progress
+from ..errors import InputError
+from .ida import _numbers
+from .main import subcommand
+
+
+def register(sub) -> None:
+    d = subcommand(sub, "demands", help="peak drifts, floor accelerations and residual drifts of a clone in pelicun's "
+                                        "demand format",
+                   example="hlaid demands clone.json --motion measurement.npz --n-ensemble 20 -o demands.csv")
+    d.add_argument("clone", help="clone file (hlaid-clone JSON)")
+    src = d.add_mutually_exclusive_group(required=True)
+    src.add_argument("--motion", metavar="FILE",
+                     help="the ground motion the building recorded (a record or measurement file), as recorded")
+    src.add_argument("--records", nargs="+", metavar="DIR|builtin-suite|FILE",
+                     help="records scaled to --level (an IDA stripe)")
+    d.add_argument("--level", type=float, metavar="G", help="intensity of the stripe [g] (with --records)")
+    d.add_argument("--n-ensemble", type=int, default=None,
+                   help="clones drawn from the identification uncertainty (default 20 when the clone has it, "
+                        "else 0: the identified clone)")
+    d.add_argument("--seed", type=int, default=0, help="seed of the ensemble (default 0)")
+    d.add_argument("--config", help="IDA settings (YAML, configs/ida.yaml): intensity measure, drift limit, step, "
+                                    "P-Delta, collapse model")
+    d.add_argument("-o", "--out", required=True, help="demand CSV to write (pelicun's format)")
+    d.add_argument("--force", action="store_true", help="overwrite an existing file")
+    d.set_defaults(func=run_demands)
+
+    p = subcommand(sub, "loss", help="FEMA P-58 repair cost, repair time, irreparable damage and collapse through "
+                                     "pelicun (needs hlaid[loss])",
+                   example="hlaid loss hlaid-demo --system steel-mrf")
+    p.add_argument("source", help="a run folder (hlaid run / hlaid demo), or a demand CSV (hlaid demands) with -o")
+    p.add_argument("-o", "--out", help="output folder (default: RUN_DIR/loss; required for a demand CSV)")
+    p.add_argument("--system", help="default inventory: steel-mrf or rc-frame (default: the run config's, "
+                                    "else steel-mrf)")
+    p.add_argument("--inventory", metavar="CSV", help="your component inventory (pelicun's component assignment "
+                                                      "CSV) instead of the system's")
+    p.add_argument("--floor-area", metavar="M2", help="floor area per story [m2]: one value or one per story")
+    p.add_argument("--realizations", type=int, help="pelicun's sample size (default 1000)")
+    p.add_argument("--seed", type=int, help="pelicun's seed (default 0)")
+    p.add_argument("--levels", nargs="+", metavar="G", help="IM levels [g] of the loss curve (default: the IDA's)")
+    p.add_argument("--no-curve", action="store_true", help="only the recorded event, no loss curve")
+    p.add_argument("--records", nargs="+", metavar="DIR|builtin-suite|FILE",
+                   help="records of the loss curve's stripes (default: the run's IDA records)")
+    p.add_argument("--irreparable-median", type=float, help="median residual drift ratio of irreparable damage "
+                                                            "(default 0.01)")
+    p.add_argument("--irreparable-beta", type=float, help="its dispersion (default 0.3)")
+    p.add_argument("--collapse-median", type=float, metavar="G", help="collapse fragility median [g] (demand CSV)")
+    p.add_argument("--collapse-beta", type=float, help="collapse fragility dispersion (demand CSV)")
+    p.add_argument("--drift-limit", type=float, default=0.10,
+                   help="PID above which a realisation of a demand CSV is a collapse (default 0.10)")
+    p.add_argument("--force", action="store_true", help="replace an existing output folder")
+    p.set_defaults(func=run_loss)
+
+
+def _own_motion(path: str):
+    """The ground motion of a record file, or the ground channel of a measurement file."""
+    import numpy as np
+
+    from ..io import read
+    from ..measurement import Measurement
+    from ..motions import GroundMotion
+
+    obj = read(path)
+    if isinstance(obj, Measurement):
+        return GroundMotion(dt=obj.dt, acc=np.asarray(obj.ground_acc), name=Path(path).stem, source=path)
+    if isinstance(obj, GroundMotion):
+        return obj
+    raise InputError("expected one ground motion (a record or a measurement file), not a record set", source=path)
+
+
+def run_demands(args) -> int:
+    from .._fileio import check_output_file
+    from ..clone import Clone
+    from ..ida import IDAConfig, load_ida_config
+    from ..loss import clone_demands
+
+    check_output_file(args.out, force=args.force, inputs=[args.clone, args.motion, args.config, *(args.records or [])])
+    if args.records and args.level is None:
+        raise InputError("--records needs --level G (the stripe's intensity); for the recorded event use --motion")
+    if args.motion and args.level is not None:
+        raise InputError("--level scales --records; the recorded event (--motion) is taken as recorded")
+    clone = Clone.load(args.clone)
+    n_ens = args.n_ensemble if args.n_ensemble is not None else (20 if clone.uncertainty is not None else 0)
+    cfg = load_ida_config(args.config) if args.config else IDAConfig()
+    records = _own_motion(args.motion) if args.motion else args.records
+    d = clone_demands(clone, records, level=args.level, n_ensemble=n_ens, seed=args.seed, ida_config=cfg)
+    d.write_csv(args.out, force=args.force)
+    s = d.summary()
+    _progress.info(f"wrote {args.out}: {d.n_realisations} realisations ({s['n_collapsed']} collapsed), "
+                   f"median peak drift ratio {max(s['pid_median'] or [0]):.2%}, median residual "
+                   f"{max(s['rid_median'] or [0]):.2%}, {d.im_label} {float(d.im.max()):.3g} g")
+    for note in d.notes:
+        _progress.debug(f"note: {note}")
+    return 0
+
+
+def run_loss(args) -> int:
+    from ..loss import LossConfig, loss_of_demand_file, loss_of_run
+
+    src = Path(args.source)
+    levels = [] if args.no_curve else (_numbers(" ".join(args.levels), "--levels") if args.levels else None)
+    area = _numbers(args.floor_area, "--floor-area") if args.floor_area else None
+    over = dict(system=args.system, inventory=args.inventory, realizations=args.realizations, seed=args.seed,
+                levels=levels, irreparable_median=args.irreparable_median, irreparable_beta=args.irreparable_beta,
+                floor_area_m2=(area[0] if len(area) == 1 else area) if area else None)
+    if (args.collapse_median is None) != (args.collapse_beta is None):
+        raise InputError("give both --collapse-median and --collapse-beta, or neither")
+    collapse = None if args.collapse_median is None else (args.collapse_median, args.collapse_beta)
+    if src.is_file():
+        if not args.out:
+            raise InputError("a demand CSV needs an output folder: -o DIR")
+        cfg = LossConfig().replace(**over)
+        s = loss_of_demand_file(src, cfg, args.out, collapse=collapse, drift_limit=args.drift_limit, force=args.force)
+        _report(s, args.out)
+        return 0
+    if collapse is not None:
+        raise InputError("--collapse-median/--collapse-beta are for a demand CSV; a run folder has its own fragility")
+    base = _run_loss_config(src)
+    block = loss_of_run(src, base.replace(**over), records=args.records, force=args.force)
+    if block["recorded"]:
+        _report(block["recorded"], src / "loss")
+    if block["stripes"]:
+        _progress.info(f"loss curve at {len(block['stripes'])} intensities: {src / 'loss' / 'loss_curve.csv'}")
+    return 0
+
+
+def _run_loss_config(run_dir: Path):
+    """The run config's loss block (defaults when it has none)."""
+    from .._inputs import read_json
+    from ..config import config_from_dict
+    from ..loss import LossConfig
+
+    try:
+        conf = read_json(run_dir / "summary.json").get("config") or {}
+    except (InputError, AttributeError):
+        return LossConfig()  # loss_of_run says what is wrong with the folder
+    return config_from_dict(LossConfig, conf["loss"], f"{run_dir}/summary.json: config.loss") if conf.get("loss") \
+        else LossConfig()
+
+
+def _report(s: dict, out) -> None:
+    lo, hi = s["repair_cost_band"]
+    _progress.info(f"repair cost: median {s['repair_cost_median']:,.0f} {s['cost_unit']} "
+                   f"({s['repair_cost_ratio_median']:.1%} of replacement), 90 % band {lo:,.0f} - {hi:,.0f}; "
+                   f"repair time median {s['repair_time_parallel_median']:.0f} worker-days (parallel); "
+                   f"P(collapse) {s['p_collapse']:.1%}, P(irreparable) {s['p_irreparable']:.1%}")
+    _progress.info(f"wrote {out}/ (loss.json, pelicun's inputs: demands.csv, inventory.csv, config.json)")

@@ -1,0 +1,341 @@
+"""From a clone to losses: demands at the recorded event and at IDA stripes, each through pelicun.
+
+:func:`assess_losses` is the one library entry: the clone (and its ensemble) under the building's
+own record and under the IDA records scaled to each stripe level, pelicun's FEMA P-58 assessment of
+every demand set (:mod:`hlaid.loss.fema_p58`), the loss curve against intensity and the repair
+cost distribution at the recorded event; :func:`loss_of_run` does it for a run folder.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .. import _progress
+from .._fileio import write_json
+from ..errors import InputError
+from .config import LossConfig
+from .demands import Demands, clone_demands
+from .fema_p58 import PelicunInputs, run_pelicun, summarise, write_inputs
+from .inventory import default_inventory, get_system, read_inventory
+
+
+@dataclass(frozen=True, eq=False)
+class LossResult:
+    """The FEMA P-58 assessment of one demand set.
+
+    name : ``recorded`` or ``stripe-K`` (the folder its pelicun files are in)
+    demands : the hlaid demands
+    sample : pelicun's per-realisation results (:func:`hlaid.loss.fema_p58.run_pelicun`)
+    summary : :func:`hlaid.loss.fema_p58.summarise` of them, with the intensity and the demand counts
+    """
+
+    name: str
+    demands: Demands
+    sample: dict
+    summary: dict
+
+
+@dataclass(frozen=True, kw_only=True)
+class Asset:
+    """What the pelicun inputs need to know of the building: its inventory text, replacement values,
+    floor areas (and where they came from) and the collapse fragility in its intensity."""
+
+    inventory_csv: str
+    inventory_source: str
+    floor_area_m2: list
+    area_source: str
+    replacement_cost: float
+    replacement_time: float
+    collapse_median_g: float | None
+    collapse_beta: float | None
+    collapse_source: str
+
+
+def describe_building(n: int, masses, cfg: LossConfig, collapse: tuple[float, float] | None, *,
+                      collapse_source: str = "", base_dir: str | os.PathLike | None = None) -> Asset:
+    """Inventory, floor areas, replacement values and collapse fragility of a building of ``n``
+    stories with floor ``masses`` [t] (None: unknown) under ``cfg``."""
+    area, area_src = cfg.floor_areas(n, masses)
+    system = get_system(cfg.system)
+    if cfg.inventory is not None:
+        p = Path(cfg.inventory)
+        if base_dir is not None and not p.is_absolute():
+            p = Path(base_dir) / p
+        inv, inv_src = read_inventory(p, n), str(p)
+    else:
+        inv, inv_src = default_inventory(system, area), f"default {system.name}: {system.description}"
+    total = float(sum(area))
+    cost = cfg.replacement_cost_usd or system.replacement_cost_usd_m2 * total
+    time = cfg.replacement_time_worker_days or system.replacement_time_wd_m2 * total
+    med, beta = collapse if collapse is not None else (None, None)
+    return Asset(inventory_csv=inv, inventory_source=inv_src, floor_area_m2=area, area_source=area_src,
+                    replacement_cost=float(cost), replacement_time=float(time), collapse_median_g=med,
+                    collapse_beta=beta, collapse_source=collapse_source if collapse else "none")
+
+
+def assess_demands(demands: Demands, asset: Asset, cfg: LossConfig, folder: str | os.PathLike,
+                   name: str) -> LossResult:
+    """Write the pelicun inputs of ``demands`` into ``folder`` and run the assessment there."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    inputs = PelicunInputs(demands_csv=demands.csv_text(), inventory_csv=asset.inventory_csv,
+                           n_stories=demands.n_stories, im_type=demands.sa_name(),
+                           collapse_median_g=asset.collapse_median_g, collapse_beta=asset.collapse_beta,
+                           drift_limit=demands.drift_limit, replacement_cost=asset.replacement_cost,
+                           replacement_time=asset.replacement_time, irreparable_median=cfg.irreparable_median,
+                           irreparable_beta=cfg.irreparable_beta, realizations=cfg.realizations, seed=cfg.seed)
+    write_inputs(folder, inputs)
+    notes = []
+    if demands.collapsed.all():  # pelicun needs at least one non-collapse realisation
+        r = cfg.realizations
+        sample = {"repair_cost": np.full(r, asset.replacement_cost),
+                  "repair_time_parallel": np.full(r, asset.replacement_time),
+                  "repair_time_sequential": np.full(r, asset.replacement_time),
+                  "collapse": np.ones(r), "irreparable": np.zeros(r)}
+        notes.append("every realisation collapsed in the replay: pelicun not run, the loss is the replacement")
+    else:
+        sample = run_pelicun(folder)
+    s = summarise(sample, asset.replacement_cost, asset.replacement_time)
+    s.update(name=name, level_g=demands.level, im=float(np.median(demands.im)), im_label=demands.im_label,
+             n_demand_realisations=demands.n_realisations, n_collapsed_in_replay=int(demands.collapsed.sum()),
+             notes=notes)
+    return LossResult(name=name, demands=demands, sample=sample, summary=s)
+
+
+def assess_losses(clone, own_motion, *, records=None, levels=(), collapse: tuple[float, float] | None,
+                  cfg: LossConfig | None = None, ida_config=None, n_ensemble: int = 0, seed: int = 0,
+                  folder: str | os.PathLike, collapse_source: str = "",
+                  base_dir: str | os.PathLike | None = None) -> dict:
+    """Losses at the recorded event and at the IDA stripes; writes everything under ``folder``.
+
+    Parameters
+    ----------
+    clone : the :class:`~hlaid.clone.Clone`
+    own_motion : the ground motion the building recorded (GroundMotion), or None
+    records, levels : IDA records and the stripe levels [g] of the loss curve (none: no curve)
+    collapse : ``(median [g], beta)`` of the clone's collapse fragility in the IDA's intensity
+    cfg : :class:`LossConfig` (None: defaults)
+    ida_config : the IDA settings the demands are run with (:func:`hlaid.loss.clone_demands`)
+    n_ensemble, seed : the ensemble of clones (0: the identified clone alone)
+    folder : output folder (``recorded/``, ``stripe-K/`` with pelicun's inputs, ``loss.json``,
+        ``loss_curve.csv``, ``loss_curve.png``, ``repair_cost.png``)
+
+    Returns
+    -------
+    dict : the ``loss`` block of a run summary (also ``loss.json``)
+    """
+    cfg = cfg or LossConfig()
+    folder = Path(folder)
+    masses = None if clone.mass_normalised else list(clone.building.mass)
+    b = describe_building(clone.building.n_stories, masses, cfg, collapse, collapse_source=collapse_source,
+                          base_dir=base_dir)
+    results = []
+    if own_motion is not None:
+        _progress.info("loss at the recorded event: demands of the clone(s) under the record, then pelicun")
+        d = clone_demands(clone, own_motion, n_ensemble=n_ensemble, seed=seed, ida_config=ida_config)
+        results.append(assess_demands(d, b, cfg, folder / "recorded", "recorded"))
+    levels = list(levels or ())
+    if levels and records is None:
+        raise InputError("the loss curve needs the IDA records (give --records or the run's ida.records)")
+    for k, lv in enumerate(_progress.progress(levels, desc="loss stripes")):
+        d = clone_demands(clone, records, level=lv, n_ensemble=n_ensemble, seed=seed, ida_config=ida_config)
+        results.append(assess_demands(d, b, cfg, folder / f"stripe-{k + 1}", f"stripe-{k + 1}"))
+    if not results:
+        raise InputError("nothing to assess: give the recorded ground motion or stripe levels")
+    own = next((r for r in results if r.name == "recorded"), None)
+    stripes = [r for r in results if r.name != "recorded"]
+    out = {"format": "hlaid-loss", "version": 1, "engine": _engine(), "system": cfg.system,
+           "inventory": b.inventory_source, "floor_area_m2": b.floor_area_m2, "floor_area_source": b.area_source,
+           "replacement_cost": b.replacement_cost, "replacement_time": b.replacement_time,
+           "collapse_fragility": {"median_g": b.collapse_median_g, "beta": b.collapse_beta,
+                                  "source": b.collapse_source},
+           "irreparable": {"median": cfg.irreparable_median, "beta": cfg.irreparable_beta},
+           "n_ensemble": n_ensemble, "realizations": cfg.realizations, "seed": cfg.seed,
+           "recorded": None if own is None else own.summary, "stripes": [r.summary for r in stripes],
+           "demands": {r.name: r.demands.summary() for r in results}, "assumptions": ASSUMPTIONS}
+    write_json(folder / "loss.json", out)
+    if stripes:
+        from .._fileio import atomic_write
+
+        text = _curve_csv(stripes)
+        atomic_write(folder / "loss_curve.csv", lambda p: p.write_text(text))
+    from ..plots import save_figure
+    from .plots import plot_loss_curve, plot_repair_cost
+
+    if stripes:
+        save_figure(plot_loss_curve(stripes, own), folder / "loss_curve.png")
+    if own is not None:
+        save_figure(plot_repair_cost(own, b.replacement_cost), folder / "repair_cost.png")
+    return out
+
+
+ASSUMPTIONS = (
+    "demands from the clone's own replay (residual drift from a free-vibration tail), one realisation per ensemble "
+    "member and record, resampled by pelicun (empirical)",
+    "the clone is planar: peak drifts are taken for both horizontal directions (pelicun DemandCloning), floor "
+    "accelerations and residual drifts in the identified direction",
+    "collapse from hlaid's lognormal collapse fragility at each realisation's intensity; realisations that reached "
+    "the drift limit in the replay are removed from the non-collapse demands (pelicun CollapseLimits)",
+    "irreparable damage from FEMA P-58's residual drift fragility, evaluated by pelicun per story; collapse and "
+    "irreparable damage cost the replacement",
+    "FEMA P-58 2nd edition fragilities and repair consequences (USD 2011, worker-days) as shipped with pelicun")
+
+
+def _engine() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    def v(name):
+        try:
+            return version(name)
+        except PackageNotFoundError:
+            return "?"
+    return f"pelicun {v('pelicun')}, simcenter-dlml {v('simcenter-dlml')}"
+
+
+def _curve_csv(stripes: list[LossResult]) -> str:
+    head = ["level_g", "repair_cost_ratio_mean", "repair_cost_ratio_median", "repair_cost_ratio_lo",
+            "repair_cost_ratio_hi", "repair_time_parallel_median", "p_collapse", "p_irreparable",
+            "n_collapsed_in_replay", "n_demand_realisations"]
+    rows = [",".join(head)]
+    for r in stripes:
+        s = r.summary
+        vals = [s["level_g"], s["repair_cost_ratio_mean"], s["repair_cost_ratio_median"], *s["repair_cost_ratio_band"],
+                s["repair_time_parallel_median"], s["p_collapse"], s["p_irreparable"], s["n_collapsed_in_replay"],
+                s["n_demand_realisations"]]
+        rows.append(",".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in vals))
+    return "\n".join(rows) + "\n"
+
+
+# ---------------------------------------------------------------------------- a run folder
+def _read_json(path: Path, what: str):
+    """The JSON in ``path``, read as every input is (:mod:`hlaid._inputs`); a missing file says ``what``."""
+    from .._inputs import read_json
+
+    if not os.path.lexists(path):
+        raise InputError(f"{path.name} not found; {what}", source=str(path.parent))
+    return read_json(path)
+
+
+def run_collapse(run_dir: Path, summary: dict) -> tuple[tuple[float, float], str]:
+    """The collapse fragility of a run: the ensemble's (``assessment.json``) or the IDA's."""
+    a = summary.get("assessment")
+    if isinstance(a, dict) and a.get("collapse_median") and a.get("beta"):
+        return (float(a["collapse_median"]), float(a["beta"])), (
+            f"ensemble of {a.get('n_ensemble')} clones x {a.get('n_records')} records (median of members' fits)")
+    ida = summary.get("ida")
+    if not isinstance(ida, dict):
+        raise InputError("the run has no IDA, whose collapse fragility the losses need: add an ida block and "
+                         "rerun hlaid run", source=str(run_dir))
+    f = (ida.get("collapse_fragility") or {}).get("capacities") or {}
+    if not f.get("median_g") or not f.get("beta"):
+        raise InputError("the run's IDA has no fitted collapse fragility (ida/summary.json)", source=str(run_dir))
+    n = len(ida.get("records", []))
+    return (float(f["median_g"]), float(f["beta"])), f"IDA of the identified clone, {n} records"
+
+
+def loss_of_run(run_dir: str | os.PathLike, cfg: LossConfig | None = None, *, records=None, force: bool = False,
+                base_dir: str | os.PathLike | None = None) -> dict:
+    """``hlaid loss RUN_DIR``: losses of a run folder written into ``RUN_DIR/loss/`` (replaced only with
+    ``force``); its summary becomes the ``loss`` block of ``summary.json`` and ``report.html`` is rebuilt.
+
+    The clone is ``clone.json``; the recorded event the ground motion of ``measurement.npz``; the
+    ensemble and the IDA settings those of the run's config (``assess``, ``ida``); the loss settings
+    ``cfg`` (None: the run config's ``loss`` block, else defaults); the stripes' records ``records``
+    (None: the run's IDA records, relative paths from ``base_dir``).
+    """
+    from .._fileio import atomic_directory
+    from ..clone import Clone
+    from ..config import config_from_dict
+    from ..ida.config import IDAConfig
+    from ..io import read
+    from ..motions import GroundMotion
+    from ..report import build_report
+
+    d = Path(run_dir)
+    if not d.is_dir():
+        raise InputError("not found or not a folder; expected a run folder written by hlaid run or hlaid demo",
+                         source=str(d))
+    summary = _read_json(d / "summary.json", "expected a run folder written by hlaid run or hlaid demo")
+    if not isinstance(summary, dict) or summary.get("format") != "hlaid-run":
+        raise InputError("summary.json is not an hlaid run summary", source=str(d))
+    conf = summary.get("config") or {}
+    if cfg is None:
+        cfg = config_from_dict(LossConfig, conf["loss"], f"{d}/summary.json: config.loss") if conf.get("loss") \
+            else LossConfig()
+    ida_cfg = config_from_dict(IDAConfig, conf["ida"], f"{d}/summary.json: config.ida") if conf.get("ida") \
+        else IDAConfig()
+    clone = Clone.load(d / "clone.json")
+    meas = read(d / "measurement.npz", "measurement")
+    own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name="recorded", source=str(d / "measurement.npz"))
+    collapse, src = run_collapse(d, summary)
+    assess_cfg = conf.get("assess") or {}
+    n_ens = int(assess_cfg.get("n_ensemble", 0)) if clone.uncertainty is not None else 0
+    levels = cfg.levels if cfg.levels is not None else ((summary.get("ida") or {}).get("levels_g") or [])
+    recs = records if records is not None else ida_cfg.record_specs(None if base_dir is None else Path(base_dir))
+    inputs = [cfg.inventory, *_files(recs)]  # --force never replaces a folder holding one of them
+    with atomic_directory(d / "loss", force=force, inputs=inputs) as tmp:
+        block = assess_losses(clone, own, records=recs, levels=levels, collapse=collapse, cfg=cfg, ida_config=ida_cfg,
+                              n_ensemble=n_ens, seed=int(assess_cfg.get("seed", 0)), folder=tmp,
+                              collapse_source=src, base_dir=base_dir)
+    summary["loss"] = run_block(block)
+    write_json(d / "summary.json", summary)
+    build_report(d)
+    return block
+
+
+def _files(records) -> list:
+    """The paths among a records spec (a path, ``builtin...``, or a list of them)."""
+    specs = [records] if isinstance(records, (str, os.PathLike)) else list(records or [])
+    return [r for r in specs if isinstance(r, (str, os.PathLike)) and not str(r).startswith("builtin")]
+
+
+def run_block(block: dict) -> dict:
+    """The ``loss`` block of a run summary / fleet row: the recorded event's figures and the settings."""
+    keep = ("engine", "system", "inventory", "floor_area_m2", "floor_area_source", "replacement_cost",
+            "replacement_time", "collapse_fragility", "irreparable", "n_ensemble", "realizations", "assumptions")
+    out = {k: block[k] for k in keep}
+    out["recorded"] = block["recorded"]
+    out["curve"] = [{k: s[k] for k in ("level_g", "repair_cost_ratio_mean", "repair_cost_ratio_median",
+                                        "repair_cost_ratio_band", "p_collapse", "p_irreparable")}
+                    for s in block["stripes"]]
+    return out
+
+
+def loss_of_demand_file(path: str | os.PathLike, cfg: LossConfig, out: str | os.PathLike, *,
+                        collapse: tuple[float, float] | None = None, drift_limit: float = 0.10,
+                        force: bool = False, base_dir: str | os.PathLike | None = None) -> dict:
+    """``hlaid loss DEMANDS.csv -o OUT``: pelicun's FEMA P-58 assessment of a demand file (e.g. one
+    written by ``hlaid demands``) with ``cfg``'s inventory (``floor_area_m2`` required: the file
+    has no masses) and an optional collapse fragility in the file's intensity column. Writes
+    pelicun's inputs and ``loss.json`` into ``out``; returns the summary."""
+    from .._fileio import atomic_directory
+    from .demands import read_demand_csv
+
+    df = read_demand_csv(path)
+    if collapse is not None and df.im_type is None:
+        raise InputError("a collapse fragility needs an intensity column (1-SA_T-0-1 or PGA) in the demand file",
+                         source=str(path))
+    asset = describe_building(df.n_stories, None, cfg, collapse, collapse_source="given" if collapse else "",
+                              base_dir=base_dir)
+    with atomic_directory(out, force=force, inputs=[path, cfg.inventory]) as tmp:
+        inputs = PelicunInputs(demands_csv=df.text, inventory_csv=asset.inventory_csv, n_stories=df.n_stories,
+                               im_type=df.im_type or "PGA", collapse_median_g=asset.collapse_median_g,
+                               collapse_beta=asset.collapse_beta, drift_limit=drift_limit,
+                               replacement_cost=asset.replacement_cost, replacement_time=asset.replacement_time,
+                               irreparable_median=cfg.irreparable_median, irreparable_beta=cfg.irreparable_beta,
+                               realizations=cfg.realizations, seed=cfg.seed)
+        write_inputs(tmp, inputs)
+        s = summarise(run_pelicun(tmp), asset.replacement_cost, asset.replacement_time)
+        s.update(demand_file=str(path), inventory=asset.inventory_source, n_demand_realisations=df.n_realisations,
+                 collapse_fragility={"median_g": asset.collapse_median_g, "beta": asset.collapse_beta},
+                 engine=_engine(), assumptions=ASSUMPTIONS)
+        write_json(tmp / "loss.json", s)
+    return s
+
+
+__all__ = ["loss_of_demand_file", "LossResult", "Asset", "assess_demands", "assess_losses", "describe_building",
+           "loss_of_run", "run_block", "run_collapse", "ASSUMPTIONS"]

@@ -1,0 +1,237 @@
+"""Component inventories for the FEMA P-58 assessment: defaults per structural system, or the user's.
+
+An inventory is pelicun's component assignment table (``ID, Units, Location, Direction, Theta_0``
+and optionally ``Blocks, Family, Theta_1, Comment``): every row puts ``Theta_0`` of a FEMA P-58
+component on each listed story and direction. :func:`default_inventory` builds one from a
+:class:`StructuralSystem`'s densities (quantity per m2 of floor area on every story, per direction
+for directional components) and the floor areas; :func:`read_inventory` reads and checks the
+user's CSV against the FEMA P-58 library shipped with pelicun (simcenter-dlml).
+
+Sources of the defaults (docs/loss.md has the tables):
+
+* non-structural components (office occupancy) and their densities: the component set of
+  pelicun's shipped FEMA P-58 example (``pelicun/examples/001``: a 4-story office of 15 000 ft2
+  per floor, i.e. 1393.5 m2) divided by its floor area, with the suspended ceiling over the whole
+  floor area and one traction elevator per 5574 m2 of total floor area (that building's);
+* structural components: the frame joints of that example (per story and direction, 2 beam-one-
+  side and 3 beams-both-sides joints per 1393.5 m2) as FEMA P-58 fragility groups: ACI 318 SMF
+  beam-column joints (B.10.41.001a/b) and post-tensioned slab-column connections (B.10.49.031)
+  for ``rc-frame``, post-Northridge welded unreinforced flange moment connections (B.10.35.021,
+  B.10.35.031) for ``steel-mrf``;
+* replacement cost 2243 USD_2011/m2 and replacement time 2.69 worker-days/m2: the same example's
+  12.5 M USD_2011 and 15 000 worker-days over its 5574 m2.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import re
+from dataclasses import dataclass
+
+from ..errors import InputError, quotable
+
+M2_PER_FT2 = 0.09290304
+EXAMPLE_FLOOR_M2 = 15000 * M2_PER_FT2
+"""Floor area of one story of pelicun's FEMA P-58 example building (15 000 ft2)."""
+
+EXAMPLE_TOTAL_M2 = 4 * EXAMPLE_FLOOR_M2
+
+
+@dataclass(frozen=True)
+class Component:
+    """A FEMA P-58 fragility group and its density.
+
+    id : FEMA P-58 component ID (pelicun's DLML, ``FEMA P-58 2nd Edition``)
+    units : pelicun's quantity unit of ``per_m2`` x m2 (``ea``, ``m``, ``m2``)
+    direction : ``"1,2"`` for directional components (the quantity is per direction), ``"0"`` otherwise
+    per_m2 : quantity per m2 of floor area on every story (per building when ``building`` is true)
+    building : one quantity for the whole building (on the first story), per m2 of total floor area
+    what : a short description
+    """
+
+    id: str
+    units: str
+    direction: str
+    per_m2: float
+    what: str
+    building: bool = False
+
+
+_NONSTRUCTURAL = (
+    Component("B.20.22.031", "m2", "1,2", 0.26, "curtain wall, midrise stick-built, annealed monolithic glass"),
+    Component("C.10.11.001a", "m", "1,2", 891 * 0.3048 / EXAMPLE_FLOOR_M2,
+              "gypsum partition with metal studs, full height, fixed below and above"),
+    Component("C.30.32.003b", "m2", "0", 1.0, "suspended ceiling, SDC D/E, 250-1000 ft2 rooms, vertical and lateral "
+                                              "support"),
+    Component("C.30.34.002", "ea", "0", 648 / EXAMPLE_FLOOR_M2, "independent pendant lighting, seismically rated"),
+    Component("D.20.21.023a", "m", "0", 1230 * 0.3048 / EXAMPLE_FLOOR_M2, "potable water piping > 2.5 in, SDC D/E/F"),
+    Component("D.30.41.021c", "m", "0", 1620 * 0.3048 / EXAMPLE_FLOOR_M2, "HVAC stainless steel ducting < 6 ft2"),
+    Component("D.40.11.023a", "m", "0", 4320 * 0.3048 / EXAMPLE_FLOOR_M2, "fire sprinkler mains and branches"),
+    Component("D.40.11.033a", "ea", "0", 194 / EXAMPLE_FLOOR_M2, "fire sprinkler drops into soft ceilings"),
+    Component("D.10.14.011", "ea", "0", 1 / EXAMPLE_TOTAL_M2, "traction elevator", building=True),
+)
+_ONE, _BOTH = 2 / EXAMPLE_FLOOR_M2, 3 / EXAMPLE_FLOOR_M2
+
+
+@dataclass(frozen=True)
+class StructuralSystem:
+    """A structural system's default inventory and replacement values.
+
+    name, description : registry key and what it stands for
+    components : structural then non-structural :class:`Component` densities
+    areal_mass_t_m2 : floor mass per m2 used to estimate floor areas from the clone's masses when
+        none are given (typical seismic weight of office floors; an assumption)
+    replacement_cost_usd_m2 : replacement cost per m2 of total floor area [USD_2011]
+    replacement_time_wd_m2 : replacement time per m2 of total floor area [worker-days]
+    """
+
+    name: str
+    description: str
+    components: tuple
+    areal_mass_t_m2: float
+    replacement_cost_usd_m2: float = 12.5e6 / EXAMPLE_TOTAL_M2
+    replacement_time_wd_m2: float = 15000 / EXAMPLE_TOTAL_M2
+
+
+SYSTEMS: dict[str, StructuralSystem] = {
+    "steel-mrf": StructuralSystem(
+        "steel-mrf", "steel special moment frame, office occupancy",
+        (Component("B.10.35.021", "ea", "1,2", _ONE, "post-Northridge WUF moment connection, beam one side, <= W27"),
+         Component("B.10.35.031", "ea", "1,2", _BOTH, "post-Northridge WUF moment connection, beams both sides, "
+                                                      "<= W27"))
+        + _NONSTRUCTURAL, areal_mass_t_m2=0.5),
+    "rc-frame": StructuralSystem(
+        "rc-frame", "reinforced concrete special moment frame with post-tensioned slabs, office occupancy",
+        (Component("B.10.41.001a", "ea", "1,2", _ONE, "ACI 318 SMF joint, 24 x 24 in, beam one side"),
+         Component("B.10.41.001b", "ea", "1,2", _BOTH, "ACI 318 SMF joint, 24 x 24 in, beams both sides"),
+         Component("B.10.49.031", "ea", "0", 15 / EXAMPLE_FLOOR_M2, "post-tensioned slab-column connection with "
+                                                                    "shear reinforcement"))
+        + _NONSTRUCTURAL, areal_mass_t_m2=0.8),
+}
+"""Structural systems with a default inventory, by name."""
+
+
+def get_system(name: str) -> StructuralSystem:
+    """The system called ``name``; an unknown name lists the known ones."""
+    try:
+        return SYSTEMS[name]
+    except KeyError:
+        raise InputError(f"unknown structural system {name!r}; expected one of {', '.join(SYSTEMS)} "
+                         "(or give your own inventory CSV)") from None
+
+
+COLUMNS = ("ID", "Units", "Location", "Direction", "Theta_0", "Blocks", "Comment")
+
+
+def default_inventory(system: str | StructuralSystem, floor_area_m2) -> str:
+    """The default inventory CSV text of ``system`` for stories of ``floor_area_m2`` [m2] each
+    (bottom to top), one row per component and story."""
+    s = system if isinstance(system, StructuralSystem) else get_system(system)
+    area = [float(a) for a in floor_area_m2]
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(COLUMNS)
+    for c in s.components:
+        if c.building:
+            w.writerow([c.id, c.units, 1, c.direction, f"{c.per_m2 * sum(area):.6g}", "", c.what])
+            continue
+        for k, a in enumerate(area):
+            w.writerow([c.id, c.units, k + 1, c.direction, f"{c.per_m2 * a:.6g}", "", c.what])
+    return buf.getvalue()
+
+
+_LOC = re.compile(r"(all|roof|top|bottom|\d+(--\d+)?)(,(all|roof|top|bottom|\d+(--\d+)?))*")
+_DIR = re.compile(r"[0-9](,[0-9])*")
+
+
+def _component_library() -> tuple[set[str], set[str], set[str]]:
+    """``(complete fragility IDs, incomplete fragility IDs, IDs with repair consequences)`` of
+    pelicun's FEMA P-58 library."""
+    from .fema_p58 import library_file
+
+    with open(library_file("fragility.csv"), newline="", encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    complete = {r["ID"] for r in rows if str(r.get("Incomplete", "0")).strip() in ("0", "0.0", "")}
+    incomplete = {r["ID"] for r in rows} - complete
+    with open(library_file("consequence_repair.csv"), newline="", encoding="utf-8") as fh:
+        cons = {r["ID"].rsplit("-", 1)[0] for r in csv.DictReader(fh)}
+    return complete, incomplete, cons
+
+
+def check_inventory(text: str, n_stories: int, source: str) -> int:
+    """Check an inventory CSV (pelicun's component assignment format); returns its number of rows.
+
+    Every row must name a component of the FEMA P-58 library with a complete fragility and repair
+    consequences, a length/area/count unit pelicun knows, stories within ``1..n_stories + 1``
+    (``roof`` is story ``n + 1``), directions 0, 1 or 2, and a positive quantity. Errors name the
+    file, line and column (component IDs are quoted only when they are plain labels).
+    """
+    from .fema_p58 import UNITS
+
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows:
+        raise InputError("inventory is empty; expected a header ID,Units,Location,Direction,Theta_0", source=source)
+    head = [h.strip() for h in rows[0]]
+    head[0] = head[0] or "ID"
+    need = ["ID", "Units", "Location", "Direction", "Theta_0"]
+    missing = [c for c in need if c not in head]
+    if missing:
+        raise InputError(f"line 1: column(s) {', '.join(missing)} missing; expected the header "
+                         "ID,Units,Location,Direction,Theta_0[,Blocks,Comment] (pelicun's component assignment)",
+                         source=source)
+    col = {c: head.index(c) for c in need}
+    complete, incomplete, conseq = _component_library()
+    count = 0
+    for ln, row in enumerate(rows[1:], start=2):
+        if not any(c.strip() for c in row):
+            continue
+        if len(row) < len(head):
+            row = row + [""] * (len(head) - len(row))
+        cid, unit = row[col["ID"]].strip(), row[col["Units"]].strip()
+        name = f"component {cid!r}" if quotable(cid) else "the component"
+        if cid not in complete:
+            why = ("has an incomplete fragility in the FEMA P-58 library (pelicun would skip it)" if cid in incomplete
+                   else "is not in the FEMA P-58 component library shipped with pelicun (simcenter-dlml)")
+            raise InputError(f"line {ln}: {name} {why}; expected a FEMA P-58 ID such as B.10.35.021", source=source)
+        if cid not in conseq:
+            raise InputError(f"line {ln}: {name} has no repair consequences in the FEMA P-58 library", source=source)
+        if unit not in UNITS:
+            raise InputError(f"line {ln}: column Units: unknown unit; expected one of ea, m, m2, ft, ft2, in, in2",
+                             source=source)
+        loc = row[col["Location"]].replace(" ", "")
+        if not _LOC.fullmatch(loc):
+            raise InputError(f"line {ln}: column Location: expected story numbers (1, 2--4, 1,3), all or roof",
+                             source=source)
+        top = max((int(v) for v in re.findall(r"\d+", loc)), default=0)
+        if top > n_stories + 1:
+            raise InputError(f"line {ln}: column Location: story {top} is above the roof (the building has "
+                             f"{n_stories} stories; roof = {n_stories + 1})", source=source)
+        if not _DIR.fullmatch(row[col["Direction"]].replace(" ", "")) or \
+                any(d not in "012" for d in row[col["Direction"]].replace(" ", "").split(",")):
+            raise InputError(f"line {ln}: column Direction: expected 0 (non-directional), 1, 2 or 1,2", source=source)
+        try:
+            q = float(row[col["Theta_0"]])
+        except ValueError:
+            q = math.nan
+        if not (math.isfinite(q) and q > 0):
+            raise InputError(f"line {ln}: column Theta_0: expected a positive quantity", source=source)
+        count += 1
+    if count == 0:
+        raise InputError("inventory has no component rows", source=source)
+    return count
+
+
+def read_inventory(path: str | os.PathLike, n_stories: int) -> str:
+    """The text of the user's inventory CSV, checked (:func:`check_inventory`)."""
+    from .._inputs import read_text
+
+    text = read_text(path)
+    check_inventory(text, n_stories, str(path))
+    return text
+
+
+__all__ = ["Component", "StructuralSystem", "SYSTEMS", "get_system", "default_inventory", "check_inventory",
+           "read_inventory"]

@@ -1,0 +1,81 @@
+"""What a building's numbers may be, without torch: the bounds of the per-story parameters and
+the damping model. Configs (``hlaid simulate``), clone files and :class:`~hlaid.model.Building`
+are all checked against these declarations (:mod:`hlaid.bounds`), so a bad value is refused
+before any heavy library is imported.
+
+The bounds are wide (every real or laboratory building lies well inside them) but finite: a
+``dy`` of ``1e-300`` mm or a ``k0`` of ``1e300`` N/mm is a typo, not a building.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..bounds import Bounds, bounded, check_bounds
+from ..errors import InputError
+
+STORY_BOUNDS: dict[str, Bounds] = {
+    "mass": Bounds(1e-6, 1e8, unit="t"),
+    "k0": Bounds(1e-6, 1e12, unit="N/mm"),
+    "alpha": Bounds(0.0, 1.0),
+    "p": Bounds(1.0, 50.0),
+    "dy": Bounds(1e-6, 1e5, unit="mm"),
+    "delta_eta": Bounds(0.0, 1e6, unit="s^2/m^2"),
+    "height": Bounds(1.0, 1e6, unit="mm"),
+    "gravity_load": Bounds(0.0, 1e12, unit="N"),
+}
+"""Bounds of the per-story parameters of a building (units N, mm, t, s)."""
+
+WEIGHT_KN = Bounds(1e-5, 1e9, unit="kN")
+"""Bounds of a floor weight or gravity load given in kN (configs)."""
+
+DAMPING_KINDS = ("rayleigh", "stiffness", "mass", "none")
+"""Names of the damping models (their equations: :data:`hlaid.model.structure.DAMPING_KINDS`)."""
+
+
+def check_story_value(name: str, value: float) -> None:
+    """Raise :class:`InputError` if a per-story parameter lies outside :data:`STORY_BOUNDS`."""
+    STORY_BOUNDS[name].check(name, value)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Damping:
+    """Viscous damping of the shear building: ``C = a0 M + a1 K0``.
+
+    Attributes
+    ----------
+    kind : ``"rayleigh"`` (``ratio`` on the two ``modes``), ``"stiffness"`` or ``"mass"``
+        (proportional, ``ratio`` on ``modes[0]``), or ``"none"``.
+    ratio : damping ratio (0.05 is 5 %).
+    modes : the two modes (1-based) that get ``ratio``; none beyond the building's stories
+        (a one-story building keeps the default ``[1, 2]``: its only mode).
+    """
+
+    kind: str = "rayleigh"
+    ratio: float = bounded(0.05, lo=0.0, hi=1.0, hi_open=True)
+    modes: tuple[int, int] = bounded((1, 2), lo=1, hi="STORIES")
+
+    def __post_init__(self):
+        if self.kind not in DAMPING_KINDS:
+            raise InputError(f"damping kind {self.kind!r} is unknown; expected one of {sorted(DAMPING_KINDS)}")
+        try:
+            modes = tuple(int(m) for m in self.modes)
+        except (TypeError, ValueError):
+            raise InputError(f"damping.modes = {self.modes!r}; expected two mode numbers such as [1, 2]") from None
+        if len(modes) != 2:
+            raise InputError(f"damping.modes = {list(modes)}; expected two mode numbers such as [1, 2]")
+        check_bounds(self, prefix="damping.")
+        object.__setattr__(self, "modes", modes)
+
+    def check_modes(self, n_stories: int) -> None:
+        """Refuse a mode beyond the building's ``n_stories`` (a one-story building keeps ``[1, 2]``)."""
+        used = self.modes if self.kind == "rayleigh" else self.modes[:1]
+        if self.kind != "none" and max(used) > max(n_stories, 2):
+            raise InputError(f"damping.modes = {list(self.modes)}: a building of {n_stories} stories has modes "
+                             f"1..{n_stories}")
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, "ratio": self.ratio, "modes": list(self.modes)}
+
+
+__all__ = ["STORY_BOUNDS", "WEIGHT_KN", "DAMPING_KINDS", "Damping", "check_story_value"]

@@ -1,0 +1,159 @@
+"""How fast a bad input is refused: wall time of ``hlaid ...`` exiting on bad configs, clones, files,
+outputs, addresses and environment variables, against ``hlaid --help`` (the peer) in the same run.
+
+Each case is run ``--repeat`` times as a fresh ``python -m hlaid ...`` process (the interpreter that
+runs this script: set ``PYTHONPATH`` to time a source tree) in a scratch folder; the table gives the
+exit status, the median and worst wall time and the ratio of the median to the peer's. The target
+is a refusal in under 0.5 s (``--limit``), i.e. before torch, numba or scipy are imported.
+
+    python scripts/bench_bad_input.py [--repeat 5] [--limit 0.5]
+
+Exit status 1 when a case does not exit with status 2 or a median is above ``--limit``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+STORY = "{weight_kN: 171.85, k0: 1.94e4, alpha: 0.23, p: 2.5, dy: 7.0, delta_eta: 0.7}"
+BOMB = ('a: &a ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]\n'
+        "b: &b [*a,*a,*a,*a,*a,*a,*a,*a,*a]\nc: &c [*b,*b,*b,*b,*b,*b,*b,*b,*b]\n")
+
+
+def _clone(d: Path, name: str, change=None) -> str:
+    from hlaid.clone import Clone
+    from hlaid.model import Building
+    b = Building(mass=[17.5, 17.5, 9.2], k0=[2e4, 1.8e4, 1.5e4], alpha=[0.2] * 3, p=[2.0] * 3, dy=[7.0] * 3,
+                 delta_eta=[0.5] * 3, height=[3000.0] * 3)
+    data = Clone(building=b).to_dict()
+    if change:
+        change(data)
+    (d / name).write_text(json.dumps(data))
+    return name
+
+
+def _lying_npz(path: Path) -> None:
+    with zipfile.ZipFile(path, "w") as z:
+        for name, shape in (("dt", ()), ("ground_acc", (10**10,)), ("floor_acc", (50, 10**9))):
+            head = io.BytesIO()
+            np.lib.format.write_array_header_1_0(head, {"descr": "<f8", "fortran_order": False, "shape": shape})
+            z.writestr(name + ".npy", head.getvalue() + (b"\0" * 8 if shape == () else b""))
+
+
+def cases(d: Path) -> list[tuple[str, list[str], dict]]:
+    """``(label, hlaid arguments, extra environment)`` of every bad input, files made in ``d``."""
+    def w(name: str, text: str) -> str:
+        (d / name).write_text(text)
+        return name
+
+    sim = f"building:\n  stories:\n    - {STORY}\nmotion: {{file: 'builtin:elcentro-1940-ns'}}\n"
+    os.mkfifo(d / "fifo.yaml")
+    _lying_npz(d / "tiny.npz")
+    (d / "meas.npz").write_bytes(b"not really a measurement")
+    (d / "v").mkdir()
+    (d / "v" / "meas.npz").write_bytes(b"an input")
+    (d / "v" / "thesis.txt").write_text("four years")
+    run = d / "run"
+    (run / "figures").mkdir(parents=True)
+    os.mkfifo(run / "summary.json")
+    zero = d / "run0"
+    zero.mkdir()
+    (zero / "summary.json").symlink_to("/dev/zero")
+    sparse = d / "run3g"
+    sparse.mkdir()
+    with open(sparse / "summary.json", "wb") as fh:
+        fh.truncate(3 * 2**30)
+    good = _clone(d, "clone.json")
+    return [
+        ("simulate: unknown key", ["simulate", w("k.yaml", sim + "colour: red\n"), "-o", "o.npz"], {}),
+        ("simulate: rate_hz 0.001", ["simulate", w("r.yaml", sim + "measurement: {rate_hz: 0.001}\n"), "-o", "o.npz"],
+         {}),
+        ("simulate: dy 1e-300", ["simulate", w("dy.yaml", sim.replace("dy: 7.0", "dy: 1.0e-300")), "-o", "o.npz"], {}),
+        ("simulate: YAML alias bomb", ["simulate", w("bomb.yaml", BOMB), "-o", "o.npz"], {}),
+        ("simulate: -o its own config --force", ["simulate", "k.yaml", "-o", "k.yaml", "--force"], {}),
+        ("hla: --config /dev/zero", ["hla", "meas.npz", "-o", "h", "--config", "/dev/zero"], {}),
+        ("hla: --config FIFO", ["hla", "meas.npz", "-o", "h", "--config", "fifo.yaml"], {}),
+        ("hla: config order 99", ["hla", "meas.npz", "-o", "h", "--config", w("o.yaml", "preprocess: {order: 99}\n")],
+         {}),
+        ("hla: NPZ claiming 10^10 samples", ["hla", "tiny.npz", "-o", "h"], {}),
+        ("hla: measurement not found", ["hla", "missing.npz", "-o", "h"], {}),
+        ("hla: -o v --force (v not hlaid's)", ["hla", "v/meas.npz", "-o", "v", "--force"], {}),
+        ("hla: output name of 300 bytes", ["hla", "meas.npz", "-o", "n" * 300], {}),
+        ("hla: escapes in the file name", ["hla", "\x1b]0;x\x07\x1b[2J.npz", "-o", "h"], {}),
+        ("hla: HLAID_MAX_FILE_MB=inf", ["hla", "meas.npz", "-o", "h"], {"HLAID_MAX_FILE_MB": "inf"}),
+        ("identify: -o the measurement --force", ["identify", "meas.npz", "-o", "meas.npz", "--force"], {}),
+        ("ida: clone '[' x 100000", ["ida", w("deep.json", "[" * 100_000), "-o", "i"], {}),
+        ("ida: clone 5000-digit integer",
+         ["ida", w("big.json", '{"format": "hlaid-clone", "version": ' + "9" * 5000 + "}"), "-o", "i"], {}),
+        ("ida: config levels [.., 1e308]", ["ida", good, "-o", "i", "--config", w("l.yaml", "levels: [0.1, 1e308]\n")],
+         {}),
+        ("ida: --levels 0:1e9:1e-3", ["ida", good, "-o", "i", "--levels", "0:1e9:1e-3"], {}),
+        ("export-opensees: clone dy 1e-300",
+         ["export-opensees", _clone(d, "dy.json", lambda c: c["stories"][0].update(dy=1e-300)), "-o", "m.py"], {}),
+        ("export-opensees: damping modes [1, 99]",
+         ["export-opensees", _clone(d, "modes.json", lambda c: c["damping"].update(modes=[1, 99])), "-o", "m.py"], {}),
+        ("report: summary.json a FIFO", ["report", "run"], {}),
+        ("report: summary.json -> /dev/zero", ["report", "run0"], {}),
+        ("report: summary.json sparse 3 GB", ["report", "run3g"], {}),
+        ("fleet: --scheduler garbage", ["fleet", "f.yaml", "-o", "f", "--scheduler", "garbage"], {}),
+        ("identify: config bins.p_fine 1e-12",
+         ["identify", "meas.npz", "-o", "c.json", "--config", w("id.yaml", "bins: {p_fine: 1.0e-12}\n")], {}),
+        ("run: config with an unknown key", ["run", w("run.yaml", "measurement: {file: m.npz}\ncolour: red\n"), "-o",
+                                             "r"], {}),
+        ("fleet: n_ensemble 1e9", ["fleet", w("f.yaml", "records: builtin-suite\nn_ensemble: 1000000000\nbuildings:\n"
+                                               "  - {name: B1, measurements: {ev1: {file: b.npz}}}\n"), "-o", "f"],
+         {}),
+    ]
+
+
+def run(argv: list[str], cwd: Path, env: dict, repeat: int) -> tuple[int, list[float], str]:
+    times, rc, err = [], 0, ""
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        p = subprocess.run(argv, cwd=cwd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                           timeout=600)
+        times.append(time.perf_counter() - t0)
+        rc, err = p.returncode, p.stderr.strip()
+    return rc, times, err
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=5, help="runs per case (default 5)")
+    ap.add_argument("--limit", type=float, default=0.5, help="largest acceptable median [s] (default 0.5)")
+    a = ap.parse_args(argv)
+    py = [sys.executable, "-m", "hlaid"]
+    base_env = {k: v for k, v in os.environ.items() if not k.startswith("HLAID_MAX_")}
+    with tempfile.TemporaryDirectory(prefix="hlaid-bad-") as tmp:
+        d = Path(tmp)
+        todo = cases(d)
+        _, peer_times, _ = run([*py, "--help"], d, base_env, a.repeat)
+        peer = statistics.median(peer_times)
+        print(f"{'case':44s} {'exit':>4s} {'median [s]':>10s} {'worst [s]':>9s} {'x --help':>8s}")
+        print(f"{'hlaid --help (peer, exit 0)':44s} {0:4d} {peer:10.3f} {max(peer_times):9.3f} {1:8.1f}")
+        bad = []
+        for label, args, env in todo:
+            rc, times, err = run([*py, *args], d, {**base_env, **env}, a.repeat)
+            med = statistics.median(times)
+            print(f"{label:44s} {rc:4d} {med:10.3f} {max(times):9.3f} {med / peer:8.1f}")
+            if rc != 2 or len(err.splitlines()) != 1 or med > a.limit:
+                bad.append(f"{label}: exit {rc}, {med:.3f} s, stderr {err[:160]!r}")
+    print(f"{len(todo)} cases held to {a.limit:g} s; "
+          + ("all exit 2 with one line, under the limit" if not bad else "problems:\n  " + "\n  ".join(bad)))
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

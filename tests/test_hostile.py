@@ -1,0 +1,594 @@
+"""Hostile and careless input: every case is refused with exit status 2 (130/143 for signals) and
+one line on stderr, within a deadline (nothing hangs or allocates gigabytes), and nothing outside
+the output is touched (the folder tree is hashed before and after).
+
+Covered: ``--force`` never replaces what hlaid did not write nor an input of the run; every file is
+read as a regular file within its size limit; NPZ headers are checked before allocation; config
+values, clone fields and ``HLAID_MAX_*`` are bounded (the generated sweep over every field is in
+``tests/test_bounds.py``); scheduler addresses; JSON depth and huge integers; long output names;
+SIGTERM; terminal escape sequences in names; a full disk; refusals before heavy imports.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import hashlib
+import io
+import json
+import os
+import signal
+import socket
+import stat
+import subprocess
+import sys
+import threading
+import time
+import zipfile
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from hlaid._fileio import MARKER, atomic_directory, is_hlaid_output, write_json
+from hlaid.cli import main
+from hlaid.clone import Clone
+from hlaid.errors import HlaidWarning
+
+REPO = Path(__file__).resolve().parents[1]
+HEIGHTS = [3000.0, 3000.0, 3000.0]
+HEAVY = ("torch", "numba", "scipy")
+POSIX = pytest.mark.skipif(os.name != "posix", reason="FIFOs, devices and signals of POSIX")
+
+
+class Hang(Exception):
+    """A case did not finish within its deadline."""
+
+
+@contextlib.contextmanager
+def deadline(seconds: float):
+    """Fail (instead of hanging the test run) when the block takes longer than ``seconds``."""
+    def expired(signum, frame):
+        raise Hang(f"still running after {seconds} s")
+    old = signal.signal(signal.SIGALRM, expired)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def tree(root: Path, skip: tuple[Path, ...] = ()) -> dict[str, str]:
+    """Every entry under ``root`` (not following links) with its content hash, link target or kind."""
+    out = {}
+    for dirpath, dirnames, filenames in os.walk(root):
+        for name in dirnames + filenames:
+            p = Path(dirpath) / name
+            if any(p == s or s in p.parents for s in skip):
+                continue
+            st = p.lstat()
+            rel = str(p.relative_to(root))
+            if stat.S_ISLNK(st.st_mode):
+                out[rel] = "link:" + os.readlink(p)
+            elif stat.S_ISREG(st.st_mode) and st.st_size > 2**24:  # a sparse giant: its size and time
+                out[rel] = f"size:{st.st_size}:{st.st_mtime_ns}"
+            elif stat.S_ISREG(st.st_mode):
+                out[rel] = hashlib.sha256(p.read_bytes()).hexdigest()
+            else:
+                out[rel] = f"mode:{stat.S_IFMT(st.st_mode)}"
+    return out
+
+
+def refused(capsys, argv, expect, *, root: Path, within: float = 120.0, code: int = 2) -> str:
+    """``hlaid ARGV`` exits with ``code`` and one line naming one of ``expect``, no traceback, within
+    ``within`` seconds (a guard against hangs: a command may import torch first when it legitimately
+    needs it, which takes seconds on a loaded machine), and changes nothing under ``root``. Returns
+    the line."""
+    before = tree(root)
+    with deadline(within):
+        rc = main([str(a) for a in argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == code, (argv, err)
+    assert len(err) == 1, err
+    assert "Traceback" not in err[0] and "internal error" not in err[0], err
+    assert any(e in err[0] for e in expect), err[0]
+    assert tree(root) == before, f"files changed by {argv}"
+    return err[0]
+
+
+@pytest.fixture()
+def clone_file(table1, tmp_path) -> Path:
+    return Clone(building=table1.replace(height=HEIGHTS)).save(tmp_path / "clone.json")
+
+
+def _clone_dict(table1) -> dict:
+    return Clone(building=table1.replace(height=HEIGHTS)).to_dict()
+
+
+def _fleet_yaml(folder: Path) -> Path:
+    cfg = folder / "fleet.yaml"
+    cfg.write_text("records: builtin:elcentro-1940-ns\nbuildings:\n  - name: B1\n"
+                   "    measurements: {ev1: {file: b1.npz}}\n")
+    return cfg
+
+
+# ----------------------------------------------------------------------------- --force
+def test_force_never_replaces_a_folder_hlaid_did_not_write(tmp_path, capsys, clone_file, monkeypatch):
+    v = tmp_path / "v"
+    v.mkdir()
+    (v / "meas.npz").write_bytes(b"a measurement")
+    (v / "thesis.txt").write_text("four years")
+    other = tmp_path / "other.npz"
+    other.write_bytes(b"a measurement")
+    fleet = _fleet_yaml(tmp_path)
+    not_ours = ["not an output folder of hlaid", "an input of this run"]
+    refused(capsys, ["hla", v / "meas.npz", "-o", v, "--force"], not_ours, root=tmp_path)
+    refused(capsys, ["hla", other, "-o", v, "--force"], ["not an output folder of hlaid"], root=tmp_path)
+    refused(capsys, ["ida", clone_file, "-o", v, "--force"], ["not an output folder of hlaid"], root=tmp_path)
+    refused(capsys, ["demo", "--out", v, "--force"], ["not an output folder of hlaid"], root=tmp_path)
+    refused(capsys, ["run", fleet, "-o", v, "--force"], ["not an output folder of hlaid"], root=tmp_path)
+    refused(capsys, ["fleet", fleet, "-o", v, "--force"], ["not an hlaid fleet output"], root=tmp_path)
+    # the current folder, however it is named
+    monkeypatch.chdir(v)
+    for out in (".", "../v", str(v)):
+        refused(capsys, ["ida", clone_file, "-o", out, "--force"], ["current folder", "not an output folder"],
+                root=tmp_path)
+
+
+def test_force_never_replaces_an_input_even_in_an_hlaid_output(tmp_path, capsys, clone_file):
+    out = tmp_path / "out"
+    with atomic_directory(out) as tmp:
+        (tmp / "meas.npz").write_bytes(b"a measurement")
+        (tmp / "run.yaml").write_text("measurement: {file: meas.npz}\n")
+    assert is_hlaid_output(out)
+    refused(capsys, ["hla", out / "meas.npz", "-o", out, "--force"], ["an input of this run"], root=tmp_path)
+    refused(capsys, ["run", out / "run.yaml", "-o", out, "--force"], ["an input of this run"], root=tmp_path)
+    refused(capsys, ["ida", clone_file, "--records", out / "meas.npz", "-o", out, "--force"],
+            ["an input of this run"], root=tmp_path)
+    refused(capsys, ["demo", "--out", out, "--cache", out / "cache", "--force"], ["an input of this run"],
+            root=tmp_path)
+
+
+def test_file_outputs_never_overwrite_an_input(tmp_path, capsys, clone_file):
+    meas = tmp_path / "meas.npz"
+    meas.write_bytes(b"a measurement")
+    (tmp_path / "alias.npz").symlink_to(meas)
+    os.link(meas, tmp_path / "hardlink.npz")
+    cfg = tmp_path / "sim.yaml"
+    cfg.write_text("building: {stories: [{mass_t: 1, k0: 1, alpha: 0.1, p: 2, dy: 1, delta_eta: 0}]}\n"
+                   "motion: {file: 'builtin:elcentro-1940-ns'}\n")
+    for out in (meas, tmp_path / "alias.npz", tmp_path / "hardlink.npz"):
+        refused(capsys, ["identify", meas, "-o", out, "--force"], ["is an input of this run"], root=tmp_path)
+    refused(capsys, ["export-opensees", clone_file, "-o", clone_file, "--force"], ["is an input of this run"],
+            root=tmp_path)
+    refused(capsys, ["simulate", cfg, "-o", cfg, "--force"], ["is an input of this run"], root=tmp_path)
+    refused(capsys, ["identify", meas, "-o", cfg, "--config", cfg, "--force"], ["is an input of this run"],
+            root=tmp_path)
+
+
+def test_force_replaces_an_hlaid_output_or_an_empty_folder(tmp_path):
+    out = tmp_path / "out"
+    with atomic_directory(out, what="hlaid test") as tmp:
+        (tmp / "a.json").write_text("{}")
+    marker = json.loads((out / MARKER).read_text())
+    assert marker["format"] == "hlaid-output" and marker["command"] == "hlaid test"
+    with atomic_directory(out, force=True) as tmp:
+        (tmp / "b.json").write_text("{}")
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "b.json"]
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with atomic_directory(empty, force=True) as tmp:
+        (tmp / "c.json").write_text("{}")
+    assert (empty / "c.json").exists()
+    # a symlink in the output's place: replaced by the folder, its target left alone, nothing left over
+    target = tmp_path / "target"
+    with atomic_directory(target) as tmp:
+        (tmp / "old.json").write_text("{}")
+    (tmp_path / "link").symlink_to(target)
+    before = tree(target)
+    with atomic_directory(tmp_path / "link", force=True) as tmp:
+        (tmp / "new.json").write_text("{}")
+    assert (tmp_path / "link").is_dir() and not (tmp_path / "link").is_symlink()
+    assert tree(target) == before
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+# ----------------------------------------------------------------------------- regular files, sizes
+@POSIX
+@pytest.mark.parametrize("kind", ["fifo", "dev-zero", "sparse-3GB", "folder"])
+def test_report_reads_summary_only_as_a_regular_file(tmp_path, capsys, kind):
+    run = tmp_path / "run"
+    run.mkdir()
+    s = run / "summary.json"
+    if kind == "fifo":
+        os.mkfifo(s)
+    elif kind == "dev-zero":
+        s.symlink_to("/dev/zero")
+    elif kind == "sparse-3GB":
+        with open(s, "wb") as fh:
+            fh.truncate(3 * 2**30)
+    else:
+        s.mkdir()
+    expect = {"fifo": "FIFO", "dev-zero": "character device", "sparse-3GB": "over the limit of 512 MiB",
+              "folder": "is a folder"}[kind]
+    refused(capsys, ["report", run], [expect], root=tmp_path, within=30)
+
+
+@POSIX
+@pytest.mark.parametrize("argv", [["hla", "m.npz", "-o", "out", "--config", "{bad}"],
+                                  ["ida", "c.json", "-o", "out", "--config", "{bad}"],
+                                  ["simulate", "{bad}", "-o", "out.npz"],
+                                  ["export-opensees", "{bad}", "-o", "m.py"],
+                                  ["hla", "{bad}", "-o", "out"]])
+def test_devices_and_fifos_as_inputs(tmp_path, capsys, argv, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    os.mkfifo(tmp_path / "fifo")
+    for bad, expect in (("/dev/zero", "is a character device; expected a regular file"), ("fifo", "is a FIFO")):
+        refused(capsys, [a.format(bad=bad) for a in argv], [expect], root=tmp_path, within=30)
+
+
+@pytest.fixture(scope="module")
+def machine():
+    from hlaid.svm import KernelSVC
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(30, 2))
+    return KernelSVC().fit(X, (X[:, 0] > 0).astype(int))
+
+
+@POSIX
+@pytest.mark.parametrize("name", ["a.svm", "meta.json"])
+@pytest.mark.parametrize("kind", ["fifo", "dev-zero", "folder"])
+def test_cache_entry_replaced_by_a_special_file_is_retrained(tmp_path, machine, name, kind):
+    """A FIFO or /dev/zero in a cache entry must not hang or fill memory; a folder in place of a
+    file must not make every later store fail: the entry is reported, retrained and stored again."""
+    from hlaid.identify.cache import MachineCache
+    c = MachineCache(tmp_path)
+    c.store("k1", {"a": machine}, {"stats": {}})
+    p = tmp_path / "k1" / name
+    p.unlink()
+    if kind == "fifo":
+        os.mkfifo(p)
+    elif kind == "dev-zero":
+        p.symlink_to("/dev/zero")
+    else:
+        p.mkdir()
+        (p / "x").write_text("x")
+    with deadline(10), pytest.warns(HlaidWarning, match="failed its integrity check .*; retraining"):
+        assert c.load("k1") is None
+    c.store("k1", {"a": machine}, {"stats": {}})  # the retrained machines replace the entry
+    machines, _ = c.load("k1")
+    assert machines["a"].predict([[1.0, 0.0]]).tolist() == [1]
+
+
+# ----------------------------------------------------------------------------- NPZ headers
+def _lying_npz(path: Path, **shapes) -> Path:
+    """An NPZ whose members' headers claim ``shapes``: those of more than 10^6 values hold no data."""
+    with zipfile.ZipFile(path, "w") as z:
+        for name, shape in shapes.items():
+            head = io.BytesIO()
+            np.lib.format.write_array_header_1_0(head, {"descr": "<f8", "fortran_order": False, "shape": shape})
+            n = int(np.prod(shape, dtype=np.float64))
+            z.writestr(name + ".npy", head.getvalue() + (b"\0" * 8 * n if n <= 10**6 else b""))
+    return path
+
+
+@pytest.mark.parametrize("shapes, array", [({"dt": (), "ground_acc": (10**10,), "floor_acc": (10, 1)}, "ground_acc"),
+                                           ({"dt": (), "ground_acc": (10,), "floor_acc": (50, 10**9)}, "floor_acc")])
+def test_npz_headers_are_checked_before_allocation(tmp_path, capsys, shapes, array):
+    bad = _lying_npz(tmp_path / "tiny.npz", **shapes)
+    assert bad.stat().st_size < 2000
+    for argv in (["hla", bad, "-o", tmp_path / "h"], ["identify", bad, "-o", tmp_path / "c.json"]):
+        line = refused(capsys, argv, ["its header claims shape"], root=tmp_path)
+        assert array in line
+
+
+# ----------------------------------------------------------------------------- values out of bounds
+def test_config_and_clone_values_out_of_bounds(tmp_path, capsys, table1, monkeypatch):
+    sim = tmp_path / "sim.yaml"
+    sim.write_text("building: {stories: [{mass_t: 1, k0: 1, alpha: 0.1, p: 2, dy: 1, delta_eta: 0}]}\n"
+                   "motion: {file: 'builtin:elcentro-1940-ns'}\nmeasurement: {rate_hz: 0.001}\n")
+    refused(capsys, ["simulate", sim, "-o", tmp_path / "m.npz"], ["measurement.rate_hz = 0.001"], root=tmp_path)
+    ida = tmp_path / "ida.yaml"
+    ida.write_text("records: builtin:elcentro-1940-ns\nlevels: [0.1, 0.2, 1e308]\n")
+    refused(capsys, ["ida", "c.json", "--config", ida, "-o", tmp_path / "i"], ["levels[2] = 1e+308"], root=tmp_path)
+    refused(capsys, ["ida", "c.json", "--levels", "0.1,0.2,1e308", "-o", tmp_path / "i"], ["levels[2] = 1e+308"],
+            root=tmp_path)
+    fleet = _fleet_yaml(tmp_path)
+    fleet.write_text(fleet.read_text() + "n_ensemble: 1000000000\n")
+    refused(capsys, ["fleet", fleet, "-o", tmp_path / "f"], ["n_ensemble = 1000000000"], root=tmp_path)
+    for change, expect in ((lambda d: d["stories"][0].update(dy=1e-300), "dy = 1e-300"),
+                           (lambda d: d["damping"].update(modes=[1, 99]), "damping.modes"),
+                           (lambda d: d["stories"][1].update(k0="HUGE"), "stories[1].k0"),
+                           (lambda d: d["damping"].update(ratio=float("nan")), "damping.ratio")):
+        d = _clone_dict(table1)
+        change(d)
+        bad = tmp_path / "bad.json"
+        bad.write_text(json.dumps(d).replace('"HUGE"', "9" * 5000))
+        refused(capsys, ["export-opensees", bad, "-o", tmp_path / "m.py"], [expect], root=tmp_path)
+    monkeypatch.setenv("HLAID_MAX_FILE_MB", "inf")
+    refused(capsys, ["hla", "m.npz", "-o", tmp_path / "h"], ["HLAID_MAX_FILE_MB = 'inf'"], root=tmp_path)
+
+
+@pytest.mark.parametrize("block, field", [("bins: {p_fine: 1.0e-12}", "p_fine"),
+                                          ("bins: {p_range: [1, 1.0e+300]}", "p_range"),
+                                          ("training: {n_segments: 1000000}", "n_segments")])
+def test_identify_config_values_out_of_bounds(tmp_path, capsys, block, field):
+    cfg = tmp_path / "identify.yaml"
+    cfg.write_text(block + "\n")
+    refused(capsys, ["identify", "m.npz", "--config", cfg, "-o", tmp_path / "c.json"], [field], root=tmp_path)
+
+
+# ----------------------------------------------------------------------------- scheduler
+@pytest.mark.parametrize("address", ["garbage", "tcp://[::1", "http://", "file://", "inproc://x", "tcp://host:0"])
+def test_scheduler_addresses_are_checked_first(tmp_path, capsys, address):
+    refused(capsys, ["fleet", "missing.yaml", "-o", tmp_path / "f", "--scheduler", address], ["--scheduler"],
+            root=tmp_path, within=30)
+
+
+def _server(reply: bytes | None) -> tuple[socket.socket, int]:
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen()
+
+    def serve():
+        with contextlib.suppress(OSError):
+            while True:
+                conn, _ = srv.accept()
+                if reply is not None:
+                    conn.sendall(reply)
+                time.sleep(2)
+                conn.close()
+    threading.Thread(target=serve, daemon=True).start()
+    return srv, srv.getsockname()[1]
+
+
+@pytest.mark.parametrize("reply, expect", [(b"SSH-2.0-OpenSSH_9.6\r\n", "not a dask scheduler"),
+                                           (b"HTTP/1.1 400 Bad Request\r\n\r\n", "not a dask scheduler"),
+                                           (None, "sent nothing within 1 s")])
+def test_a_server_that_is_no_scheduler_is_refused_before_any_allocation(tmp_path, capsys, monkeypatch, reply, expect):
+    import hlaid.fleet.address as address
+    monkeypatch.setattr(address, "CONNECT_TIMEOUT_S", 1.0)
+    srv, port = _server(reply)
+    with srv:
+        refused(capsys, ["fleet", _fleet_yaml(tmp_path), "-o", tmp_path / "f", "--scheduler",
+                         f"tcp://127.0.0.1:{port}"], [expect], root=tmp_path)
+    with socket.socket() as unused:  # a port nothing listens on
+        unused.bind(("127.0.0.1", 0))
+        port = unused.getsockname()[1]
+    refused(capsys, ["fleet", _fleet_yaml(tmp_path), "-o", tmp_path / "f", "--scheduler", f"127.0.0.1:{port}"],
+            ["cannot connect"], root=tmp_path)
+
+
+# ----------------------------------------------------------------------------- JSON depth, huge integers
+@pytest.mark.parametrize("text, expect", [("[" * 100_000, "nested more than 64 levels"),
+                                          ('{"format": "hlaid-clone", "version": ' + "9" * 5000 + "}", "version"),
+                                          ('{"a": ' * 70 + "1" + "}" * 70, "nested more than 64 levels")])
+def test_json_depth_and_huge_integers(tmp_path, capsys, text, expect):
+    bad = tmp_path / "bad.json"
+    bad.write_text(text)
+    refused(capsys, ["export-opensees", bad, "-o", tmp_path / "m.py"], [expect], root=tmp_path)
+    refused(capsys, ["ida", bad, "--records", "builtin-suite", "-o", tmp_path / "i"], [expect], root=tmp_path)
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "summary.json").write_text(text)
+    refused(capsys, ["report", run], [expect, "not an hlaid run"], root=tmp_path)
+
+
+def test_a_bad_fleet_unit_file_does_not_stop_a_resume(tmp_path):
+    from hlaid.fleet.engine import result_path, stored_result
+    job = SimpleNamespace(unit="B1@ev1")
+    p = result_path(tmp_path, job)
+    p.parent.mkdir()
+    for text in ("[" * 100_000, '{"status": ' + "9" * 5000 + "}"):
+        p.write_text(text)
+        with deadline(10), warnings_as_list() as seen:
+            d = stored_result(tmp_path, job)
+        assert d is None or d.get("status") != "ok"
+        assert all("\n" not in w for w in seen)
+    os.unlink(p)
+    os.mkfifo(p)
+    with deadline(10), pytest.warns(HlaidWarning, match="FIFO"):
+        assert stored_result(tmp_path, job) is None
+
+
+@contextlib.contextmanager
+def warnings_as_list():
+    import warnings
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        seen: list[str] = []
+        yield seen
+        seen += [str(w.message) for w in caught]
+
+
+# ----------------------------------------------------------------------------- long names
+@pytest.mark.parametrize("size", [236, 245, 253, 255])
+def test_long_legal_output_names(tmp_path, size):
+    name = "x" * (size - 5) + ".json"
+    write_json(tmp_path / name, {"a": 1})
+    with atomic_directory(tmp_path / ("d" * size)) as tmp:
+        write_json(tmp / "r.json", {})
+    assert sorted(len(p.name) for p in tmp_path.iterdir()) == [size, size]
+
+
+def test_a_name_too_long_is_refused_before_the_work(tmp_path, capsys, clone_file):
+    long = "n" * 300
+    refused(capsys, ["export-opensees", clone_file, "-o", tmp_path / (long + ".py")], ["bytes long"], root=tmp_path)
+    refused(capsys, ["ida", clone_file, "-o", tmp_path / long], ["bytes long"], root=tmp_path)
+
+
+def test_export_with_a_long_name_writes(tmp_path, capsys, clone_file):
+    out = tmp_path / ("m" * 250 + ".py")
+    assert main(["export-opensees", str(clone_file), "-o", str(out), "-q"]) == 0
+    assert out.is_file() and [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+# ----------------------------------------------------------------------------- escapes in messages
+def test_terminal_escapes_in_names_are_escaped(tmp_path, capsys):
+    hostile = "\x1b]0;pwned\x07\x1b[2J\u202e.npz"
+    for argv in (["hla", str(tmp_path / hostile), "-o", str(tmp_path / "o")],
+                 ["report", str(tmp_path / hostile)],
+                 ["identify", str(tmp_path / "m.npz"), "-o", str(tmp_path / hostile / "c.json")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "\\x1b]0;pwned\\x07\\x1b[2J\\u202e" in err
+        assert not any(c in err for c in "\x1b\x07\u202e")
+    with pytest.raises(SystemExit):
+        main(["\x1b[2J"])
+    err = capsys.readouterr().err
+    assert "\x1b" not in err and "\\x1b[2J" in err
+
+
+def test_progress_and_warning_lines_are_escaped(capsys):
+    from hlaid import _progress
+    _progress.set_verbosity(1)
+    with _progress.cli_warnings():
+        _progress.info("wrote \x1b[2Jout/")
+        _progress.warn("file \x07 name")
+    err = capsys.readouterr().err
+    assert "\x1b" not in err and "\x07" not in err and "\\x1b[2J" in err and "\\x07" in err
+
+
+# ----------------------------------------------------------------------------- full disk
+def test_a_full_quota_is_said_so(tmp_path, capsys, monkeypatch, table1):
+    """EDQUOT (and ENOSPC) while an output is written: one line, nothing partial left."""
+    run = tmp_path / "run"
+    run.mkdir()
+    clone = Clone(building=table1.replace(height=HEIGHTS)).save(tmp_path / "clone.json")
+
+    def full(self, *a, **k):
+        raise OSError(errno.EDQUOT, "Disk quota exceeded")
+    monkeypatch.setattr(Path, "write_text", full)
+    line = refused(capsys, ["export-opensees", clone, "-o", tmp_path / "m.py"], ["disk quota exceeded"],
+                   root=tmp_path)
+    assert "m.py" in line
+
+
+def _unshare_works() -> bool:
+    if sys.platform != "linux":
+        return False
+    try:
+        r = subprocess.run(["unshare", "-rm", "true"], capture_output=True, timeout=20)
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+    return r.returncode == 0
+
+
+@pytest.mark.skipif(not _unshare_works(), reason="needs a private mount namespace (unshare -rm) for a full tmpfs")
+def test_a_full_disk_is_said_so(tmp_path):
+    """A real ENOSPC: a 1 MiB tmpfs filled up, then ``hlaid report`` writes its report.html there."""
+    from test_bad_input import _run_folder
+    src = _run_folder(tmp_path / "run")
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    script = (f"mount -t tmpfs -o size=1m tmpfs {disk} && cp -r {src} {disk}/run && "
+              f"(dd if=/dev/zero of={disk}/filler bs=4k 2>/dev/null; true) && "
+              f"{sys.executable} -m hlaid report {disk}/run; echo \"rc=$?\"; ls -a {disk}/run; "
+              f"sha256sum {disk}/run/summary.json")
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    r = subprocess.run(["unshare", "-rm", "sh", "-c", script], capture_output=True, text=True, timeout=300, env=env)
+    err = r.stderr.strip().splitlines()
+    assert "rc=2" in r.stdout, (r.stdout, r.stderr)
+    assert len(err) == 1 and "no space left on the device" in err[0] and "report.html" in err[0], err
+    listing = r.stdout.split()
+    assert "report.html" not in listing and not [n for n in listing if n.startswith(".report.html")]
+    assert hashlib.sha256((src / "summary.json").read_bytes()).hexdigest() in r.stdout
+
+
+# ----------------------------------------------------------------------------- SIGTERM
+@pytest.mark.skipif(sys.platform != "linux", reason="process groups and /proc are Linux-specific here")
+def test_sigterm_during_identify_workers(tmp_path):
+    """``kill PID`` (SIGTERM to the command only) while the worker pool trains: exit 143, one
+    line, no traceback of an orphaned worker, no process left, no output."""
+    from test_interrupt import _interrupt, _leftovers
+
+    from hlaid.synthetic import load_simulation_config, measurement_from_config
+    cfg = load_simulation_config(REPO / "configs" / "poc_3story.yaml")
+    measurement_from_config(cfg, base_dir=REPO / "configs").save(tmp_path / "meas.npz")
+    (tmp_path / "out").mkdir()
+    rc, elapsed, lines = _interrupt(["identify", "meas.npz", "-o", "out/c.json", "--no-cache", "--tensorboard", "tb"],
+                                    tmp_path, after="path-driven training sets", workers=2, delay=1.0,
+                                    signum=signal.SIGTERM, group=False)
+    assert rc == 143 and elapsed < 10
+    assert lines[-1] == "hlaid identify: terminated"
+    assert not any(w in ln for ln in lines for w in ("Traceback", "BrokenPipe", "Error")), lines
+    assert _leftovers(tmp_path / "out", "c.json") == [] and not (tmp_path / "tb").exists()
+
+
+def test_interrupted_identify_removes_its_tensorboard_folder(tmp_path, capsys, monkeypatch):
+    import hlaid.cli.identify as cli
+    import hlaid.io
+
+    class Interrupted:
+        def __init__(self, tensorboard=None, **kw):
+            self.tb = tensorboard
+
+        def fit(self, meas):
+            Path(self.tb).mkdir()
+            (Path(self.tb) / "events.out").write_text("x")
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(hlaid.io, "read", lambda *a, **k: object())
+    monkeypatch.setattr(cli, "check_identify_bands", lambda *a: None)
+    monkeypatch.setattr(sys.modules["hlaid.identify"], "HLASVMIdentifier", Interrupted)
+    (tmp_path / "runs").mkdir()
+    (tmp_path / "m.npz").write_bytes(b"read by the stand-in reader")
+    rc = main(["identify", str(tmp_path / "m.npz"), "-o", str(tmp_path / "c.json"), "--tensorboard",
+               str(tmp_path / "runs" / "id1")])
+    assert rc == 130 and capsys.readouterr().err.strip().endswith("interrupted")
+    assert list((tmp_path / "runs").iterdir()) == [] and not (tmp_path / "c.json").exists()
+
+
+# ----------------------------------------------------------------------------- before heavy imports
+PROBE = """
+import contextlib, io, json, sys
+from hlaid.cli.main import main
+rows = []
+for argv in json.loads(sys.argv[1]):
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        rc = main(argv)
+    rows.append([argv[0], rc, sorted(m for m in {heavy!r} if m in sys.modules), err.getvalue().strip()])
+print(json.dumps(rows))
+"""
+
+
+def test_bad_inputs_are_refused_before_heavy_imports(tmp_path, table1):
+    """Configs, clones, measurements' NPZ headers, outputs, environment: each refused (exit 2)
+    in a fresh interpreter that has not imported torch, numba or scipy by then."""
+    (tmp_path / "h.yaml").write_text("stiffness: {k_window: 1000000000}\n")
+    (tmp_path / "i.yaml").write_text("levels: [0.1, 1e308]\n")
+    (tmp_path / "id.yaml").write_text("bins: {p_fine: 1.0e-12}\n")
+    (tmp_path / "r.yaml").write_text("measurement: {file: m.npz}\nidentify: {training: {n_segments: 1000000}}\n")
+    (tmp_path / "fl.yaml").write_text("records: builtin-suite\nidentify: {svm: {n_bags: 0}}\nbuildings:\n"
+                                      "  - {name: B1, measurements: {ev1: {file: b.npz}}}\n")
+    (tmp_path / "s.yaml").write_text("building: {stories: [{mass_t: 1, k0: 1, alpha: 0.1, p: 2, dy: 1.0e-300, "
+                                     "delta_eta: 0}]}\nmotion: {file: 'builtin:elcentro-1940-ns'}\n")
+    d = _clone_dict(table1)
+    d["stories"][0]["dy"] = 1e-300
+    (tmp_path / "c.json").write_text(json.dumps(d))
+    _lying_npz(tmp_path / "tiny.npz", dt=(), ground_acc=(10**10,), floor_acc=(10, 1))
+    (tmp_path / "taken").mkdir()
+    (tmp_path / "taken" / "keep.txt").write_text("x")
+    t = str(tmp_path)
+    cases = [["hla", f"{t}/tiny.npz", "-o", f"{t}/o", "--config", f"{t}/h.yaml"],
+             ["ida", f"{t}/c.json", "-o", f"{t}/o", "--config", f"{t}/i.yaml"],
+             ["identify", f"{t}/tiny.npz", "-o", f"{t}/c2.json", "--config", f"{t}/id.yaml"],
+             ["run", f"{t}/r.yaml", "-o", f"{t}/o"],
+             ["fleet", f"{t}/fl.yaml", "-o", f"{t}/o"],
+             ["ida", f"{t}/c.json", "-o", f"{t}/o"],
+             ["export-opensees", f"{t}/c.json", "-o", f"{t}/m.py"],
+             ["simulate", f"{t}/s.yaml", "-o", f"{t}/m.npz"],
+             ["hla", f"{t}/tiny.npz", "-o", f"{t}/o"],
+             ["hla", f"{t}/tiny.npz", "-o", f"{t}/taken", "--force"],
+             ["report", t],
+             ["fleet", f"{t}/f.yaml", "-o", f"{t}/o", "--scheduler", "garbage"]]
+    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    r = subprocess.run([sys.executable, "-c", PROBE.format(heavy=HEAVY), json.dumps(cases)], capture_output=True,
+                       text=True, env=env, cwd=tmp_path, timeout=300)
+    assert r.returncode == 0, r.stderr
+    for command, rc, heavy, err in json.loads(r.stdout):
+        assert rc == 2 and "\n" not in err and "error" in err, (command, err)
+        assert heavy == [], (command, heavy, err)
