@@ -249,3 +249,27 @@ def test_simulated_events_carry_their_damage(table1, pieces):
         y = np.array(r.final_state[0])
         y[3:6] = 0.0
         np.testing.assert_allclose(y[6:], st.vector()[6:], rtol=1e-9, atol=1e-12)
+
+
+def test_cli_identify_predict_update(table1, pieces, tmp_path, capsys):
+    """The event commands end to end on weak (elastic) events: identify from two, predict the
+    third from the carried state, add it with update."""
+    import json
+
+    from hlaid.cli.main import main
+
+    meas, _ = simulate_events(table1, [p.scaled(0.15) for p in pieces], noise_rms=0.02, seed=4)
+    files = [str(m.save(tmp_path / f"e{k + 1}.npz")) for k, m in enumerate(meas)]
+    cfg = tmp_path / "id.yaml"
+    cfg.write_text("system: steel-moment-frame\nrefine: {method: least_squares, max_iterations: 10}\n")
+    c1, c2, pred = tmp_path / "c12.json", tmp_path / "c123.json", tmp_path / "pred"
+    assert main(["identify", *files[:2], "-o", str(c1), "--config", str(cfg), "--no-cache", "-q"]) == 0
+    assert main(["predict", str(c1), files[2], "-o", str(pred), "--ensemble", "5", "-q"]) == 0
+    p = json.loads((pred / "prediction.json").read_text())
+    assert p["start"] == "carried" and len(p["r"]) == 3 and min(p["r"]) > 0.9
+    assert 0.0 <= p["coverage_mean"] <= 1.0 and (pred / "prediction.png").is_file()
+    assert main(["update", str(c1), files[2], "-o", str(c2), "--config", str(cfg), "-q"]) == 0
+    c = Clone.load(c2)
+    assert [e["name"] for e in c.events] == ["e1", "e2", "e3"] and c.state is not None  # named by their files
+    assert c.state.events[-1] == "e3"
+    capsys.readouterr()
