@@ -112,10 +112,12 @@ def print_summary(clone, seconds: float | None = None) -> None:
     lines = ["story      k0    alpha      p      dy  delta_eta"]
     for i in range(b.n_stories):
         mark = ""
-        prior = [n for n in ("alpha", "p", "dy", "delta_eta") if flags.get((n, i + 1), {}).get("source") == "prior"]
+        for source in ("prior", "earlier events"):
+            names = [n for n in ("alpha", "p", "dy", "delta_eta") if flags.get((n, i + 1), {}).get("source") == source]
+            if names:
+                mark += f"  (from the {source}: {', '.join(names)})" if source == "prior" else \
+                    f"  (from {source}, little from this one: {', '.join(names)})"
         limit = [n for n in ("alpha", "p", "dy", "delta_eta") if flags.get((n, i + 1), {}).get("at_limit")]
-        if prior:
-            mark += f"  (from the prior: {', '.join(prior)})"
         if limit:
             mark += f"  (at a limit: {', '.join(limit)})"
         if "stories" in d and not d["stories"][i]["identifiable"]:

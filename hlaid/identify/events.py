@@ -148,9 +148,10 @@ def prior_of_clone(unc: ParameterUncertainty | None, building: Building, vector:
     return GaussianPrior(xs.mean(axis=0), widen**2 * np.cov(xs.T))
 
 
-def flags(fit: JointFit) -> list[dict]:
-    """Per fitted parameter: value, where it comes from (``"data"``, or ``"prior"`` where the data
-    narrowed it by less than :data:`INFORMED`), and whether it sits at a limit of the model
+def flags(fit: JointFit, prior: str = "prior") -> list[dict]:
+    """Per fitted parameter: value, where it comes from (``"data"``, or ``prior`` where the data
+    narrowed it by less than :data:`INFORMED`: ``"prior"`` for the structural system's,
+    ``"earlier events"`` for an update's), and whether it sits at a limit of the model
     (alpha at 0 or 0.95, p at 1, delta_eta below 1e-6: a value the search could only approach)."""
     b, informed = fit.building, fit.informed()
     out = []
@@ -164,7 +165,7 @@ def flags(fit: JointFit) -> list[dict]:
         at = ((name == "alpha" and not 1e-3 < value < 0.949) or (name == "p" and value < 1.005)
               or (name == "delta_eta" and value < 1e-6))
         out.append({"name": name, "story": i + 1 if i >= 0 else None, "value": value,
-                    "source": "data" if inf >= INFORMED else "prior", "informed": float(inf), "at_limit": bool(at)})
+                    "source": "data" if inf >= INFORMED else prior, "informed": float(inf), "at_limit": bool(at)})
     return out
 
 
@@ -217,7 +218,7 @@ def result_of_joint(events: Sequence[Event], meas: Sequence[Measurement], fit: J
     diagnostics = {"joint": {"events": per_event, "rounds": fit.rounds, "prior": prior, "start": start.to_dict(),
                              "cost_final": fit.result.cost_final, "nfev": fit.result.nfev,
                              "seconds": fit.seconds},
-                   "parameters": flags(fit), "replay": checks[-1].to_dict(),
+                   "parameters": flags(fit, "earlier events" if history else "prior"), "replay": checks[-1].to_dict(),
                    "single_event": None if single is None else single.clone.diagnostics}
     provenance = {"sources": [m.source or None for m in meas], "hlaid_version": __version__,
                   "config": config_to_dict(cfg), "timings": timings,
