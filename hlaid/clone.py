@@ -49,6 +49,7 @@ from ._fileio import write_json
 from ._inputs import read_json
 from .errors import InputError, escape_controls, kind_of
 from .model import Building, Damping
+from .model.collapse import SYSTEM_COLLAPSE
 from .model.state import BuildingState
 from .units import UNITS_JSON
 
@@ -210,8 +211,8 @@ START_STATES = ("carried", "undamaged")
 def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dict, ...], BuildingState | None]:
     """The version-3 fields ``system``, ``events`` and ``state`` (absent: none, undamaged)."""
     system = d.get("system")
-    if system is not None and not isinstance(system, str):
-        raise InputError(f"field 'system' must be a string or null, got {kind_of(system)}", source=source)
+    if system is not None and system not in SYSTEM_COLLAPSE:
+        raise InputError(f"field 'system' must be one of {', '.join(SYSTEM_COLLAPSE)} or null", source=source)
     events = d.get("events") or []
     if not isinstance(events, list) or not all(isinstance(e, dict) for e in events):
         raise InputError("field 'events' must be a list of mappings", source=source)

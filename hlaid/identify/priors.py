@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..model.collapse import SYSTEM_COLLAPSE
 from ..units import G_MM_S2
 
 ALPHA_MAX = 0.95
@@ -64,7 +65,8 @@ class StructuralPrior:
         prior units
     k0_beta : log standard deviation of k0 around its start
     collapse : the collapse law of the system (:data:`hlaid.model.COLLAPSE_MODELS`), used by the
-        assessment by default; None: the Bouc-Wen law alone
+        assessment by default (:data:`hlaid.model.collapse.SYSTEM_COLLAPSE`); ``"none"``: the
+        Bouc-Wen law alone
     sources : where the values come from
     """
 
@@ -77,7 +79,7 @@ class StructuralPrior:
     damping: Median
     story_spread: float = 0.25
     k0_beta: float = 0.5
-    collapse: str | None = None
+    collapse: str = "none"
     sources: tuple[str, ...] = field(default_factory=tuple)
 
     def to_dict(self) -> dict:
@@ -91,7 +93,8 @@ SYSTEMS: dict[str, StructuralPrior] = {
     "steel-moment-frame": StructuralPrior(
         name="steel-moment-frame", title="steel moment-resisting frame",
         cy=Median(median=0.3, beta=0.6), alpha=Median(median=0.1, beta=0.7), p=Median(median=2.0, beta=0.7),
-        delta_eta=Median(median=0.1, beta=1.0), damping=Median(median=0.025, beta=0.5), collapse="steel-mrf",
+        delta_eta=Median(median=0.1, beta=1.0), damping=Median(median=0.025, beta=0.5),
+        collapse=SYSTEM_COLLAPSE["steel-moment-frame"],
         sources=("Cy: FEMA P695 (2009) / NIST GCR 10-917-8 (2010) steel SMF archetypes, static overstrength "
                  "1.6-3.3 over Cs 0.044-0.125 (Vmax/W about 0.1-0.4); the E-Defense steel frame of Table 1 of "
                  "the paper: 0.31 (base story)",
@@ -104,7 +107,8 @@ SYSTEMS: dict[str, StructuralPrior] = {
     "rc-frame": StructuralPrior(
         name="rc-frame", title="reinforced-concrete moment frame",
         cy=Median(median=0.2, beta=0.6), alpha=Median(median=0.05, beta=0.7), p=Median(median=1.3, beta=0.7),
-        delta_eta=Median(median=1.0, beta=1.0), damping=Median(median=0.05, beta=0.5), collapse="rc-frame",
+        delta_eta=Median(median=1.0, beta=1.0), damping=Median(median=0.05, beta=0.5),
+        collapse=SYSTEM_COLLAPSE["rc-frame"],
         sources=("Cy: FEMA P695 (2009) RC SMF archetypes (Haselton & Deierlein 2007): Vmax/W about 0.1-0.35",
                  "alpha: post-yield hardening of RC members 2-5 % (Haselton, Liel, Taylor Lange & Deierlein "
                  "2016, ACI Struct. J. 113(6))",
@@ -115,7 +119,8 @@ SYSTEMS: dict[str, StructuralPrior] = {
     "generic": StructuralPrior(
         name="generic", title="unknown structural system (wide prior)",
         cy=Median(median=0.3, beta=1.0), alpha=Median(median=0.1, beta=1.0), p=Median(median=2.0, beta=1.0),
-        delta_eta=Median(median=0.3, beta=1.5), damping=Median(median=0.04, beta=0.7), collapse=None,
+        delta_eta=Median(median=0.3, beta=1.5), damping=Median(median=0.04, beta=0.7),
+        collapse=SYSTEM_COLLAPSE["generic"],
         sources=("the union of the steel and RC entries, widened",)),
 }
 """Priors by structural system (``identify.prior``)."""
