@@ -68,6 +68,10 @@ def run_identify(args) -> int:
         from ..identify.events import check_series
 
         check_series(records)
+    if args.method != "hlasvm" and len(records) > 1:
+        from ..errors import InputError
+        raise InputError(f"--method {args.method} identifies from one measurement; several events need the "
+                         "default method (hlasvm)")
     meas = records[0] if len(records) == 1 else records
     from ..identify import HLASVMIdentifier, get_identifier  # the heavy libraries, once the inputs are good
     if args.method == "hlasvm":
@@ -75,7 +79,7 @@ def run_identify(args) -> int:
         est = HLASVMIdentifier(config=cfg, refine=None, cache_dir=cache, tensorboard=args.tensorboard)
     else:
         est = get_identifier(args.method, tensorboard=args.tensorboard)
-        check_band(meas, est.band_hz, f"band_hz (--method {args.method})")
+        check_band(records[0], est.band_hz, f"band_hz (--method {args.method})")
     new_tb = tb is not None and not os.path.lexists(tb)
     try:
         est.fit(meas)

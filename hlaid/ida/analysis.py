@@ -326,8 +326,9 @@ def start_state(model, building: Building, start: str, notes: list[str]) -> np.n
                          "(a clone of hlaid identify or hlaid update)", source=building.source)
     st = model.state
     eta = st.eta(building)
+    h = np.asarray(building.height, dtype=float)  # prepare_building requires the heights
     notes.append(f"start: carried, the state after {', '.join(st.events) or 'the last event'}: residual drift "
-                 + ", ".join(f"{100 * d / h:.2f}" for d, h in zip(st.drift, building.height))
+                 + ", ".join(f"{100 * d / hi:.2f}" for d, hi in zip(st.drift, h))
                  + " %, eta " + ", ".join(f"{v:.2f}" for v in eta))
     return st.vector(collapse=building.collapse is not None)
 
