@@ -65,9 +65,10 @@ def run_identify(args) -> int:
     if args.method == "hlasvm":
         for m in records:
             check_identify_bands(m, cfg, args.config)
-        from ..identify.events import check_series
+        if len(records) > 1:
+            from ..identify.events import check_series
 
-        check_series(records)
+            check_series(records)
     if args.method != "hlasvm" and len(records) > 1:
         from ..errors import InputError
         raise InputError(f"--method {args.method} identifies from one measurement; several events need the "
