@@ -92,9 +92,12 @@ class Clone:
     def initial_state(self, start: str = "carried") -> np.ndarray | None:
         """The simulator's initial state for a replay of this clone (``(4*story,)``, with the
         collapse memory ``(6*story,)`` when the building has a collapse model): ``"carried"``
-        the state its last event left it in, ``"undamaged"`` at rest (None)."""
+        the state its last event left it in, ``"undamaged"`` at rest (None), ``"auto"`` (see
+        :data:`START_STATES`)."""
         if start not in START_STATES:
             raise InputError(f"start = {start!r}; expected one of {', '.join(map(repr, START_STATES))}")
+        if start == "auto":
+            start = "undamaged" if self.events and self.events[-1].get("start") == "undamaged" else "carried"
         if start == "undamaged" or self.state is None:
             return None
         return self.state.vector(collapse=self.building.collapse is not None)
@@ -204,8 +207,10 @@ class Clone:
         return cls.from_dict(read_json(path), source=str(path))
 
 
-START_STATES = ("carried", "undamaged")
-"""Where a replay of a clone starts: the state its last event left (the default), or undamaged."""
+START_STATES = ("auto", "carried", "undamaged")
+"""Where a replay of a clone starts: the state its last event left, or undamaged; ``auto``: the
+carried state unless the clone's last event was explained better from an undamaged start (an
+update chose it: the building recovers between events)."""
 
 
 def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dict, ...], BuildingState | None]:
@@ -218,6 +223,8 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dic
         raise InputError("field 'events' must be a list of mappings", source=source)
     for i, e in enumerate(events):
         _no_unknown(e, _EVENT_KEYS, f"events[{i}].", source)
+        if e.get("start") not in (None, "carried", "undamaged"):
+            raise InputError(f"field 'events[{i}].start' must be 'carried' or 'undamaged'", source=source)
     state = None
     if d.get("state") is not None:
         st = d["state"]
@@ -233,7 +240,7 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dic
     return system, tuple(events), state
 
 
-_EVENT_KEYS = ("name", "source", "sha256", "pga_g", "duration_s", "dt", "n_floors")
+_EVENT_KEYS = ("name", "source", "sha256", "pga_g", "duration_s", "dt", "n_floors", "recorded", "start")
 
 _TOP_KEYS = ("format", "version", "units", "name", "stories", "damping", "pdelta", "mass_normalised",
              "diagnostics", "provenance", "collapse")

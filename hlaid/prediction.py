@@ -1,7 +1,8 @@
 """A clone's prediction of an event it has not seen, against what the building recorded.
 
 :func:`predict_event` replays a clone under an event's recorded ground motion, from the state its
-last event left it in (``start="carried"``, the default) or undamaged, and compares the floor
+last event left it in or undamaged (``start="auto"``, the default: carried unless an update
+found the clone's last event better explained from an undamaged start), and compares the floor
 displacements relative to the ground with the measured ones in one band (correlation ``r`` per
 floor, peak inter-story drift errors per story). With the clone's uncertainty, an ensemble of
 clones drawn from it gives a predictive band and the share of the measured response inside it.
@@ -128,7 +129,7 @@ def identification_misfit(clone: Clone) -> np.ndarray | float:
     return np.mean([np.sqrt(np.clip(2.0 * (1.0 - r), 0.0, None)) for r in rs], axis=0)
 
 
-def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str = "carried", n_ensemble: int = 0,
+def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str = "auto", n_ensemble: int = 0,
                   seed: int = 0, hla_config: HLAConfig | None = None, misfit: float | None = None) -> EventPrediction:
     """Replay ``clone`` under ``meas``'s ground motion and compare with what was measured.
 
@@ -139,7 +140,7 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
     band_hz : band of the comparison [Hz] (None: HLA's band of ``meas`` under ``hla_config``,
         the default HLA settings when None); the ground motion is low-passed at its upper corner
     start : ``"carried"``: from the state the clone's last event left it in (undamaged where it
-        has none); ``"undamaged"``: at rest
+        has none); ``"undamaged"``: at rest; ``"auto"``: :meth:`hlaid.clone.Clone.initial_state`
     n_ensemble : clones drawn from ``clone.uncertainty`` for the predictive band (0: none). The
         band holds the central :data:`BAND_LEVEL` of the ensemble's predictions, widened on each
         side by the same quantile of a Gaussian error of ``misfit`` times each floor's predicted RMS:
@@ -195,7 +196,7 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
         pad = float(norm.ppf(1.0 - q)) * np.asarray(sigma) * np.sqrt(np.mean(predicted[0] ** 2, axis=0))
         lower, upper = lower - pad, upper + pad
         coverage = np.mean((measured >= lower) & (measured <= upper), axis=0)
-    return EventPrediction(event=meas.name, source=meas.source, start="undamaged" if y0 is None else start,
+    return EventPrediction(event=meas.name, source=meas.source, start="undamaged" if y0 is None else "carried",
                            band_hz=band, pga_g=float(np.max(np.abs(meas.ground_acc)) / G_MM_S2), r=r,
                            peak_drift_measured=pm, peak_drift_predicted=pk, peak_drift_error=pk / pm - 1.0,
                            r_true=r_true, coverage=coverage, n_ensemble=int(n_ensemble), status=int(sim.status[0]),

@@ -152,6 +152,25 @@ def test_update_agrees_with_the_joint_fit(table1, pieces):
     assert np.all(z < 2.71) and np.median(z) < 1.0, dict(zip(uj.names, z.round(2)))
     assert [e["name"] for e in upd.events] == ["one", meas[1].name]
     assert upd.state is not None and upd.state.events[-1] == meas[1].name
+    assert upd.events[-1]["start"] == "carried"  # the damage was carried: the event says so
+    assert upd.initial_state("auto") is not None
+
+
+def test_an_update_finds_a_building_that_recovered(table1, pieces):
+    """The second event recorded on a building that recovered in between (simulated from rest):
+    the update explains it better undamaged and its clone predicts from rest (start 'auto')."""
+    cfg = IdentifyConfig(system="generic", refine=dataclasses.replace(IdentifyConfig().refine,
+                                                                      method="least_squares", max_iterations=15))
+    first, _ = simulate_events(table1, pieces[2:], noise_rms=0.05, seed=8)
+    fit = map_refine(table1, first, system=SYSTEMS["generic"], damping=False, ground_noise="ignore",
+                     max_iterations=15)
+    assert np.all(fit.states[-1].eta(fit.building) > 1.15)  # the first event degraded every story
+    clone = Clone(building=fit.building, uncertainty=posterior_uncertainty(fit), state=fit.states[-1],
+                  system="generic", events=({"name": "one"},))
+    second = simulate_measurement(table1, pieces[1], noise_rms=0.05, seed=9)  # from rest: recovered
+    upd = update_clone(clone, second, cfg).clone
+    assert upd.events[-1]["start"] == "undamaged" and upd.initial_state("auto") is None
+    assert upd.initial_state("carried") is not None
 
 
 def test_an_elastic_record_gives_a_clone_from_the_prior(table1, pieces):

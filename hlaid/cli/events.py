@@ -30,8 +30,9 @@ def register(sub) -> None:
     q.add_argument("-o", "--out", required=True, help="output folder: prediction.json, prediction.npz, prediction.png")
     q.add_argument("--band", nargs=2, type=float, metavar=("LO", "HI"),
                    help="band of the compared displacements [Hz] (default: HLA's band of the event)")
-    q.add_argument("--start", choices=["carried", "undamaged"], default="carried",
-                   help="carried (default): from the state the clone's last event left it in; undamaged: at rest")
+    q.add_argument("--start", choices=["auto", "carried", "undamaged"], default="auto",
+                   help="carried: from the state the clone's last event left it in; undamaged: at rest; auto "
+                        "(default): carried, unless an update found the last event better explained undamaged")
     q.add_argument("--ensemble", type=int, default=20, metavar="N",
                    help="clones drawn from the clone's uncertainty for the predictive band (default 20; 0: none)")
     q.add_argument("--seed", type=int, default=0, help="seed of the draws")

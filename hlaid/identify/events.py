@@ -202,9 +202,10 @@ def state_after(building: Building, measurements: Sequence[Measurement], band_hz
 def result_of_joint(events: Sequence[Event], meas: Sequence[Measurement], fit: JointFit, cfg: IdentifyConfig, *,
                     system: StructuralPrior, start: Building, single: IdentificationResult | None = None,
                     history: Sequence[dict] = (), y0: np.ndarray | None = None,
-                    timings: dict | None = None) -> IdentificationResult:
+                    timings: dict | None = None, last_start: str | None = None) -> IdentificationResult:
     """The identification result of a joint fit over ``events``: the clone left in the last
-    event's state, its posterior, per event the replay from the state carried into it."""
+    event's state, its posterior, per event the replay from the state carried into it
+    (``last_start``: the start of the last event, recorded with it, where one was chosen)."""
     timings = {} if timings is None else timings
     checks = []
     y = y0
@@ -225,7 +226,8 @@ def result_of_joint(events: Sequence[Event], meas: Sequence[Measurement], fit: J
                   "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     clone = Clone(building=fit.building, mass_normalised=events[-1].hla.mass_normalised, diagnostics=diagnostics,
                   provenance=provenance, uncertainty=posterior_uncertainty(fit), system=system.name,
-                  events=tuple(history) + tuple(event_record(m) for m in meas), state=fit.states[-1])
+                  events=tuple(history) + tuple(event_record(m) for m in meas[:-1])
+                  + (event_record(meas[-1], start=last_start),), state=fit.states[-1])
     return IdentificationResult(clone=clone, hla=events[-1].hla,
                                 paper_estimate=start if single is None else single.paper_estimate,
                                 passes=[] if single is None else single.passes,

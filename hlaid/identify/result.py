@@ -54,10 +54,11 @@ def file_digest(path: str) -> str | None:
     return hashlib.sha256(p.read_bytes()).hexdigest()
 
 
-def event_record(meas: Measurement) -> dict:
-    """What a clone keeps of an event it learnt from."""
+def event_record(meas: Measurement, start: str | None = None) -> dict:
+    """What a clone keeps of an event it learnt from (``start``: where its replay started,
+    ``"carried"`` or ``"undamaged"``, when an update chose it)."""
     return {"name": meas.name, "source": meas.source or None,
             "sha256": file_digest(meas.source) if meas.source else None,
             "pga_g": float(np.max(np.abs(meas.ground_acc)) / G_MM_S2), "duration_s": float(meas.n_samples * meas.dt),
             "dt": float(meas.dt), "n_floors": int(meas.n_floors),
-            **({"recorded": meas.recorded} if meas.recorded else {})}
+            **({"recorded": meas.recorded} if meas.recorded else {}), **({"start": start} if start else {})}

@@ -16,7 +16,7 @@ from ..clone import Clone
 from ..errors import InputError
 from ..measurement import Measurement
 from .config import IdentifyConfig
-from .events import joint_fit, prior_of_clone, result_of_joint
+from .events import best_fit, joint_fit, prior_of_clone, result_of_joint
 from .joint import PriorVector
 from .priors import get_prior
 from .result import IdentificationResult
@@ -35,6 +35,11 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
         default)
     widen : the clone's posterior standard deviations multiplied by this before the update (1:
         the building changes through its events only, as the model says)
+
+    The event is fitted from the clone's carried state and from an undamaged start; the start of
+    higher posterior is kept and recorded (``clone.events[-1]["start"]``): a building whose
+    softening during an event recovers before the next (most buildings in small events) is
+    predicted from an undamaged start by ``start="auto"``.
 
     Returns
     -------
@@ -60,7 +65,16 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
     name = measurement.name or f"event {len(earlier) + 1}"
     _progress.info(f"[update] {b.name or 'clone'}: adding {name}")
     event = analyse(measurement, cfg)
-    fit = joint_fit(b, [measurement], prior, cfg, y0=y0, names=[name])
+    fits = [joint_fit(b, [measurement], prior, cfg, y0=y0, names=[name])]
+    if y0 is not None:  # the carried state is a hypothesis: the event itself says whether it holds
+        fits.append(joint_fit(b, [measurement], prior, cfg, y0=None, names=[name]))
+    fit = best_fit(fits)
+    carried = y0 is not None and fit is fits[0]
+    if y0 is not None and not carried:
+        _progress.warn(f"{name} is explained better from an undamaged start than from the state the earlier events "
+                       "left: the building recovered between them (softening that is not damage); predictions from "
+                       "this clone start undamaged (start 'auto')")
     fit = dataclasses.replace(fit, states=[dataclasses.replace(s, events=tuple(earlier) + (name,))
                                            for s in fit.states])
-    return result_of_joint([event], [measurement], fit, cfg, system=system, start=b, history=clone.events, y0=y0)
+    return result_of_joint([event], [measurement], fit, cfg, system=system, start=b, history=clone.events,
+                           y0=y0 if carried else None, last_start="carried" if carried else "undamaged")
