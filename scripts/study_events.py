@@ -23,7 +23,8 @@ Parts:
   carried degradation eta against the true one, and the fourth record's prediction against the
   true building's replay from its true state.
 
-Writes ``events.json``, ``events.md`` (the tables, each naming this command) and ``figures/`` into
+Writes ``events.json``, ``events.md`` (the tables, each naming this command), ``figures/`` and the
+real parts' ``clones/`` into
 ``--out`` (new, or replaced with ``--force``).
 """
 
@@ -88,8 +89,9 @@ def agreement(a, b) -> dict:
             "z_max": float(z.max()), "z_median": float(np.median(z))}
 
 
-def real_part(cfg, spec, part: dict, n_ensemble: int, figures: Path, log) -> dict:
-    """Joint and sequential clones of one structure's event history, each predicting the next event."""
+def real_part(cfg, spec, part: dict, n_ensemble: int, folder: Path, log) -> dict:
+    """Joint and sequential clones of one structure's event history, each predicting the next
+    event (the clones saved in ``folder/clones``, figures in ``folder/figures``)."""
     icfg = identify_config_of(spec, source=cfg.source)
     band = None if spec.compare_band_hz is None else tuple(spec.compare_band_hz)
     names = time_order([e.name for e in spec.events])
@@ -98,6 +100,10 @@ def real_part(cfg, spec, part: dict, n_ensemble: int, figures: Path, log) -> dic
     n = len(names)
     upto = n - 1 if part["joint_upto"] is None else part["joint_upto"]
     rows, joint, figs = [], {}, []
+    (folder / "clones").mkdir(exist_ok=True)
+
+    def save(clone, how, k):
+        clone.save(folder / "clones" / f"{spec.name}_{how}_{names[0]}-{names[k - 1]}.json")
 
     def predict(clone, k, how, seconds):
         out = []
@@ -115,6 +121,7 @@ def real_part(cfg, spec, part: dict, n_ensemble: int, figures: Path, log) -> dic
         t = time.perf_counter()
         res = identify_clone(meas[:k], icfg)
         joint[k] = (res.clone, time.perf_counter() - t)
+        save(res.clone, "joint", k)
         log(f"{spec.name}: joint clone of {names[0]}..{names[k - 1]} in {joint[k][1]:.0f} s")
         if k >= part["first_k"]:
             rows += predict(res.clone, k, "joint", joint[k][1])
@@ -123,6 +130,7 @@ def real_part(cfg, spec, part: dict, n_ensemble: int, figures: Path, log) -> dic
         t = time.perf_counter()
         seq = update_clone(seq, meas[k - 1], icfg).clone
         dt = time.perf_counter() - t
+        save(seq, "sequential", k)
         log(f"{spec.name}: sequential clone + {names[k - 1]} in {dt:.0f} s")
         rows += predict(seq, k, "sequential", dt)
         if k in joint:
@@ -130,7 +138,7 @@ def real_part(cfg, spec, part: dict, n_ensemble: int, figures: Path, log) -> dic
                           "joint": _params(joint[k][0]), "sequential": _params(seq)})
     for tag, _, p, how, k in _chosen_figures(figs):
         save_figure(plot_prediction(p, title=f"{spec.name}: {how} clone of {names[0]}..{names[k - 1]} predicts "
-                                    f"{names[k]}", levels=spec.levels), figures / f"{tag}.png", dpi=72)
+                                    f"{names[k]}", levels=spec.levels), folder / "figures" / f"{tag}.png", dpi=72)
     return {"structure": spec.name, "events": names, "band_hz": band, "identify": {"system": icfg.system,
             "refine": icfg.refine.method}, "predictions": rows, "agreement": agree, "n_ensemble": n_ensemble}
 
@@ -369,7 +377,7 @@ def main(argv=None) -> int:
                     name = REAL_PARTS[part]["structure"]
                     if name not in specs:
                         raise InputError(f"no structure {name!r} (part {part})", source=args.config)
-                    res = real_part(cfg, specs[name], REAL_PARTS[part], args.ensemble, tmp / "figures", log)
+                    res = real_part(cfg, specs[name], REAL_PARTS[part], args.ensemble, tmp, log)
                     text += real_tables(res, peer, command)
                 res["seconds"] = time.perf_counter() - t
                 result[part] = res
