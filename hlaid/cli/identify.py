@@ -75,7 +75,7 @@ def run_identify(args) -> int:
         est = HLASVMIdentifier(config=cfg, refine=None, cache_dir=cache, tensorboard=args.tensorboard)
     else:
         est = get_identifier(args.method, tensorboard=args.tensorboard)
-        check_band(meas, est.band_hz, f"band_hz (--method {args.method})")
+        check_band(records[0], est.band_hz, f"band_hz (--method {args.method})")  # one record (checked above)
     new_tb = tb is not None and not os.path.lexists(tb)
     try:
         est.fit(meas)
