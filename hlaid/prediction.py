@@ -48,7 +48,7 @@ class EventPrediction:
     r_true : (floor,) correlation of the predicted with the true displacement (simulated data,
         unfiltered; None for recorded data)
     coverage : (floor,) share of the measured displacement inside the predictive band (None
-        without an ensemble)
+        without an ensemble); with :attr:`band_width`, the band's width
     n_ensemble : clones in the ensemble (0: none)
     status : the replay's simulator status (0 ok)
     time : (time,) [s]; disp_measured, disp_predicted : (time, floor) [mm]
@@ -78,6 +78,15 @@ class EventPrediction:
     def r_mean(self) -> float:
         return float(np.mean(self.r))
 
+    @property
+    def band_width(self) -> np.ndarray | None:
+        """(floor,) mean width of the predictive band over twice the measured RMS (None without
+        an ensemble): read coverage with it, a band wider than the response covers anything."""
+        if self.band_lower is None or self.band_upper is None:
+            return None
+        rms = np.sqrt(np.mean(self.disp_measured**2, axis=0))
+        return np.mean(self.band_upper - self.band_lower, axis=0) / (2.0 * rms)
+
     def to_dict(self) -> dict:
         out = {"format": "hlaid-prediction", "version": 1, "event": self.event, "source": self.source or None,
                "start": self.start, "band_hz": list(self.band_hz), "pga_g": self.pga_g, "r": self.r.tolist(),
@@ -88,6 +97,7 @@ class EventPrediction:
                "band_level": BAND_LEVEL if self.n_ensemble else None,
                "coverage": None if self.coverage is None else self.coverage.tolist(),
                "coverage_mean": None if self.coverage is None else float(np.mean(self.coverage)),
+               "band_width": None if self.band_width is None else self.band_width.tolist(),
                "status": self.status}
         return out
 

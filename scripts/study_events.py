@@ -41,7 +41,7 @@ import numpy as np
 
 from hlaid import _progress
 from hlaid._fileio import atomic_directory, write_json
-from hlaid.clone import Clone
+from hlaid.clone import START_STATES, Clone
 from hlaid.config import load_config
 from hlaid.errors import InputError
 from hlaid.identify import IdentifyConfig, identify_clone
@@ -72,9 +72,11 @@ def time_order(names: list[str]) -> list[str]:
     return sorted(names, key=int) if all(n.isdigit() for n in names) else names
 
 
-def prediction_row(p, k: int, names: list[str], how: str, seconds: float) -> dict:
+def prediction_row(p, k: int, names: list[str], how: str, seconds: float, start: str) -> dict:
+    """One prediction; ``start`` as asked (``auto`` resolves to ``p.start``, kept as ``resolved``)."""
     d = p.to_dict()
-    return {"how": how, "k": k, "identified_on": names[:k], "event": p.event, "start": p.start, "r": d["r"],
+    return {"how": how, "k": k, "identified_on": names[:k], "event": p.event, "start": start,
+            "resolved": p.start, "r": d["r"],
             "r_mean": d["r_mean"], "peak_drift_error": d["peak_drift_error"], "coverage": d["coverage"],
             "coverage_mean": d["coverage_mean"], "pga_g": d["pga_g"], "clone_seconds": seconds,
             "status": d["status"]}
@@ -107,10 +109,10 @@ def real_part(cfg, spec, part: dict, n_ensemble: int, folder: Path, log) -> dict
 
     def predict(clone, k, how, seconds):
         out = []
-        for start in ("carried", "undamaged"):
+        for start in START_STATES:
             p = predict_event(clone, meas[k], band_hz=band, hla_config=icfg.hla, start=start,
                               n_ensemble=n_ensemble if start == "carried" else 0)
-            out.append(prediction_row(p, k, names, how, seconds))
+            out.append(prediction_row(p, k, names, how, seconds, start))
             log(f"{spec.name}: {how} clone of {names[0]}..{names[k - 1]} -> {names[k]} ({start}): "
                 f"R {np.round(p.r, 3)}, mean {p.r_mean:.3f}")
             if start == "carried":
@@ -268,7 +270,8 @@ def real_tables(res: dict, peer: dict, command: str) -> list[str]:
     for p in res["predictions"]:
         pr = peer.get((name, tuple(p["identified_on"]), p["event"])) if p["start"] == "carried" else None
         on = p["identified_on"]
-        out.append(f"| {p['how']} | {on[0] if len(on) == 1 else f'{on[0]}..{on[-1]}'} | {p['event']} | {p['start']} | "
+        start = p["start"] if p["start"] != "auto" else f"auto: {p['resolved']}"
+        out.append(f"| {p['how']} | {on[0] if len(on) == 1 else f'{on[0]}..{on[-1]}'} | {p['event']} | {start} | "
                    + " / ".join(f"{r:.3f}" for r in p["r"]) + f" | **{p['r_mean']:.3f}** | "
                    + " / ".join(f"{100 * e:+.0f}" for e in p["peak_drift_error"])
                    + f" | {_f(p['coverage_mean'], '{:.2f}')} | {p['clone_seconds']:.0f} | "
@@ -276,7 +279,7 @@ def real_tables(res: dict, peer: dict, command: str) -> list[str]:
     out += ["", "| clone | start | n | mean R | worst R | mean coverage | peer mean R (self-fit) | peer worst R |",
             "|---|---|---|---|---|---|---|---|"]
     for how in dict.fromkeys(p["how"] for p in res["predictions"]):
-        for start in ("carried", "undamaged"):
+        for start in START_STATES:
             ps = [p for p in res["predictions"] if p["how"] == how and p["start"] == start]
             cov = [p["coverage_mean"] for p in ps if p["coverage_mean"] is not None]
             pr = [peer[k]["r_mean"] for p in ps if (k := (name, tuple(p["identified_on"]), p["event"])) in peer]

@@ -237,6 +237,7 @@ def test_the_predictive_band_holds_the_measurement(table1, pieces):
     draws = predict_event(c, meas[1], n_ensemble=20, misfit=0.0)
     assert np.all(p.band_lower <= p.band_upper) and np.all(p.coverage >= draws.coverage)
     assert np.mean(p.coverage) > 0.85, p.coverage
+    assert np.all(p.band_width < 0.5), p.band_width  # a narrow band, not one that covers anything
 
 
 def test_events_of_another_building_are_refused(table1, pieces):

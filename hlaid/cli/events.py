@@ -110,7 +110,9 @@ def run_predict(args) -> int:
 
             save_figure(plot_prediction(p, title=f"{Path(args.clone).name} predicting {meas.name or 'the event'}"),
                         Path(tmp) / "prediction.png")
-    cov = "" if p.coverage is None else f", {100 * float(p.coverage.mean()):.0f} % inside the {n}-clone band"
+    cov = "" if p.coverage is None or p.band_width is None else (
+        f", {100 * float(p.coverage.mean()):.0f} % inside the {n}-clone band (its width "
+        f"{float(p.band_width.mean()):.2f} x twice the measured RMS)")
     _progress.info(f"{meas.name or args.measurement}: R {p.r.round(3).tolist()} (mean {p.r_mean:.3f}), peak drift "
                    f"error {(100 * p.peak_drift_error).round(1).tolist()} %{cov}; from the {p.start} state")
     _progress.info(f"wrote {args.out}")
