@@ -104,10 +104,10 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     """Identify a digital clone from one measurement, or from several of one building in time
     order, with no expert input.
 
-    One yielding record (and no ``config.system``): the paper's method and the refinement on its
-    data alone. Several records, a record that stays elastic, or a structural ``system``
-    named: the paper's method on the most informative record (where one yielded) gives the
-    start, and one set of parameters is then fitted to every record, the state carried from
+    One yielding record: the paper's method and the refinement on its data alone (a structural
+    ``system`` named is recorded with the clone: its collapse law for the IDA). Several records,
+    or a record that stays elastic: the paper's method on the most informative record (where one
+    yielded) gives the start, and one set of parameters is then fitted to every record, the state carried from
     each into the next and the system's prior holding what the data say little about
     (:mod:`hlaid.identify.events`). The clone is left in the state its last record left the
     building in (``clone.state``).
@@ -140,10 +140,10 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     timings["hla"] = time.perf_counter() - t_all
     best = most_informative(events)
     single = None if best is None else _paper_and_refinement(events[best], cfg, cache, tb, timings)
-    if len(meas) == 1 and single is not None and cfg.system is None:
+    if len(meas) == 1 and single is not None:  # one yielding record: the data speak, the paper's method
         timings["total"] = time.perf_counter() - t_all
         tb.close()
-        return single
+        return dataclasses.replace(single, clone=dataclasses.replace(single.clone, system=cfg.system))
     system = get_prior(cfg.system or "generic")
     starts = plausible_starts(single, events[0], meas[0], system, cfg)
     names = [m.name or f"event {k + 1}" for k, m in enumerate(meas)]
