@@ -27,13 +27,15 @@ _LAZY: dict[str, tuple[str, ...]] = {
     ".io": ("read",),
     ".motions": ("GroundMotion", "builtin_records"),
     ".measurement": ("Measurement", "Truth"),
-    ".synthetic": ("simulate_measurement",),
+    ".synthetic": ("simulate_measurement", "simulate_events"),
     # analysis and identification
     ".hla": ("run_hla", "HLAConfig", "HLAResult"),
     ".identify": ("identify_clone", "IdentifyConfig", "IdentificationResult", "refine_replay", "BaseIdentifier",
-                  "HLASVMIdentifier", "GradientIdentifier", "UKFIdentifier", "NotFittedError"),
+                  "HLASVMIdentifier", "GradientIdentifier", "UKFIdentifier", "NotFittedError", "update_clone"),
     ".svm": ("KernelSVC",),
     ".clone": ("Clone", "load_clone"),
+    ".model.state": ("BuildingState",),
+    ".prediction": ("predict_event", "EventPrediction"),
     # risk
     ".ida": ("run_ida", "IDAConfig", "IDAResult"),
     # pipeline and errors

@@ -22,6 +22,7 @@ from .identify import NotFittedError as NotFittedError
 from .identify import UKFIdentifier as UKFIdentifier
 from .identify import identify_clone as identify_clone
 from .identify import refine_replay as refine_replay
+from .identify import update_clone as update_clone
 from .io import read as read
 from .measurement import Measurement as Measurement
 from .measurement import Truth as Truth
@@ -29,14 +30,18 @@ from .model import BoucWenBuilding as BoucWenBuilding
 from .model import Building as Building
 from .model import BuildingTensors as BuildingTensors
 from .model import Damping as Damping
+from .model.state import BuildingState as BuildingState
 from .motions import GroundMotion as GroundMotion
 from .motions import builtin_records as builtin_records
+from .prediction import EventPrediction as EventPrediction
+from .prediction import predict_event as predict_event
 from .runner import RunConfig as RunConfig
 from .runner import run_pipeline as run_pipeline
 from .simulate import SimulationResult as SimulationResult
 from .simulate import replay as replay
 from .simulate import simulate_response as simulate_response
 from .svm import KernelSVC as KernelSVC
+from .synthetic import simulate_events as simulate_events
 from .synthetic import simulate_measurement as simulate_measurement
 
 __version__: str

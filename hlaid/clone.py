@@ -2,7 +2,7 @@
 
 Layout::
 
-    {"format": "hlaid-clone", "version": 2,
+    {"format": "hlaid-clone", "version": 3,
      "units": {"force": "N", "length": "mm", "mass": "t", "time": "s", ...},
      "stories": [{"k0": ..., "alpha": ..., "p": ..., "dy": ..., "delta_eta": ..., "mass": ...,
                   "height": ... (optional), "gravity_load": ... (optional, N)}, ...],
@@ -12,12 +12,19 @@ Layout::
      "collapse": {"name": ..., "theta_p": ..., "theta_pc": ..., "kappa": ..., "theta_u": ...}
                  (optional: the strength-loss model IDA uses, see hlaid.model.collapse),
      "diagnostics": {...}, "provenance": {...},
-     "uncertainty": null | {...}}                          (version 2 only)
+     "uncertainty": null | {...},                          (version 2 and later)
+     "system": null | "steel-moment-frame" | ...,          (version 3)
+     "events": [{"name": ..., "source": ..., "sha256": ..., "pga_g": ..., "duration_s": ...}, ...],
+     "state": null | {"drift": [...], "z": [...], "work": [...], "peak_positive": [...],
+                      "peak_negative": [...], "events": [...]}}
 
 Version 2 adds the optional ``uncertainty`` block: the identified
 parameters' Gaussian in log space (per parameter: name, story, transform, value, std and a
 90 % interval; the covariance), see :class:`hlaid.uncertainty.ParameterUncertainty`.
-Version 1 files (no ``uncertainty``) are still read.
+Version 3 adds what the clone learnt from: its structural ``system`` (the prior of
+:mod:`hlaid.identify.priors`), the ``events`` it was identified from in time order, and the
+``state`` the last of them left the building in (:class:`hlaid.model.state.BuildingState`;
+null: undamaged). Version 1 and 2 files (none of these) are still read, as undamaged clones.
 
 With ``mass_normalised`` true the masses are relative (ratios) and every stiffness is per
 unit of that relative mass; responses (drifts, accelerations) are unaffected.
@@ -29,6 +36,7 @@ the one above (it may be left out), or a field of the wrong type (``"pdelta": "y
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from dataclasses import dataclass, field
@@ -41,14 +49,16 @@ from ._fileio import write_json
 from ._inputs import read_json
 from .errors import InputError, escape_controls, kind_of
 from .model import Building, Damping
+from .model.collapse import SYSTEM_COLLAPSE
+from .model.state import BuildingState
 from .units import UNITS_JSON
 
 if TYPE_CHECKING:
     from .model.uncertainty import ParameterUncertainty
 
 FORMAT = "hlaid-clone"
-VERSION = 2
-READS = (1, 2)
+VERSION = 3
+READS = (1, 2, 3)
 """Clone file versions this hlaid reads (it writes :data:`VERSION`)."""
 _STORY_KEYS = ("k0", "alpha", "p", "dy", "delta_eta", "mass")
 
@@ -64,6 +74,10 @@ class Clone:
     diagnostics : identification diagnostics (errors, iterations, R per story, ...)
     provenance : input file hash, config, package version, timings
     uncertainty : the identified parameters' uncertainty (None: a point estimate only)
+    system : the structural system whose prior the identification used (None: none)
+    events : the events the clone was identified from, oldest first (name, source, sha256,
+        pga_g, duration_s)
+    state : the state its last event left the building in (None: undamaged, at rest)
     """
 
     building: Building
@@ -71,6 +85,26 @@ class Clone:
     diagnostics: dict = field(default_factory=dict)
     provenance: dict = field(default_factory=dict)
     uncertainty: ParameterUncertainty | None = None
+    system: str | None = None
+    events: tuple[dict, ...] = ()
+    state: BuildingState | None = None
+
+    def initial_state(self, start: str = "carried") -> np.ndarray | None:
+        """The simulator's initial state for a replay of this clone (``(4*story,)``, with the
+        collapse memory ``(6*story,)`` when the building has a collapse model): ``"carried"``
+        the state its last event left it in, ``"undamaged"`` at rest (None), ``"auto"`` (see
+        :data:`START_STATES`)."""
+        if start not in START_STATES:
+            raise InputError(f"start = {start!r}; expected one of {', '.join(map(repr, START_STATES))}")
+        if start == "auto":
+            start = "undamaged" if self.events and self.events[-1].get("start") == "undamaged" else "carried"
+        if start == "undamaged" or self.state is None:
+            return None
+        return self.state.vector(collapse=self.building.collapse is not None)
+
+    def with_state(self, state: BuildingState | None) -> Clone:
+        """The same clone left in ``state``."""
+        return dataclasses.replace(self, state=state)
 
     def to_dict(self) -> dict:
         b = self.building
@@ -86,6 +120,8 @@ class Clone:
                 "damping": b.damping.to_dict(), "pdelta": b.pdelta, "mass_normalised": self.mass_normalised,
                 "diagnostics": jsonable(self.diagnostics), "provenance": jsonable(self.provenance),
                 "uncertainty": None if self.uncertainty is None else jsonable(self.uncertainty.to_dict()),
+                "system": self.system, "events": jsonable(list(self.events)),
+                "state": None if self.state is None else self.state.to_dict(),
                 **({"collapse": b.collapse.to_dict()} if b.collapse is not None else {})}
 
     def save(self, path: str | os.PathLike, *, force: bool = False) -> Path:
@@ -103,7 +139,8 @@ class Clone:
         if isinstance(version, bool) or version not in READS:
             raise InputError(f"clone version {_show(version)} is not supported; this hlaid reads versions "
                              f"{', '.join(map(str, READS))}", source=source)
-        _no_unknown(d, _TOP_KEYS + (("uncertainty",) if version >= 2 else ()), "", source)
+        _no_unknown(d, _TOP_KEYS + (("uncertainty",) if version >= 2 else ())
+                    + (("system", "events", "state") if version >= 3 else ()), "", source)
         _check_units(d.get("units"), source)
         stories = d.get("stories")
         if not isinstance(stories, list) or not stories:
@@ -159,14 +196,51 @@ class Clone:
             unc = ParameterUncertainty.from_dict(d["uncertainty"], source=source)
             if any(i >= b.n_stories for n, i in unc.slots):
                 raise InputError(f"uncertainty names a story beyond the clone's {b.n_stories}", source=source)
+        system, events, state = _history(d, b.n_stories, source)
         return cls(building=b, mass_normalised=d.get("mass_normalised", False),
-                   diagnostics=d.get("diagnostics") or {}, provenance=d.get("provenance") or {}, uncertainty=unc)
+                   diagnostics=d.get("diagnostics") or {}, provenance=d.get("provenance") or {}, uncertainty=unc,
+                   system=system, events=events, state=state)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Clone:
         """Read and validate a clone JSON file."""
         return cls.from_dict(read_json(path), source=str(path))
 
+
+START_STATES = ("auto", "carried", "undamaged")
+"""Where a replay of a clone starts: the state its last event left, or undamaged; ``auto``: the
+carried state unless the clone's last event was explained better from an undamaged start (an
+update chose it: the building recovers between events)."""
+
+
+def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dict, ...], BuildingState | None]:
+    """The version-3 fields ``system``, ``events`` and ``state`` (absent: none, undamaged)."""
+    system = d.get("system")
+    if system is not None and system not in SYSTEM_COLLAPSE:
+        raise InputError(f"field 'system' must be one of {', '.join(SYSTEM_COLLAPSE)} or null", source=source)
+    events = d.get("events") or []
+    if not isinstance(events, list) or not all(isinstance(e, dict) for e in events):
+        raise InputError("field 'events' must be a list of mappings", source=source)
+    for i, e in enumerate(events):
+        _no_unknown(e, _EVENT_KEYS, f"events[{i}].", source)
+        if e.get("start") not in (None, "carried", "undamaged"):
+            raise InputError(f"field 'events[{i}].start' must be 'carried' or 'undamaged'", source=source)
+    state = None
+    if d.get("state") is not None:
+        st = d["state"]
+        if not isinstance(st, dict):
+            raise InputError(f"field 'state' must be a mapping, got {kind_of(st)}", source=source)
+        _no_unknown(st, ("drift", "z", "work", "peak_positive", "peak_negative", "events"), "state.", source)
+        try:
+            state = BuildingState.from_dict(st)
+        except InputError as err:
+            raise InputError(str(err), source=source) from None
+        if state.n_stories != n:
+            raise InputError(f"state has {state.n_stories} stories; the clone has {n}", source=source)
+    return system, tuple(events), state
+
+
+_EVENT_KEYS = ("name", "source", "sha256", "pga_g", "duration_s", "dt", "n_floors", "recorded", "start")
 
 _TOP_KEYS = ("format", "version", "units", "name", "stories", "damping", "pdelta", "mass_normalised",
              "diagnostics", "provenance", "collapse")

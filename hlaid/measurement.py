@@ -65,6 +65,9 @@ class Measurement:
     floor_disp : (time, floor) floor displacements relative to the ground [mm] when the data
         include measured displacements (e.g. shake-table LVDTs), else None
     source : file the data came from, named in error messages
+    name : a label (the file's stem by default)
+    recorded : when the record starts, ISO 8601 (``2018-01-04T10:39:37Z``), where the file says;
+        events of one building must be given in this order
     """
 
     dt: float
@@ -79,6 +82,7 @@ class Measurement:
     source: str = ""
     name: str = ""
     extra: dict = field(default_factory=dict, repr=False)
+    recorded: str | None = None
 
     def __post_init__(self):
         src = self.source or None
@@ -174,6 +178,8 @@ class Measurement:
             d["noise_rms"] = np.float64(self.noise_rms)
         if self.pdelta is not None:
             d["pdelta"] = np.bool_(self.pdelta)
+        if self.recorded is not None:
+            d["recorded"] = np.array(str(self.recorded))
         if self.floor_disp is not None:
             d["floor_disp"] = self.floor_disp
         if self.truth is not None:
@@ -201,6 +207,8 @@ class Measurement:
             head.append(f"# noise_rms: {self.noise_rms!r}")
         if self.pdelta is not None:
             head.append(f"# pdelta: {str(self.pdelta).lower()}")
+        if self.recorded is not None:
+            head.append(f"# recorded: {self.recorded}")
         cols = [self.time[:, None], self.ground_acc[:, None], self.floor_acc]
         names = ["time_s", "ground_acc"] + [f"floor_acc_{j + 1}" for j in range(n)]
         if self.floor_disp is not None:

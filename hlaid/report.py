@@ -93,7 +93,7 @@ _SUMMARY = {"format": "str", "name": "str", "hlaid_version": "str", "n_stories":
                             "error": _Null("num")}],
             "paper_method?": _Null([{"parameter": "str", "story": "int", "identified?": _Null("num"),
                                      "error?": _Null("num")}]),
-            "outer_iterations": "int", "timings": {"*": "num"}, "ida?": _Null(_IDA),
+            "outer_iterations": "int", "timings": {"*": "num"}, "ida?": _Null(_IDA), "ida_after?": _Null(_IDA),
             "assessment?": _Null({"n_ensemble": "int", "n_records": "int", "ci": "num", "im_label": "str",
                                   "collapse_median": "num", "collapse_median_band": _Pair("num"),
                                   "own_im": _Null("num"), "p_collapse": _Null("num"),
@@ -179,6 +179,7 @@ def required_figures(summary: dict) -> list[str]:
     loss = summary.get("loss") or {}
     out += (["loss/repair_cost.png"] if loss.get("recorded") else []) + (["loss/loss_curve.png"] if loss.get("curve")
                                                                           else [])
+    out += ["figures/aftershock.png"] if summary.get("ida") and summary.get("ida_after") else []
     return out + ([_ASSESS_FIGURE[0]] if summary.get("assessment") else [])
 
 
@@ -245,6 +246,12 @@ def build_report(run_dir: str | os.PathLike) -> Path:
             parts.append(f"<figure>{_img(p, src)}<figcaption>{e(cap)}</figcaption></figure>")
     if s.get("ida"):
         parts.append("<h2>Incremental dynamic analysis</h2>" + _ida_block(s["ida"]))
+    if s.get("ida") and s.get("ida_after"):
+        from .report_aftershock import AFTERSHOCK_FIGURE, aftershock_html
+        parts.append("<h2>Aftershock: collapse fragility before and after the event</h2>"
+                     + aftershock_html(s["ida"], s["ida_after"])
+                     + f"<figure>{_img(d / AFTERSHOCK_FIGURE[0], src)}<figcaption>{e(AFTERSHOCK_FIGURE[1])}"
+                     "</figcaption></figure>")
     if s.get("assessment"):
         parts.append("<h2>Collapse risk with identification uncertainty</h2>" + _assess_block(s["assessment"]))
         p = d / _ASSESS_FIGURE[0]

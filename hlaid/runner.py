@@ -120,7 +120,7 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
         save_figure(plot_loops(res.hla), figs / "loops.png")
         save_figure(plot_stiffness(res.hla, meas.truth, clone_ke=res.replay.ke), figs / "stiffness.png")
         save_figure(_replay_figure(meas, res), figs / "replay.png")
-        ida_summary = None
+        ida_summary = ida_after = None
         if cfg.ida is not None:
             t = time.perf_counter()
             _progress.info("[4/4] incremental dynamic analysis of the clone")
@@ -129,6 +129,10 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
             ir.save(tmp / "ida", plots=True, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
             ida_summary = read_json(tmp / "ida" / "summary.json")
             timings["ida"] = time.perf_counter() - t
+            if res.clone.state is not None and cfg.ida.start == "undamaged":
+                t = time.perf_counter()
+                ida_after = _aftershock(res.clone, ir, cfg, tmp, base_dir)
+                timings["ida_after"] = time.perf_counter() - t
         assessment = None
         if cfg.ida is not None and cfg.assess is not None:
             t = time.perf_counter()
@@ -144,13 +148,26 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
                    "config": config_to_dict(cfg), "source": meas.source, "n_stories": meas.n_floors,
                    "mass_normalised": res.clone.mass_normalised, "parameters": table, "paper_method": paper,
                    "replay": res.replay.to_dict(), "outer_iterations": res.iterations,
-                   "identify_timings": res.timings, "timings": timings, "ida": ida_summary,
+                   "identify_timings": res.timings, "timings": timings, "ida": ida_summary, "ida_after": ida_after,
                    "noise_rms": meas.noise_rms, "assessment": assessment, "loss": loss}
         write_json(tmp / "summary.json", summary)
         build_report(tmp)
     _progress.info(f"wrote {out}/ (report.html, clone.json, hla/, ida/, figures/, tensorboard/) in "
                    f"{timings['total']:.0f} s")
     return summary
+
+
+def _aftershock(clone, before, cfg: RunConfig, tmp: Path, base_dir) -> dict:
+    """The IDA of the clone from the state its event left it in (``ida-after/``) and the figure of
+    the fragility before and after; returns the summary's ``ida_after`` block."""
+    from .ida import ida_from_config
+    from .ida.plots import plot_fragility_before_after
+    assert cfg.ida is not None
+    _progress.info("[4/4] incremental dynamic analysis from the state the event left the clone in")
+    after = ida_from_config(clone, cfg.ida.replace(start="carried"), base_dir=base_dir)
+    after.save(tmp / "ida-after", plots=False, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
+    save_figure(plot_fragility_before_after(before, after), tmp / "figures" / "aftershock.png")
+    return read_json(tmp / "ida-after" / "summary.json")
 
 
 def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> dict | None:

@@ -113,11 +113,11 @@ class ShearBuildingRef:
         return np.concatenate([v, a, zdot, z * dx])
 
     def solve(self, ag: np.ndarray, dt: float, *, rtol: float = 1e-10, atol: float = 1e-10,
-              method: str = "DOP853") -> np.ndarray:
+              method: str = "DOP853", y0: np.ndarray | None = None) -> np.ndarray:
         """States at the sample times, ``(time, 4*story)``, by ``solve_ivp`` restarted at every
         sample: the ground acceleration is linear inside each interval, so its kinks never fall
-        inside a step."""
-        y = np.zeros(4 * self.n)
+        inside a step. ``y0``: the state at the first sample ``[u, v, z, e]`` (default rest)."""
+        y = np.zeros(4 * self.n) if y0 is None else np.array(y0, dtype=float)
         out = np.empty((ag.size, y.size))
         out[0] = y
         for k in range(ag.size - 1):

@@ -124,9 +124,24 @@ def cases(tmp, meas, m, clone):
     c = tmp / "c.json"
     yield ["identify", str(_npz(tmp / "nofl.npz", dt=m.dt, ground_acc=m.ground_acc, floor_acc=np.zeros((T, 0)))),
            "-o", str(c)], ["floor"], c
-    weak = simulate_measurement(m.truth.building, window(paper_record("kocaeli-1999-dzc180"), 12.0).scaled(0.04),
-                                noise_rms=0.02, seed=0).save(tmp / "weak.npz")
-    yield ["identify", str(weak), "-o", str(c), "--no-cache"], ["no story yielded"], c
+    two = _npz(tmp / "two.npz", dt=m.dt, ground_acc=m.ground_acc, floor_acc=m.floor_acc[:, :2], mass=m.mass[:2])
+    yield ["identify", str(meas), str(two), "-o", str(c)], ["records of one building"], c
+    late = _npz(tmp / "late.npz", dt=m.dt, ground_acc=m.ground_acc, floor_acc=m.floor_acc, mass=m.mass,
+                recorded=np.array("2021-05-01T10:00:00Z"))
+    early = _npz(tmp / "early.npz", dt=m.dt, ground_acc=m.ground_acc, floor_acc=m.floor_acc, mass=m.mass,
+                 recorded=np.array("2020-05-01T10:00:00Z"))
+    yield ["identify", str(late), str(early), "-o", str(c)], ["time order"], c
+    stamp = _npz(tmp / "stamp.npz", dt=m.dt, ground_acc=m.ground_acc, floor_acc=m.floor_acc, mass=m.mass,
+                 recorded=np.array("yesterday"))
+    yield ["identify", str(stamp), "-o", str(c)], ["ISO 8601"], c
+    yield ["update", str(clone), str(two), "-o", str(c)], ["not of this building"], c
+    yield ["update", str(clone), str(meas), "-o", str(c), "--widen", "0"], ["--widen"], c
+    yield ["update", str(clone), str(meas), "-o", str(clone)], ["input"], None
+    pred = tmp / "pred"
+    yield ["predict", str(clone), str(two), "-o", str(pred)], ["not of this building"], pred
+    yield ["predict", str(clone), str(meas), "-o", str(pred), "--band", "2", "1"], ["--band"], pred
+    yield ["predict", str(clone), str(meas), "-o", str(pred), "--ensemble", "-1"], ["--ensemble"], pred
+    yield ["predict", str(tmp / "none.json"), str(meas), "-o", str(pred)], ["not found"], pred
 
     ida_out = tmp / "ida_out"
     broken = tmp / "broken.json"

@@ -20,6 +20,7 @@ LOADERS = {
     "identify.yaml": ("hlaid.identify", "IdentifyConfig"),
     "identify_steel_frame.yaml": ("hlaid.identify", "IdentifyConfig"),
     "identify_leastsquares.yaml": ("hlaid.identify", "IdentifyConfig"),
+    "identify_monitoring.yaml": ("hlaid.identify", "IdentifyConfig"),
     "svm.yaml": ("hlaid.studies.training_samples", "TrainingSamplesConfig"),
     "ida.yaml": ("hlaid.ida", "IDAConfig"),
     "demo.yaml": ("hlaid.runner", "load_run_config"),

@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import hashlib
+import importlib
 import io
 import json
 import os
@@ -532,7 +533,7 @@ def test_interrupted_identify_removes_its_tensorboard_folder(tmp_path, capsys, m
 
     monkeypatch.setattr(hlaid.io, "read", lambda *a, **k: object())
     monkeypatch.setattr(cli, "check_identify_bands", lambda *a: None)
-    monkeypatch.setattr(sys.modules["hlaid.identify"], "HLASVMIdentifier", Interrupted)
+    monkeypatch.setattr(importlib.import_module("hlaid.identify"), "HLASVMIdentifier", Interrupted)
     (tmp_path / "runs").mkdir()
     (tmp_path / "m.npz").write_bytes(b"read by the stand-in reader")
     rc = main(["identify", str(tmp_path / "m.npz"), "-o", str(tmp_path / "c.json"), "--tensorboard",

@@ -17,7 +17,6 @@ from conftest import paper_record, window
 
 from hlaid.cli.main import main
 from hlaid.clone import Clone
-from hlaid.errors import NotIdentifiableError
 from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig, identify_clone, refine_replay
 from hlaid.identify.classify import Bins, pass_result
 from hlaid.identify.regression import fit_delta_eta, fit_yield_displacement, hysteretic_displacement, hysteretic_work
@@ -157,7 +156,7 @@ def test_identify_end_to_end_cached_and_logged(table1, record, tmp_path):
     assert d["provenance"]["hlaid_version"] and "timings" in d["provenance"]
     assert {"outer_iterations", "passes", "stories", "replay"} <= set(d["diagnostics"])
     # the refinement's Laplace uncertainty, stored in the file (version 2); a fit at the noise level
-    assert d["version"] == 2 and len(d["uncertainty"]["parameters"]) == len(u.slots) > 0
+    assert d["version"] == 3 and len(d["uncertainty"]["parameters"]) == len(u.slots) > 0
     assert u.info["fit_consistent"] and np.all(u.std > 0) and np.all(u.std < 0.5)
     assert any(p.name.startswith("events.out.tfevents") for p in (tmp_path / "tb").iterdir())
     cached = sorted((p.relative_to(tmp_path), p.stat().st_size) for p in (tmp_path / "cache").rglob("*"))
@@ -203,10 +202,18 @@ def test_refinement_restarts_from_a_neutral_start_when_the_fit_misses_the_noise(
     assert res.refinement.cost_final == pytest.approx(info["cost_final"])
 
 
-def test_no_yield_is_not_identifiable(table1, record):
+def test_elastic_record_gives_a_prior_flagged_clone(table1, record):
+    """A record that stays elastic still gives a clone: stiffness from the data, the nonlinear
+    parameters from the structural system's prior and flagged as such."""
     meas = simulate_measurement(table1, record.scaled(0.03 / 0.62), noise_rms=0.02)
-    with pytest.raises(NotIdentifiableError, match="no story yielded"):
-        identify_clone(meas, _small_config(refine=RefineConfig(method="none")), cache_dir="")
+    res = identify_clone(meas, _small_config(refine=RefineConfig(method="none")), cache_dir="")
+    b = res.clone.building
+    np.testing.assert_allclose(b.k0, table1.k0, rtol=0.05)  # the elastic record holds the stiffness
+    source = {(f["name"], f["story"]): f["source"] for f in res.clone.diagnostics["parameters"]}
+    assert {source[("k0", i)] for i in (1, 2, 3)} == {"data"}
+    assert {source[(n, i)] for n in ("alpha", "p", "delta_eta") for i in (1, 2, 3)} == {"prior"}
+    assert res.clone.system == "generic" and res.clone.state is not None
+    assert np.all(np.abs(res.clone.state.z) < b.dy)  # nothing yielded: z stays below dy
 
 
 def test_elastic_story_marked_not_identifiable(table1, record):

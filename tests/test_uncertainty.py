@@ -128,11 +128,11 @@ def _uncertain_clone():
     return Clone(building=b, uncertainty=unc)
 
 
-def test_clone_v2_round_trip(tmp_path):
+def test_clone_uncertainty_round_trip(tmp_path):
     c = _uncertain_clone()
     c.save(tmp_path / "c.json")
     d = json.loads((tmp_path / "c.json").read_text())
-    assert d["version"] == 2 and d["uncertainty"]["parameters"][0]["name"] == "k0"
+    assert d["version"] == 3 and d["uncertainty"]["parameters"][0]["name"] == "k0"
     back = load_clone(tmp_path / "c.json")
     np.testing.assert_allclose(back.uncertainty.covariance, c.uncertainty.covariance, rtol=1e-12)
     np.testing.assert_allclose(back.uncertainty.centre, c.uncertainty.centre, rtol=1e-12)
@@ -141,7 +141,7 @@ def test_clone_v2_round_trip(tmp_path):
     lo, hi = iv["k0[1]"]
     assert lo < 2e4 < hi and hi / 2e4 == pytest.approx(np.exp(1.6448536 * 0.02), rel=1e-6)
     assert iv["delta_eta[2]"][0] == 0.0  # clipped to the bound
-    # a clone without uncertainty is written as v2 with null and read back
+    # a clone without uncertainty is written with null and read back
     Clone(building=_building()).save(tmp_path / "plain.json")
     assert load_clone(tmp_path / "plain.json").uncertainty is None
 
@@ -149,7 +149,8 @@ def test_clone_v2_round_trip(tmp_path):
 def test_version_1_files_still_read(tmp_path):
     d = Clone(building=_building()).to_dict()
     d["version"] = 1
-    d.pop("uncertainty")
+    for key in ("uncertainty", "system", "events", "state"):  # fields of later versions
+        d.pop(key, None)
     (tmp_path / "v1.json").write_text(json.dumps(d))
     c = load_clone(tmp_path / "v1.json")
     assert c.uncertainty is None and c.building.n_stories == 2
@@ -157,10 +158,10 @@ def test_version_1_files_still_read(tmp_path):
     (tmp_path / "v1u.json").write_text(json.dumps(d))
     with pytest.raises(InputError, match="unknown field 'uncertainty'"):
         load_clone(tmp_path / "v1u.json")
-    d["version"] = 3
-    (tmp_path / "v3.json").write_text(json.dumps(d))
-    with pytest.raises(InputError, match="clone version 3 is not supported; this hlaid reads versions 1, 2"):
-        load_clone(tmp_path / "v3.json")
+    d["version"] = 4
+    (tmp_path / "v4.json").write_text(json.dumps(d))
+    with pytest.raises(InputError, match="clone version 4 is not supported; this hlaid reads versions 1, 2, 3"):
+        load_clone(tmp_path / "v4.json")
 
 
 @pytest.mark.parametrize("change, message", [
@@ -168,7 +169,7 @@ def test_version_1_files_still_read(tmp_path):
     (lambda u: u["parameters"][0].update(name="stiffness"), r"parameters\[0\].name must be one of"),
     (lambda u: u["parameters"][0].update(story=0), r"parameters\[0\].story must be a story number"),
     (lambda u: u["parameters"][1].update(story=7), "names a story beyond the clone's 2"),
-    (lambda u: u["parameters"][0].update(transform="sqrt"), "transform must be 'log' or 'linear'"),
+    (lambda u: u["parameters"][0].update(transform="sqrt"), "transform must be one of log, linear, logit, log1"),
     (lambda u: u.update(covariance=[[1.0]]), "covariance must be a 4x4"),
     (lambda u: u["covariance"][0].__setitem__(1, 5.0), "symmetric"),
     (lambda u: u.update(covariance=(-np.eye(4)).tolist()), "positive semi-definite"),

@@ -52,8 +52,11 @@ def register(sub) -> None:
     p.add_argument("--period", type=float, help="period [s] of Sa instead of the clone's T1")
     p.add_argument("--collapse", metavar="MODEL",
                    help="strength loss of the stories beyond a capping drift: none, steel-mrf, rc-frame, "
-                        "rc-frame-nonductile (docs/collapse.md); default: the clone's collapse block, else none "
-                        "(collapse only at the drift limit)")
+                        "rc-frame-nonductile (docs/collapse.md); default: the clone's collapse block, else the law of "
+                        "its structural system, else none (collapse only at the drift limit)")
+    p.add_argument("--start", choices=["undamaged", "carried"],
+                   help="undamaged (default): every run from rest; carried: from the state the clone's last event "
+                        "left it in (the fragility after that event)")
     p.add_argument("--bootstrap", type=int, help="bootstrap resamples of the fragility interval (default 1000)")
     p.add_argument("--seed", type=int, help="bootstrap seed (default 0)")
     p.add_argument("--no-plots", action="store_true", help="write no PNG figures")
@@ -88,12 +91,16 @@ def run_ida(args) -> int:
                       heights_mm=_numbers(args.heights, "--heights") if args.heights else None,
                       gravity_kN=_numbers(args.gravity_kN, "--gravity-kN") if args.gravity_kN else None,
                       units=args.units, period=args.period, bootstrap=args.bootstrap, seed=args.seed,
-                      collapse=args.collapse)
+                      collapse=args.collapse, start=args.start)
     base = Path(args.config).parent if args.config else None
     if args.records is None:
         inputs += cfg.record_specs(base) or []
         check_output_folder(args.out, force=args.force, inputs=inputs)
-    load_clone(args.clone)  # a bad clone file is refused before the heavy libraries load
+    clone = load_clone(args.clone)  # a bad clone file is refused before the heavy libraries load
+    if cfg.start == "carried" and clone.state is None:
+        from ..errors import InputError
+        raise InputError("--start carried: the clone carries no state (identified by an older hlaid?); use "
+                         "--start undamaged", source=args.clone)
     from ..ida import ida_from_config, prepare_building
 
     # fail on a bad clone before reading records

@@ -19,9 +19,14 @@ imports no identifier; a test checks the two agree)."""
 
 
 def register(sub) -> None:
-    p = subcommand(sub, "identify", help="identify a digital clone (degrading Bouc-Wen per story) from a measurement",
-                   example="hlaid identify meas.npz -o clone.json --tensorboard runs/id1")
-    p.add_argument("measurement", help="measurement file (.npz, .csv, or a format hlaid reads)")
+    p = subcommand(sub, "identify", help="identify a digital clone (degrading Bouc-Wen per story) from one "
+                   "measurement, or from several of one building in time order",
+                   example="hlaid identify meas.npz -o clone.json --tensorboard runs/id1\n"
+                           "  hlaid identify s1.tsv.gz s2.tsv.gz s3.tsv.gz -o clone.json "
+                           "--config configs/identify_steel_frame.yaml")
+    p.add_argument("measurement", nargs="+", help="measurement file(s) (.npz, .csv, or a format hlaid reads); "
+                   "several: records of one building, oldest first (one set of parameters for all, the state "
+                   "carried from each into the next)")
     p.add_argument("-o", "--out", required=True, help="clone JSON to write")
     p.add_argument("--method", choices=METHODS, default="hlasvm",
                    help="hlasvm (default): the paper's HLA + SVM identification, refined as --config says; "
@@ -41,28 +46,41 @@ def run_identify(args) -> int:
     from ..config import load_config
     from ..errors import InputError
 
-    out = check_output_file(args.out, force=args.force, inputs=[args.measurement, args.config])  # before the work
+    out = check_output_file(args.out, force=args.force, inputs=[*args.measurement, args.config])  # before the work
     if args.config and args.method != "hlasvm":
         raise InputError(f"--config configures --method hlasvm, not {args.method}")
+    if len(args.measurement) > 1 and args.method != "hlasvm":
+        raise InputError(f"--method {args.method} identifies from one measurement; several need --method hlasvm")
     tb = Path(args.tensorboard) if args.tensorboard else None
     if tb is not None and tb.exists() and not tb.is_dir():
         raise InputError("exists and is not a folder; --tensorboard writes a folder of logs", source=str(tb))
     from ..identify.config import IdentifyConfig  # light: no torch, numba or scipy
 
     cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
-    check_input(args.measurement)
+    for path in args.measurement:
+        check_input(path)
     from ..io import read
     from ..measurement import check_band
-    meas = read(args.measurement, "measurement")
+    records = [read(path, "measurement") for path in args.measurement]
     if args.method == "hlasvm":
-        check_identify_bands(meas, cfg, args.config)
+        for m in records:
+            check_identify_bands(m, cfg, args.config)
+        if len(records) > 1:
+            from ..identify.events import check_series
+
+            check_series(records)
+    if args.method != "hlasvm" and len(records) > 1:
+        from ..errors import InputError
+        raise InputError(f"--method {args.method} identifies from one measurement; several events need the "
+                         "default method (hlasvm)")
+    meas = records[0] if len(records) == 1 else records
     from ..identify import HLASVMIdentifier, get_identifier  # the heavy libraries, once the inputs are good
     if args.method == "hlasvm":
         cache = "" if args.no_cache else args.cache
         est = HLASVMIdentifier(config=cfg, refine=None, cache_dir=cache, tensorboard=args.tensorboard)
     else:
         est = get_identifier(args.method, tensorboard=args.tensorboard)
-        check_band(meas, est.band_hz, f"band_hz (--method {args.method})")
+        check_band(records[0], est.band_hz, f"band_hz (--method {args.method})")
     new_tb = tb is not None and not os.path.lexists(tb)
     try:
         est.fit(meas)
@@ -72,7 +90,7 @@ def run_identify(args) -> int:
             shutil.rmtree(tb, ignore_errors=True)
         raise
     if args.method == "hlasvm":
-        print_summary(est.result_)
+        print_summary(est.result_.clone, est.result_.timings.get("total"))
     else:
         print_parameters(est)
     _progress.info(f"wrote {out}")
@@ -88,17 +106,41 @@ def check_identify_bands(meas, cfg: IdentifyConfig, config: str | None) -> None:
     check_band(meas, cfg.refine.band_hz, "refine.band_hz" + where)
 
 
-def print_summary(res) -> None:
+def print_summary(clone, seconds: float | None = None) -> None:
+    """The clone's story parameters, where each comes from, its replay of its events and its
+    state."""
     import numpy as np
 
-    b = res.clone.building
-    lines = ["story      k0    alpha      p      dy  delta_eta   R(meas)  stiffness err"]
+    b = clone.building
+    d = clone.diagnostics or {}
+    flags = {(f["name"], f["story"]): f for f in d.get("parameters", [])}
+    lines = ["story      k0    alpha      p      dy  delta_eta"]
     for i in range(b.n_stories):
-        d = res.clone.diagnostics["stories"][i]
-        flag = "" if d["identifiable"] else "  (not identifiable: see diagnostics)"
+        mark = ""
+        for source in ("prior", "earlier events"):
+            names = [n for n in ("alpha", "p", "dy", "delta_eta") if flags.get((n, i + 1), {}).get("source") == source]
+            if names:
+                mark += f"  (from the {source}: {', '.join(names)})" if source == "prior" else \
+                    f"  (from {source}, little from this one: {', '.join(names)})"
+        limit = [n for n in ("alpha", "p", "dy", "delta_eta") if flags.get((n, i + 1), {}).get("at_limit")]
+        if limit:
+            mark += f"  (at a limit: {', '.join(limit)})"
+        if "stories" in d and not d["stories"][i]["identifiable"]:
+            mark += "  (not identifiable: see diagnostics)"
         lines.append(f"{i + 1:5d} {b.k0[i]:8.5g} {b.alpha[i]:8.3f} {b.p[i]:6.2f} {b.dy[i]:7.3f} {b.delta_eta[i]:10.3f}"
-                     f" {res.replay.r_measured[i]:9.4f} {res.replay.stiffness_error[i]:13.2%}{flag}")
-    lines.append(f"outer iterations {res.iterations}, wall time {res.timings.get('total', np.nan):.1f} s")
+                     f"{mark}")
+    events = (d.get("joint") or {}).get("events") or []
+    for e in events:
+        lines.append(f"replay of {e.get('name') or 'event'}: R {np.round(e['R_measured'], 3).tolist()}")
+    if not events and isinstance(d.get("replay"), dict):
+        lines.append(f"replay: R {np.round(d['replay']['r_measured'], 3).tolist()}")
+    if clone.state is not None:
+        drift, eta = np.round(clone.state.drift, 2).tolist(), np.round(clone.state.eta(b), 3).tolist()
+        lines.append(f"state after {len(clone.events)} event(s): residual drift {drift} mm, eta {eta}")
+    if clone.system:
+        lines.append(f"structural system: {clone.system}")
+    if seconds is not None:
+        lines.append(f"wall time {seconds:.1f} s")
     _progress.info("\n".join(lines))
 
 

@@ -25,6 +25,7 @@ COMMANDS = [
     "hlaid.cli.demo",
     "hlaid.cli.hla",
     "hlaid.cli.identify",
+    "hlaid.cli.events",
     "hlaid.cli.run",
     "hlaid.cli.ida",
     "hlaid.cli.fleet",

@@ -67,8 +67,8 @@ class _Runner:
     """Runs (record, IM) points through the batch simulator and accumulates them."""
 
     def __init__(self, building: Building, motions: list[GroundMotion], im0: np.ndarray, drift_limit: float,
-                 max_step: float):
-        self.b, self.im0 = building, im0
+                 max_step: float, y0: np.ndarray | None = None):
+        self.b, self.im0, self.y0 = building, im0, y0
         self.h = np.asarray(building.height, dtype=np.float64)
         self.stop = drift_limit * self.h
         self.drift_limit = drift_limit
@@ -82,16 +82,18 @@ class _Runner:
                                                       "peak", "residual")}
         self.n_runs = 0
 
-    def _sim(self, recs: np.ndarray, scales: np.ndarray, substeps: int):
+    def _sim(self, recs: np.ndarray, scales: np.ndarray, substeps: int, y0: np.ndarray | None):
         """Product runs of ``recs`` x their rows of ``scales`` ``(len(recs), k)``, at ``substeps``
-        RK4 steps per sample of the (already refined) records."""
+        RK4 steps per sample of the (already refined) records, each from ``y0`` (None: at rest)."""
         r = simulate_response(self.b, [self.motions[i] for i in recs], scales, substeps=int(substeps),
-                              outputs="peaks", stop_drift=self.stop)
+                              outputs="peaks", stop_drift=self.stop, y0=y0)
         self.n_runs += r.batch_size
         return r.peak_drift, r.residual_drift, r.status
 
     def run(self, recs: np.ndarray, ims: np.ndarray, stage: str) -> None:
-        """Run records ``recs`` ``(m,)`` at IM rows ``ims`` ``(m, k)`` [g]."""
+        """Run records ``recs`` ``(m,)`` at IM rows ``ims`` ``(m, k)`` [g]. The elastic probe
+        starts from the carried state with its drift and hysteretic state set to zero (the
+        elastic slope of the building as the last event left it), every other run from the state."""
         recs = np.asarray(recs, dtype=np.int64)
         ims = np.asarray(ims, dtype=np.float64).reshape(recs.size, -1)
         if recs.size == 0:
@@ -103,9 +105,15 @@ class _Runner:
         resid = np.empty((recs.size, k, n))
         status = np.empty((recs.size, k), dtype=np.int64)
         sub = np.empty((recs.size, k), dtype=np.int64)
+        y0 = self.y0
+        if y0 is not None and stage == "probe":
+            n3 = self.b.n_stories
+            y0 = y0.copy()
+            y0[:n3] = 0.0
+            y0[2 * n3:3 * n3] = 0.0
         for s in np.unique(self.substeps[recs]):
             sel = np.flatnonzero(self.substeps[recs] == s)
-            pk, rs, st = self._sim(recs[sel], scales[sel], 1)
+            pk, rs, st = self._sim(recs[sel], scales[sel], 1, y0)
             peak[sel], resid[sel], status[sel] = pk.reshape(sel.size, k, n), rs.reshape(sel.size, k, n), \
                 st.reshape(sel.size, k)
             sub[sel] = s
@@ -118,7 +126,7 @@ class _Runner:
                 break
             for i, j in bad:
                 f = int(sub[i, j] // self.substeps[recs[i]]) * _CONFIRM_FACTOR
-                pk, rs, st = self._sim(recs[i:i + 1], scales[i:i + 1, j:j + 1], f)
+                pk, rs, st = self._sim(recs[i:i + 1], scales[i:i + 1, j:j + 1], f, y0)
                 peak[i, j], resid[i, j], status[i, j] = pk[0], rs[0], st[0]
                 sub[i, j] = f * self.substeps[recs[i]]
         c = self.cols
@@ -219,19 +227,23 @@ def run_ida(model: Clone | Building | str | os.PathLike,
         exceedance_limits = [d for d in DEFAULT_EXCEEDANCE if d < drift_limit]
     cfg = dataclasses.replace(cfg, levels=None if cfg.levels is None else list(cfg.levels),
                               exceedance_limits=list(exceedance_limits))
+    if isinstance(model, (str, os.PathLike)):
+        model = Clone.load(model)
     building, notes = prepare_building(model, pdelta=cfg.pdelta, heights=cfg.heights_mm,
                                        gravity_load=cfg.gravity_load_n(), collapse=cfg.collapse)
+    y0 = start_state(model, building, cfg.start, notes)
     motions = as_motions(records, units=cfg.units)
     measure, T1, im0 = record_intensities(motions, cfg.im, building, cfg.period)
     levels: Sequence[float] | np.ndarray | None  # the configured levels, then their array
     levels, n_levels, slope_ratio, refine = cfg.levels, cfg.n_levels, cfg.slope_ratio, cfg.refine
     hunt_factor, max_hunt, tolerance, max_fill = cfg.hunt_factor, cfg.max_hunt, cfg.tolerance, cfg.max_fill
     R = len(motions)
-    runner = _Runner(building, motions, im0, drift_limit, max_step)
+    runner = _Runner(building, motions, im0, drift_limit, max_step, y0)
     _progress.info(f"IDA of {building.name or 'the clone'}: {R} records, IM {measure.label}"
                    + (f" at T1 = {T1:.3f} s" if measure.needs_period else "")
                    + f", collapse at {drift_limit:.0%} drift, P-Delta {'on' if building.pdelta else 'off'}"
-                   + f", collapse model {building.collapse.name if building.collapse else 'none'}")
+                   + f", collapse model {building.collapse.name if building.collapse else 'none'}"
+                   + f", from the {cfg.start} state")
 
     # 1. elastic probe
     ar = np.arange(R)
@@ -300,6 +312,25 @@ def run_ida(model: Clone | Building | str | os.PathLike,
         censored_im=np.where(state["first"] < 0, state["max_im"], np.nan),
         settings=_settings(cfg), notes=tuple(notes),
         timing={"wall_s": wall, "runs": runner.n_runs})
+
+
+def start_state(model, building: Building, start: str, notes: list[str]) -> np.ndarray | None:
+    """The simulator's initial state of every IDA run (``(4*story,)``, ``(6*story,)`` with a
+    collapse law; None: at rest), and a note saying which. ``start="carried"`` needs a clone that
+    carries a state (:attr:`hlaid.clone.Clone.state`)."""
+    if start == "undamaged":
+        notes.append("start: undamaged (every run from rest)")
+        return None
+    if not isinstance(model, Clone) or model.state is None:
+        raise InputError("start: carried needs a clone that carries the state its last event left it in "
+                         "(a clone of hlaid identify or hlaid update)", source=building.source)
+    st = model.state
+    eta = st.eta(building)
+    h = np.asarray(building.height, dtype=float)  # prepare_building requires the heights
+    notes.append(f"start: carried, the state after {', '.join(st.events) or 'the last event'}: residual drift "
+                 + ", ".join(f"{100 * d / hi:.2f}" for d, hi in zip(st.drift, h))
+                 + " %, eta " + ", ".join(f"{v:.2f}" for v in eta))
+    return st.vector(collapse=building.collapse is not None)
 
 
 def _scan_all(runner: _Runner, slope_el: np.ndarray, slope_ratio: float) -> dict:

@@ -122,6 +122,37 @@ def plot_fragility(res: IDACurves, *, n_boot: int = 1000, ci: float = 0.90, seed
     return fig
 
 
+def plot_fragility_before_after(before: IDACurves, after: IDACurves, *, title: str | None = None):
+    """Collapse fragility of a clone undamaged (``before``) and from the state its last event left
+    it in (``after``, the aftershock fragility): each record's collapse intensity and the
+    lognormal MLE of the capacities. Returns the figure."""
+    fig, ax = plt.subplots(figsize=(7.2, 5.0))
+    caps = [r.collapse_im for r in (before, after)]
+    top = float(np.nanmax(np.concatenate([*caps, before.levels, after.levels, before.censored_im,
+                                          after.censored_im]))) * 1.3
+    x = np.linspace(top / 400, top, 400)
+    for res, cap, name, color in ((before, caps[0], "before the event (undamaged)", "tab:blue"),
+                                  (after, caps[1], "after the event (state carried)", "tab:red")):
+        obs = np.isfinite(cap)
+        if obs.any():
+            s = np.sort(cap[obs])
+            ax.plot(s, (np.arange(s.size) + 0.5) / res.n_records, "o", ms=4, color=color, alpha=0.7)
+        try:
+            f = res.collapse_fragility("capacities", n_boot=0)
+        except ValueError:
+            ax.plot([], [], "o", color=color, label=f"{name}: not fitted")
+            continue
+        ax.plot(x, f.probability(x), color=color, lw=2, label=f"{name}: median {f.median:.3g} g, beta {f.beta:.2f}")
+    ax.set_xlim(0, top)
+    ax.set_ylim(0, 1.02)
+    ax.set_xlabel(f"{before.im_label} [g]")
+    ax.set_ylabel("probability of collapse")
+    ax.set_title(title or f"Collapse fragility before and after the event ({before.n_records} records)")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right", fontsize=8)
+    return fig
+
+
 def plot_exceedance(res: IDACurves, *, n_boot: int = 0):
     """Probability of exceeding each drift-ratio limit vs IM: fractions at the grid levels
     (markers) and lognormal MLE fits of the records' IM capacities (lines)."""

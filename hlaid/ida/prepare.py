@@ -11,7 +11,7 @@ from ..clone import Clone
 from ..errors import InputError
 from ..limits import check_count
 from ..model import Building
-from ..model.collapse import get_collapse_model
+from ..model.collapse import SYSTEM_COLLAPSE, get_collapse_model
 
 
 def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: bool | None = None,
@@ -25,14 +25,16 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     mass like its stiffnesses, so P-Delta stays consistent; absolute gravity loads [N] cannot be
     combined with it. Story heights are required (``require_heights``): IDA reports drift ratios.
     ``collapse`` (a name, a mapping or a CollapseModel; see :mod:`hlaid.model.collapse`) replaces
-    the clone's strength-loss model; None keeps the clone's (``none`` when it has none).
+    the clone's strength-loss model; None keeps the clone's, else the collapse law of the
+    clone's structural system (``clone.system``), else ``none``.
     """
     source = None
     if isinstance(model, (str, os.PathLike)):
         source = str(model)
         model = Clone.load(model)
+    system = None
     if isinstance(model, Clone):
-        building, normalised = model.building, model.mass_normalised
+        building, normalised, system = model.building, model.mass_normalised, model.system
     elif isinstance(model, Building):
         building, normalised = model, False
     else:
@@ -64,6 +66,12 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     building = building.replace(pdelta=want)
     if collapse is not None:
         building = building.replace(collapse=get_collapse_model(collapse))
+    elif building.collapse is None and system is not None:
+        law = get_collapse_model(SYSTEM_COLLAPSE.get(system, "none"))
+        if law is not None:
+            building = building.replace(collapse=law)
+            notes.append(f"collapse model {law.name!r} chosen for the clone's structural system {system!r}: "
+                         f"strength loss as measured on such members ({law.source})")
     if building.collapse is None:
         notes.append("collapse model 'none': the stories never lose strength, so collapse comes only from the "
                      "drift limit or the slope criterion (optimistic); choose one with collapse: steel-mrf, "

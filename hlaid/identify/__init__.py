@@ -24,6 +24,7 @@ if TYPE_CHECKING:
     from .refiners import REFINERS
     from .registry import IDENTIFIERS, get_identifier
     from .ukf import UKFIdentifier
+    from .update import update_clone
 
 _WHERE = {
     ".config": ("BinsConfig", "IdentifyConfig", "OuterConfig", "RefineConfig", "SVMConfig", "TrainingConfig"),
@@ -34,11 +35,12 @@ _WHERE = {
     ".refiners": ("REFINERS",),
     ".registry": ("IDENTIFIERS", "get_identifier"),
     ".ukf": ("UKFIdentifier",),
+    ".update": ("update_clone",),
 }
 
 __all__ = ["identify_clone", "IdentificationResult", "IdentifyConfig", "BinsConfig", "TrainingConfig", "SVMConfig",
            "OuterConfig", "RefineConfig", "REFINERS", "refine_replay", "RefineResult", "IDENTIFIERS",
            "get_identifier", "BaseIdentifier", "HLASVMIdentifier", "GradientIdentifier", "UKFIdentifier",
-           "NotFittedError"]
+           "NotFittedError", "update_clone"]
 
 __getattr__, __dir__ = lazy_exports(__name__, {name: module for module, names in _WHERE.items() for name in names})

@@ -240,6 +240,12 @@ class IdentifyConfig:
     cache_dir : where trained classifiers are cached (null: ``~/.cache/hlaid/svm``)
     n_jobs : worker processes on which the kernel machines train while the next story's
         samples are drawn
+    system : the structural system (:data:`hlaid.identify.priors.SYSTEMS`: ``steel-moment-frame``,
+        ``rc-frame``, ``generic``). Its prior holds the parameters the data say little about
+        (maximum a posteriori over all of a clone's events, :mod:`hlaid.identify.joint`), and its
+        collapse law is the assessment's. null: ``generic`` where a prior is needed (several
+        events, a record that stays elastic) and a single yielding record identified by its data
+        alone
     """
 
     hla: HLAConfig = field(default_factory=HLAConfig)
@@ -253,5 +259,12 @@ class IdentifyConfig:
     cache_dir: str | None = None
     n_jobs: int = bounded(2, lo=1, hi=1024)
 
+    system: str | None = None
+
     def __post_init__(self):
         check_bounds(self)
+        from .priors import SYSTEMS
+
+        if self.system is not None and self.system not in SYSTEMS:
+            raise InputError(f"system = {self.system!r} is unknown; expected one of "
+                             f"{', '.join(map(repr, SYSTEMS))} (or null)")

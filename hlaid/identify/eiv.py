@@ -38,7 +38,8 @@ def ground_memory(building: Building, decays: float = 4.0, limits_s=(2.0, 10.0))
 
 
 def tangent_whitener(building: Building, meas: Measurement, ground: GroundMotion, hi_hz: float, scale: np.ndarray,
-                      memory_s: float, substeps: int, stride: int, max_mb: float | None = None) -> TangentWhitener:
+                      memory_s: float, substeps: int, stride: int, max_mb: float | None = None,
+                      y0: np.ndarray | None = None) -> TangentWhitener:
     """:class:`~hlaid.identify.eiv.TangentWhitener` of the refinement's residuals, low-passed at
     ``hi_hz`` and sampled every ``stride`` samples.
 
@@ -49,7 +50,8 @@ def tangent_whitener(building: Building, meas: Measurement, ground: GroundMotion
     ``scale`` like the residuals (the 0.1 Hz high-pass is left out: white noise has next to no
     power below it). The floor noise, white of std ``s`` per sample and low-passed, is white of
     std ``s / sqrt(stride)`` on the coarse grid within the band. Every channel's noise a common
-    fraction of its RMS (the fraction cancels).
+    fraction of its RMS (the fraction cancels). ``y0``: the state the replay starts from (None:
+    at rest).
     """
     dt = meas.dt
     half = int(np.ceil(4.0 / (hi_hz * dt)))
@@ -58,7 +60,7 @@ def tangent_whitener(building: Building, meas: Measurement, ground: GroundMotion
     shape = lowpass(imp, dt, hi_hz)[2 * half:6 * half + 1]  # room before lag 0 for the output's low-pass
     lags = max(int(round(memory_s / (dt * stride))), 1)
     gt = ground_tangent(building, ground, lags=lags, shape=shape, substeps=substeps, stride=stride, lowpass_hz=hi_hz,
-                        max_mb=max_mb)
+                        max_mb=max_mb, y0=y0)
     floor = np.asarray(meas.floor_acc)
     rms_f = np.sqrt(np.mean(floor**2, axis=0))
     rms_g = float(np.sqrt(np.mean(np.asarray(meas.ground_acc) ** 2)))

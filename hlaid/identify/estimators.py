@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import inspect
 import time
+from collections.abc import Sequence
 
 import numpy as np
 import sklearn.exceptions
@@ -102,7 +103,9 @@ class HLASVMIdentifier(BaseIdentifier):
         self.cache_dir = cache_dir
         self.tensorboard = tensorboard
 
-    def fit(self, measurement: Measurement) -> HLASVMIdentifier:
+    def fit(self, measurement: Measurement | Sequence[Measurement]) -> HLASVMIdentifier:
+        """Identify the clone from one measurement, or from several of one building in time order
+        (:func:`hlaid.identify.identify_clone`)."""
         import dataclasses
 
         from .config import IdentifyConfig

@@ -20,10 +20,8 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
-import hashlib
 import time
-from dataclasses import dataclass
-from pathlib import Path
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -31,44 +29,20 @@ from .. import _progress
 from .._version import __version__
 from ..clone import Clone
 from ..config import config_to_dict
-from ..hla import HLAResult
+from ..errors import InputError
 from ..measurement import Measurement
 from ..model import Building
 from ..uncertainty.laplace import uncertainty_of_refinement
 from .cache import MachineCache, default_cache_dir
 from .config import IdentifyConfig
+from .events import best_fit, check_series, joint_fit, most_informative, plausible_starts, result_of_joint, state_after
 from .passes import ClassifierPasses, voted
+from .priors import get_prior
 from .refiners import Refinement, RefineProblem, get_refiner
 from .replaycheck import ReplayCheck, replay_check
+from .result import IdentificationResult, event_record, file_digest
 from .stages import Estimate, Event, analyse, first_estimate, follow_paths, regress
 from .tb import TBLogger
-
-
-@dataclass(frozen=True, eq=False)
-class IdentificationResult:
-    """Everything an identification produced.
-
-    Attributes
-    ----------
-    clone : the identified clone (write it with ``clone.save``)
-    hla : the hysteresis loop analysis of the measurement
-    paper_estimate : the building after regressions + classifiers (before refinement)
-    passes : per outer iteration, per story, the classifier passes
-    iterations : outer-loop iterations run
-    replay : replay of the clone on the measured ground motion
-    timings : seconds per step
-    refinement : the refinement's final fit (its Jacobian and residuals at the solution give
-        ``clone.uncertainty``), None without refinement
-    """
-
-    clone: Clone
-    hla: HLAResult
-    paper_estimate: Building
-    passes: list
-    iterations: int
-    replay: ReplayCheck
-    timings: dict
-    refinement: object = None
 
 
 def outer_loop(event: Event, passes: ClassifierPasses, cfg: IdentifyConfig) -> tuple[Estimate, list[dict]]:
@@ -125,13 +99,23 @@ def refine(event: Event, est: Estimate, cfg: IdentifyConfig) -> Refinement:
     return refiner.refine(problem)
 
 
-def identify_clone(measurement: Measurement, config: IdentifyConfig | None = None, *,
+def identify_clone(measurements: Measurement | Sequence[Measurement], config: IdentifyConfig | None = None, *,
                    tensorboard: str | None = None, cache_dir: str | None = None) -> IdentificationResult:
-    """Identify a digital clone from a measurement, with no expert input.
+    """Identify a digital clone from one measurement, or from several of one building in time
+    order, with no expert input.
+
+    One yielding record: the paper's method and the refinement on its data alone (a structural
+    ``system`` named is recorded with the clone: its collapse law for the IDA). Several records,
+    or a record that stays elastic: the paper's method on the most informative record (where one
+    yielded) gives the start, and one set of parameters is then fitted to every record, the state carried from
+    each into the next and the system's prior holding what the data say little about
+    (:mod:`hlaid.identify.events`). The clone is left in the state its last record left the
+    building in (``clone.state``).
 
     Parameters
     ----------
-    measurement : ground and floor accelerations (masses optional: mass-normalised clone)
+    measurements : ground and floor accelerations (masses optional: mass-normalised clone);
+        several: records of one building, oldest first
     config : settings (defaults: :class:`IdentifyConfig`)
     tensorboard : folder for TensorBoard logs (classifier accuracies, confusion matrices,
         example features, estimates per outer iteration)
@@ -142,14 +126,41 @@ def identify_clone(measurement: Measurement, config: IdentifyConfig | None = Non
     -------
     IdentificationResult
     """
+    meas = [measurements] if isinstance(measurements, Measurement) else list(measurements)
+    if not meas:
+        raise InputError("identify_clone: no measurement given")
+    check_series(meas)
     cfg = config or IdentifyConfig()
     cache_dir = cache_dir if cache_dir is not None else cfg.cache_dir
     cache = MachineCache(default_cache_dir() if cache_dir is None else (cache_dir or None))
     tb = TBLogger(tensorboard)
     timings: dict[str, float] = {}
     t_all = time.perf_counter()
-    event = analyse(measurement, cfg)
+    events = [analyse(m, cfg) for m in meas]
     timings["hla"] = time.perf_counter() - t_all
+    best = most_informative(events)
+    single = None if best is None else _paper_and_refinement(events[best], cfg, cache, tb, timings)
+    if len(meas) == 1 and single is not None:  # one yielding record: the data speak, the paper's method
+        timings["total"] = time.perf_counter() - t_all
+        tb.close()
+        return dataclasses.replace(single, clone=dataclasses.replace(single.clone, system=cfg.system))
+    system = get_prior(cfg.system or "generic")
+    starts = plausible_starts(single, events[0], meas[0], system, cfg)
+    names = [m.name or f"event {k + 1}" for k, m in enumerate(meas)]
+    t = time.perf_counter()
+    fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=events[0].hla.k0) for b in starts]
+    fit = best_fit(fits)
+    start = starts[fits.index(fit)]
+    timings["joint"] = time.perf_counter() - t
+    result = result_of_joint(events, meas, fit, cfg, system=system, start=start, single=single, timings=timings)
+    timings["total"] = time.perf_counter() - t_all
+    tb.close()
+    return result
+
+
+def _paper_and_refinement(event: Event, cfg: IdentifyConfig, cache: MachineCache, tb: TBLogger,
+                          timings: dict) -> IdentificationResult:
+    """The paper's method and the refinement on one event (the single-record pipeline)."""
     passes = ClassifierPasses(cfg, cache, tb, timings)
     est, history = outer_loop(event, passes, cfg)
     paper = est.building(event, cfg.damping_ratio)
@@ -158,22 +169,23 @@ def identify_clone(measurement: Measurement, config: IdentifyConfig | None = Non
     if refined.result is not None:
         timings["refine"] = time.perf_counter() - t
     t = time.perf_counter()
+    measurement = event.measurement
     check = replay_check(refined.building, measurement, event.hla)
     timings["replay"] = time.perf_counter() - t
-    timings["total"] = time.perf_counter() - t_all
     for i, r in enumerate(check.r_measured):
         tb.scalar(f"replay/story{i + 1}/R_measured", r)
-    tb.close()
-    return IdentificationResult(clone=_clone(event, est, paper, refined, history, passes.log, check, timings, cfg),
-                                hla=event.hla, paper_estimate=paper, passes=passes.log, iterations=len(history),
-                                replay=check, timings=timings, refinement=refined.result)
+    clone = _clone(event, est, paper, refined, history, passes.log, check, timings, cfg)
+    state = state_after(clone.building, [measurement], cfg.refine.band_hz, [measurement.name or "event 1"])
+    clone = dataclasses.replace(clone, events=(event_record(measurement),), state=state)
+    return IdentificationResult(clone=clone, hla=event.hla, paper_estimate=paper, passes=passes.log,
+                                iterations=len(history), replay=check, timings=timings, refinement=refined.result)
 
 
 def _clone(event: Event, est: Estimate, paper: Building, refined: Refinement, history: list, passes: list,
            check: ReplayCheck, timings: dict, cfg: IdentifyConfig) -> Clone:
     """The clone file's content: the building, diagnostics, provenance and uncertainty."""
     meas = event.measurement
-    provenance = {"source": meas.source, "sha256": _file_digest(meas.source) if meas.source else None,
+    provenance = {"source": meas.source, "sha256": file_digest(meas.source) if meas.source else None,
                   "hlaid_version": __version__, "config": config_to_dict(cfg), "timings": timings,
                   "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                   "noise_rms_used": event.noise}
@@ -212,10 +224,3 @@ def _diagnostics(event: Event, est: Estimate, paper: Building, history: list, pa
 def _rel_change(new, old) -> float:
     new, old = np.asarray(new, float), np.asarray(old, float)
     return float(np.max(np.abs(new - old) / np.maximum(np.abs(old), 1e-9)))
-
-
-def _file_digest(path: str) -> str | None:
-    p = Path(path)
-    if not p.is_file():
-        return None
-    return hashlib.sha256(p.read_bytes()).hexdigest()

@@ -15,7 +15,7 @@ import inspect
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import ParamSpec, TypeVar
+from typing import ParamSpec, Protocol, TypeVar
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -197,7 +197,32 @@ class ParameterVector:
         return b.replace(**fields, damping=Damping(kind=b.damping.kind, ratio=ratio, modes=b.damping.modes))
 
 
-def fit_residuals(vector: ParameterVector, residuals: ReplayResiduals, *, max_iterations: int = 40,
+class SearchVector(Protocol):
+    """The parameters a search moves (:class:`ParameterVector`, or the prior units of
+    :class:`hlaid.identify.joint.PriorVector`)."""
+
+    slots: list
+    x0: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    scale: np.ndarray
+
+    def building_at(self, x: np.ndarray) -> Building: ...
+
+
+class Residuals(Protocol):
+    """Buildings to residuals (:class:`~hlaid.identify.residuals.ReplayResiduals`, or the
+    posterior's of :class:`hlaid.identify.joint.PosteriorResiduals`)."""
+
+    substeps: int
+    channels: int
+    criterion: str
+
+    def __call__(self, buildings: Sequence[Building], substeps: int | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+def fit_residuals(vector: SearchVector, residuals: Residuals, *, max_iterations: int = 40,
                   ftol: float = 1e-10, jac_substeps: int | None = None, t0: float | None = None) -> RefineResult:
     """Least squares of ``residuals`` over ``vector``'s parameters from its start (scipy's
     trust-region reflective search within the bounds; forward-difference Jacobians, one batch of

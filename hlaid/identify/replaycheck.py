@@ -46,14 +46,16 @@ def corrcoef(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.sum(a * b, axis=0) / np.sqrt(np.sum(a * a, axis=0) * np.sum(b * b, axis=0))
 
 
-def replay_check(building: Building, measurement: Measurement, hla_result: HLAResult) -> ReplayCheck:
-    """Replay ``building`` under the measured ground motion and compare with HLA and data."""
+def replay_check(building: Building, measurement: Measurement, hla_result: HLAResult,
+                 y0: np.ndarray | None = None) -> ReplayCheck:
+    """Replay ``building`` under the measured ground motion (from the state ``y0``, None: at rest)
+    and compare with HLA and data."""
     from ..hla.analysis import floor_motion
 
     dt = measurement.dt
     band = hla_result.band_hz
     ground = measured_ground(measurement, band[1])
-    r = simulate_response(building, ground)
+    r = simulate_response(building, ground, y0=y0)
     assert r.disp is not None and r.eta is not None  # simulate keeps the histories by default
     disp = r.disp[0]
     _, _, _, meas_disp = floor_motion(measurement, hla_result.config)

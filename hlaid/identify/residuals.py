@@ -55,6 +55,8 @@ class ReplayResiduals:
         None: :func:`~hlaid.identify.eiv.ground_memory` of ``at``
     max_mb : raise :class:`~hlaid.errors.TangentTooLargeError` where the tangent would take more
         than this many MiB (None: only the hard limit)
+    at_state : ``(4*story,)`` the state the replay of ``at`` starts from, for its tangent (None:
+        at rest)
 
     Attributes
     ----------
@@ -65,7 +67,7 @@ class ReplayResiduals:
 
     def __init__(self, measurement: Measurement, *, band_hz=(0.1, 20.0), substeps: int = 4,
                  ground_noise: str = "ignore", at: Building | None = None, tangent_substeps: int = 2,
-                 memory_s: float | None = None, max_mb: float | None = None):
+                 memory_s: float | None = None, max_mb: float | None = None, at_state: np.ndarray | None = None):
         if ground_noise not in CRITERIA:
             raise InputError(f"ground_noise = {ground_noise!r}; expected one of {', '.join(map(repr, CRITERIA))}")
         dt = measurement.dt
@@ -86,7 +88,7 @@ class ReplayResiduals:
             self.stride = max(int(1.0 / (3.0 * hi * dt)), 1)  # the low-passed residuals, sampled at 3x their corner
             memory = ground_memory(at) if memory_s is None else memory_s
             self.whitener = tangent_whitener(at, measurement, self.ground, hi, self.scale, memory, tangent_substeps,
-                                             self.stride, max_mb)
+                                             self.stride, max_mb, y0=at_state)
         self.channels = measurement.n_floors + (self.whitener is not None)
         self.n_residuals = len(range(0, self.target.shape[0], self.stride)) * self.channels
 
@@ -96,10 +98,20 @@ class ReplayResiduals:
         A replay that diverged gets residuals of 1e3 and an infinite plain cost.
 
         ``substeps`` : RK4 sub-steps of these replays (default the object's)."""
+        res, plain, _ = self.run(buildings, substeps)
+        return res, plain
+
+    def run(self, buildings: Sequence[Building], substeps: int | None = None, *, y0: np.ndarray | None = None,
+            tail_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """As :meth:`__call__`, the replays starting from ``y0`` ``(batch, 4*story)`` (None: at
+        rest) and running ``tail_s`` seconds of free vibration past the record, and the state
+        each ends in ``(batch, 4*story)`` (NaN where a replay diverged)."""
         r = simulate_response(list(buildings), self.ground, substeps=self.substeps if substeps is None else substeps,
-                              outputs="acc")
+                              outputs="acc", y0=y0, free_vibration=tail_s)
+        n_time = self.target.shape[0]
         acc = r.acc
         assert acc is not None  # outputs="acc" keeps them
+        acc = acc[:, :n_time] if acc.shape[1] > n_time else acc
         acc[r.status != 0] = 0.0  # only a stopped replay has NaN (after its stop); no copy of the rest
         res = np.empty((len(buildings), self.n_residuals))
         plain = np.empty(len(buildings))
@@ -121,4 +133,6 @@ class ReplayResiduals:
                 list(ex.map(chunk, starts))
         res[r.status != 0] = 1e3  # a diverged trial is far from the data
         plain[r.status != 0] = np.inf
-        return res, plain
+        final = np.array(r.final_state, dtype=float)
+        final[r.status != 0] = np.nan
+        return res, plain, final

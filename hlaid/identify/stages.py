@@ -127,22 +127,24 @@ def noise_level(meas: Measurement, cfg: IdentifyConfig) -> float:
 
 
 def analyse(meas: Measurement, cfg: IdentifyConfig) -> Event:
-    """The HLA stage: HLA of ``meas`` and what the other stages need of it; NotIdentifiableError
-    where no story yielded in 3 half cycles."""
-    _progress.info("[identify] hysteresis loop analysis")
+    """The HLA stage: HLA of ``meas`` and what the other stages need of it (an event where no story
+    yielded in 3 half cycles has none identifiable: the paper's method cannot run on it)."""
+    _progress.info(f"[identify] hysteresis loop analysis{' of ' + meas.name if meas.name else ''}")
     res = run_hla(meas, cfg.hla)
     features = tuple(half_cycle_features(s, cfg.training.n_segments, yield_ratio=cfg.hla.stiffness.yield_ratio,
                                          with_ke=True) for s in res.stories)
     identifiable = np.array([s.yielded and len(F) >= 3 for s, F in zip(res.stories, features)])
-    if not identifiable.any():
-        peaks = ", ".join(f"{np.max(np.abs(s.drift)):.3g}" for s in res.stories)
-        raise NotIdentifiableError(f"no story yielded in this record (peak drifts {peaks} mm): a nonlinear clone "
-                                   "cannot be identified from it; use a record that drove the building past "
-                                   "yield", source=meas.source or None)
-    ke_min = np.array([np.nanmin(s.half_cycles.ke) / s.k0 for s in res.stories])
+    ke_min = np.array([np.nanmin(s.half_cycles.ke) / s.k0 if len(s.half_cycles) else 1.0 for s in res.stories])
     return Event(measurement=meas, hla=res, features=features, identifiable=identifiable,
-                 alpha_max=np.clip(ke_min, 0.05, 0.95), ground=measured_ground(meas, res.band_hz[1]),
-                 noise=noise_level(meas, cfg))
+                 alpha_max=np.clip(np.nan_to_num(ke_min, nan=1.0), 0.05, 0.95),
+                 ground=measured_ground(meas, res.band_hz[1]), noise=noise_level(meas, cfg))
+
+
+def not_identifiable(event: Event) -> NotIdentifiableError:
+    """The error of the paper's method on an event where no story yielded."""
+    peaks = ", ".join(f"{p:.3g}" for p in event.peak_drift)
+    return NotIdentifiableError(f"no story yielded in this record (peak drifts {peaks} mm): the paper's method "
+                                "cannot identify a nonlinear clone from it", source=event.measurement.source or None)
 
 
 def first_estimate(event: Event, cfg: IdentifyConfig) -> Estimate:

@@ -57,13 +57,29 @@ def _read_npz(p: Path) -> Measurement:
     except (TypeError, ValueError):
         raise InputError(f"dt must be one number, got an array of shape {np.shape(d['dt'])} and type "
                          f"{np.asarray(d['dt']).dtype.kind!r}", source=src) from None
-    known = {"dt", "ground_acc", "floor_acc", "mass", "height", "noise_rms", "pdelta", "floor_disp", "true_params"}
+    known = {"dt", "ground_acc", "floor_acc", "mass", "height", "noise_rms", "pdelta", "floor_disp", "true_params",
+             "recorded"}
     extra = {k: v for k, v in d.items() if k not in known and not k.startswith("true_")}
     return Measurement(dt=dt, ground_acc=d["ground_acc"], floor_acc=d["floor_acc"], mass=d.get("mass"),
                        height=d.get("height"), pdelta=bool(d["pdelta"]) if "pdelta" in d else None, truth=truth,
                        floor_disp=d.get("floor_disp"),
                        noise_rms=float(d["noise_rms"]) if "noise_rms" in d else None, source=src,
-                       name=p.stem, extra=extra)
+                       name=p.stem, extra=extra, recorded=_recorded(d.get("recorded"), src))
+
+
+def _recorded(value, src: str) -> str | None:
+    """The ``recorded`` start time (ISO 8601), checked; None where absent."""
+    if value is None:
+        return None
+    import datetime
+
+    text = str(np.asarray(value)).strip()
+    try:
+        datetime.datetime.fromisoformat(text.replace("Z", "+00:00"))
+    except ValueError:
+        raise InputError("recorded: expected the record's start time in ISO 8601, e.g. 2018-01-04T10:39:37Z",
+                         source=src) from None
+    return text
 
 
 def _is_float(text: str) -> bool:
@@ -142,4 +158,4 @@ def _read_csv(p: Path) -> Measurement:
     return Measurement(dt=dt, ground_acc=data[:, col["ground_acc"]], floor_acc=data[:, [col[f] for f in floors]],
                        mass=mass, height=height, truth=truth, floor_disp=floor_disp,
                        pdelta={"true": True, "false": False}.get(meta.get("pdelta", "").strip().lower()),
-                       noise_rms=noise_rms, source=src, name=p.stem)
+                       noise_rms=noise_rms, source=src, name=p.stem, recorded=_recorded(meta.get("recorded"), src))

@@ -24,7 +24,35 @@ from scipy.stats import norm
 from ..errors import InputError
 from .params import Building, Damping
 
-TRANSFORMS = ("log", "linear")
+TRANSFORMS = ("log", "linear", "logit", "log1")
+"""``theta`` of a value ``x``: ``log x``; ``x``; ``logit(x / 0.95)`` (alpha, within its bounds);
+``log(x - 1)`` (p, above 1)."""
+ALPHA_SCALE = 0.95
+
+
+def to_theta(transform: str, x):
+    """The transformed value of ``x`` (:data:`TRANSFORMS`)."""
+    x = np.asarray(x, dtype=float)
+    if transform == "log":
+        return np.log(x)
+    if transform == "logit":
+        y = np.clip(x / ALPHA_SCALE, 1e-12, 1 - 1e-12)
+        return np.log(y / (1 - y))
+    if transform == "log1":
+        return np.log(np.maximum(x - 1.0, 1e-300))
+    return x
+
+
+def from_theta(transform: str, theta):
+    """The value of transformed ``theta`` (the inverse of :func:`to_theta`)."""
+    theta = np.asarray(theta, dtype=float)
+    if transform == "log":
+        return np.exp(np.minimum(theta, 700.0))
+    if transform == "logit":
+        return ALPHA_SCALE / (1.0 + np.exp(-np.clip(theta, -700.0, 700.0)))
+    if transform == "log1":
+        return 1.0 + np.exp(np.minimum(theta, 700.0))
+    return theta
 BOUNDS = {"k0": (0.0, math.inf), "alpha": (0.0, 0.95), "p": (1.0, 10.0), "dy": (0.0, math.inf),
           "delta_eta": (0.0, math.inf), "damping": (0.0, 0.5)}
 """Physical range of each parameter (draws and intervals are clipped to it)."""
@@ -63,7 +91,7 @@ class ParameterUncertainty:
                 raise InputError(f"uncertainty: unknown parameter {n!r}; expected one of {', '.join(BOUNDS)}")
         bad = [t for t in self.transform if t not in TRANSFORMS]
         if bad:
-            raise InputError(f"uncertainty: unknown transform {bad[0]!r}; expected 'log' or 'linear'")
+            raise InputError(f"uncertainty: unknown transform {bad[0]!r}; expected one of {', '.join(TRANSFORMS)}")
         if not (np.all(np.isfinite(c)) and np.all(np.isfinite(S))):
             raise InputError("uncertainty: centre and covariance must be finite")
         if not np.allclose(S, S.T, rtol=1e-8, atol=1e-14 * max(1.0, float(np.abs(S).max(initial=0.0)))):
@@ -89,7 +117,8 @@ class ParameterUncertainty:
     def values(self, theta) -> np.ndarray:
         """Parameter values of transformed ``theta`` ``(..., P)``, clipped to their bounds."""
         theta = np.asarray(theta, dtype=float)
-        x = np.where(np.array([t == "log" for t in self.transform]), np.exp(np.minimum(theta, 700.0)), theta)
+        x = np.stack([from_theta(t, theta[..., j]) for j, t in enumerate(self.transform)], axis=-1) \
+            if self.transform else theta
         lo = np.array([BOUNDS[n][0] for n, _ in self.slots])
         hi = np.array([BOUNDS[n][1] for n, _ in self.slots])
         return np.clip(x, lo, hi)
@@ -167,13 +196,15 @@ class ParameterUncertainty:
             elif isinstance(story, bool) or not isinstance(story, int) or story < 1:
                 raise bad(f"parameters[{j}].story must be a story number >= 1")
             if t not in TRANSFORMS:
-                raise bad(f"parameters[{j}].transform must be 'log' or 'linear'")
+                raise bad(f"parameters[{j}].transform must be one of {', '.join(TRANSFORMS)}")
             number = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-            if not number or (t == "log" and v <= 0):
-                raise bad(f"parameters[{j}].value must be a finite number (> 0 for transform 'log')")
+            if not number or (t == "log" and v <= 0) or (t == "log1" and v <= 1) or (t == "logit" and not
+                                                                                        0 < v < ALPHA_SCALE):
+                raise bad(f"parameters[{j}].value must be a finite number within its transform's range "
+                          "(log: > 0, log1: > 1, logit: in (0, 0.95))")
             slots.append((name, story - 1))
             transforms.append(t)
-            centre.append(math.log(v) if t == "log" else float(v))
+            centre.append(float(to_theta(t, v)))
         cov = d.get("covariance")
         P = len(slots)
         try:

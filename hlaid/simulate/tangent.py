@@ -86,7 +86,7 @@ class GroundTangent:
 
 def ground_tangent(building: Building, motion: GroundMotion, *, lags: int, shape: np.ndarray | None = None,
                    substeps: int = 4, stride: int = 1, lowpass_hz: float | None = None,
-                   max_mb: float | None = None) -> GroundTangent:
+                   max_mb: float | None = None, y0: np.ndarray | None = None) -> GroundTangent:
     """Tangent of the floors' absolute accelerations along ``building``'s replay of ``motion``.
 
     Parameters
@@ -107,6 +107,8 @@ def ground_tangent(building: Building, motion: GroundMotion, *, lags: int, shape
     max_mb : raise :class:`~hlaid.errors.TangentTooLargeError` before anything is simulated when
         the tangent and its step Jacobians would take more than this many MiB (a budget, below
         the hard limit ``HLAID_MAX_TANGENT_MB`` on four copies)
+    y0 : ``(4*story,)`` the state the replay starts from (a building an earlier event left;
+        :class:`~hlaid.model.state.BuildingState`); None: at rest
 
     Returns
     -------
@@ -137,12 +139,12 @@ def ground_tangent(building: Building, motion: GroundMotion, *, lags: int, shape
     check_count(4 * one + jacobians, "TANGENT_MB",
                 f"memory of the ground tangent ({taus.size} samples x {width} lags x {n} floors, 4 copies, "
                 f"and {T} step Jacobians) [MiB]")
-    base = simulate_response(building, motion, substeps=substeps)
+    base = simulate_response(building, motion, substeps=substeps, y0=y0)
     if base.status[0] != 0:
         raise InputError("ground_tangent: the replay did not complete")
     assert base.disp is not None and base.vel is not None and base.z is not None and base.energy is not None
     work = base.energy[0] / ((1.0 - np.asarray(building.alpha)) * np.asarray(building.k0))  # e = integral(z dx)
-    states = np.concatenate([base.disp[0], base.vel[0], base.z[0], work], axis=1)  # states[0] is rest
+    states = np.concatenate([base.disp[0], base.vel[0], base.z[0], work], axis=1)  # states[0] is y0
     out = np.zeros((taus.size, width, n))
     A, b0, b1 = step_jacobians(building, states, g, float(motion.dt), substeps=substeps)
     cmap = _acceleration_map(building)

@@ -137,7 +137,10 @@ def identify_event(spec: StructureSpec, event: str, meas: Measurement, cfg: Iden
     try:
         if spec.clone == "linear":
             raise NotIdentifiableError("the config asks for a linear clone (clone: linear)")
-        clone = identify_clone(meas, cfg, cache_dir=cache_dir).clone
+        res = identify_clone(meas, cfg, cache_dir=cache_dir)
+        if not res.passes:  # no story yielded: the loop shape would be the structural prior's alone
+            raise NotIdentifiableError("no story yielded: stiffness and damping only")
+        clone = res.clone
     except NotIdentifiableError as err:
         reason = str(err).removeprefix(f"{meas.source}: ")
         if spec.fallback == "none" and spec.clone != "linear":

@@ -1,0 +1,119 @@
+"""``hlaid update`` and ``hlaid predict``: a clone carried from one event to the next."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .. import _progress
+from .main import subcommand
+
+
+def register(sub) -> None:
+    p = subcommand(sub, "update", help="add one event to a clone (its posterior the prior, its state the start)",
+                   example="hlaid update clone.json s4.tsv.gz -o clone-s4.json "
+                           "--config configs/identify_steel_frame.yaml")
+    p.add_argument("clone", help="the clone so far (hlaid-clone JSON)")
+    p.add_argument("measurement", help="the new event, recorded after the clone's last one")
+    p.add_argument("-o", "--out", required=True, help="the updated clone JSON to write")
+    p.add_argument("--config", help="identification config YAML (its refine section and system; "
+                   "default: configs/identify.yaml's, with the clone's own system)")
+    p.add_argument("--widen", type=float, default=1.0,
+                   help="multiply the clone's posterior standard deviations by this before the update (default 1)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing clone file")
+    p.set_defaults(func=run_update)
+
+    q = subcommand(sub, "predict", help="replay a clone under an event's recorded ground motion and compare with "
+                   "what the building recorded",
+                   example="hlaid predict clone.json s4.tsv.gz -o pred-s4 --band 0.3 2.5")
+    q.add_argument("clone", help="clone file (hlaid-clone JSON)")
+    q.add_argument("measurement", help="the event (ground and floor records of the clone's building)")
+    q.add_argument("-o", "--out", required=True, help="output folder: prediction.json, prediction.npz, prediction.png")
+    q.add_argument("--band", nargs=2, type=float, metavar=("LO", "HI"),
+                   help="band of the compared displacements [Hz] (default: HLA's band of the event)")
+    q.add_argument("--start", choices=["auto", "carried", "undamaged"], default="auto",
+                   help="carried: from the state the clone's last event left it in; undamaged: at rest; auto "
+                        "(default): carried, unless an update found the last event better explained undamaged")
+    q.add_argument("--ensemble", type=int, default=20, metavar="N",
+                   help="clones drawn from the clone's uncertainty for the predictive band (default 20; 0: none)")
+    q.add_argument("--seed", type=int, default=0, help="seed of the draws")
+    q.add_argument("--no-plots", action="store_true", help="write no figure")
+    q.add_argument("--force", action="store_true", help="replace an existing output folder written by hlaid")
+    q.set_defaults(func=run_predict)
+
+
+def run_update(args) -> int:
+    from .._fileio import check_output_file
+    from .._inputs import check_input
+    from ..config import load_config
+    from ..errors import InputError
+    from ..identify.config import IdentifyConfig  # light: no torch, numba or scipy
+
+    out = check_output_file(args.out, force=args.force, inputs=[args.clone, args.measurement, args.config])
+    if not 0 < args.widen < 100:
+        raise InputError(f"--widen {args.widen}; expected a factor in (0, 100), 1 for none")
+    cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
+    check_input(args.clone)
+    check_input(args.measurement)
+    from ..clone import Clone
+    from ..io import read
+
+    clone = Clone.load(args.clone)
+    meas = read(args.measurement, "measurement")
+    from ..identify.update import update_clone  # the heavy libraries, once the inputs are good
+    from .identify import print_summary
+
+    res = update_clone(clone, meas, cfg, widen=args.widen)
+    res.clone.save(out, force=args.force)
+    print_summary(res.clone, res.timings.get("total"))
+    _progress.info(f"wrote {out}")
+    return 0
+
+
+def run_predict(args) -> int:
+    from .._fileio import atomic_directory, check_output_folder
+    from .._inputs import check_input
+    from ..errors import InputError
+    from ..limits import check_count
+
+    inputs = [args.clone, args.measurement]
+    check_output_folder(args.out, force=args.force, inputs=inputs)
+    if args.band is not None and not 0 <= args.band[0] < args.band[1]:
+        raise InputError(f"--band {args.band[0]:g} {args.band[1]:g}; expected LO HI with 0 <= LO < HI [Hz]")
+    if args.ensemble < 0:
+        raise InputError(f"--ensemble {args.ensemble}; expected a number of clones >= 0")
+    check_count(args.ensemble, "BOOTSTRAP", "--ensemble")
+    check_input(args.clone)
+    check_input(args.measurement)
+    from ..clone import Clone
+    from ..io import read
+    from ..measurement import check_band
+
+    clone = Clone.load(args.clone)
+    meas = read(args.measurement, "measurement")
+    if args.band is not None:
+        check_band(meas, tuple(args.band), "--band")
+    n = args.ensemble if clone.uncertainty is not None else 0
+    if args.ensemble and clone.uncertainty is None:
+        _progress.warn("the clone has no uncertainty: no predictive band")
+    from .._fileio import write_json, write_npz  # the heavy libraries, once the inputs are good
+    from ..prediction import predict_event
+
+    p = predict_event(clone, meas, band_hz=args.band, start=args.start, n_ensemble=n, seed=args.seed)
+    with atomic_directory(args.out, force=args.force, inputs=inputs) as tmp:
+        write_json(Path(tmp) / "prediction.json", {**p.to_dict(), "clone": str(args.clone)})
+        arrays = {"time": p.time, "disp_measured": p.disp_measured, "disp_predicted": p.disp_predicted}
+        if p.band_lower is not None and p.band_upper is not None:
+            arrays.update(band_lower=p.band_lower, band_upper=p.band_upper)
+        write_npz(Path(tmp) / "prediction.npz", arrays)
+        if not args.no_plots:
+            from ..plots import plot_prediction, save_figure
+
+            save_figure(plot_prediction(p, title=f"{Path(args.clone).name} predicting {meas.name or 'the event'}"),
+                        Path(tmp) / "prediction.png")
+    cov = "" if p.coverage is None or p.band_width is None else (
+        f", {100 * float(p.coverage.mean()):.0f} % inside the {n}-clone band (its width "
+        f"{float(p.band_width.mean()):.2f} x twice the measured RMS)")
+    _progress.info(f"{meas.name or args.measurement}: R {p.r.round(3).tolist()} (mean {p.r_mean:.3f}), peak drift "
+                   f"error {(100 * p.peak_drift_error).round(1).tolist()} %{cov}; from the {p.start} state")
+    _progress.info(f"wrote {args.out}")
+    return 0
