@@ -247,11 +247,8 @@ def build_report(run_dir: str | os.PathLike) -> Path:
     if s.get("ida"):
         parts.append("<h2>Incremental dynamic analysis</h2>" + _ida_block(s["ida"]))
     if s.get("ida") and s.get("ida_after"):
-        from .report_aftershock import AFTERSHOCK_FIGURE, aftershock_html
-        parts.append("<h2>Aftershock: collapse fragility before and after the event</h2>"
-                     + aftershock_html(s["ida"], s["ida_after"])
-                     + f"<figure>{_img(d / AFTERSHOCK_FIGURE[0], src)}<figcaption>{e(AFTERSHOCK_FIGURE[1])}"
-                     "</figcaption></figure>")
+        from .report_aftershock import aftershock_section
+        parts.append(aftershock_section(s["ida"], s["ida_after"], _img(d / "figures" / "aftershock.png", src)))
     if s.get("assessment"):
         parts.append("<h2>Collapse risk with identification uncertainty</h2>" + _assess_block(s["assessment"]))
         p = d / _ASSESS_FIGURE[0]

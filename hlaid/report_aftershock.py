@@ -5,10 +5,9 @@ from __future__ import annotations
 
 import html
 
-AFTERSHOCK_FIGURE = ("figures/aftershock.png",
-                     "Collapse fragility of the clone before the event (undamaged) and after it (every run from "
-                     "the residual drift, hysteretic state and degradation the event left): each record's collapse "
-                     "intensity and the lognormal fit.")
+CAPTION = ("Collapse fragility of the clone before the event (undamaged) and after it (every run from "
+           "the residual drift, hysteretic state and degradation the event left): each record's collapse "
+           "intensity and the lognormal fit.")
 
 
 def _fit(ida: dict) -> dict:
@@ -37,3 +36,9 @@ def aftershock_html(before: dict, after: dict) -> str:
     return ("<table><tr><th class='l'>clone</th><th>median [g]</th><th>median interval [g]</th><th>beta</th>"
             "<th>records (censored)</th></tr>" + "".join(rows) + "</table>" + change
             + (f"<ul>{law}</ul>" if law else ""))
+
+
+def aftershock_section(before: dict, after: dict, image: str) -> str:
+    """The whole section: heading, table, notes and the figure (``image``: its ``<img>`` tag)."""
+    return ("<h2>Aftershock: collapse fragility before and after the event</h2>" + aftershock_html(before, after)
+            + f"<figure>{image}<figcaption>{html.escape(CAPTION)}</figcaption></figure>")
