@@ -102,7 +102,8 @@ def test_every_output_is_written(run_dir):
 def test_report_embeds_every_figure(run_dir):
     out, _ = run_dir
     alts = {alt for alt, size in embedded_figures(out / "report.html") if size > 10_000}
-    assert alts == {rel.split("/")[-1] for rel, _ in _FIGURES} | {_ASSESS_FIGURE[0].split("/")[-1]}
+    expected = {rel.split("/")[-1] for rel, _ in _FIGURES} | {_ASSESS_FIGURE[0].split("/")[-1]}
+    assert alts == expected | {"aftershock.png"}  # the fragility before and after the event
     text = (out / "report.html").read_text()
     assert "median collapse" in text and "drift ratio &gt; 1.0%" in text and "src=\"file:" not in text
     # the ensemble assessment: indicator, P(collapse) at the measured record, intervals per parameter
