@@ -211,7 +211,7 @@ def _ref_sdof(b: Building, gm, scale: float, t_end: float):
     return sol.y[0]
 
 
-@pytest.mark.parametrize("scale", [2.5, 3.0])
+@pytest.mark.parametrize("scale", [2.5, pytest.param(3.0, marks=pytest.mark.slow)])
 def test_dynamic_response_matches_solve_ivp(scale):
     """One story with P-Delta under El Centro: past the cap (2.5) and into the
     residual strength, still moving (3.0)."""

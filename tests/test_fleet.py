@@ -256,6 +256,7 @@ def test_cli_bad_config_exit_2(tmp_path):
 
 
 @pytest.mark.skipif(sys.platform != "linux", reason="process groups are Linux-specific here")
+@pytest.mark.slow  # long: the default run stays under 10 minutes on 2 cores
 def test_ctrl_c_closes_the_cluster(fleet_dir, tmp_path):
     """SIGINT to the whole group while the LocalCluster's worker processes run: exit 130, one line,
     no process left, finished units kept."""

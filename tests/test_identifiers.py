@@ -152,6 +152,7 @@ def test_registry_names_every_identifier():
         get_identifier("svm")
 
 
+@pytest.mark.slow  # long: the default run stays under 10 minutes on 2 cores
 def test_cli_identify_method(two_story, short_meas, tmp_path, capsys):
     """``hlaid identify --method ukf`` writes a clone file like the default method's."""
     from hlaid.cli.main import main
@@ -248,6 +249,7 @@ def _full_residuals(prob, theta, b):
         return prob.residuals(prob.accelerations(values, torch.as_tensor(y0))[0])[0]
 
 
+@pytest.mark.slow  # long: the default run stays under 10 minutes on 2 cores
 def test_forward_mode_jacobian_truncated_then_full(problem):
     """Zero seeds give the Jacobian with segment starts held fixed (finite differences with
     fixed starts); after one pass per segment the carried seeds give the full-trajectory
