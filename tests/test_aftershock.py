@@ -15,7 +15,7 @@ from hlaid.model.state import BuildingState
 
 @pytest.fixture(scope="module")
 def short_records():
-    return [window(paper_record(n), 6.0) for n in ("elcentro-1940-ns", "kocaeli-1999-dzc180")]
+    return [window(paper_record(n), 4.0) for n in ("elcentro-1940-ns", "kocaeli-1999-dzc180")]
 
 
 def _state(b, drift) -> BuildingState:

@@ -124,6 +124,7 @@ def test_registry_names_and_errors():
 
 
 # ------------------------------------------------------------------ "none" is the paper's law
+@pytest.mark.slow  # long: the default run stays under 10 minutes on 2 cores
 def test_none_keeps_the_paper_law(table1):
     b = table1.replace(height=[H] * 3, pdelta=True)
     gm = paper_record("elcentro-1940-ns")
@@ -211,7 +212,8 @@ def _ref_sdof(b: Building, gm, scale: float, t_end: float):
     return sol.y[0]
 
 
-@pytest.mark.parametrize("scale", [2.5, pytest.param(3.0, marks=pytest.mark.slow)])
+@pytest.mark.slow  # long: the default run stays under 10 minutes on 2 cores
+@pytest.mark.parametrize("scale", [2.5, 3.0])
 def test_dynamic_response_matches_solve_ivp(scale):
     """One story with P-Delta under El Centro: past the cap (2.5) and into the
     residual strength, still moving (3.0)."""

@@ -202,20 +202,6 @@ def test_refinement_restarts_from_a_neutral_start_when_the_fit_misses_the_noise(
     assert res.refinement.cost_final == pytest.approx(info["cost_final"])
 
 
-def test_elastic_record_gives_a_prior_flagged_clone(table1, record):
-    """A record that stays elastic still gives a clone: stiffness from the data, the nonlinear
-    parameters from the structural system's prior and flagged as such."""
-    meas = simulate_measurement(table1, record.scaled(0.03 / 0.62), noise_rms=0.02)
-    res = identify_clone(meas, _small_config(refine=RefineConfig(method="none")), cache_dir="")
-    b = res.clone.building
-    np.testing.assert_allclose(b.k0, table1.k0, rtol=0.05)  # the elastic record holds the stiffness
-    source = {(f["name"], f["story"]): f["source"] for f in res.clone.diagnostics["parameters"]}
-    assert {source[("k0", i)] for i in (1, 2, 3)} == {"data"}
-    assert {source[(n, i)] for n in ("alpha", "p", "delta_eta") for i in (1, 2, 3)} == {"prior"}
-    assert res.clone.system == "generic" and res.clone.state is not None
-    assert np.all(np.abs(res.clone.state.z) < b.dy)  # nothing yielded: z stays below dy
-
-
 def test_elastic_story_marked_not_identifiable(table1, record):
     strong_top = table1.replace(dy=np.array([7.0, 6.0, 60.0]))  # the top story cannot yield
     meas = simulate_measurement(strong_top, record, noise_rms=0.02, seed=2)

@@ -90,6 +90,7 @@ def test_drive_story_lanes_are_independent(hermite):
     assert np.any(par["dy"] < 0.1)  # the redo is exercised
 
 
+@pytest.mark.slow  # long: the default run stays under 10 minutes on 2 cores
 def test_drive_story_stays_on_the_law_when_a_sample_spans_many_dy():
     """A drift increment of up to 100 dy per sample (a coarse-pass draw of a small dy): the
     sub-step redo and the law's limit keep |z| <= dy and the force bounded by the

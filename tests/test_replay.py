@@ -37,6 +37,7 @@ def test_rk4_replay_matches_simulator(table1, strong_window):
     np.testing.assert_allclose(r.eta, s.eta, rtol=1e-6)
 
 
+@pytest.mark.slow  # long: the default run stays under 10 minutes on 2 cores
 def test_dopri5_replay_with_sample_step_points(table1, strong_window):
     """Adaptive dopri5, told the record's sample times as step points, at a tight tolerance."""
     r = replay(table1, strong_window, method="dopri5", rtol=1e-9, atol=1e-8)
