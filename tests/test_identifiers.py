@@ -339,6 +339,7 @@ def test_an_identifier_that_raises_is_a_failure_with_its_reason(monkeypatch, two
     assert o.failed and o.reason == "RuntimeError: boom second line" and o.errors is None
 
 
+@pytest.mark.slow  # long: the default run stays under 10 minutes on 2 cores
 def test_comparison_study_end_to_end(tmp_path, capsys):
     cfg = tmp_path / "study.yaml"
     cfg.write_text(f"""identifiers: [ukf]

@@ -125,6 +125,7 @@ def test_ctrl_c_during_identify_path_training(measurement, tmp_path):
     assert _leftovers(out, "c.json") == []
 
 
+@pytest.mark.slow  # long: the default run stays under 10 minutes on 2 cores
 def test_ctrl_c_during_ida(table1, tmp_path):
     Clone(building=table1.replace(height=HEIGHTS), provenance={"test": True}).save(tmp_path / "clone.json")
     rc, elapsed, lines = _interrupt(["ida", "clone.json", "--records", "builtin-suite", "--levels", "0.1:20:0.1",
