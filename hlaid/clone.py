@@ -106,6 +106,11 @@ class Clone:
         """The same clone left in ``state``."""
         return dataclasses.replace(self, state=state)
 
+    def member(self, building: Building) -> Clone:
+        """A clone of ``building`` drawn from this one's uncertainty: the same mass normalisation
+        and structural system (its collapse law), nothing else."""
+        return Clone(building=building, mass_normalised=self.mass_normalised, system=self.system)
+
     def to_dict(self) -> dict:
         b = self.building
         stories = []

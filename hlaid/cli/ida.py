@@ -104,9 +104,9 @@ def run_ida(args) -> int:
     from ..ida import ida_from_config, prepare_building
 
     # fail on a bad clone before reading records
-    prepare_building(args.clone, pdelta=cfg.pdelta, heights=cfg.heights_mm, collapse=cfg.collapse,
+    prepare_building(clone, pdelta=cfg.pdelta, heights=cfg.heights_mm, collapse=cfg.collapse,
                      gravity_load=cfg.gravity_load_n())
-    res = ida_from_config(args.clone, cfg, records=args.records, base_dir=base)
+    res = ida_from_config(clone, cfg, records=args.records, base_dir=base)  # the clone read once
     res.save(out, force=args.force, plots=not args.no_plots, n_boot=cfg.bootstrap, ci=cfg.ci, seed=cfg.seed,
              inputs=inputs)
     s = res.summary(n_boot=0)

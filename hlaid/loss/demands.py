@@ -161,7 +161,7 @@ def _members(clone: Clone, n_ensemble: int, seed: int, cfg) -> tuple[list, list[
     from ..uncertainty.ensemble import clone_ensemble
 
     members = clone_ensemble(clone, n_ensemble, seed=seed)
-    out = [prep(Clone(building=b, mass_normalised=clone.mass_normalised, system=clone.system))[0] for b in members]
+    out = [prep(clone.member(b))[0] for b in members]
     return [nominal] + out, notes + [f"{n_ensemble} clones drawn from the identification uncertainty (seed {seed})"]
 
 

@@ -202,7 +202,6 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
     -------
     Assessment
     """
-    from ..clone import Clone
     from ..ida import IDAConfig, get_intensity_measure, ida_from_config, intensity, prepare_building
     from ..ida.intensity import period_for
     from ..io.records import as_motions
@@ -238,13 +237,9 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
                      "fit that does not match the record (intervals not trustworthy)")
         _progress.warn(notes[-1])
     members = clone_ensemble(clone, n_ensemble, seed=seed)
-
-    def member(b):  # a drawn clone, with the nominal clone's system (its collapse law)
-        return Clone(building=b, mass_normalised=clone.mass_normalised, system=clone.system)
-
     results = []
     for b in _progress.progress(members, desc="ensemble IDA"):
-        results.append(ida_from_config(member(b), cfg, motions))
+        results.append(ida_from_config(clone.member(b), cfg, motions))
     t_ida = time.perf_counter() - t0
     R = len(motions)
     fits = np.array([_member_fit(r) for r in results])
@@ -285,7 +280,7 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
         hit = np.array(hits, dtype=float)
         exceed = hit.mean(axis=1)
         ex_all = np.concatenate([exceed] + [hit[:, idx].mean(axis=1) for idx in boots])
-        bs = [prepare_building(member(b), pdelta=cfg.pdelta,
+        bs = [prepare_building(clone.member(b), pdelta=cfg.pdelta,
                                heights=cfg.heights_mm, gravity_load=cfg.gravity_load_n())[0] for b in members]
         sub = max(1, int(np.ceil(own_motion.dt / cfg.max_step)))
         h = np.array([np.asarray(b.height, dtype=float) for b in bs])
