@@ -131,6 +131,7 @@ def cases(tmp, meas, m, clone):
     early = _npz(tmp / "early.npz", dt=m.dt, ground_acc=m.ground_acc, floor_acc=m.floor_acc, mass=m.mass,
                  recorded=np.array("2020-05-01T10:00:00Z"))
     yield ["identify", str(late), str(early), "-o", str(c)], ["time order"], c
+    yield ["identify", str(meas), str(meas), "-o", str(c)], ["each event once"], c
     stamp = _npz(tmp / "stamp.npz", dt=m.dt, ground_acc=m.ground_acc, floor_acc=m.floor_acc, mass=m.mass,
                  recorded=np.array("yesterday"))
     yield ["identify", str(stamp), "-o", str(c)], ["ISO 8601"], c

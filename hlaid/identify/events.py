@@ -17,6 +17,7 @@ the prior, its state the start, the new event the data (sequential updating).
 from __future__ import annotations
 
 import datetime
+import hashlib
 from collections.abc import Sequence
 
 import numpy as np
@@ -44,8 +45,8 @@ is flagged as coming from the prior: the data narrowed it by less than half."""
 
 def check_series(measurements: Sequence[Measurement]) -> None:
     """One line (InputError naming the file) where the measurements cannot be events of one
-    building in time order: another number of floors, other masses or story heights, or start
-    times (where the files give them) out of order."""
+    building in time order: another number of floors, other masses or story heights, one record
+    given twice, or start times (where the files give them) out of order."""
     first = measurements[0]
     for m in measurements[1:]:
         where = m.source or m.name or None
@@ -63,6 +64,13 @@ def check_series(measurements: Sequence[Measurement]) -> None:
             if str(b.recorded) <= str(a.recorded):
                 raise InputError(f"recorded {b.recorded}, not after the previous event ({a.recorded}): give the events "
                                  "in time order", source=b.source or b.name or None)
+    seen: dict[str, Measurement] = {}
+    for m in measurements:
+        key = hashlib.sha256(np.ascontiguousarray(m.ground_acc, dtype=float).tobytes()).hexdigest()
+        if key in seen:
+            raise InputError(f"the same ground motion as {seen[key].source or seen[key].name or 'an earlier event'}: "
+                             "each event once", source=m.source or m.name or None)
+        seen[key] = m
 
 
 def most_informative(events) -> int | None:

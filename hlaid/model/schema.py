@@ -26,6 +26,17 @@ STORY_BOUNDS: dict[str, Bounds] = {
 }
 """Bounds of the per-story parameters of a building (units N, mm, t, s)."""
 
+STATE_BOUNDS: dict[str, Bounds] = {
+    "drift": Bounds(-1e6, 1e6, unit="mm"),
+    "z": Bounds(-1e6, 1e6, unit="mm"),
+    "work": Bounds(-1e12, 1e12, unit="mm^2"),
+    "peak_positive": Bounds(0.0, 1e6, unit="mm"),
+    "peak_negative": Bounds(0.0, 1e6, unit="mm"),
+}
+"""Bounds of a carried state's per-story values (:class:`hlaid.model.state.BuildingState`):
+a drift beyond the largest story height, or a hysteretic work beyond the largest ``dy`` times
+that drift, is no state of a building."""
+
 WEIGHT_KN = Bounds(1e-5, 1e9, unit="kN")
 """Bounds of a floor weight or gravity load given in kN (configs)."""
 

@@ -25,6 +25,7 @@ import numpy as np
 from ..errors import InputError
 from ._equations import degradation
 from .params import Building
+from .schema import STATE_BOUNDS
 
 SETTLE_LIMITS_S = (2.0, 10.0)
 """Free vibration after an event before the next one: four first-mode decay times of the
@@ -65,9 +66,8 @@ class BuildingState:
             v = np.asarray(getattr(self, name), dtype=float)
             if v.ndim != 1 or v.shape != n or not np.all(np.isfinite(v)):
                 raise InputError(f"state.{name}: expected {n[0] if n else '?'} finite values, one per story")
+            STATE_BOUNDS[name].check(f"state.{name}", v)
             object.__setattr__(self, name, v)
-        if np.any(self.peak_positive < 0) or np.any(self.peak_negative < 0):
-            raise InputError("state.peak_positive / peak_negative: expected values >= 0 [mm]")
 
     @property
     def n_stories(self) -> int:
