@@ -30,12 +30,12 @@ _LAZY: dict[str, tuple[str, ...]] = {
     ".synthetic": ("simulate_measurement", "simulate_events"),
     # analysis and identification
     ".hla": ("run_hla", "HLAConfig", "HLAResult"),
-    ".identify": ("identify_clone", "IdentifyConfig", "IdentificationResult", "refine_replay", "BaseIdentifier",
-                  "HLASVMIdentifier", "GradientIdentifier", "UKFIdentifier", "NotFittedError", "update_clone"),
+    ".identify": ("IdentifyConfig", "IdentificationResult", "refine_replay"),
+    ".estimators": ("BaseIdentifier", "HLASVMIdentifier", "NotFittedError"),
     ".svm": ("KernelSVC",),
     ".clone": ("Clone", "load_clone"),
-    ".model.state": ("BuildingState",),
-    ".prediction": ("predict_event", "EventPrediction"),
+    # a building's events
+    ".events": ("identify_clone", "update_clone", "predict_event", "Prediction", "BuildingState"),
     # risk
     ".ida": ("run_ida", "IDAConfig", "IDAResult"),
     # pipeline and errors

@@ -1,34 +1,21 @@
-"""Packages whose public names are imported on first use (PEP 562).
+"""Lazy public names of a package (PEP 562: a module-level ``__getattr__``).
 
-A package ``__init__`` lists where each name lives and keeps a ``TYPE_CHECKING`` block of the
-same imports for type checkers::
+A package ``__init__`` lists where each name lives::
 
-    __getattr__, __dir__ = lazy_exports(__name__, {"hla": ".analysis", "HLAConfig": ".config"})
+    __getattr__, __dir__ = lazy_exports(__name__, {"run_hla": ".analysis", "HLAConfig": ".config"})
 
-so that importing one light submodule (a config schema) does not import the heavy ones
-(torch, numba, scipy) its siblings need: a bad config is refused before they load.
+so that importing one light submodule (a config schema) does not import the heavy ones (torch,
+numba, scipy) its siblings need: a bad config is refused before they load. The package stays a
+plain module; no exported name may be the name of one of its submodules (a test checks), so a
+submodule imported later never replaces a name.
 """
 
 from __future__ import annotations
 
 import importlib
 import sys
-import types
 from collections.abc import Callable
-from typing import Any, cast
-
-
-class _LazyPackage(types.ModuleType):
-    """A package whose exported function keeps its name when the submodule of the same name loads
-    (``hlaid.uncertainty.assess`` is the function, as with an eager ``from .assess import assess``)."""
-
-    _lazy_names: frozenset = frozenset()
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        if (name in self._lazy_names and isinstance(value, types.ModuleType)
-                and value.__name__ == f"{self.__name__}.{name}"):
-            return
-        super().__setattr__(name, value)
+from typing import Any
 
 
 def lazy_exports(package: str, where: dict[str, str]) -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
@@ -47,7 +34,4 @@ def lazy_exports(package: str, where: dict[str, str]) -> tuple[Callable[[str], A
     def __dir__() -> list[str]:
         return sorted(set(vars(sys.modules[package])) | set(where))
 
-    module = sys.modules[package]
-    module.__class__ = _LazyPackage
-    cast(_LazyPackage, module)._lazy_names = frozenset(n for n, t in where.items() if not t.endswith(":module"))
     return __getattr__, __dir__

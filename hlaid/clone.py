@@ -22,8 +22,8 @@ Version 2 adds the optional ``uncertainty`` block: the identified
 parameters' Gaussian in log space (per parameter: name, story, transform, value, std and a
 90 % interval; the covariance), see :class:`hlaid.uncertainty.ParameterUncertainty`.
 Version 3 adds what the clone learnt from: its structural ``system`` (the prior of
-:mod:`hlaid.identify.priors`), the ``events`` it was identified from in time order, and the
-``state`` the last of them left the building in (:class:`hlaid.model.state.BuildingState`;
+:mod:`hlaid.events.priors`), the ``events`` it was identified from in time order, and the
+``state`` the last of them left the building in (:class:`hlaid.events.state.BuildingState`;
 null: undamaged). Version 1 and 2 files (none of these) are still read, as undamaged clones.
 
 With ``mass_normalised`` true the masses are relative (ratios) and every stiffness is per
@@ -48,9 +48,9 @@ import numpy as np
 from ._fileio import write_json
 from ._inputs import read_json
 from .errors import InputError, escape_controls, kind_of
+from .events.state import BuildingState
 from .model import Building, Damping
-from .model.collapse import SYSTEM_COLLAPSE
-from .model.state import BuildingState
+from .systems import SYSTEMS
 from .units import UNITS_JSON
 
 if TYPE_CHECKING:
@@ -88,19 +88,6 @@ class Clone:
     system: str | None = None
     events: tuple[dict, ...] = ()
     state: BuildingState | None = None
-
-    def initial_state(self, start: str = "carried") -> np.ndarray | None:
-        """The simulator's initial state for a replay of this clone (``(4*story,)``, with the
-        collapse memory ``(6*story,)`` when the building has a collapse model): ``"carried"``
-        the state its last event left it in, ``"undamaged"`` at rest (None), ``"auto"`` (see
-        :data:`START_STATES`)."""
-        if start not in START_STATES:
-            raise InputError(f"start = {start!r}; expected one of {', '.join(map(repr, START_STATES))}")
-        if start == "auto":
-            start = "undamaged" if self.events and self.events[-1].get("start") == "undamaged" else "carried"
-        if start == "undamaged" or self.state is None:
-            return None
-        return self.state.vector(collapse=self.building.collapse is not None)
 
     def with_state(self, state: BuildingState | None) -> Clone:
         """The same clone left in ``state``."""
@@ -212,17 +199,11 @@ class Clone:
         return cls.from_dict(read_json(path), source=str(path))
 
 
-START_STATES = ("auto", "carried", "undamaged")
-"""Where a replay of a clone starts: the state its last event left, or undamaged; ``auto``: the
-carried state unless the clone's last event was explained better from an undamaged start (an
-update chose it: the building recovers between events)."""
-
-
 def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dict, ...], BuildingState | None]:
     """The version-3 fields ``system``, ``events`` and ``state`` (absent: none, undamaged)."""
     system = d.get("system")
-    if system is not None and system not in SYSTEM_COLLAPSE:
-        raise InputError(f"field 'system' must be one of {', '.join(SYSTEM_COLLAPSE)} or null", source=source)
+    if system is not None and system not in SYSTEMS:
+        raise InputError(f"field 'system' must be one of {', '.join(SYSTEMS)} or null", source=source)
     events = d.get("events") or []
     if not isinstance(events, list) or not all(isinstance(e, dict) for e in events):
         raise InputError("field 'events' must be a list of mappings", source=source)

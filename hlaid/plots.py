@@ -104,16 +104,16 @@ def plot_measured_predicted(time: np.ndarray, measured: np.ndarray, predicted: n
 
 
 def plot_prediction(p, *, title: str, levels: list[str] | None = None):
-    """A clone's prediction of an event (:class:`hlaid.prediction.EventPrediction`): measured
+    """A clone's prediction of an event (:class:`hlaid.events.predict.Prediction`): measured
     against predicted floor displacement per floor, with the predictive band where there is one."""
     fig = plot_measured_predicted(p.time, p.disp_measured, p.disp_predicted, p.r, label=f"clone ({p.start} state)",
                                   title=f"{title} ({p.band_hz[0]:.2g}-{p.band_hz[1]:.2g} Hz)", levels=levels)
-    if p.band_lower is not None:
+    if p.band is not None:
         for i, ax in enumerate(fig.axes[:p.disp_measured.shape[1]]):
             lo, hi = ax.get_xlim()
             w = (p.time >= lo) & (p.time <= hi)
-            ax.fill_between(p.time[w], p.band_lower[w, i], p.band_upper[w, i], color="C3", alpha=0.2, lw=0,
-                            label=f"{p.n_ensemble}-clone band" if i == 0 else None)
+            ax.fill_between(p.time[w], p.band.lower[w, i], p.band.upper[w, i], color="C3", alpha=0.2, lw=0,
+                            label=f"{p.band.n_ensemble}-clone band" if i == 0 else None)
         fig.axes[0].legend(fontsize=7, loc="upper left", ncol=3)
     return fig
 

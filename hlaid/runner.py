@@ -26,7 +26,7 @@ from ._inputs import read_json
 from ._version import __version__
 from .config import config_to_dict
 from .errors import InputError
-from .identify import identify_clone
+from .events.identify import identify_clone
 from .identify.replaycheck import corrcoef
 from .io import read
 from .measurement import Measurement, check_band

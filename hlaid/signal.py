@@ -92,3 +92,12 @@ def integrate_twice(acc: np.ndarray, dt: float, band_hz, order: int = 4) -> tupl
     vel = highpass(integrate.cumulative_trapezoid(acc, dx=dt, axis=0, initial=0.0), dt, band_hz, order)
     disp = highpass(integrate.cumulative_trapezoid(vel, dx=dt, axis=0, initial=0.0), dt, band_hz, order)
     return vel, disp
+
+
+def arias_window(acc: np.ndarray, dt: float, arias, tail_s: float = 2.0, lead_s: float = 1.0) -> tuple[int, int]:
+    """Sample range ``[i0, i1)`` from ``lead_s`` before the ``arias[0]`` Arias-intensity
+    fraction of ``acc`` to ``tail_s`` after the ``arias[1]`` fraction."""
+    e = np.cumsum(np.asarray(acc) ** 2)
+    i0 = max(0, int(np.searchsorted(e, arias[0] * e[-1])) - round(lead_s / dt))
+    i1 = min(acc.shape[0], int(np.searchsorted(e, arias[1] * e[-1])) + round(tail_s / dt) + 1)
+    return i0, i1

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .events.state import BuildingState, at_rest, settle_time
 from .measurement import Measurement, Truth
 from .model import Building
-from .model.state import BuildingState, settle_time
 from .motions import GroundMotion
 from .simulate import simulate_response
 from .specs import MeasurementSpec, SimulationConfig, load_simulation_config
@@ -38,7 +38,7 @@ def simulate_measurement(building: Building, motion: GroundMotion, *, rate_hz: f
     seed : seed of the noise generator
     substeps : RK4 sub-steps per sample
     y0 : ``(4*story,)`` the state the building starts in (:meth:`BuildingState.vector
-        <hlaid.model.state.BuildingState.vector>`; None: at rest)
+        <hlaid.events.state.BuildingState.vector>`; None: at rest)
 
     Returns
     -------
@@ -66,7 +66,7 @@ def simulate_events(building: Building, motions: Sequence[GroundMotion], *, rate
                     noise_rms: float = 0.10, seed: int = 0, substeps: int = 4
                     ) -> tuple[list[Measurement], list[BuildingState]]:
     """Records of one building's successive earthquakes: each event starts in the state the
-    previous one left the building in, once it came to rest (:func:`~hlaid.model.state.settle_time`
+    previous one left the building in, once it came to rest (:func:`~hlaid.events.state.settle_time`
     of free vibration).
 
     Returns the measurements (noise seeds ``seed, seed + 1, ...``) and the true state after each.
@@ -81,8 +81,7 @@ def simulate_events(building: Building, motions: Sequence[GroundMotion], *, rate
                                  substeps=substeps, y0=y0)
         gm = motion.resampled(rate_hz) if rate_hz else motion
         r = simulate_response(building, gm, substeps=substeps, y0=y0, free_vibration=tail, outputs="peaks")
-        y0 = np.array(r.final_state[0], dtype=float)
-        y0[n:2 * n] = 0.0
+        y0 = at_rest(r.final_state[0], n)
         meas.append(dataclasses.replace(m, name=f"event{k + 1}-{motion.name}"))
         states.append(BuildingState.from_vector(y0, events=tuple(x.name for x in meas)))
     return meas, states

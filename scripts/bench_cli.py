@@ -31,7 +31,7 @@ def wall(argv: list[str], repeat: int) -> float:
 
 def subcommands() -> list[str]:
     """The subcommand names, in the order ``hlaid --help`` lists them."""
-    from hlaid.cli.main import build_parser
+    from hlaid.cli.app import build_parser
 
     return list(build_parser().commands)
 

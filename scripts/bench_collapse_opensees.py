@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from reference_models import table1_stories
 
-from hlaid.ida.intensity import get_intensity_measure
+from hlaid.ida.measures import get_intensity_measure
 from hlaid.io import read
 from hlaid.model import Building
 from hlaid.opensees import run_opensees

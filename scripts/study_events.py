@@ -8,10 +8,10 @@ Parts:
 * **steel** (``steel-frame`` of configs/validate_real.yaml, its events in time order, its
   compared band): for k = 1..n-1 the clone identified jointly from events 1..k
   (``hlaid.identify_clone``) predicts event k+1, from the state it carries and undamaged
-  (``hlaid.prediction.predict_event``, R per floor, peak-drift errors, the share of the
+  (``hlaid.predict_event``, R per floor, peak-drift errors, the share of the
   measurement inside the predictive band of ``--ensemble`` clones drawn from its posterior).
   Beside it the sequential clone: the clone of event 1 updated with each later event
-  (``hlaid.identify.update.update_clone``), its parameters compared with the joint clone's of
+  (``hlaid.update_clone``), its parameters compared with the joint clone's of
   the same events (share within 2 combined standard deviations).
 * **hotel** (``hotel``, events in numeric order): the joint clone of events 1..3 predicts 4, then
   it is updated event by event, each clone predicting the next (joint fits over many long
@@ -39,17 +39,17 @@ from pathlib import Path
 
 import numpy as np
 
-from hlaid import _progress
+from hlaid import _progress, identify_clone, update_clone
 from hlaid._fileio import atomic_directory, write_json
-from hlaid.clone import START_STATES, Clone
+from hlaid.clone import Clone
 from hlaid.config import load_config
 from hlaid.errors import InputError
-from hlaid.identify import IdentifyConfig, identify_clone
-from hlaid.identify.update import update_clone
+from hlaid.events.predict import predict_event
+from hlaid.events.start import START_STATES
+from hlaid.identify import IdentifyConfig
 from hlaid.motions import GroundMotion
 from hlaid.motions.builtin import load_builtin
 from hlaid.plots import plot_prediction, save_figure
-from hlaid.prediction import predict_event
 from hlaid.studies.validation import identify_config_of, load_validation_config, read_event
 from hlaid.synthetic import load_simulation_config, simulate_events
 

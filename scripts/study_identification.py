@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hlaid import _progress
+from hlaid import _progress, identify_clone
 from hlaid.config import load_config
-from hlaid.identify import IdentifyConfig, identify_clone
+from hlaid.identify import IdentifyConfig
 from hlaid.io import read
 from hlaid.model import Building
 from hlaid.simulate import simulate_response

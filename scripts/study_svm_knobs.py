@@ -30,8 +30,8 @@ import time
 import numpy as np
 from study_identification import TABLE1_RECORDS, errors, run_errors  # a sibling script (scripts/ is on sys.path)
 
-from hlaid import _progress
-from hlaid.identify import IdentifyConfig, identify_clone
+from hlaid import _progress, identify_clone
+from hlaid.identify import IdentifyConfig
 from hlaid.io import read
 from hlaid.synthetic import load_simulation_config, simulate_measurement
 

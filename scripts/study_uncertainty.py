@@ -32,8 +32,8 @@ import numpy as np
 from scipy.stats import norm
 from study_identification import RANDOM_RECORDS, random_building, scale_to_yield
 
-from hlaid import _progress
-from hlaid.identify import IdentifyConfig, identify_clone
+from hlaid import _progress, identify_clone
+from hlaid.identify import IdentifyConfig
 from hlaid.io import read
 from hlaid.studies.bootstrap import parametric_bootstrap
 from hlaid.synthetic import load_simulation_config, simulate_measurement

@@ -45,9 +45,10 @@ def _window(p, pad_s: float = 3.0) -> slice:
 def plot_displacement(p, levels=None):
     """Measured against predicted floor displacement (relative to the ground), one panel per floor."""
     what = "self-replay" if p.self_replay else "prediction"
-    return plot_measured_predicted(p.time, p.disp_measured, p.disp_predicted, p.r, label=f"clone ({p.kind})",
+    q = p.prediction
+    return plot_measured_predicted(q.time, q.disp_measured, q.disp_predicted, q.r, label=f"clone ({p.kind})",
                                    levels=levels, title=f"{p.structure}: clone from {p.identified_from}, {what} of "
-                                   f"{p.event} ({p.band_hz[0]:.2g}-{p.band_hz[1]:.2g} Hz)")
+                                   f"{p.event} ({q.band_hz[0]:.2g}-{q.band_hz[1]:.2g} Hz)")
 
 
 def plot_loops(p):
@@ -55,7 +56,8 @@ def plot_loops(p):
     fig, axes = story_axes(p.hla.n_stories, size=(3.3, 2.8))
     for i, (s, ax) in enumerate(zip(p.hla.stories, axes)):
         ax.plot(s.drift, s.force_fit, color="k", lw=0.5, label="measured (HLA)")
-        ax.plot(p.drift_predicted[:, i], p.force_predicted[:, i], color="C3", lw=0.6, alpha=0.8, label="clone")
+        check = p.prediction.hla_check
+        ax.plot(check.drift[:, i], check.force[:, i], color="C3", lw=0.6, alpha=0.8, label="clone")
         ax.set_title(f"story {i + 1}", fontsize=9)
         ax.set_xlabel("drift [mm]", fontsize=8)
         ax.grid(alpha=0.3)
@@ -130,10 +132,10 @@ def figures(res: ValidationResult, cfg, folder: Path, force: bool) -> list[Path]
             save(plot_displacement(p, levels.get(name)), f"{tag}_disp.png")
             if p.kind == "nonlinear" and p.hla is not None:
                 save(plot_loops(p), f"{tag}_loops.png")
-                fig = plot_stiffness(p.hla, clone_ke=p.ke_clone)
-                w = _window(p)
+                fig = plot_stiffness(p.hla, clone_ke=p.prediction.hla_check.ke)
+                w = _window(p.prediction)
                 for ax in fig.axes:
-                    ax.set_xlim(p.time[w.start], p.time[w.stop - 1])
+                    ax.set_xlim(p.prediction.time[w.start], p.prediction.time[w.stop - 1])
                 fig.suptitle(f"{name}: stiffness evolution of {p.event}, HLA against the clone from {src}", fontsize=10)
                 save(fig, f"{tag}_stiffness.png")
     return out

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from conftest import REPO
 
-from hlaid.cli.main import main
+from hlaid.cli.app import main
 from hlaid.io.native import read_native
 
 POC = REPO / "configs" / "poc_3story.yaml"

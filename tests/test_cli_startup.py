@@ -17,7 +17,7 @@ HEAVY = ("torch", "numba", "matplotlib", "sklearn", "scipy", "dask", "distribute
 
 PROBE = """
 import contextlib, io, json, sys
-from hlaid.cli.main import build_parser, main
+from hlaid.cli.app import build_parser, main
 parser = build_parser()
 parser.format_help()
 for name in parser.commands:
@@ -56,10 +56,42 @@ def test_subpackages_are_modules():
     code = ("import types, hlaid; f = hlaid.identify_clone; import hlaid.identify.pipeline as pl; "
             "import hlaid.hla, hlaid.ida, hlaid.simulate, hlaid.simulate.odeint as od; "
             "mods = [hlaid.identify, hlaid.hla, hlaid.ida, hlaid.simulate, pl, od]; "
-            "print(all(isinstance(m, types.ModuleType) for m in mods), hlaid.identify.identify_clone is f, "
+            "print(all(isinstance(m, types.ModuleType) for m in mods), hlaid.events.identify_clone is f, "
             "hlaid.hla.run_hla is hlaid.run_hla, hlaid.simulate.simulate_response is hlaid.simulate_response, "
             "hlaid.ida.run_ida is hlaid.run_ida)")
     assert _fresh(code).split() == ["True"] * 5
+
+
+WALK = """
+import importlib, json, pkgutil, sys, types
+import hlaid
+packages = [m.name for m in pkgutil.walk_packages(hlaid.__path__, "hlaid.") if m.ispkg] + ["hlaid"]
+bad = []
+for name in packages:  # every public name first, then every submodule: a name must survive both orders
+    pkg = importlib.import_module(name)
+    for attr in getattr(pkg, "__all__", []):
+        getattr(pkg, attr)
+for m in pkgutil.walk_packages(hlaid.__path__, "hlaid."):
+    if not m.name.endswith("__main__"):  # that one runs the command line
+        importlib.import_module(m.name)
+for name in packages:
+    pkg = sys.modules[name]
+    if type(pkg) is not types.ModuleType:
+        bad.append(f"{name} is a {type(pkg).__name__}, not a plain module")
+    subs = [m.name for m in pkgutil.iter_modules(pkg.__path__) if m.name != "__main__"]
+    for sub in subs:
+        if getattr(pkg, sub, None) is not sys.modules[f"{name}.{sub}"]:
+            bad.append(f"{name}.{sub} is not the submodule")
+    bad += [f"{name} exports {a!r}, the name of its submodule" for a in getattr(pkg, "__all__", []) if a in subs]
+print(json.dumps(bad))
+"""
+
+
+def test_every_package_is_a_plain_module_and_no_name_shadows_a_submodule():
+    """Walk the whole package: no module subclass, and no exported name (a function such as
+    ``assess``) is the name of a submodule of its package, whichever is imported first."""
+    bad = json.loads(_fresh(WALK).strip().splitlines()[-1])
+    assert bad == []
 
 
 def test_public_api_is_complete():

@@ -13,14 +13,15 @@ from reference_systems import ShearBuildingRef
 
 from hlaid.clone import Clone
 from hlaid.errors import InputError
+from hlaid.events.fit import map_refine, posterior_uncertainty
+from hlaid.events.identify import check_series, identify_clone
+from hlaid.events.predict import predict_event
+from hlaid.events.priors import PRIORS, get_prior
+from hlaid.events.series import effective_samples
+from hlaid.events.state import BuildingState, settle_time
+from hlaid.events.update import update_clone
+from hlaid.events.vector import PriorVector, from_units, prior_of_clone, to_units
 from hlaid.identify import IdentifyConfig
-from hlaid.identify.events import check_series, posterior_uncertainty, prior_of_clone
-from hlaid.identify.joint import PriorVector, effective_samples, map_refine
-from hlaid.identify.pipeline import identify_clone
-from hlaid.identify.priors import SYSTEMS, from_units, get_prior, to_units
-from hlaid.identify.update import update_clone
-from hlaid.model.state import BuildingState, settle_time
-from hlaid.prediction import predict_event
 from hlaid.simulate import simulate_response
 from hlaid.synthetic import simulate_events, simulate_measurement
 
@@ -96,7 +97,7 @@ def test_prior_units_round_trip(table1):
     assert back.damping.ratio == pytest.approx(table1.damping.ratio)
     with pytest.raises(InputError, match="'steel-moment-frame', 'rc-frame', 'generic'"):
         get_prior("masonry")
-    for prior in SYSTEMS.values():  # every system names its sources
+    for prior in PRIORS.values():  # every system names its sources
         assert prior.sources and 0 < prior.alpha.median < 0.95 and prior.p.median > 1
 
 
@@ -106,7 +107,7 @@ def test_joint_fit_recovers_the_truth_from_two_events(table1, pieces):
     meas, states = simulate_events(table1, pieces[:2], noise_rms=0.0)
     start = table1.replace(k0=table1.k0 * 1.05, alpha=table1.alpha * 1.1, p=table1.p * 0.9, dy=table1.dy * 1.1,
                            delta_eta=table1.delta_eta * 0.85)
-    fit = map_refine(start, meas, system=SYSTEMS["generic"], damping=False, ground_noise="ignore")
+    fit = map_refine(start, meas, system=PRIORS["generic"], damping=False, ground_noise="ignore")
     for name in PARAMS:
         np.testing.assert_allclose(getattr(fit.building, name), getattr(table1, name), rtol=0.01, err_msg=name)
     np.testing.assert_allclose(fit.states[-1].work, states[-1].work, rtol=0.02)
@@ -117,7 +118,7 @@ def test_joint_posterior_as_the_clones_uncertainty(table1, pieces):
     """The Laplace posterior maps exactly onto the clone's parameters (dy through Cy), and back
     onto the prior of an update."""
     meas, _ = simulate_events(table1, pieces[:1], noise_rms=0.05, seed=3)
-    fit = map_refine(table1, meas, system=SYSTEMS["steel-moment-frame"], damping=True, ground_noise="ignore",
+    fit = map_refine(table1, meas, system=PRIORS["steel-moment-frame"], damping=True, ground_noise="ignore",
                      max_iterations=8)
     unc = posterior_uncertainty(fit)
     vals = unc.values(unc.centre)
@@ -125,7 +126,7 @@ def test_joint_posterior_as_the_clones_uncertainty(table1, pieces):
     for (name, i), v in zip(unc.slots, vals):
         expect = b.damping.ratio if name == "damping" else getattr(b, name)[i]
         assert v == pytest.approx(expect, rel=1e-9), (name, i)
-    prior = prior_of_clone(unc, b, PriorVector(b, damping=True), SYSTEMS["generic"])
+    prior = prior_of_clone(unc, b, PriorVector(b, damping=True), PRIORS["generic"])
     np.testing.assert_allclose(prior.mean, fit.result.x, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(prior.chol @ prior.chol.T, fit.covariance, rtol=1e-6, atol=1e-12)
 
@@ -139,9 +140,9 @@ def test_update_agrees_with_the_joint_fit(table1, pieces):
                                                                       method="least_squares", max_iterations=15))
     meas, _ = simulate_events(table1, pieces[:2], noise_rms=0.10, seed=7)
     start = table1.replace(alpha=table1.alpha * 1.1, dy=table1.dy * 0.9)
-    joint = map_refine(start, meas, system=SYSTEMS["generic"], damping=False, ground_noise="ignore",
+    joint = map_refine(start, meas, system=PRIORS["generic"], damping=False, ground_noise="ignore",
                        max_iterations=15)
-    first = map_refine(start, meas[:1], system=SYSTEMS["generic"], damping=False, ground_noise="ignore",
+    first = map_refine(start, meas[:1], system=PRIORS["generic"], damping=False, ground_noise="ignore",
                        max_iterations=15)
     clone = Clone(building=first.building, uncertainty=posterior_uncertainty(first), state=first.states[-1],
                   system="generic", events=({"name": "one"},))
@@ -162,7 +163,7 @@ def test_an_update_finds_a_building_that_recovered(table1, pieces):
     cfg = IdentifyConfig(system="generic", refine=dataclasses.replace(IdentifyConfig().refine,
                                                                       method="least_squares", max_iterations=15))
     first, _ = simulate_events(table1, pieces[2:], noise_rms=0.05, seed=8)
-    fit = map_refine(table1, first, system=SYSTEMS["generic"], damping=False, ground_noise="ignore",
+    fit = map_refine(table1, first, system=PRIORS["generic"], damping=False, ground_noise="ignore",
                      max_iterations=15)
     assert np.all(fit.states[-1].eta(fit.building) > 1.15)  # the first event degraded every story
     clone = Clone(building=fit.building, uncertainty=posterior_uncertainty(fit), state=fit.states[-1],
@@ -228,16 +229,17 @@ def test_the_predictive_band_holds_the_measurement(table1, pieces):
     """A clone of one noisy event predicts the next with a band (parameter draws and its own
     misfit) that holds most of the measured response, and more than the draws alone."""
     meas, states = simulate_events(table1, pieces[:2], noise_rms=0.05, seed=5)
-    fit = map_refine(table1, meas[:1], system=SYSTEMS["generic"], damping=False, ground_noise="ignore",
+    fit = map_refine(table1, meas[:1], system=PRIORS["generic"], damping=False, ground_noise="ignore",
                      max_iterations=10)
     own = predict_event(Clone(building=fit.building), meas[0])  # its self-replay, in HLA's band
     c = Clone(building=fit.building, uncertainty=posterior_uncertainty(fit), state=fit.states[-1],
-              diagnostics={"joint": {"events": [{"R_measured": own.r.tolist()}]}})
+              diagnostics={"joint": {"events": [{"r_measured": own.r.tolist()}]}})
     p = predict_event(c, meas[1], n_ensemble=20)
     draws = predict_event(c, meas[1], n_ensemble=20, misfit=0.0)
-    assert np.all(p.band_lower <= p.band_upper) and np.all(p.coverage >= draws.coverage)
-    assert np.mean(p.coverage) > 0.85, p.coverage
-    assert np.all(p.band_width < 0.5), p.band_width  # a narrow band, not one that covers anything
+    assert p.band is not None and draws.band is not None
+    assert np.all(p.band.lower <= p.band.upper) and np.all(p.band.coverage >= draws.band.coverage)
+    assert np.mean(p.band.coverage) > 0.85, p.band.coverage
+    assert np.all(p.band.width < 0.5), p.band.width  # a narrow band, not one that covers anything
 
 
 def test_events_of_another_building_are_refused(table1, pieces):
@@ -276,7 +278,7 @@ def test_cli_identify_predict_update(table1, pieces, tmp_path, capsys):
     third from the carried state, add it with update."""
     import json
 
-    from hlaid.cli.main import main
+    from hlaid.cli.app import main
 
     meas, _ = simulate_events(table1, [p.scaled(0.15) for p in pieces], noise_rms=0.02, seed=4)
     files = [str(m.save(tmp_path / f"e{k + 1}.npz")) for k, m in enumerate(meas)]

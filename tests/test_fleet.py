@@ -20,9 +20,9 @@ from conftest import import_optional, window
 
 import_optional("dask.distributed")
 
+from hlaid import identify_clone  # noqa: E402
 from hlaid.errors import ConfigError, InputError  # noqa: E402
 from hlaid.fleet import POINT, load_fleet_config, point_assess, run_fleet  # noqa: E402
-from hlaid.identify import identify_clone  # noqa: E402
 from hlaid.io import read  # noqa: E402
 from hlaid.model import Building  # noqa: E402
 from hlaid.motions import load_builtin  # noqa: E402

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from conftest import paper_record, window
 
-from hlaid.cli.main import main
+from hlaid.cli.app import main
 from hlaid.errors import InputError
 from hlaid.hla import HLAConfig, run_hla
 from hlaid.hla.config import ForceConfig, StiffnessConfig

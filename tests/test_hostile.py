@@ -545,7 +545,7 @@ def test_interrupted_identify_removes_its_tensorboard_folder(tmp_path, capsys, m
 # ----------------------------------------------------------------------------- before heavy imports
 PROBE = """
 import contextlib, io, json, sys
-from hlaid.cli.main import main
+from hlaid.cli.app import main
 rows = []
 for argv in json.loads(sys.argv[1]):
     err = io.StringIO()

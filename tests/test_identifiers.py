@@ -23,26 +23,20 @@ import torch
 from conftest import RECORDS, REPO, paper_record, window
 from scipy import signal
 
-from hlaid.clone import Clone
-from hlaid.errors import InputError
-from hlaid.identify import (
-    IDENTIFIERS,
-    HLASVMIdentifier,
-    IdentifyConfig,
-    NotFittedError,
-    OuterConfig,
-    TrainingConfig,
-    get_identifier,
-)
-from hlaid.identify import _space as sp
-from hlaid.identify.gradient import (
+from hlaid.baselines import IDENTIFIERS, get_identifier
+from hlaid.baselines import _space as sp
+from hlaid.baselines.gradient import (
     GradientIdentifier,
     OutputErrorProblem,
     arias_window,
     filtered,
     zero_phase_gain,
 )
-from hlaid.identify.ukf import UKFIdentifier, sigma_weights
+from hlaid.baselines.ukf import UKFIdentifier, sigma_weights
+from hlaid.clone import Clone
+from hlaid.errors import InputError
+from hlaid.estimators import HLASVMIdentifier, NotFittedError
+from hlaid.identify import IdentifyConfig, OuterConfig, TrainingConfig
 from hlaid.model import Building, Damping
 from hlaid.simulate import simulate_response
 from hlaid.studies import compare
@@ -155,7 +149,7 @@ def test_registry_names_every_identifier():
 @pytest.mark.slow  # long: the default run stays under 10 minutes on 2 cores
 def test_cli_identify_method(two_story, short_meas, tmp_path, capsys):
     """``hlaid identify --method ukf`` writes a clone file like the default method's."""
-    from hlaid.cli.main import main
+    from hlaid.cli.app import main
 
     meas = short_meas.save(tmp_path / "m.npz")
     out = tmp_path / "clone.json"

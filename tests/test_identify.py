@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 from conftest import paper_record, window
 
-from hlaid.cli.main import main
+from hlaid import identify_clone
+from hlaid.cli.app import main
 from hlaid.clone import Clone
-from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig, identify_clone, refine_replay
+from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig, refine_replay
 from hlaid.identify.classify import Bins, pass_result
 from hlaid.identify.regression import fit_delta_eta, fit_yield_displacement, hysteretic_displacement, hysteretic_work
 from hlaid.synthetic import simulate_measurement

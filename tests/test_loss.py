@@ -22,7 +22,7 @@ from hlaid.ida import IDAConfig
 from hlaid.loss import LossConfig, clone_demands, default_inventory
 from hlaid.loss.assess import assess_demands, describe_building
 from hlaid.loss.fema_p58 import SAMPLE_COLUMNS
-from hlaid.loss.inventory import SYSTEMS, check_inventory
+from hlaid.loss.inventory import INVENTORIES, check_inventory
 
 
 def _pelicun_usable() -> bool:
@@ -77,7 +77,7 @@ def test_pelicun_through_hlaid_equals_pelicuns_command_line(demo_clone, stripe, 
 @needs_pelicun
 def test_unknown_component_is_one_line_exit_2(stripe, tmp_path, capsys):
     stripe.write_csv(tmp_path / "d.csv")
-    inv = default_inventory("steel-mrf", [100.0] * 3).replace("B.10.35.021", "B.10.99.999", 1)
+    inv = default_inventory("steel-moment-frame", [100.0] * 3).replace("B.10.35.021", "B.10.99.999", 1)
     (tmp_path / "inv.csv").write_text(inv)
     assert main(["loss", str(tmp_path / "d.csv"), "-o", str(tmp_path / "out"), "--floor-area", "100",
                  "--inventory", str(tmp_path / "inv.csv")]) == 2
@@ -88,7 +88,7 @@ def test_unknown_component_is_one_line_exit_2(stripe, tmp_path, capsys):
 
 @needs_pelicun
 def test_default_inventories_pass_the_library_check():
-    for name in SYSTEMS:
+    for name in INVENTORIES:
         assert check_inventory(default_inventory(name, [120.0, 100.0]), 2, name) > 10
 
 
@@ -120,7 +120,7 @@ def test_demands_command_writes_the_library_demands(demo_clone, tmp_path):
     assert main(["demands", str(tmp_path / "c.json"), "--records", "builtin-suite", "-o", str(out), "--force"]) == 2
 
 
-@pytest.mark.parametrize("kw, message", [({"system": "timber"}, "unknown structural system 'timber'"),
+@pytest.mark.parametrize("kw, message", [({"system": "timber"}, "structural system 'timber' is unknown"),
                                          ({"irreparable_median": 1.5}, "irreparable_median"),
                                          ({"realizations": 5}, "realizations"),
                                          ({"floor_area_m2": [100.0, -1.0]}, "floor_area_m2")])

@@ -15,17 +15,12 @@ import numpy as np
 import pytest
 from conftest import paper_record, window
 
+from hlaid import identify_clone
 from hlaid.clone import Clone
 from hlaid.hla import HLAConfig, run_hla
 from hlaid.hla.config import ForceConfig
 from hlaid.hla.features import half_cycle_features
-from hlaid.identify import (
-    IdentifyConfig,
-    OuterConfig,
-    RefineConfig,
-    TrainingConfig,
-    identify_clone,
-)
+from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig
 from hlaid.identify.regression import story_delta_eta, story_yield_displacement
 from hlaid.identify.replaycheck import corrcoef
 from hlaid.simulate import simulate_response

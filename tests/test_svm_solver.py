@@ -18,9 +18,9 @@ from scipy.optimize import minimize
 from sklearn.metrics.pairwise import linear_kernel, polynomial_kernel, rbf_kernel
 from sklearn.svm import SVC
 
-from hlaid.svm import KernelSVC, fit_many
+from hlaid.svm import KERNELS, KernelSVC, fit_many
 from hlaid.svm._batch import parallel_ok
-from hlaid.svm._solver import KERNEL_CODES, P_FLT, P_INT, R_FLT, R_INT, _exp_inplace, solve_batch
+from hlaid.svm._solver import P_FLT, P_INT, R_FLT, R_INT, _exp_inplace, solve_batch
 
 
 def overlapping(n: int, n_classes: int, seed: int, noise: float = 0.2, n_features: int = 11):
@@ -41,7 +41,7 @@ def table(problems, cache_bytes=1 << 24):
     for Xp, Xn, C, kernel, gamma, coef0, degree, tol in problems:
         cols += [Xp, Xn]
         na, nb = len(Xp), len(Xn)
-        rows_i.append([start, na, start + na, nb, KERNEL_CODES[kernel], degree, 10**7, 1, out,
+        rows_i.append([start, na, start + na, nb, KERNELS[kernel].code, degree, 10**7, 1, out,
                        cache_bytes, -1, 0, 0])     # no Gram matrix: dot products from Xt
         rows_f.append([C, gamma, coef0, tol])
         start += na + nb

@@ -36,8 +36,8 @@ from hlaid.studies.validation import (
     identify_config_of,
     linear_clone,
     load_validation_config,
-    predict_event,
     run_validation,
+    study_prediction,
 )
 from hlaid.synthetic import simulate_measurement
 
@@ -57,11 +57,11 @@ def test_prediction_of_the_true_building_is_exact(table1):
     gm = window(paper_record("elcentro-1940-ns"), 20.0)
     meas = dataclasses.replace(simulate_measurement(table1, gm, noise_rms=0.0), mass=None)
     hcfg = HLAConfig(force=ForceConfig(mass_ratios=list(table1.mass)))
-    good = predict_event(_normalised(table1), meas, hcfg)
-    assert good.status == 0 and np.all(good.r > 0.999) and np.all(good.r_broadband > 0.999)
+    good = study_prediction(_normalised(table1), meas, hcfg)
+    assert good.prediction.status == 0 and np.all(good.r > 0.999) and np.all(good.r_broadband > 0.999)
     assert np.max(np.abs(good.peak_drift_error)) < 0.01
     assert np.all(good.stiffness_error < 0.03)
-    bad = predict_event(_normalised(table1.replace(k0=1.3 * table1.k0)), meas, hcfg)
+    bad = study_prediction(_normalised(table1.replace(k0=1.3 * table1.k0)), meas, hcfg)
     assert np.all(bad.r < 0.95) and np.all(bad.stiffness_error > 0.15)
     assert np.max(np.abs(bad.peak_drift_error)) > 0.05
 

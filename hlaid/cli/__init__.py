@@ -1,5 +1,5 @@
 """Command line interface (``hlaid --help``)."""
 
-from .main import main
+from .app import main
 
 __all__ = ["main"]

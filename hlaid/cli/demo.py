@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .main import subcommand
+from .app import subcommand
 
 
 def register(sub) -> None:

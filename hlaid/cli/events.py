@@ -5,7 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import _progress
-from .main import subcommand
+from ..uncertainty.config import N_ENSEMBLE
+from .app import subcommand
 
 
 def register(sub) -> None:
@@ -33,8 +34,9 @@ def register(sub) -> None:
     q.add_argument("--start", choices=["auto", "carried", "undamaged"], default="auto",
                    help="carried: from the state the clone's last event left it in; undamaged: at rest; auto "
                         "(default): carried, unless an update found the last event better explained undamaged")
-    q.add_argument("--ensemble", type=int, default=20, metavar="N",
-                   help="clones drawn from the clone's uncertainty for the predictive band (default 20; 0: none)")
+    q.add_argument("--ensemble", type=int, default=N_ENSEMBLE, metavar="N",
+                   help=f"clones drawn from the clone's uncertainty for the predictive band (default {N_ENSEMBLE}; "
+                        "0: none)")
     q.add_argument("--seed", type=int, default=0, help="seed of the draws")
     q.add_argument("--no-plots", action="store_true", help="write no figure")
     q.add_argument("--force", action="store_true", help="replace an existing output folder written by hlaid")
@@ -59,7 +61,7 @@ def run_update(args) -> int:
 
     clone = Clone.load(args.clone)
     meas = read(args.measurement, "measurement")
-    from ..identify.update import update_clone  # the heavy libraries, once the inputs are good
+    from ..events.update import update_clone  # the heavy libraries, once the inputs are good
     from .identify import print_summary
 
     res = update_clone(clone, meas, cfg, widen=args.widen)
@@ -96,23 +98,20 @@ def run_predict(args) -> int:
     if args.ensemble and clone.uncertainty is None:
         _progress.warn("the clone has no uncertainty: no predictive band")
     from .._fileio import write_json, write_npz  # the heavy libraries, once the inputs are good
-    from ..prediction import predict_event
+    from ..events.predict import predict_event
 
     p = predict_event(clone, meas, band_hz=args.band, start=args.start, n_ensemble=n, seed=args.seed)
     with atomic_directory(args.out, force=args.force, inputs=inputs) as tmp:
         write_json(Path(tmp) / "prediction.json", {**p.to_dict(), "clone": str(args.clone)})
-        arrays = {"time": p.time, "disp_measured": p.disp_measured, "disp_predicted": p.disp_predicted}
-        if p.band_lower is not None and p.band_upper is not None:
-            arrays.update(band_lower=p.band_lower, band_upper=p.band_upper)
-        write_npz(Path(tmp) / "prediction.npz", arrays)
+        write_npz(Path(tmp) / "prediction.npz", p.arrays())
         if not args.no_plots:
             from ..plots import plot_prediction, save_figure
 
             save_figure(plot_prediction(p, title=f"{Path(args.clone).name} predicting {meas.name or 'the event'}"),
                         Path(tmp) / "prediction.png")
-    cov = "" if p.coverage is None or p.band_width is None else (
-        f", {100 * float(p.coverage.mean()):.0f} % inside the {n}-clone band (its width "
-        f"{float(p.band_width.mean()):.2f} x twice the measured RMS)")
+    cov = "" if p.band is None else (
+        f", {100 * float(p.band.coverage.mean()):.0f} % inside the {n}-clone band (its width "
+        f"{float(p.band.width.mean()):.2f} x twice the measured RMS)")
     _progress.info(f"{meas.name or args.measurement}: R {p.r.round(3).tolist()} (mean {p.r_mean:.3f}), peak drift "
                    f"error {(100 * p.peak_drift_error).round(1).tolist()} %{cov}; from the {p.start} state")
     _progress.info(f"wrote {args.out}")

@@ -6,7 +6,7 @@ import dataclasses
 from pathlib import Path
 
 from ..errors import InputError
-from .main import subcommand
+from .app import subcommand
 
 
 def register(sub) -> None:

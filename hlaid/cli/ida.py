@@ -7,7 +7,7 @@ from pathlib import Path
 from .. import _progress
 from ..errors import InputError
 from ..limits import check_count
-from .main import subcommand
+from .app import subcommand
 
 
 def _numbers(text: str, what: str) -> list[float]:
@@ -54,9 +54,9 @@ def register(sub) -> None:
                    help="strength loss of the stories beyond a capping drift: none, steel-mrf, rc-frame, "
                         "rc-frame-nonductile (docs/collapse.md); default: the clone's collapse block, else the law of "
                         "its structural system, else none (collapse only at the drift limit)")
-    p.add_argument("--start", choices=["undamaged", "carried"],
+    p.add_argument("--start", choices=["undamaged", "carried", "auto"],
                    help="undamaged (default): every run from rest; carried: from the state the clone's last event "
-                        "left it in (the fragility after that event)")
+                        "left it in (the fragility after that event); auto: as the clone says")
     p.add_argument("--bootstrap", type=int, help="bootstrap resamples of the fragility interval (default 1000)")
     p.add_argument("--seed", type=int, help="bootstrap seed (default 0)")
     p.add_argument("--no-plots", action="store_true", help="write no PNG figures")
@@ -97,10 +97,9 @@ def run_ida(args) -> int:
         inputs += cfg.record_specs(base) or []
         check_output_folder(args.out, force=args.force, inputs=inputs)
     clone = load_clone(args.clone)  # a bad clone file is refused before the heavy libraries load
-    if cfg.start == "carried" and clone.state is None:
-        from ..errors import InputError
-        raise InputError("--start carried: the clone carries no state (identified by an older hlaid?); use "
-                         "--start undamaged", source=args.clone)
+    from ..events.start import resolve_start
+
+    resolve_start(clone, cfg.start)  # a start the clone cannot give is refused before the heavy libraries load
     from ..ida import ida_from_config, prepare_building
 
     # fail on a bad clone before reading records

@@ -8,13 +8,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .. import _progress
-from .main import subcommand
+from .app import subcommand
 
 if TYPE_CHECKING:
     from ..identify import IdentifyConfig
 
 METHODS = ("hlasvm", "gradient", "ukf")
-"""``--method`` choices: names of :data:`hlaid.identify.IDENTIFIERS` (kept here so that ``--help``
+"""``--method`` choices: names of :data:`hlaid.baselines.IDENTIFIERS` (kept here so that ``--help``
 imports no identifier; a test checks the two agree)."""
 
 
@@ -66,7 +66,7 @@ def run_identify(args) -> int:
         for m in records:
             check_identify_bands(m, cfg, args.config)
         if len(records) > 1:
-            from ..identify.events import check_series
+            from ..events.identify import check_series
 
             check_series(records)
     if args.method != "hlasvm" and len(records) > 1:
@@ -74,7 +74,8 @@ def run_identify(args) -> int:
         raise InputError(f"--method {args.method} identifies from one measurement; several events need the "
                          "default method (hlasvm)")
     meas = records[0] if len(records) == 1 else records
-    from ..identify import HLASVMIdentifier, get_identifier  # the heavy libraries, once the inputs are good
+    from ..baselines.registry import get_identifier  # the heavy libraries, once the inputs are good
+    from ..estimators import HLASVMIdentifier
     if args.method == "hlasvm":
         cache = "" if args.no_cache else args.cache
         est = HLASVMIdentifier(config=cfg, refine=None, cache_dir=cache, tensorboard=args.tensorboard)
@@ -131,7 +132,7 @@ def print_summary(clone, seconds: float | None = None) -> None:
                      f"{mark}")
     events = (d.get("joint") or {}).get("events") or []
     for e in events:
-        lines.append(f"replay of {e.get('name') or 'event'}: R {np.round(e['R_measured'], 3).tolist()}")
+        lines.append(f"replay of {e.get('name') or 'event'}: R {np.round(e['r_measured'], 3).tolist()}")
     if not events and isinstance(d.get("replay"), dict):
         lines.append(f"replay: R {np.round(d['replay']['r_measured'], 3).tolist()}")
     if clone.state is not None:

@@ -6,8 +6,9 @@ from pathlib import Path
 
 from .. import _progress
 from ..errors import InputError
+from ..uncertainty.config import N_ENSEMBLE
+from .app import subcommand
 from .ida import _numbers
-from .main import subcommand
 
 
 def register(sub) -> None:
@@ -22,8 +23,8 @@ def register(sub) -> None:
                      help="records scaled to --level (an IDA stripe)")
     d.add_argument("--level", type=float, metavar="G", help="intensity of the stripe [g] (with --records)")
     d.add_argument("--n-ensemble", type=int, default=None,
-                   help="clones drawn from the identification uncertainty (default 20 when the clone has it, "
-                        "else 0: the identified clone)")
+                   help=f"clones drawn from the identification uncertainty (default {N_ENSEMBLE} when the clone "
+                        "has it, else 0: the identified clone)")
     d.add_argument("--seed", type=int, default=0, help="seed of the ensemble (default 0)")
     d.add_argument("--config", help="IDA settings (YAML, configs/ida.yaml): intensity measure, drift limit, step, "
                                     "P-Delta, collapse model")
@@ -33,11 +34,11 @@ def register(sub) -> None:
 
     p = subcommand(sub, "loss", help="FEMA P-58 repair cost, repair time, irreparable damage and collapse through "
                                      "pelicun (needs hlaid[loss])",
-                   example="hlaid loss hlaid-demo --system steel-mrf")
+                   example="hlaid loss hlaid-demo --system steel-moment-frame")
     p.add_argument("source", help="a run folder (hlaid run / hlaid demo), or a demand CSV (hlaid demands) with -o")
     p.add_argument("-o", "--out", help="output folder (default: RUN_DIR/loss; required for a demand CSV)")
-    p.add_argument("--system", help="default inventory: steel-mrf or rc-frame (default: the run config's, "
-                                    "else steel-mrf)")
+    p.add_argument("--system", help="default inventory: steel-moment-frame or rc-frame (default: the run "
+                                    "config's, else steel-moment-frame)")
     p.add_argument("--inventory", metavar="CSV", help="your component inventory (pelicun's component assignment "
                                                       "CSV) instead of the system's")
     p.add_argument("--floor-area", metavar="M2", help="floor area per story [m2]: one value or one per story")
@@ -86,7 +87,7 @@ def run_demands(args) -> int:
     if args.motion and args.level is not None:
         raise InputError("--level scales --records; the recorded event (--motion) is taken as recorded")
     clone = Clone.load(args.clone)
-    n_ens = args.n_ensemble if args.n_ensemble is not None else (20 if clone.uncertainty is not None else 0)
+    n_ens = args.n_ensemble if args.n_ensemble is not None else (N_ENSEMBLE if clone.uncertainty is not None else 0)
     cfg = load_ida_config(args.config) if args.config else IDAConfig()
     records = _own_motion(args.motion) if args.motion else args.records
     d = clone_demands(clone, records, level=args.level, n_ensemble=n_ens, seed=args.seed, ida_config=cfg)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import _progress
-from .main import subcommand
+from .app import subcommand
 
 
 def register(sub) -> None:

@@ -27,6 +27,7 @@ import numpy as np
 from ..clone import Clone
 from ..ida import IDAConfig, intensity, run_ida
 from ..motions import GroundMotion
+from ..uncertainty.config import PLACARDS
 
 POINT = "point clone (n_ensemble: 0)"
 """The ``engine`` entry of a result computed by :func:`point_assess` on request (``n_ensemble: 0``)."""
@@ -77,10 +78,6 @@ def engine_label(assess: Callable) -> str:
 
 
 # ---------------------------------------------------------------------------- point clone
-PLACARDS = {"green": "INSPECTED (re-occupancy permitted)", "yellow": "RESTRICTED USE (engineering evaluation)",
-            "red": "UNSAFE (do not re-occupy)"}
-"""The indicator's ATC-20 placard wording (as ``hlaid.uncertainty``)."""
-
 FALLBACK_RULE = ("point clone (record-to-record variability only): red if P(collapse) >= 0.10 at the own "
                  "intensity, yellow if >= 0.02, else green")
 
@@ -191,4 +188,4 @@ def flatten(d: dict, prefix: str = "") -> dict:
 
 __all__ = ["assess_clone", "default_assess", "engine_label", "POINT", "point_assess", "PointAssessment", "flatten",
            "ENGINE",
-           "FALLBACK_RULE", "PLACARDS"]
+           "FALLBACK_RULE"]

@@ -45,7 +45,7 @@ from ..io.station import StationConfig
 from ..loss.config import LossConfig
 from ..model.schema import STORY_BOUNDS
 from ..specs import SimulationConfig
-from ..uncertainty.config import MAX_ENSEMBLE
+from ..uncertainty.config import MAX_ENSEMBLE, N_ENSEMBLE
 
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 """Building and event names: they name result files (``buildings/NAME@EVENT.json``)."""
@@ -136,7 +136,7 @@ class FleetConfig:
     buildings: list[BuildingEntry]
     records: str | list[str] | None = None
     events: list[EventSpec] | None = None
-    n_ensemble: int = bounded(20, lo=0, hi=MAX_ENSEMBLE)
+    n_ensemble: int = bounded(N_ENSEMBLE, lo=0, hi=MAX_ENSEMBLE)
     seed: int = with_bounds(SEED, 0)
     identify: IdentifyConfig = field(default_factory=IdentifyConfig)
     ida: IDAConfig = field(default_factory=IDAConfig)

@@ -181,7 +181,7 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
     """
     import torch
 
-    from ..identify import identify_clone
+    from ..events.identify import identify_clone
     t_all = time.perf_counter()
     out = {"format": RESULT_FORMAT, "version": RESULT_VERSION, "unit": job.unit, "building": job.building,
            "event": job.event, "digest": job.digest, "worker": f"{socket.gethostname()}:{os.getpid()}"}

@@ -24,7 +24,7 @@ if TYPE_CHECKING:
         fragility_from_capacities,
         fragility_from_exceedance,
     )
-    from .intensity import INTENSITY_MEASURES, IntensityMeasure, get_intensity_measure, intensity, response_spectrum
+    from .measures import INTENSITY_MEASURES, IntensityMeasure, get_intensity_measure, intensity, response_spectrum
     from .prepare import prepare_building
     from .results import IDAResult
 
@@ -33,7 +33,7 @@ _WHERE = {
     ".config": ("IDAConfig", "load_ida_config"),
     ".fragility": ("LognormalFragility", "fit_capacities", "fit_counts", "fragility_from_capacities",
                    "fragility_from_exceedance"),
-    ".intensity": ("INTENSITY_MEASURES", "IntensityMeasure", "get_intensity_measure", "intensity", "response_spectrum"),
+    ".measures": ("INTENSITY_MEASURES", "IntensityMeasure", "get_intensity_measure", "intensity", "response_spectrum"),
     ".prepare": ("prepare_building",),
     ".results": ("IDAResult",),
 }

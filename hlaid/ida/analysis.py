@@ -42,12 +42,14 @@ import numpy as np
 from .. import _progress
 from ..clone import Clone
 from ..errors import InputError
+from ..events.start import Start, resolve_start
+from ..events.state import BuildingState
 from ..io.records import as_motions
 from ..model import Building
 from ..motions import GroundMotion
 from ..simulate import simulate_response
 from .config import DEFAULT_EXCEEDANCE, IDAConfig, check_levels
-from .intensity import record_intensities
+from .measures import record_intensities
 from .prepare import prepare_building
 from .results import IDAResult
 
@@ -67,8 +69,11 @@ class _Runner:
     """Runs (record, IM) points through the batch simulator and accumulates them."""
 
     def __init__(self, building: Building, motions: list[GroundMotion], im0: np.ndarray, drift_limit: float,
-                 max_step: float, y0: np.ndarray | None = None):
-        self.b, self.im0, self.y0 = building, im0, y0
+                 max_step: float, state: BuildingState | None = None):
+        self.b, self.im0 = building, im0
+        collapse = building.collapse is not None
+        self.y0 = None if state is None else state.vector(collapse)
+        self.y0_probe = None if state is None else state.unloaded().vector(collapse)
         self.h = np.asarray(building.height, dtype=np.float64)
         self.stop = drift_limit * self.h
         self.drift_limit = drift_limit
@@ -92,8 +97,8 @@ class _Runner:
 
     def run(self, recs: np.ndarray, ims: np.ndarray, stage: str) -> None:
         """Run records ``recs`` ``(m,)`` at IM rows ``ims`` ``(m, k)`` [g]. The elastic probe
-        starts from the carried state with its drift and hysteretic state set to zero (the
-        elastic slope of the building as the last event left it), every other run from the state."""
+        starts from the carried state unloaded (:meth:`BuildingState.unloaded`: the elastic slope
+        of the building as the last event left it), every other run from the state."""
         recs = np.asarray(recs, dtype=np.int64)
         ims = np.asarray(ims, dtype=np.float64).reshape(recs.size, -1)
         if recs.size == 0:
@@ -105,12 +110,7 @@ class _Runner:
         resid = np.empty((recs.size, k, n))
         status = np.empty((recs.size, k), dtype=np.int64)
         sub = np.empty((recs.size, k), dtype=np.int64)
-        y0 = self.y0
-        if y0 is not None and stage == "probe":
-            n3 = self.b.n_stories
-            y0 = y0.copy()
-            y0[:n3] = 0.0
-            y0[2 * n3:3 * n3] = 0.0
+        y0 = self.y0_probe if stage == "probe" else self.y0
         for s in np.unique(self.substeps[recs]):
             sel = np.flatnonzero(self.substeps[recs] == s)
             pk, rs, st = self._sim(recs[sel], scales[sel], 1, y0)
@@ -231,62 +231,22 @@ def run_ida(model: Clone | Building | str | os.PathLike,
         model = Clone.load(model)
     building, notes = prepare_building(model, pdelta=cfg.pdelta, heights=cfg.heights_mm,
                                        gravity_load=cfg.gravity_load_n(), collapse=cfg.collapse)
-    y0 = start_state(model, building, cfg.start, notes)
+    start = start_state(model, building, cfg.start, notes)
     motions = as_motions(records, units=cfg.units)
     measure, T1, im0 = record_intensities(motions, cfg.im, building, cfg.period)
-    levels: Sequence[float] | np.ndarray | None  # the configured levels, then their array
     levels, n_levels, slope_ratio, refine = cfg.levels, cfg.n_levels, cfg.slope_ratio, cfg.refine
-    hunt_factor, max_hunt, tolerance, max_fill = cfg.hunt_factor, cfg.max_hunt, cfg.tolerance, cfg.max_fill
+    tolerance, max_fill = cfg.tolerance, cfg.max_fill
     R = len(motions)
-    runner = _Runner(building, motions, im0, drift_limit, max_step, y0)
+    runner = _Runner(building, motions, im0, drift_limit, max_step, start.state)
     _progress.info(f"IDA of {building.name or 'the clone'}: {R} records, IM {measure.label}"
                    + (f" at T1 = {T1:.3f} s" if measure.needs_period else "")
                    + f", collapse at {drift_limit:.0%} drift, P-Delta {'on' if building.pdelta else 'off'}"
                    + f", collapse model {building.collapse.name if building.collapse else 'none'}"
                    + f", from the {cfg.start} state")
 
-    # 1. elastic probe
-    ar = np.arange(R)
-    runner.run(ar, (im0 * PROBE_SCALE)[:, None], "probe")
-    a = runner.arrays()
-    slope_el = a["im"] / runner.edp(a)
-    if levels is None:
-        levels = _auto_levels(slope_el, drift_limit, n_levels)
-        notes.append(f"levels: {n_levels} equal steps up to {levels[-1]:g} g, the median equal-displacement "
-                     "estimate of the IM at the drift limit")
-    levels = np.array(check_levels(levels))
-
-    # 2. grid, ascending chunks; collapsed records stop climbing
-    chunks = np.array_split(np.arange(levels.size), min(levels.size, 5))
-    alive = np.ones(R, dtype=bool)
-    for ch in _progress.progress(chunks, desc="IDA grid"):
-        recs = np.flatnonzero(alive)
-        runner.run(recs, np.broadcast_to(levels[ch], (recs.size, ch.size)), "grid")
-        a = runner.arrays()
-        failed = (a["status"] != 0) | (runner.edp(a) > drift_limit)
-        alive &= ~np.isin(ar, a["record"][failed])
-        if not alive.any():
-            break
-
-    # 3-4. hunt and fill
-    state = _scan_all(runner, slope_el, slope_ratio)
-    if refine:
-        for step in range(max_hunt):
-            need = np.flatnonzero(state["first"] < 0)
-            if need.size == 0:
-                break
-            nxt = state["max_im"][need] * hunt_factor
-            _progress.debug(f"hunt step {step + 1}: {need.size} record(s) not collapsed yet")
-            runner.run(need, nxt[:, None], "hunt")
-            state = _scan_all(runner, slope_el, slope_ratio)
-        for step in range(max_fill):
-            lo, hi = state["lo"], state["hi"]
-            need = np.flatnonzero((state["first"] >= 0) & (hi - lo > tolerance * hi))
-            if need.size == 0:
-                break
-            _progress.debug(f"fill step {step + 1}: bisecting {need.size} collapse bracket(s)")
-            runner.run(need, (0.5 * (lo[need] + hi[need]))[:, None], "fill")
-            state = _scan_all(runner, slope_el, slope_ratio)
+    slope_el, grid = _probe(runner, im0, levels, drift_limit, n_levels, notes)
+    _grid(runner, grid, drift_limit)
+    state = _refine(runner, slope_el, cfg) if refine else _scan_all(runner, slope_el, slope_ratio)
     a = runner.arrays()
     n_cens = int((state["first"] < 0).sum())
     if n_cens:
@@ -302,7 +262,7 @@ def run_ida(model: Clone | Building | str | os.PathLike,
     return IDAResult(
         building=building, im=measure.name, im_label=measure.label, period=T1,
         record_names=tuple(m.name for m in motions), record_sources=tuple(m.source or m.name for m in motions),
-        record_im=im0, record_dt=np.array([m.dt for m in motions]), levels=levels,
+        record_im=im0, record_dt=np.array([m.dt for m in motions]), levels=grid,
         drift_limit=drift_limit, slope_ratio=slope_ratio, exceedance_limits=tuple(exceedance_limits),
         elastic_slope=slope_el, point_record=a["record"], point_im=a["im"], point_scale=a["scale"],
         point_stage=a["stage"].astype(str), point_status=a["status"], point_substeps=a["substeps"],
@@ -314,23 +274,75 @@ def run_ida(model: Clone | Building | str | os.PathLike,
         timing={"wall_s": wall, "runs": runner.n_runs})
 
 
-def start_state(model, building: Building, start: str, notes: list[str]) -> np.ndarray | None:
-    """The simulator's initial state of every IDA run (``(4*story,)``, ``(6*story,)`` with a
-    collapse law; None: at rest), and a note saying which. ``start="carried"`` needs a clone that
-    carries a state (:attr:`hlaid.clone.Clone.state`)."""
-    if start == "undamaged":
-        notes.append("start: undamaged (every run from rest)")
-        return None
-    if not isinstance(model, Clone) or model.state is None:
-        raise InputError("start: carried needs a clone that carries the state its last event left it in "
-                         "(a clone of hlaid identify or hlaid update)", source=building.source)
-    st = model.state
+def _probe(runner: _Runner, im0: np.ndarray, levels, drift_limit: float, n_levels: int,
+           notes: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Stage 1, the elastic probe: every record's elastic slope ``IM / EDP`` ``(record,)``, and
+    the levels (the configured ones, else :func:`_auto_levels` from the slopes)."""
+    runner.run(np.arange(im0.size), (im0 * PROBE_SCALE)[:, None], "probe")
+    a = runner.arrays()
+    slope_el = a["im"] / runner.edp(a)
+    if levels is None:
+        levels = _auto_levels(slope_el, drift_limit, n_levels)
+        notes.append(f"levels: {n_levels} equal steps up to {levels[-1]:g} g, the median equal-displacement "
+                     "estimate of the IM at the drift limit")
+    return slope_el, np.array(check_levels(levels))
+
+
+def _grid(runner: _Runner, levels: np.ndarray, drift_limit: float) -> None:
+    """Stage 2, the grid: every record at every level in ascending chunks; a record that has
+    collapsed stops climbing."""
+    R = runner.im0.size
+    ar = np.arange(R)
+    chunks = np.array_split(np.arange(levels.size), min(levels.size, 5))
+    alive = np.ones(R, dtype=bool)
+    for ch in _progress.progress(chunks, desc="IDA grid"):
+        recs = np.flatnonzero(alive)
+        runner.run(recs, np.broadcast_to(levels[ch], (recs.size, ch.size)), "grid")
+        a = runner.arrays()
+        failed = (a["status"] != 0) | (runner.edp(a) > drift_limit)
+        alive &= ~np.isin(ar, a["record"][failed])
+        if not alive.any():
+            break
+
+
+def _refine(runner: _Runner, slope_el: np.ndarray, cfg: IDAConfig) -> dict:
+    """Stages 3-4: records that have not collapsed are stepped up (hunt), then every collapse
+    bracket is bisected (fill); returns the last :func:`_scan_all`."""
+    state = _scan_all(runner, slope_el, cfg.slope_ratio)
+    for step in range(cfg.max_hunt):
+        need = np.flatnonzero(state["first"] < 0)
+        if need.size == 0:
+            break
+        nxt = state["max_im"][need] * cfg.hunt_factor
+        _progress.debug(f"hunt step {step + 1}: {need.size} record(s) not collapsed yet")
+        runner.run(need, nxt[:, None], "hunt")
+        state = _scan_all(runner, slope_el, cfg.slope_ratio)
+    for step in range(cfg.max_fill):
+        lo, hi = state["lo"], state["hi"]
+        need = np.flatnonzero((state["first"] >= 0) & (hi - lo > cfg.tolerance * hi))
+        if need.size == 0:
+            break
+        _progress.debug(f"fill step {step + 1}: bisecting {need.size} collapse bracket(s)")
+        runner.run(need, (0.5 * (lo[need] + hi[need]))[:, None], "fill")
+        state = _scan_all(runner, slope_el, cfg.slope_ratio)
+    return state
+
+
+def start_state(model, building: Building, start: str, notes: list[str]) -> Start:
+    """Where every IDA run starts (:func:`hlaid.events.start.resolve_start`), and a note saying
+    which: at rest, or the state the clone's events left (``"carried"`` needs a clone that carries
+    one)."""
+    resolved = resolve_start(model if isinstance(model, Clone) else building, start)
+    st = resolved.state
+    if st is None:
+        notes.append(f"start: undamaged, every run from rest ({resolved.reason})")
+        return resolved
     eta = st.eta(building)
     h = np.asarray(building.height, dtype=float)  # prepare_building requires the heights
     notes.append(f"start: carried, the state after {', '.join(st.events) or 'the last event'}: residual drift "
                  + ", ".join(f"{100 * d / hi:.2f}" for d, hi in zip(st.drift, h))
                  + " %, eta " + ", ".join(f"{v:.2f}" for v in eta))
-    return st.vector(collapse=building.collapse is not None)
+    return resolved
 
 
 def _scan_all(runner: _Runner, slope_el: np.ndarray, slope_ratio: float) -> dict:

@@ -47,10 +47,11 @@ class IDAConfig:
         ``rc-frame-nonductile``) or a mapping ``{theta_p, theta_pc, kappa, theta_u}``; None: the
         clone's own ``collapse`` block, else ``none`` (no strength loss: collapse only at the
         drift limit or the slope criterion; a note says so), or the collapse law of the clone's
-        structural system (``clone.system``, :mod:`hlaid.identify.priors`) when it names one
+        structural system (``clone.system``, :data:`hlaid.systems.SYSTEMS`) when it names one
     start : ``undamaged``: every run starts at rest; ``carried``: from the state the clone's last
         event left it in (residual drift, hysteretic state, accumulated degradation and, with a
-        collapse law, the largest drifts so far): the fragility of the building after that event
+        collapse law, the largest drifts so far): the fragility of the building after that event;
+        ``auto``: as the clone says (:func:`hlaid.events.start.resolve_start`)
     bootstrap, ci, seed : bootstrap resamples, confidence level and seed of the fragility intervals
     """
 
@@ -73,7 +74,7 @@ class IDAConfig:
     gravity_kN: list[float] | None = bounded(None, lo=0.0, hi=WEIGHT_KN.hi, unit="kN")
     period: float | None = bounded(None, lo=1e-3, hi=100.0, unit="s")
     collapse: str | dict[str, float | str] | None = None
-    start: Literal["undamaged", "carried"] = "undamaged"
+    start: Literal["undamaged", "carried", "auto"] = "undamaged"
     bootstrap: int = bounded(1000, lo=0, hi="BOOTSTRAP")
     ci: float = bounded(0.90, lo=0.01, hi=0.999)
     seed: int = with_bounds(SEED, 0)

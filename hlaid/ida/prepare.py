@@ -11,7 +11,8 @@ from ..clone import Clone
 from ..errors import InputError
 from ..limits import check_count
 from ..model import Building
-from ..model.collapse import SYSTEM_COLLAPSE, get_collapse_model
+from ..model.collapse import get_collapse_model
+from ..systems import SYSTEMS
 
 
 def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: bool | None = None,
@@ -67,7 +68,7 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     if collapse is not None:
         building = building.replace(collapse=get_collapse_model(collapse))
     elif building.collapse is None and system is not None:
-        law = get_collapse_model(SYSTEM_COLLAPSE.get(system, "none"))
+        law = get_collapse_model(SYSTEMS[system].collapse if system in SYSTEMS else "none")
         if law is not None:
             building = building.replace(collapse=law)
             notes.append(f"collapse model {law.name!r} chosen for the clone's structural system {system!r}: "

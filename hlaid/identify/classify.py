@@ -253,9 +253,6 @@ def vote(machine, X: np.ndarray, bins: Bins, single: int = -1, scaler: dict | No
     return out
 
 
-AGGREGATES = ("mean", "majority")
-
-
 def pass_result(param: str, stage: str, bins: Bins, votes: np.ndarray, stats: dict, cached: bool,
                 aggregate: str = "mean") -> PassResult:
     """Combine the votes of the measured half cycles: ``"majority"`` takes the centre of the

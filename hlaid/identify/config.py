@@ -13,6 +13,7 @@ from typing import Literal
 from ..bounds import SEED, bounded, check_bounds, with_bounds
 from ..errors import InputError
 from ..hla.config import HLAConfig
+from ..systems import get_system
 from .refiners import REFINERS
 
 KERNEL_NAMES = ("linear", "poly", "rbf", "sigmoid")
@@ -240,9 +241,9 @@ class IdentifyConfig:
     cache_dir : where trained classifiers are cached (null: ``~/.cache/hlaid/svm``)
     n_jobs : worker processes on which the kernel machines train while the next story's
         samples are drawn
-    system : the structural system (:data:`hlaid.identify.priors.SYSTEMS`: ``steel-moment-frame``,
+    system : the structural system (:data:`hlaid.systems.SYSTEMS`: ``steel-moment-frame``,
         ``rc-frame``, ``generic``). Its prior holds the parameters the data say little about
-        (maximum a posteriori over all of a clone's events, :mod:`hlaid.identify.joint`), and its
+        (maximum a posteriori over all of a clone's events, :mod:`hlaid.events.fit`), and its
         collapse law is the assessment's. null: ``generic`` where a prior is needed (several
         events, a record that stays elastic) and a single yielding record identified by its data
         alone
@@ -263,8 +264,5 @@ class IdentifyConfig:
 
     def __post_init__(self):
         check_bounds(self)
-        from .priors import SYSTEMS
-
-        if self.system is not None and self.system not in SYSTEMS:
-            raise InputError(f"system = {self.system!r} is unknown; expected one of "
-                             f"{', '.join(map(repr, SYSTEMS))} (or null)")
+        if self.system is not None:
+            get_system(self.system, "system")

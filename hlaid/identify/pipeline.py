@@ -19,29 +19,21 @@ refinement works on the paper's estimate and the measurement alone.
 from __future__ import annotations
 
 import dataclasses
-import datetime
 import time
-from collections.abc import Sequence
 
 import numpy as np
 
 from .. import _progress
-from .._version import __version__
 from ..clone import Clone
-from ..config import config_to_dict
-from ..errors import InputError
-from ..measurement import Measurement
 from ..model import Building
 from ..uncertainty.laplace import uncertainty_of_refinement
 from .cache import MachineCache, default_cache_dir
 from .config import IdentifyConfig
-from .events import best_fit, check_series, joint_fit, most_informative, plausible_starts, result_of_joint, state_after
 from .passes import ClassifierPasses, voted
-from .priors import get_prior
 from .refiners import Refinement, RefineProblem, get_refiner
 from .replaycheck import ReplayCheck, replay_check
-from .result import IdentificationResult, event_record, file_digest
-from .stages import Estimate, Event, analyse, first_estimate, follow_paths, regress
+from .result import IdentificationResult, file_digest, provenance
+from .stages import Estimate, Event, first_estimate, follow_paths, regress
 from .tb import TBLogger
 
 
@@ -99,68 +91,18 @@ def refine(event: Event, est: Estimate, cfg: IdentifyConfig) -> Refinement:
     return refiner.refine(problem)
 
 
-def identify_clone(measurements: Measurement | Sequence[Measurement], config: IdentifyConfig | None = None, *,
-                   tensorboard: str | None = None, cache_dir: str | None = None) -> IdentificationResult:
-    """Identify a digital clone from one measurement, or from several of one building in time
-    order, with no expert input.
-
-    One yielding record: the paper's method and the refinement on its data alone (a structural
-    ``system`` named is recorded with the clone: its collapse law for the IDA). Several records,
-    or a record that stays elastic: the paper's method on the most informative record (where one
-    yielded) gives the start, and one set of parameters is then fitted to every record, the state carried from
-    each into the next and the system's prior holding what the data say little about
-    (:mod:`hlaid.identify.events`). The clone is left in the state its last record left the
-    building in (``clone.state``).
-
-    Parameters
-    ----------
-    measurements : ground and floor accelerations (masses optional: mass-normalised clone);
-        several: records of one building, oldest first
-    config : settings (defaults: :class:`IdentifyConfig`)
-    tensorboard : folder for TensorBoard logs (classifier accuracies, confusion matrices,
-        example features, estimates per outer iteration)
-    cache_dir : where trained classifiers are cached (default ``~/.cache/hlaid/svm``,
-        ``HLAID_CACHE`` overrides; ``""`` disables the cache)
-
-    Returns
-    -------
-    IdentificationResult
-    """
-    meas = [measurements] if isinstance(measurements, Measurement) else list(measurements)
-    if not meas:
-        raise InputError("identify_clone: no measurement given")
-    check_series(meas)
-    cfg = config or IdentifyConfig()
+def open_cache(cfg: IdentifyConfig, cache_dir: str | None = None) -> MachineCache:
+    """The classifier cache of an identification: ``cache_dir`` (None: the config's, else the
+    default ``~/.cache/hlaid/svm``, ``HLAID_CACHE`` overrides; ``""``: no cache)."""
     cache_dir = cache_dir if cache_dir is not None else cfg.cache_dir
-    cache = MachineCache(default_cache_dir() if cache_dir is None else (cache_dir or None))
-    tb = TBLogger(tensorboard)
-    timings: dict[str, float] = {}
-    t_all = time.perf_counter()
-    events = [analyse(m, cfg) for m in meas]
-    timings["hla"] = time.perf_counter() - t_all
-    best = most_informative(events)
-    single = None if best is None else _paper_and_refinement(events[best], cfg, cache, tb, timings)
-    if len(meas) == 1 and single is not None:  # one yielding record: the data speak, the paper's method
-        timings["total"] = time.perf_counter() - t_all
-        tb.close()
-        return dataclasses.replace(single, clone=dataclasses.replace(single.clone, system=cfg.system))
-    system = get_prior(cfg.system or "generic")
-    starts = plausible_starts(single, events[0], meas[0], system, cfg)
-    names = [m.name or f"event {k + 1}" for k, m in enumerate(meas)]
-    t = time.perf_counter()
-    fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=events[0].hla.k0) for b in starts]
-    fit = best_fit(fits)
-    start = starts[fits.index(fit)]
-    timings["joint"] = time.perf_counter() - t
-    result = result_of_joint(events, meas, fit, cfg, system=system, start=start, single=single, timings=timings)
-    timings["total"] = time.perf_counter() - t_all
-    tb.close()
-    return result
+    return MachineCache(default_cache_dir() if cache_dir is None else (cache_dir or None))
 
 
-def _paper_and_refinement(event: Event, cfg: IdentifyConfig, cache: MachineCache, tb: TBLogger,
-                          timings: dict) -> IdentificationResult:
-    """The paper's method and the refinement on one event (the single-record pipeline)."""
+def identify_event(event: Event, cfg: IdentifyConfig, cache: MachineCache, tb: TBLogger,
+                   timings: dict) -> IdentificationResult:
+    """The paper's method and the refinement on one analysed record (:func:`hlaid.identify_clone`
+    runs it on a building's most informative record). ``timings`` gains the seconds of each
+    stage; the clone has no history yet (its ``events`` and ``state`` are the caller's)."""
     passes = ClassifierPasses(cfg, cache, tb, timings)
     est, history = outer_loop(event, passes, cfg)
     paper = est.building(event, cfg.damping_ratio)
@@ -175,8 +117,6 @@ def _paper_and_refinement(event: Event, cfg: IdentifyConfig, cache: MachineCache
     for i, r in enumerate(check.r_measured):
         tb.scalar(f"replay/story{i + 1}/R_measured", r)
     clone = _clone(event, est, paper, refined, history, passes.log, check, timings, cfg)
-    state = state_after(clone.building, [measurement], cfg.refine.band_hz, [measurement.name or "event 1"])
-    clone = dataclasses.replace(clone, events=(event_record(measurement),), state=state)
     return IdentificationResult(clone=clone, hla=event.hla, paper_estimate=paper, passes=passes.log,
                                 iterations=len(history), replay=check, timings=timings, refinement=refined.result)
 
@@ -185,16 +125,14 @@ def _clone(event: Event, est: Estimate, paper: Building, refined: Refinement, hi
            check: ReplayCheck, timings: dict, cfg: IdentifyConfig) -> Clone:
     """The clone file's content: the building, diagnostics, provenance and uncertainty."""
     meas = event.measurement
-    provenance = {"source": meas.source, "sha256": file_digest(meas.source) if meas.source else None,
-                  "hlaid_version": __version__, "config": config_to_dict(cfg), "timings": timings,
-                  "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-                  "noise_rms_used": event.noise}
+    prov = {**provenance(cfg, timings, source=meas.source, sha256=file_digest(meas.source) if meas.source else None),
+            "noise_rms_used": event.noise}
     rr = refined.result
     unc = None if rr is None else uncertainty_of_refinement(rr, rr.channels or meas.n_floors, noise_rms=event.noise,
                                                             band_hz=cfg.refine.band_hz, dt=meas.dt)
     return Clone(building=refined.building, mass_normalised=event.hla.mass_normalised,
                  diagnostics=_diagnostics(event, est, paper, history, passes, check, refined.info),
-                 provenance=provenance, uncertainty=unc)
+                 provenance=prov, uncertainty=unc)
 
 
 def _diagnostics(event: Event, est: Estimate, paper: Building, history: list, passes: list, check: ReplayCheck,
@@ -207,8 +145,8 @@ def _diagnostics(event: Event, est: Estimate, paper: Building, history: list, pa
              "n_yielding_half_cycles": len(event.features[i]), "alpha_max": float(event.alpha_max[i]),
              "peak_drift": float(np.max(np.abs(s.drift))),
              "paper_method": {k: float(getattr(paper, k)[i]) for k in ("k0", "alpha", "p", "dy", "delta_eta")},
-             "regressions": est.regressions[i], "R_measured": float(check.r_measured[i]),
-             "R_true": None if check.r_true is None else float(check.r_true[i]),
+             "regressions": est.regressions[i], "r_measured": float(check.r_measured[i]),
+             "r_true": None if check.r_true is None else float(check.r_true[i]),
              "stiffness_error": float(check.stiffness_error[i])}
         if not event.identifiable[i]:
             d["reason"] = (f"story stayed elastic (peak drift {d['peak_drift']:.3g} mm, "

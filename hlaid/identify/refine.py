@@ -199,7 +199,7 @@ class ParameterVector:
 
 class SearchVector(Protocol):
     """The parameters a search moves (:class:`ParameterVector`, or the prior units of
-    :class:`hlaid.identify.joint.PriorVector`)."""
+    :class:`hlaid.events.vector.PriorVector`)."""
 
     slots: list
     x0: np.ndarray
@@ -212,7 +212,7 @@ class SearchVector(Protocol):
 
 class Residuals(Protocol):
     """Buildings to residuals (:class:`~hlaid.identify.residuals.ReplayResiduals`, or the
-    posterior's of :class:`hlaid.identify.joint.PosteriorResiduals`)."""
+    posterior's of :class:`hlaid.events.vector.PosteriorResiduals`)."""
 
     substeps: int
     channels: int

@@ -2,18 +2,16 @@
 
 from __future__ import annotations
 
+import datetime
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
+from .._version import __version__
 from ..clone import Clone
+from ..config import config_to_dict
 from ..hla import HLAResult
-from ..measurement import Measurement
 from ..model import Building
-from ..units import G_MM_S2
-from .joint import JointFit
 from .replaycheck import ReplayCheck
 
 
@@ -32,7 +30,8 @@ class IdentificationResult:
     timings : seconds per step
     refinement : the refinement's final fit (its Jacobian and residuals at the solution give
         ``clone.uncertainty``), None without refinement
-    joint : the fit over all events (several records, an elastic one, or a system named), else None
+    joint : the fit over all events (:class:`hlaid.events.fit.JointFit`: several records, or an
+        elastic one), else None
     """
 
     clone: Clone
@@ -43,7 +42,7 @@ class IdentificationResult:
     replay: ReplayCheck
     timings: dict
     refinement: object = None
-    joint: JointFit | None = None
+    joint: object = None
 
 
 def file_digest(path: str) -> str | None:
@@ -54,11 +53,8 @@ def file_digest(path: str) -> str | None:
     return hashlib.sha256(p.read_bytes()).hexdigest()
 
 
-def event_record(meas: Measurement, start: str | None = None) -> dict:
-    """What a clone keeps of an event it learnt from (``start``: where its replay started,
-    ``"carried"`` or ``"undamaged"``, when an update chose it)."""
-    return {"name": meas.name, "source": meas.source or None,
-            "sha256": file_digest(meas.source) if meas.source else None,
-            "pga_g": float(np.max(np.abs(meas.ground_acc)) / G_MM_S2), "duration_s": float(meas.n_samples * meas.dt),
-            "dt": float(meas.dt), "n_floors": int(meas.n_floors),
-            **({"recorded": meas.recorded} if meas.recorded else {}), **({"start": start} if start else {})}
+def provenance(cfg, timings: dict, **sources) -> dict:
+    """What a clone keeps of how it was made: its ``sources`` (file names, digests), the hlaid
+    version, the identification config, the seconds of each stage and the time it was made."""
+    return {**sources, "hlaid_version": __version__, "config": config_to_dict(cfg), "timings": timings,
+            "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}

@@ -21,7 +21,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _progress
-from ..errors import NotIdentifiableError
 from ..hla import HLAResult, run_hla
 from ..hla.analysis import reanalyse_story
 from ..hla.features import HalfCycleFeatures, half_cycle_features
@@ -138,13 +137,6 @@ def analyse(meas: Measurement, cfg: IdentifyConfig) -> Event:
     return Event(measurement=meas, hla=res, features=features, identifiable=identifiable,
                  alpha_max=np.clip(np.nan_to_num(ke_min, nan=1.0), 0.05, 0.95),
                  ground=measured_ground(meas, res.band_hz[1]), noise=noise_level(meas, cfg))
-
-
-def not_identifiable(event: Event) -> NotIdentifiableError:
-    """The error of the paper's method on an event where no story yielded."""
-    peaks = ", ".join(f"{p:.3g}" for p in event.peak_drift)
-    return NotIdentifiableError(f"no story yielded in this record (peak drifts {peaks} mm): the paper's method "
-                                "cannot identify a nonlinear clone from it", source=event.measurement.source or None)
 
 
 def first_estimate(event: Event, cfg: IdentifyConfig) -> Estimate:

@@ -20,7 +20,7 @@ from ..errors import InputError
 from .config import LossConfig
 from .demands import Demands, clone_demands
 from .fema_p58 import PelicunInputs, run_pelicun, summarise, write_inputs
-from .inventory import default_inventory, get_system, read_inventory
+from .inventory import default_inventory, get_inventory, read_inventory
 
 
 @dataclass(frozen=True, eq=False)
@@ -60,7 +60,7 @@ def describe_building(n: int, masses, cfg: LossConfig, collapse: tuple[float, fl
     """Inventory, floor areas, replacement values and collapse fragility of a building of ``n``
     stories with floor ``masses`` [t] (None: unknown) under ``cfg``."""
     area, area_src = cfg.floor_areas(n, masses)
-    system = get_system(cfg.system)
+    system = get_inventory(cfg.system)
     if cfg.inventory is not None:
         p = Path(cfg.inventory)
         if base_dir is not None and not p.is_absolute():

@@ -13,8 +13,8 @@ from ..errors import InputError
 class LossConfig:
     """Settings of the FEMA P-58 loss assessment (docs/loss.md).
 
-    system : default component inventory and replacement values: ``steel-mrf`` or ``rc-frame``
-        (:data:`hlaid.loss.inventory.SYSTEMS`)
+    system : default component inventory and replacement values: ``steel-moment-frame`` or ``rc-frame``
+        (:data:`hlaid.loss.inventory.INVENTORIES`)
     inventory : the user's inventory CSV (pelicun's component assignment format) instead of the
         system's; relative paths from the config's folder
     floor_area_m2 : floor area [m2] of every story (one number) or per story, bottom to top; None:
@@ -29,7 +29,7 @@ class LossConfig:
         levels; [] none
     """
 
-    system: str = "steel-mrf"
+    system: str = "steel-moment-frame"
     inventory: str | None = None
     floor_area_m2: float | list[float] | None = bounded(None, lo=0.01, hi=1e7, unit="m2")
     replacement_cost_usd: float | None = bounded(None, lo=1.0, hi=1e13, unit="USD")
@@ -41,10 +41,10 @@ class LossConfig:
     levels: list[float] | None = bounded(None, lo=1e-6, hi=100.0, unit="g")
 
     def __post_init__(self):
-        from .inventory import get_system
+        from .inventory import get_inventory
 
         check_bounds(self, prefix="loss.")
-        get_system(self.system)
+        get_inventory(self.system)
         if isinstance(self.floor_area_m2, list) and not self.floor_area_m2:
             raise InputError("loss.floor_area_m2 is empty; give one area [m2] or one per story")
         for name in ("realizations", "seed"):
@@ -63,7 +63,7 @@ class LossConfig:
     def floor_areas(self, n_stories: int, masses=None) -> tuple[list[float], str]:
         """Floor area [m2] per story and where it came from: ``floor_area_m2``, else the floor
         ``masses`` [t] (None: unknown, e.g. a mass-normalised clone) / the system's areal mass."""
-        from .inventory import get_system
+        from .inventory import get_inventory
 
         n = n_stories
         if self.floor_area_m2 is not None:
@@ -74,7 +74,7 @@ class LossConfig:
         if masses is None:
             raise InputError("the floor masses are unknown (a mass-normalised clone or a demand file): give the "
                              "floor area (loss.floor_area_m2, hlaid loss --floor-area M2)")
-        rho = get_system(self.system).areal_mass_t_m2
+        rho = get_inventory(self.system).areal_mass_t_m2
         return [float(m) / rho for m in masses], (f"floor mass / {rho:g} t/m2 (a typical {self.system} office "
                                                   "floor; give floor_area_m2 to replace it)")
 

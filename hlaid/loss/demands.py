@@ -34,12 +34,14 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from .. import _progress
 from ..clone import Clone
 from ..errors import InputError
+from ..events.state import settle_time
 from ..units import G_MM_S2
 
 SETTLE_DECAY = 100.0
@@ -165,17 +167,67 @@ def _members(clone: Clone, n_ensemble: int, seed: int, cfg) -> tuple[list, list[
     return [nominal] + out, notes + [f"{n_ensemble} clones drawn from the identification uncertainty (seed {seed})"]
 
 
-def settle_time(buildings) -> tuple[float, float]:
+def _checked(clone, level, n_ensemble, ida_config) -> tuple[Clone, Any]:
+    """The clone (read from its file) and the IDA config (default ``IDAConfig()``) of
+    :func:`clone_demands`, its arguments checked."""
+    from ..ida.config import IDAConfig
+
+    cfg = IDAConfig() if ida_config is None else ida_config
+    if not isinstance(cfg, IDAConfig):
+        raise InputError(f"ida_config must be an hlaid.ida.IDAConfig, got {type(cfg).__name__}")
+    if isinstance(clone, (str, os.PathLike)):
+        clone = Clone.load(clone)
+    if not isinstance(clone, Clone):
+        raise InputError(f"expected an hlaid Clone or a clone file, got {type(clone).__name__}")
+    if isinstance(n_ensemble, bool) or not isinstance(n_ensemble, (int, np.integer)) or n_ensemble < 0:
+        raise InputError(f"n_ensemble = {n_ensemble!r}; expected a whole number >= 0 (0: the identified clone)")
+    if level is not None and not (isinstance(level, (int, float)) and math.isfinite(level) and level > 0):
+        raise InputError(f"level = {level!r}; expected a positive intensity [g]")
+    return clone, cfg
+
+
+def _replays(buildings, motions, scale: np.ndarray, cfg, tail: float, window: float, h: np.ndarray):
+    """Every building under every record scaled by ``scale``, then a free vibration of ``tail``
+    seconds: ``(building, record, story)`` peak drift ratios, ``(building, record, floor + 1)``
+    peak floor accelerations (floor 0 the ground) [mm/s^2], residual drift ratios (their mean over
+    ``window``; NaN where the run stopped) and how far they were from settled, and the simulator
+    status ``(building, record)``."""
+    from ..ida.analysis import upsampled
+    from ..simulate import simulate_response
+
+    n, nb, nm = buildings[0].n_stories, len(buildings), len(motions)
+    pid = np.empty((nb, nm, n))
+    pfa = np.empty((nb, nm, n + 1))
+    rid = np.full((nb, nm, n), np.nan)
+    settle = np.full((nb, nm, n), np.nan)
+    status = np.empty((nb, nm), dtype=np.int64)
+    sub = np.maximum(1, np.ceil(np.array([m.dt for m in motions]) / cfg.max_step - 1e-9)).astype(np.int64)
+    for s in _progress.progress(np.unique(sub), desc="demands"):
+        idx = np.flatnonzero(sub == s)
+        mot = [upsampled(motions[j], int(s)) for j in idx]
+        r = simulate_response(buildings, mot, scale[idx][:, None], substeps=1, outputs="peaks", free_vibration=tail,
+                              stop_drift=cfg.drift_limit * h)
+        shape = (nb, idx.size)
+        pid[:, idx] = (r.peak_drift.reshape(*shape, n) / h[:, None, :])
+        pfa[:, idx, 1:] = r.peak_acc.reshape(*shape, n)
+        pfa[:, idx, 0] = np.array([m.pga for m in motions])[idx][None, :] * scale[idx][None, :]
+        status[:, idx] = r.status.reshape(shape)
+        ok = r.status == 0
+        if ok.any():
+            d = _settle(buildings, mot, r, ok, window)
+            ri = np.flatnonzero(ok)
+            bi, mi = np.unravel_index(ri, shape)
+            rid[bi, idx[mi]] = np.abs(d[0]) / h[bi]
+            settle[bi, idx[mi]] = d[1] / h[bi]
+    return pid, pfa, rid, settle, status
+
+
+def residual_window(buildings) -> tuple[float, float]:
     """``(tail [s], window [s])``: the free-vibration tail after which an elastic oscillation has
-    decayed by :data:`SETTLE_DECAY` in every building (at least :data:`MIN_TAIL_S`), and the
-    averaging window, the longest first period."""
-    tail, window = MIN_TAIL_S, 0.0
-    for b in buildings:
-        T1 = float(b.periods()[0])
-        zeta = max(float(b.damping.ratio), 1e-3)
-        tail = max(tail, math.log(SETTLE_DECAY) / (2 * math.pi * zeta) * T1)
-        window = max(window, T1)
-    return tail, window
+    decayed by :data:`SETTLE_DECAY` in every building (:func:`~hlaid.events.state.settle_time`,
+    at least :data:`MIN_TAIL_S`), and the averaging window, the longest first period."""
+    tail = max(settle_time(b, math.log(SETTLE_DECAY), (MIN_TAIL_S, math.inf)) for b in buildings)
+    return tail, max(float(b.periods()[0]) for b in buildings)
 
 
 def clone_demands(clone: Clone | str | os.PathLike, records, *, level: float | None = None, n_ensemble: int = 0,
@@ -199,23 +251,10 @@ def clone_demands(clone: Clone | str | os.PathLike, records, *, level: float | N
     -------
     Demands
     """
-    from ..ida.analysis import upsampled
-    from ..ida.config import IDAConfig
-    from ..ida.intensity import record_intensities
+    from ..ida.measures import record_intensities
     from ..io.records import as_motions
-    from ..simulate import simulate_response
 
-    cfg = IDAConfig() if ida_config is None else ida_config
-    if not isinstance(cfg, IDAConfig):
-        raise InputError(f"ida_config must be an hlaid.ida.IDAConfig, got {type(cfg).__name__}")
-    if isinstance(clone, (str, os.PathLike)):
-        clone = Clone.load(clone)
-    if not isinstance(clone, Clone):
-        raise InputError(f"expected an hlaid Clone or a clone file, got {type(clone).__name__}")
-    if isinstance(n_ensemble, bool) or not isinstance(n_ensemble, (int, np.integer)) or n_ensemble < 0:
-        raise InputError(f"n_ensemble = {n_ensemble!r}; expected a whole number >= 0 (0: the identified clone)")
-    if level is not None and not (isinstance(level, (int, float)) and math.isfinite(level) and level > 0):
-        raise InputError(f"level = {level!r}; expected a positive intensity [g]")
+    clone, cfg = _checked(clone, level, n_ensemble, ida_config)
     buildings, notes = _members(clone, int(n_ensemble), seed, cfg)
     nominal = buildings[0]
     if n_ensemble:
@@ -223,34 +262,12 @@ def clone_demands(clone: Clone | str | os.PathLike, records, *, level: float | N
     motions = as_motions(records, units=cfg.units)
     measure, period, im0 = record_intensities(motions, cfg.im, nominal, cfg.period)
     scale = np.ones(len(motions)) if level is None else float(level) / im0
-    tail, window = settle_time(buildings)
+    tail, window = residual_window(buildings)
     notes.append(f"residual drift: free vibration for {tail:.1f} s after each record, then the mean drift over "
                  f"{window:.3g} s (one period T1)")
     h = np.array([np.asarray(b.height, dtype=np.float64) for b in buildings])
     n, nb, nm = nominal.n_stories, len(buildings), len(motions)
-    pid = np.empty((nb, nm, n))
-    pfa = np.empty((nb, nm, n + 1))
-    rid = np.full((nb, nm, n), np.nan)
-    settle = np.full((nb, nm, n), np.nan)
-    status = np.empty((nb, nm), dtype=np.int64)
-    sub = np.maximum(1, np.ceil(np.array([m.dt for m in motions]) / cfg.max_step - 1e-9)).astype(np.int64)
-    for s in _progress.progress(np.unique(sub), desc="demands"):
-        idx = np.flatnonzero(sub == s)
-        mot = [upsampled(motions[j], int(s)) for j in idx]
-        r = simulate_response(buildings, mot, scale[idx][:, None], substeps=1, outputs="peaks", free_vibration=tail,
-                     stop_drift=cfg.drift_limit * h)
-        shape = (nb, idx.size)
-        pid[:, idx] = (r.peak_drift.reshape(*shape, n) / h[:, None, :])
-        pfa[:, idx, 1:] = r.peak_acc.reshape(*shape, n)
-        pfa[:, idx, 0] = np.array([m.pga for m in motions])[idx][None, :] * scale[idx][None, :]
-        status[:, idx] = r.status.reshape(shape)
-        ok = r.status == 0
-        if ok.any():
-            d = _settle(buildings, mot, r, ok, window)
-            ri = np.flatnonzero(ok)
-            bi, mi = np.unravel_index(ri, shape)
-            rid[bi, idx[mi]] = np.abs(d[0]) / h[bi]
-            settle[bi, idx[mi]] = d[1] / h[bi]
+    pid, pfa, rid, settle, status = _replays(buildings, motions, scale, cfg, tail, window, h)
     collapsed = (status != 0) | (np.max(pid, axis=-1) > cfg.drift_limit)
     pid = np.where((status == 2)[..., None], np.inf, pid)
     if collapsed.any():
@@ -355,4 +372,4 @@ def read_demand_csv(path: str | os.PathLike) -> DemandFile:
     return DemandFile(text=text, n_stories=max(pid), im_type=im, n_realisations=len(rows) - 2)
 
 
-__all__ = ["DemandFile", "read_demand_csv", "Demands", "clone_demands", "settle_time", "SETTLE_DECAY", "MIN_TAIL_S"]
+__all__ = ["DemandFile", "read_demand_csv", "Demands", "clone_demands", "residual_window", "SETTLE_DECAY", "MIN_TAIL_S"]

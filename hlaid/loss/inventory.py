@@ -3,7 +3,7 @@
 An inventory is pelicun's component assignment table (``ID, Units, Location, Direction, Theta_0``
 and optionally ``Blocks, Family, Theta_1, Comment``): every row puts ``Theta_0`` of a FEMA P-58
 component on each listed story and direction. :func:`default_inventory` builds one from a
-:class:`StructuralSystem`'s densities (quantity per m2 of floor area on every story, per direction
+:class:`Inventory`'s densities (quantity per m2 of floor area on every story, per direction
 for directional components) and the floor areas; :func:`read_inventory` reads and checks the
 user's CSV against the FEMA P-58 library shipped with pelicun (simcenter-dlml).
 
@@ -17,7 +17,7 @@ Sources of the defaults (docs/loss.md has the tables):
   side and 3 beams-both-sides joints per 1393.5 m2) as FEMA P-58 fragility groups: ACI 318 SMF
   beam-column joints (B.10.41.001a/b) and post-tensioned slab-column connections (B.10.49.031)
   for ``rc-frame``, post-Northridge welded unreinforced flange moment connections (B.10.35.021,
-  B.10.35.031) for ``steel-mrf``;
+  B.10.35.031) for ``steel-moment-frame``;
 * replacement cost 2243 USD_2011/m2 and replacement time 2.69 worker-days/m2: the same example's
   12.5 M USD_2011 and 15 000 worker-days over its 5574 m2.
 """
@@ -32,6 +32,7 @@ import re
 from dataclasses import dataclass
 
 from ..errors import InputError, quotable
+from ..systems import SYSTEMS, unknown_system
 
 M2_PER_FT2 = 0.09290304
 EXAMPLE_FLOOR_M2 = 15000 * M2_PER_FT2
@@ -77,10 +78,11 @@ _ONE, _BOTH = 2 / EXAMPLE_FLOOR_M2, 3 / EXAMPLE_FLOOR_M2
 
 
 @dataclass(frozen=True)
-class StructuralSystem:
+class Inventory:
     """A structural system's default inventory and replacement values.
 
-    name, description : registry key and what it stands for
+    name, description : the structural system (:data:`hlaid.systems.SYSTEMS`) and what the
+        inventory stands for
     components : structural then non-structural :class:`Component` densities
     areal_mass_t_m2 : floor mass per m2 used to estimate floor areas from the clone's masses when
         none are given (typical seismic weight of office floors; an assumption)
@@ -96,14 +98,14 @@ class StructuralSystem:
     replacement_time_wd_m2: float = 15000 / EXAMPLE_TOTAL_M2
 
 
-SYSTEMS: dict[str, StructuralSystem] = {
-    "steel-mrf": StructuralSystem(
-        "steel-mrf", "steel special moment frame, office occupancy",
+INVENTORIES: dict[str, Inventory] = {
+    "steel-moment-frame": Inventory(
+        "steel-moment-frame", "steel special moment frame, office occupancy",
         (Component("B.10.35.021", "ea", "1,2", _ONE, "post-Northridge WUF moment connection, beam one side, <= W27"),
          Component("B.10.35.031", "ea", "1,2", _BOTH, "post-Northridge WUF moment connection, beams both sides, "
                                                       "<= W27"))
         + _NONSTRUCTURAL, areal_mass_t_m2=0.5),
-    "rc-frame": StructuralSystem(
+    "rc-frame": Inventory(
         "rc-frame", "reinforced concrete special moment frame with post-tensioned slabs, office occupancy",
         (Component("B.10.41.001a", "ea", "1,2", _ONE, "ACI 318 SMF joint, 24 x 24 in, beam one side"),
          Component("B.10.41.001b", "ea", "1,2", _BOTH, "ACI 318 SMF joint, 24 x 24 in, beams both sides"),
@@ -111,25 +113,27 @@ SYSTEMS: dict[str, StructuralSystem] = {
                                                                     "shear reinforcement"))
         + _NONSTRUCTURAL, areal_mass_t_m2=0.8),
 }
-"""Structural systems with a default inventory, by name."""
+"""Default inventories by structural system (:data:`hlaid.systems.SYSTEMS`)."""
 
 
-def get_system(name: str) -> StructuralSystem:
-    """The system called ``name``; an unknown name lists the known ones."""
-    try:
-        return SYSTEMS[name]
-    except KeyError:
-        raise InputError(f"unknown structural system {name!r}; expected one of {', '.join(SYSTEMS)} "
-                         "(or give your own inventory CSV)") from None
+def get_inventory(name: str) -> Inventory:
+    """The default inventory of the structural system called ``name``; a system without one, or
+    an unknown name, is an InputError listing those with one."""
+    if isinstance(name, str) and name in INVENTORIES:
+        return INVENTORIES[name]
+    if isinstance(name, str) and name in SYSTEMS:
+        raise InputError(f"structural system {name!r} has no default inventory; give your own inventory CSV or "
+                         f"use one of {', '.join(map(repr, INVENTORIES))}")
+    raise InputError(unknown_system(name, INVENTORIES) + " (or give your own inventory CSV)")
 
 
 COLUMNS = ("ID", "Units", "Location", "Direction", "Theta_0", "Blocks", "Comment")
 
 
-def default_inventory(system: str | StructuralSystem, floor_area_m2) -> str:
+def default_inventory(system: str | Inventory, floor_area_m2) -> str:
     """The default inventory CSV text of ``system`` for stories of ``floor_area_m2`` [m2] each
     (bottom to top), one row per component and story."""
-    s = system if isinstance(system, StructuralSystem) else get_system(system)
+    s = system if isinstance(system, Inventory) else get_inventory(system)
     area = [float(a) for a in floor_area_m2]
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -233,5 +237,5 @@ def read_inventory(path: str | os.PathLike, n_stories: int) -> str:
     return text
 
 
-__all__ = ["Component", "StructuralSystem", "SYSTEMS", "get_system", "default_inventory", "check_inventory",
+__all__ = ["Component", "Inventory", "INVENTORIES", "get_inventory", "default_inventory", "check_inventory",
            "read_inventory"]

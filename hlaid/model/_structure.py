@@ -11,8 +11,6 @@ from collections.abc import Callable
 
 import torch
 
-from ..units import G_MM_S2
-
 
 def stiffness_matrix(k: torch.Tensor) -> torch.Tensor:
     """Tridiagonal stiffness matrix of a shear building.
@@ -91,11 +89,4 @@ def damping_matrix(k0, mass, a0, a1):
     return a0[..., None, None] * torch.diag_embed(mass) + a1[..., None, None] * stiffness_matrix(k0)
 
 
-def story_gravity(gravity_load: torch.Tensor) -> torch.Tensor:
-    """Axial load carried by each story, ``P_i = sum_{j>=i} W_j`` [N], ``(batch, story)``."""
-    return gravity_load.flip(-1).cumsum(-1).flip(-1)
 
-
-def default_gravity_load(mass: torch.Tensor) -> torch.Tensor:
-    """Floor gravity loads from the seismic masses, ``W = m g`` [N]."""
-    return mass * G_MM_S2

@@ -134,10 +134,6 @@ COLLAPSE_MODELS: dict[str, CollapseModel | None] = {
 }
 """Named collapse models: ``"none"`` (the paper's law: no strength loss) and literature presets."""
 
-SYSTEM_COLLAPSE: dict[str, str] = {"steel-moment-frame": "steel-mrf", "rc-frame": "rc-frame", "generic": "none"}
-"""The collapse law of each structural system (the systems of :data:`hlaid.identify.priors.SYSTEMS`):
-the assessment's default for a clone of that system. ``generic``: no strength loss (unknown)."""
-
 _USER_KEYS = ("theta_p", "theta_pc", "kappa", "theta_u")
 
 

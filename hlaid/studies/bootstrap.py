@@ -9,7 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _progress
-from ..identify import IdentifyConfig, identify_clone
+from ..events.identify import identify_clone
+from ..identify import IdentifyConfig
 from ..identify.stages import estimate_noise_rms
 from ..motions import GroundMotion
 from ..synthetic import simulate_measurement

@@ -2,7 +2,7 @@
 
 A case is a structure (the paper's Table 1 or a random shear building), a real record
 scaled to a PGA and resampled, a noise level and a noise seed. Every identifier of
-:data:`hlaid.identify.IDENTIFIERS` fits the same simulated measurement; each outcome records the parameter
+:data:`hlaid.baselines.IDENTIFIERS` fits the same simulated measurement; each outcome records the parameter
 errors against the truth, the replay correlation ``R`` of floor displacements with the
 truth on the identification record and on an unseen record, the peak-drift error on the
 unseen record, the wall and CPU time of ``fit``, and whether it failed (an exception, a
@@ -26,9 +26,11 @@ from typing import Any, Literal, cast
 import numpy as np
 
 from .. import _progress
+from ..baselines.registry import IDENTIFIERS, get_identifier
 from ..config import load_config
 from ..errors import InputError
-from ..identify import IDENTIFIERS, BaseIdentifier, IdentifyConfig, get_identifier
+from ..estimators import BaseIdentifier
+from ..identify import IdentifyConfig
 from ..identify.replaycheck import corrcoef
 from ..model import Building
 from ..motions import GroundMotion
@@ -97,7 +99,7 @@ class CompareConfig:
     Attributes
     ----------
     groups : the cases
-    identifiers : names in :data:`hlaid.identify.IDENTIFIERS`, run in this order on every case
+    identifiers : names in :data:`hlaid.baselines.IDENTIFIERS`, run in this order on every case
     settings : per identifier, keyword arguments of its class (``hlasvm*``: ``config`` is an
         identification YAML, relative to the study config)
     table1 : simulation config whose ``building`` is the Table 1 structure
@@ -249,7 +251,7 @@ def build_cases(cfg: CompareConfig, base_dir: str | os.PathLike | None = None) -
 
 # ---------------------------------------------------------------------- identifiers
 def make_identifier(name: str, settings: dict | None = None, *, base_dir=None, cache_dir: str = "") -> BaseIdentifier:
-    """An identifier of :data:`hlaid.identify.IDENTIFIERS` with keyword ``settings`` (validated against its
+    """An identifier of :data:`hlaid.baselines.IDENTIFIERS` with keyword ``settings`` (validated against its
     parameters); HLA+SVM gets ``cache_dir`` and a ``config`` path is loaded."""
     est = get_identifier(name)
     kw = dict(settings or {})

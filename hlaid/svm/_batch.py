@@ -20,8 +20,8 @@ import torch
 from sklearn.exceptions import ConvergenceWarning
 
 from .._threads import one_thread
-from ._kernels import Kernel, make_kernel, resolve_gamma
-from ._solver import KERNEL_CODES, P_FLT, P_INT, solve_batch
+from ._kernels import KERNELS, Kernel, make_kernel, resolve_gamma
+from ._solver import P_FLT, P_INT, solve_batch
 
 __all__ = ["fit_many"]
 
@@ -154,7 +154,7 @@ def _problems(fits: list[_Fit], ests: list[Any]
         out += int(size.sum())
         f.first, f.n_pairs = row, a.shape[0]
         row += a.shape[0]
-        code = KERNEL_CODES[est.kernel]
+        code = KERNELS[est.kernel].code
         full = np.full(a.shape, 1)
         rows_i.append(np.stack([f.base + f.starts[a], na, f.base + f.starts[b], nb, code * full,
                                 int(est.degree) * full, cap, int(bool(est.shrinking)) * full, offs,

@@ -71,6 +71,9 @@ class Kernel:
     """
 
     name: ClassVar[str] = ""
+    #: The kernel's code in the compiled solver (:mod:`hlaid.svm._solver`), which evaluates it
+    #: by this number.
+    code: ClassVar[int] = -1
     #: True when ``k(x, x)`` is the same constant for every ``x``.
     constant_diag: ClassVar[bool] = False
 
@@ -160,12 +163,14 @@ class LinearKernel(Kernel):
     """``k(x, z) = <x, z>``."""
 
     name = "linear"
+    code = 1
 
 
 class PolyKernel(Kernel):
     """``k(x, z) = (gamma <x, z> + coef0) ** degree``."""
 
     name = "poly"
+    code = 2
 
     def _finish(self, G: torch.Tensor) -> torch.Tensor:
         return G.mul_(self.gamma).add_(self.coef0).pow_(self.degree)
@@ -175,6 +180,7 @@ class SigmoidKernel(Kernel):
     """``k(x, z) = tanh(gamma <x, z> + coef0)`` (not positive semi-definite in general)."""
 
     name = "sigmoid"
+    code = 3
 
     def _finish(self, G: torch.Tensor) -> torch.Tensor:
         return G.mul_(self.gamma).add_(self.coef0).tanh_()
@@ -192,6 +198,7 @@ class RBFKernel(Kernel):
     """
 
     name = "rbf"
+    code = 0
     constant_diag = True
 
     def prepare_left(self, A: torch.Tensor) -> torch.Tensor:

@@ -47,7 +47,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-__all__ = ["KERNEL_CODES", "P_FLT", "P_INT", "R_FLT", "R_INT", "solve_batch"]
+__all__ = ["P_FLT", "P_INT", "R_FLT", "R_INT", "solve_batch"]
 
 # the kernel rows: fused multiply-add and reciprocal multiplication, as the simulator's kernels
 # (the rows are stored in float32, as libsvm's); the solver's steps: plain IEEE arithmetic in
@@ -58,8 +58,6 @@ _jit = nb.njit(cache=True, error_model="numpy")
 # passing an array, even to an inlined function, costs atomic reference count updates
 _jit_inline = nb.njit(cache=True, error_model="numpy", inline="always")
 
-#: Kernel name -> code of the compiled kernels.
-KERNEL_CODES = {"rbf": 0, "linear": 1, "poly": 2, "sigmoid": 3}
 #: Columns of the integer problem table: offsets and sizes of the two classes' samples in
 #: ``Xt``, kernel code, degree, iteration cap, shrinking (0/1), offset of the output, bytes
 #: of kernel rows the problem may cache (float32 rows; at least two whatever it says), and

@@ -17,9 +17,9 @@ from .._lazy import lazy_exports
 
 if TYPE_CHECKING:
     from ..model.uncertainty import ParameterUncertainty
-    from .assess import Assessment, ReoccupancyThresholds, assess
+    from .assessment import Assessment, ReoccupancyThresholds, assess
+    from .calibration import calibration_factor, coverage, zscores
     from .config import AssessConfig
-    from .coverage import calibration_factor, coverage, zscores
     from .ensemble import clone_ensemble
     from .laplace import covariance, from_refinement, uncertainty_of_refinement
 
@@ -29,9 +29,9 @@ __all__ = ["AssessConfig", "Assessment", "ParameterUncertainty", "ReoccupancyThr
 
 __getattr__, __dir__ = lazy_exports(__name__, {name: module for module, names in {
     "..model.uncertainty": ("ParameterUncertainty",),
-    ".assess": ("Assessment", "ReoccupancyThresholds", "assess"),
+    ".assessment": ("Assessment", "ReoccupancyThresholds", "assess"),
     ".config": ("AssessConfig",),
-    ".coverage": ("calibration_factor", "coverage", "zscores"),
+    ".calibration": ("calibration_factor", "coverage", "zscores"),
     ".ensemble": ("clone_ensemble",),
     ".laplace": ("covariance", "from_refinement", "uncertainty_of_refinement"),
 }.items() for name in names})

@@ -5,7 +5,7 @@ its figures. For every structure of a :class:`ValidationConfig` and every identi
 
 1. read the event (a reader of :data:`hlaid.io.MEASUREMENT_READERS`); no masses are given,
    so HLA and the clone are mass-normalised with the structure's ``mass_ratios``;
-2. identify a clone with :func:`hlaid.identify.identify_clone` (HLA, regressions, SVMs, replay
+2. identify a clone with :func:`hlaid.identify_clone` (HLA, regressions, SVMs, replay
    refinement). When no story yielded (:class:`~hlaid.errors.NotIdentifiableError`) a
    nonlinear clone cannot be identified, and the protocol falls back, *labelled as such*, to
    a linear clone (``alpha = 1``): HLA's k0, fitted to the measured accelerations as the
@@ -21,14 +21,14 @@ its figures. For every structure of a :class:`ValidationConfig` and every identi
 Every number is in the package units, per unit of the (relative) masses when mass-normalised.
 
 Modules: :mod:`.schema` (the config), :mod:`.clones` (identification and the linear
-fallback), :mod:`.predict` (replay and metrics), :mod:`.protocol` (the run),
+fallback), :mod:`.predict` (:func:`hlaid.predict_event` labelled by the study), :mod:`.protocol` (the run),
 :mod:`.tables` (Markdown), :mod:`.linear_peer` (a linear state-space peer from the optional
 ``mdof``, on the same events and metric; ``scripts/study_linear_peer.py``).
 """
 
 from .clones import FALLBACK_FITS, IdentifiedClone, identify_event, linear_clone
 from .linear_peer import LinearPeer, PeerCase, PeerPrediction, PeerSettings, compare_peer, peer_cases, peer_grid
-from .predict import Prediction, predict_event
+from .predict import StudyPrediction, study_prediction
 from .protocol import ValidationResult, run_validation
 from .schema import (
     EventSpec,
@@ -43,5 +43,5 @@ from .tables import format_tables
 
 __all__ = ["EventSpec", "StructureSpec", "PaperTargets", "ValidationConfig", "load_validation_config",
            "identify_config_of", "read_event", "FALLBACK_FITS", "IdentifiedClone", "linear_clone", "identify_event",
-           "Prediction", "predict_event", "ValidationResult", "run_validation", "format_tables",
+           "StudyPrediction", "study_prediction", "ValidationResult", "run_validation", "format_tables",
            "LinearPeer", "PeerSettings", "PeerPrediction", "PeerCase", "compare_peer", "peer_cases", "peer_grid"]

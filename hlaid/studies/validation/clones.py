@@ -13,8 +13,9 @@ from ... import signal as sg
 from ...clone import Clone
 from ...config import config_to_dict
 from ...errors import InputError, NotIdentifiableError
+from ...events.identify import identify_clone
 from ...hla import run_hla
-from ...identify import IdentifyConfig, identify_clone, refine_replay
+from ...identify import IdentifyConfig, refine_replay
 from ...measurement import Measurement
 from ...model import Building, Damping
 from ...motions import GroundMotion

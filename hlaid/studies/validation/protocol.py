@@ -14,7 +14,7 @@ from ... import _progress
 from ...config import config_to_dict
 from ...errors import InputError
 from .clones import IdentifiedClone, identify_event
-from .predict import Prediction, _nanmean, predict_event
+from .predict import StudyPrediction, nanmean, study_prediction
 from .schema import PaperTargets, ValidationConfig, identify_config_of, read_event
 
 if TYPE_CHECKING:
@@ -35,7 +35,7 @@ class ValidationResult:
     """
 
     clones: list[IdentifiedClone]
-    predictions: list[Prediction]
+    predictions: list[StudyPrediction]
     targets: PaperTargets
     notes: dict[str, str]
     seconds: float
@@ -56,7 +56,7 @@ class ValidationResult:
                 row[tag] = {"n": len(ps), "r_mean": float(r.mean()), "r_worst": float(r.min()),
                             "r_mean_per_floor": r.mean(axis=0).tolist(),
                             "peak_drift_error_mean": float(pe.mean()), "peak_drift_error_worst": float(pe.max()),
-                            "stiffness_error_mean": _nanmean(se)}
+                            "stiffness_error_mean": nanmean(se)}
             out.append(row)
         return out
 
@@ -107,12 +107,12 @@ def run_validation(cfg: ValidationConfig, *, clone_dir: str | None = None, struc
                     continue
                 clones.append(ic)
                 for ev in [src] + spec.targets_of(src):
-                    preds.append(predict_event(ic.clone, get(ev), icfg.hla, compare_band_hz=spec.compare_band_hz,
-                                               input_lowpass_hz=spec.input_lowpass_hz, self_replay=ev == src,
-                                               labels=(spec.name, src, ev, ic.kind)))
+                    preds.append(study_prediction(ic.clone, get(ev), icfg.hla, compare_band_hz=spec.compare_band_hz,
+                                                  input_lowpass_hz=spec.input_lowpass_hz, self_replay=ev == src,
+                                                  labels=(spec.name, src, ic.kind)))
                     p = preds[-1]
                     _progress.info(f"[validate] {spec.name}: {src} -> {ev}: R {np.round(p.r, 3)}, "
-                                   f"stiffness error {_fmt_pct(_nanmean(p.stiffness_error))}")
+                                   f"stiffness error {_fmt_pct(nanmean(p.stiffness_error))}")
     return ValidationResult(clones=clones, predictions=preds, targets=cfg.targets,
                             notes={s.name: s.notes for s in cfg.structures
                                    if (s.name in structures if structures else not s.optional)},

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .predict import Prediction, _nanmean
+from .predict import StudyPrediction, nanmean
 from .protocol import ValidationResult
 from .schema import PaperTargets
 
@@ -48,7 +48,7 @@ def _clone_table(result: ValidationResult) -> list[str]:
     return out
 
 
-def _prediction_table(ps: list[Prediction], tg: PaperTargets) -> list[str]:
+def _prediction_table(ps: list[StudyPrediction], tg: PaperTargets) -> list[str]:
     n = ps[0].r.shape[0]
     rt = tg.r_per_floor if n == len(tg.r_per_floor) else None
     against = f" against the paper's {' / '.join(map(str, rt))}" if rt else ""
@@ -59,7 +59,7 @@ def _prediction_table(ps: list[Prediction], tg: PaperTargets) -> list[str]:
                     "mean met", "R broadband", "peak drift error", "stiffness error", "mean", "met"),
            _rule(n + 11)]
     for p in ps:
-        r_mean, se = float(np.mean(p.r)), _nanmean(p.stiffness_error)
+        r_mean, se = float(np.mean(p.r)), nanmean(p.stiffness_error)
         floors = "-" if rt is None else f"{sum(r >= t for r, t in zip(p.r, rt))}/{n}"
         out.append(_row(f"{p.identified_from} ({p.kind})", f"{p.event} (self)" if p.self_replay else p.event,
                         f"{p.pga_g:.3f}", *[_f(r) for r in p.r], _f(r_mean), floors, _met(r_mean >= tg.r_mean),
@@ -70,7 +70,7 @@ def _prediction_table(ps: list[Prediction], tg: PaperTargets) -> list[str]:
     return out
 
 
-def _summary_rows(name: str, ps: list[Prediction], tg: PaperTargets) -> list[str]:
+def _summary_rows(name: str, ps: list[StudyPrediction], tg: PaperTargets) -> list[str]:
     """One row per clone, and with several clones: all of them, and the predictions of
     stronger events (PGA above the clone's own event) only."""
     groups = [(src, [p for p in ps if p.identified_from == src])
@@ -92,7 +92,7 @@ def _summary_rows(name: str, ps: list[Prediction], tg: PaperTargets) -> list[str
             out.append(_row(name, src, 0, *["-"] * 7, r_self))
             continue
         r = np.array([p.r for p in cross])
-        se = _nanmean(np.array([p.stiffness_error for p in cross]))
+        se = nanmean(np.array([p.stiffness_error for p in cross]))
         pe = float(np.mean(np.abs([p.peak_drift_error for p in cross])))
         out.append(_row(name, src, len(cross), f"{r.mean():.3f}", f"{r.min():.3f}", _met(r.mean() >= tg.r_mean),
                         f"{np.mean([p.r_broadband for p in cross]):.3f}", f"{100 * pe:.0f} %",

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from ..errors import InputError
-from .estimators import BaseIdentifier, HLASVMIdentifier
+from ..estimators import BaseIdentifier, HLASVMIdentifier
 from .gradient import GradientIdentifier
 from .ukf import UKFIdentifier
 

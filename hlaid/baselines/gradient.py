@@ -48,7 +48,7 @@ The loss is the mean squared difference of the band-passed floor accelerations, 
 channel divided by its measured RMS (as :func:`hlaid.identify.refine_replay`; the zero-phase
 band-pass is applied as the Butterworth ``|H(f)|^2`` in the frequency domain, identically
 to model and data, so it is differentiable); the ground input is the measured one low-passed
-at ``band_hz[1]``. Constraints by reparameterisation (:mod:`hlaid.identify._space`): log for
+at ``band_hz[1]``. Constraints by reparameterisation (:mod:`hlaid.baselines._space`): log for
 ``k0`` and ``dy``, sigmoid for ``alpha`` in (0, 1), ``1 + softplus`` for ``p``, softplus for
 ``delta_eta``. Masses come from the measurement (mass ratios as HLA when unknown), damping is
 5 % Rayleigh (assumed, like the other identifiers), P-Delta as the measurement says.
@@ -68,13 +68,13 @@ from .. import _progress
 from .._threads import one_thread
 from ..clone import Clone
 from ..errors import InputError, NotIdentifiableError
+from ..estimators import BaseIdentifier
+from ..identify.tb import TBLogger
 from ..measurement import Measurement, measured_ground
 from ..model import BoucWenBuilding
-from ..signal import butter_sos, cap_corner
+from ..signal import arias_window, butter_sos, cap_corner
 from ..simulate import simulate_response
 from . import _space as sp
-from .estimators import BaseIdentifier
-from .tb import TBLogger
 
 INITS = ("hla", "ranges")
 """Where the starting ``k0`` comes from: ``"hla"`` (hysteresis loop analysis of the
@@ -96,15 +96,6 @@ def filtered(x: torch.Tensor, gain: torch.Tensor) -> torch.Tensor:
     n = 2 * (gain.shape[0] - 1)
     X = torch.fft.rfft(x, n=n, dim=1)
     return torch.fft.irfft(X * gain[None, :, None], n=n, dim=1)[:, : x.shape[1]]
-
-
-def arias_window(acc: np.ndarray, dt: float, arias, tail_s: float = 2.0, lead_s: float = 1.0) -> tuple[int, int]:
-    """Sample range ``[i0, i1)`` from ``lead_s`` before the ``arias[0]`` Arias-intensity
-    fraction of ``acc`` to ``tail_s`` after the ``arias[1]`` fraction."""
-    e = np.cumsum(np.asarray(acc) ** 2)
-    i0 = max(0, int(np.searchsorted(e, arias[0] * e[-1])) - round(lead_s / dt))
-    i1 = min(acc.shape[0], int(np.searchsorted(e, arias[1] * e[-1])) + round(tail_s / dt) + 1)
-    return i0, i1
 
 
 class OutputErrorProblem:

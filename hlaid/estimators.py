@@ -17,11 +17,11 @@ import numpy as np
 import sklearn.exceptions
 from sklearn.base import BaseEstimator
 
-from ..clone import Clone
-from ..measurement import Measurement, measured_ground
-from ..motions import GroundMotion
-from ..signal import bandpass, cap_corner
-from ..simulate import SimulationResult, simulate_response
+from .clone import Clone
+from .measurement import Measurement, measured_ground
+from .motions import GroundMotion
+from .signal import bandpass, cap_corner
+from .simulate import SimulationResult, simulate_response
 
 
 class NotFittedError(sklearn.exceptions.NotFittedError):
@@ -75,12 +75,12 @@ class BaseIdentifier(BaseEstimator):
         assert replayed is not None  # predict keeps the histories
         acc = bandpass(replayed[0], measurement.dt, (0.1, hi))
         meas = bandpass(np.asarray(measurement.floor_acc), measurement.dt, (0.1, hi))
-        from .replaycheck import corrcoef
+        from .identify.replaycheck import corrcoef
         return float(np.mean(corrcoef(acc, meas)))
 
 
 class HLASVMIdentifier(BaseIdentifier):
-    """The paper's method (:func:`hlaid.identify.identify_clone`): HLA, eq 12-17 regressions,
+    """The paper's method (:func:`hlaid.identify_clone`): HLA, eq 12-17 regressions,
     RBF SVMs coarse to fine, outer loop, then the refinement the config names.
 
     Parameters
@@ -105,11 +105,11 @@ class HLASVMIdentifier(BaseIdentifier):
 
     def fit(self, measurement: Measurement | Sequence[Measurement]) -> HLASVMIdentifier:
         """Identify the clone from one measurement, or from several of one building in time order
-        (:func:`hlaid.identify.identify_clone`)."""
+        (:func:`hlaid.identify_clone`)."""
         import dataclasses
 
-        from .config import IdentifyConfig
-        from .pipeline import identify_clone
+        from .events.identify import identify_clone
+        from .identify.config import IdentifyConfig
         cfg = self.config or IdentifyConfig()
         if self.refine is not None:
             cfg = dataclasses.replace(cfg, refine=dataclasses.replace(cfg.refine, method=self.refine))

@@ -3,8 +3,9 @@
 A record that stays nearly elastic says much about a building's stiffness and damping and little
 about its yield strength, loop shape or degradation; a first-mode-dominated record constrains a
 few combinations of a story's five parameters. Where the data say little, the refinement falls
-back on the structural system (maximum a posteriori; :mod:`hlaid.identify.joint`): a Gaussian in
-transformed parameters ("prior units"), one entry of :data:`SYSTEMS` per system.
+back on the structural system (maximum a posteriori; :mod:`hlaid.events.fit`): a Gaussian in
+transformed parameters ("prior units", :mod:`hlaid.events.vector`), one entry of :data:`PRIORS` per
+structural system (:data:`hlaid.systems.SYSTEMS`).
 
 Per story ``i`` the transformed parameters are ::
 
@@ -30,15 +31,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..model.collapse import SYSTEM_COLLAPSE
+from ..systems import get_system, unknown_system
 from ..units import G_MM_S2
 
 ALPHA_MAX = 0.95
 """Upper limit of ``alpha`` (the refinement's and the uncertainty's bound)."""
-
-SHAPES = ("alpha", "p", "cy", "delta_eta")
-"""The shape parameters held near the building's value, in prior units."""
-
 
 @dataclass(frozen=True, kw_only=True)
 class Median:
@@ -54,8 +51,7 @@ class StructuralPrior:
 
     Attributes
     ----------
-    name : registry name (``identify.prior`` in a config, ``--system`` on the command line)
-    title : the system, in words
+    name : the structural system (:data:`hlaid.systems.SYSTEMS`; ``identify.system`` in a config)
     cy : base-story yield shear coefficient ``Cy = k0 dy / W`` (lognormal)
     alpha : post-yield stiffness ratio (``beta`` in logit units of ``alpha / 0.95``)
     p : loop smoothness (lognormal in ``p - 1``)
@@ -64,14 +60,10 @@ class StructuralPrior:
     story_spread : standard deviation of a story's shape parameter around the building's, in
         prior units
     k0_beta : log standard deviation of k0 around its start
-    collapse : the collapse law of the system (:data:`hlaid.model.COLLAPSE_MODELS`), used by the
-        assessment by default (:data:`hlaid.model.collapse.SYSTEM_COLLAPSE`); ``"none"``: the
-        Bouc-Wen law alone
     sources : where the values come from
     """
 
     name: str
-    title: str
     cy: Median
     alpha: Median
     p: Median
@@ -79,22 +71,20 @@ class StructuralPrior:
     damping: Median
     story_spread: float = 0.25
     k0_beta: float = 0.5
-    collapse: str = "none"
     sources: tuple[str, ...] = field(default_factory=tuple)
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "title": self.title, "collapse": self.collapse,
-                "story_spread": self.story_spread, "k0_beta": self.k0_beta,
+        return {"name": self.name, "title": get_system(self.name).title,
+                "collapse": get_system(self.name).collapse, "story_spread": self.story_spread, "k0_beta": self.k0_beta,
                 **{k: {"median": getattr(self, k).median, "beta": getattr(self, k).beta}
                    for k in ("cy", "alpha", "p", "delta_eta", "damping")}}
 
 
-SYSTEMS: dict[str, StructuralPrior] = {
+PRIORS: dict[str, StructuralPrior] = {
     "steel-moment-frame": StructuralPrior(
-        name="steel-moment-frame", title="steel moment-resisting frame",
+        name="steel-moment-frame",
         cy=Median(median=0.3, beta=0.6), alpha=Median(median=0.1, beta=0.7), p=Median(median=2.0, beta=0.7),
         delta_eta=Median(median=0.1, beta=1.0), damping=Median(median=0.025, beta=0.5),
-        collapse=SYSTEM_COLLAPSE["steel-moment-frame"],
         sources=("Cy: FEMA P695 (2009) / NIST GCR 10-917-8 (2010) steel SMF archetypes, static overstrength "
                  "1.6-3.3 over Cs 0.044-0.125 (Vmax/W about 0.1-0.4); the E-Defense steel frame of Table 1 of "
                  "the paper: 0.31 (base story)",
@@ -105,10 +95,9 @@ SYSTEMS: dict[str, StructuralPrior] = {
                  "Eng. 137(11): unloading-stiffness deterioration of steel beams negligible)",
                  "damping: 2-3 % for steel buildings (ATC-72-1 2010; PEER TBI 2017: 2.5 %)")),
     "rc-frame": StructuralPrior(
-        name="rc-frame", title="reinforced-concrete moment frame",
+        name="rc-frame",
         cy=Median(median=0.2, beta=0.6), alpha=Median(median=0.05, beta=0.7), p=Median(median=1.3, beta=0.7),
         delta_eta=Median(median=1.0, beta=1.0), damping=Median(median=0.05, beta=0.5),
-        collapse=SYSTEM_COLLAPSE["rc-frame"],
         sources=("Cy: FEMA P695 (2009) RC SMF archetypes (Haselton & Deierlein 2007): Vmax/W about 0.1-0.35",
                  "alpha: post-yield hardening of RC members 2-5 % (Haselton, Liel, Taylor Lange & Deierlein "
                  "2016, ACI Struct. J. 113(6))",
@@ -117,25 +106,19 @@ SYSTEMS: dict[str, StructuralPrior] = {
                  "k_u = k_y (d_max/d_y)^-0.4)",
                  "damping: 5 % (ASCE 7-22; ASCE 41-17 for concrete)")),
     "generic": StructuralPrior(
-        name="generic", title="unknown structural system (wide prior)",
+        name="generic",
         cy=Median(median=0.3, beta=1.0), alpha=Median(median=0.1, beta=1.0), p=Median(median=2.0, beta=1.0),
         delta_eta=Median(median=0.3, beta=1.5), damping=Median(median=0.04, beta=0.7),
-        collapse=SYSTEM_COLLAPSE["generic"],
         sources=("the union of the steel and RC entries, widened",)),
 }
-"""Priors by structural system (``identify.prior``)."""
+"""Priors by structural system (``identify.system``; the wide ``generic`` one where none is named)."""
 
 
 def get_prior(name: str) -> StructuralPrior:
-    """The prior :data:`SYSTEMS` names (InputError listing the names for an unknown one)."""
-    if name not in SYSTEMS:
-        raise InputError(f"structural system {name!r} is unknown; expected one of {', '.join(map(repr, SYSTEMS))}")
-    return SYSTEMS[name]
-
-
-# ---------------------------------------------------------------------- prior units
-SHAPE_FIELDS = ("alpha", "p", "cy", "delta_eta")
-"""The transformed shape parameters of a story, in the order of :func:`to_units`' columns 1-4."""
+    """The prior of the structural system ``name`` (InputError listing the names for an unknown one)."""
+    if isinstance(name, str) and name in PRIORS:
+        return PRIORS[name]
+    raise InputError(unknown_system(name, PRIORS))
 
 
 def weight_above(building) -> np.ndarray:
@@ -152,34 +135,6 @@ def elf_profile(building) -> np.ndarray:
     h = np.cumsum(np.ones_like(m) if building.height is None else np.asarray(building.height, dtype=float))
     mh = m * h
     return (np.cumsum(mh[::-1])[::-1] / mh.sum()) / (np.cumsum(m[::-1])[::-1] / m.sum())
-
-
-def to_units(building) -> tuple[np.ndarray, float]:
-    """A building's parameters in prior units: ``(story, 5)`` columns ``log k0, logit(alpha /
-    0.95), log(p - 1), log Cy, log delta_eta`` and ``log zeta`` (values at their limits are
-    nudged inside them: alpha in [1e-6, 0.95 - 1e-6], p >= 1 + 1e-6, delta_eta >= 1e-8,
-    zeta >= 1e-5)."""
-    b = building
-    a = np.clip(np.asarray(b.alpha, dtype=float) / ALPHA_MAX, 1e-6, 1 - 1e-6)
-    cy = np.asarray(b.k0) * np.asarray(b.dy) / weight_above(b)
-    u = np.column_stack([np.log(b.k0), np.log(a / (1 - a)), np.log(np.maximum(np.asarray(b.p) - 1.0, 1e-6)),
-                         np.log(cy), np.log(np.maximum(b.delta_eta, 1e-8))])
-    return u, float(np.log(max(b.damping.ratio, 1e-5)))
-
-
-def from_units(base, u: np.ndarray, log_zeta: float | None = None):
-    """The building ``base`` with the parameters of ``u`` ``(story, 5)`` (and ``log_zeta``; None:
-    ``base``'s damping ratio): the inverse of :func:`to_units`."""
-    from ..model import Damping  # the model loads torch: not at import time (configs read this module)
-
-    k0 = np.exp(u[:, 0])
-    alpha = ALPHA_MAX / (1.0 + np.exp(-u[:, 1]))
-    p = 1.0 + np.exp(u[:, 2])
-    dy = np.exp(u[:, 3]) * weight_above(base) / k0
-    d = base.damping
-    ratio = d.ratio if log_zeta is None else float(min(np.exp(log_zeta), 0.5))
-    return base.replace(k0=k0, alpha=alpha, p=np.minimum(p, 50.0), dy=dy, delta_eta=np.exp(u[:, 4]),
-                        damping=Damping(kind=d.kind, ratio=ratio, modes=d.modes))
 
 
 def system_residuals(prior: StructuralPrior, u: np.ndarray, log_zeta: float | None, k0_ref: np.ndarray,

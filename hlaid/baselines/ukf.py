@@ -46,14 +46,13 @@ from .. import _progress
 from .._threads import one_thread
 from ..clone import Clone
 from ..errors import InputError, NotIdentifiableError
+from ..estimators import BaseIdentifier
+from ..identify.stages import estimate_noise_rms
+from ..identify.tb import TBLogger
 from ..measurement import Measurement, measured_ground
 from ..model import BoucWenBuilding
-from ..signal import cap_corner
+from ..signal import arias_window, cap_corner
 from . import _space as sp
-from .estimators import BaseIdentifier
-from .gradient import arias_window
-from .stages import estimate_noise_rms
-from .tb import TBLogger
 
 INITS = ("hla", "ranges")
 """Prior parameter mean: ``"hla"`` (k0 from hysteresis loop analysis, dy a fraction of its

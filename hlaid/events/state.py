@@ -3,7 +3,10 @@
 A clone learns from a building's events in time order and carries what each event left behind
 into the next: its accumulated degradation, its residual drift and the hysteretic displacement
 that goes with it. :class:`BuildingState` is that state at rest, per story, in the simulator's
-own variables (:mod:`hlaid.model.building` documents the state vector ``[u, v, z, e]``):
+own variables. This module is the one owner of the simulator's state vector layout
+(:mod:`hlaid.model.building`): per story ``[u, v, z, e]`` blocks of ``story`` values each
+(floor displacement, velocity, hysteretic displacement, hysteretic work), with the collapse
+memory ``[xp, xn]`` appended when the building has a collapse law; nothing else slices it:
 
 - ``drift``: the residual inter-story drift [mm];
 - ``z``: the hysteretic displacement [mm] (at rest ``alpha k0 x + (1 - alpha) k0 z`` is the
@@ -23,21 +26,30 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ._equations import degradation
-from .params import Building
-from .schema import STATE_BOUNDS
+from ..model import Building, equations
+from ..model.schema import STATE_BOUNDS
 
 SETTLE_LIMITS_S = (2.0, 10.0)
 """Free vibration after an event before the next one: four first-mode decay times of the
 building, within these bounds [s]."""
 
 
-def settle_time(building: Building) -> float:
-    """Seconds of free vibration that bring ``building`` to rest after an event: four first-mode
-    decay times ``T1 / (2 pi zeta)``, within :data:`SETTLE_LIMITS_S`."""
+def settle_time(building: Building, decay_times: float = 4.0,
+                limits: tuple[float, float] = SETTLE_LIMITS_S) -> float:
+    """Seconds of free vibration that bring ``building`` to rest: ``decay_times`` first-mode decay
+    times ``T1 / (2 pi zeta)`` (an elastic oscillation decays by ``exp(decay_times)``), within
+    ``limits``."""
     zeta = building.damping.ratio if building.damping.kind != "none" else 0.0
     t1 = float(building.periods()[0])
-    return float(np.clip(4.0 * t1 / (2.0 * np.pi * zeta) if zeta > 0 else np.inf, *SETTLE_LIMITS_S))
+    return float(np.clip(decay_times * t1 / (2.0 * np.pi * zeta) if zeta > 0 else np.inf, *limits))
+
+
+def at_rest(y: np.ndarray, n_stories: int) -> np.ndarray:
+    """A copy of the state vector(s) ``y`` ``(..., 4*story)`` or ``(..., 6*story)`` with every
+    velocity set to zero: the building once the free vibration after an event has died out."""
+    out = np.array(y, dtype=float, copy=True)
+    out[..., n_stories:2 * n_stories] = 0.0
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -106,12 +118,20 @@ class BuildingState:
 
     def eta(self, building: Building) -> np.ndarray:
         """``(story,)`` the degradation ``eta = 1 + delta_eta eps`` this state gives ``building``."""
-        return degradation(self.work, building.alpha, building.k0, building.mass, building.delta_eta)
+        return equations.degradation(self.work, building.alpha, building.k0, building.mass, building.delta_eta)
 
     def elastic_stiffness(self, building: Building) -> np.ndarray:
         """``(story,)`` the unloading stiffness ``ke = alpha k0 + (1 - alpha) k0 / eta`` [N/mm]."""
         a, k0 = np.asarray(building.alpha), np.asarray(building.k0)
         return a * k0 + (1.0 - a) * k0 / self.eta(building)
+
+    def unloaded(self) -> BuildingState:
+        """The same degradation and drift memory with no residual drift and no hysteretic
+        displacement: the building as the events left its stiffness, displaced back to its
+        origin (the start of an elastic probe)."""
+        zero = np.zeros(self.n_stories)
+        return BuildingState(drift=zero, z=zero, work=self.work, peak_positive=self.peak_positive,
+                             peak_negative=self.peak_negative, events=self.events)
 
     def is_at_rest(self) -> bool:
         """No residual drift, no hysteretic work: the undamaged start."""

@@ -1,9 +1,9 @@
 """Sequential updating: one more event added to a clone.
 
-The clone's posterior is the prior (:func:`~hlaid.identify.events.prior_of_clone`), the state
+The clone's posterior is the prior (:func:`~hlaid.events.vector.prior_of_clone`), the state
 its last event left the building in is where the new event's replay starts, and the new
 event's record is the data. On the same events this agrees with the joint fit of
-:func:`hlaid.identify.identify_clone` within the clone's intervals (the joint fit sees every
+:func:`hlaid.identify_clone` within the clone's intervals (the joint fit sees every
 record at once; the update only what the earlier clone kept of them, its posterior and state).
 """
 
@@ -14,13 +14,14 @@ import dataclasses
 from .. import _progress
 from ..clone import Clone
 from ..errors import InputError
+from ..identify.config import IdentifyConfig
+from ..identify.result import IdentificationResult
+from ..identify.stages import analyse
 from ..measurement import Measurement
-from .config import IdentifyConfig
-from .events import best_fit, joint_fit, prior_of_clone, result_of_joint
-from .joint import PriorVector
+from .fit import best_fit, joint_fit
+from .identify import result_of_joint
 from .priors import get_prior
-from .result import IdentificationResult
-from .stages import analyse
+from .vector import PriorVector, prior_of_clone
 
 
 def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig | None = None, *,

@@ -37,11 +37,10 @@ from scipy.special import ndtr
 
 from .. import _progress
 from ..errors import InputError
+from .config import N_ENSEMBLE, PLACARDS
 from .ensemble import check_ensemble_size, check_uncertain_clone, clone_ensemble
 
 COLOURS = ("green", "yellow", "red")
-PLACARDS = {"green": "INSPECTED (re-occupancy permitted)", "yellow": "RESTRICTED USE (engineering evaluation)",
-            "red": "UNSAFE (do not re-occupy)"}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -181,7 +180,7 @@ def _fragility(im, median, beta):
     return ndtr(np.log(np.maximum(im, 1e-300) / median) / beta)
 
 
-def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=None, seed: int = 0,
+def assess(clone, records, *, n_ensemble: int = N_ENSEMBLE, ida_config=None, own_motion=None, seed: int = 0,
            n_boot: int = 30, ci: float = 0.90, thresholds: ReoccupancyThresholds | None = None) -> Assessment:
     """IDA over an ensemble of the clone, fragility band, risk at the experienced intensity.
 
@@ -202,26 +201,13 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
     -------
     Assessment
     """
-    from ..ida import IDAConfig, get_intensity_measure, ida_from_config, intensity, prepare_building
-    from ..ida.intensity import period_for
+    from ..ida import get_intensity_measure, prepare_building
+    from ..ida.measures import period_for
     from ..io.records import as_motions
-    from ..motions import GroundMotion
-    from ..simulate import simulate_response
 
     t0 = time.perf_counter()
-    check_uncertain_clone(clone)
-    n_ensemble = check_ensemble_size(n_ensemble, "n_ensemble")
-    if isinstance(n_boot, bool) or not isinstance(n_boot, int) or not 0 <= n_boot <= 10_000:
-        raise InputError(f"n_boot = {n_boot!r}; expected a whole number in 0..10000")
-    if isinstance(ci, bool) or not isinstance(ci, (int, float)) or not 0 < ci < 1:
-        raise InputError(f"ci = {ci!r}; expected a confidence level in (0, 1), e.g. 0.9")
-    if own_motion is not None and not isinstance(own_motion, GroundMotion):
-        raise InputError(f"own_motion must be a GroundMotion (hlaid.read(path, kind='motion')), got "
-                         f"{type(own_motion).__name__}")
+    cfg, n_ensemble = _checked(clone, ida_config, own_motion, n_ensemble, n_boot, ci)
     thr = thresholds or ReoccupancyThresholds()
-    cfg = IDAConfig(n_levels=10) if ida_config is None else ida_config
-    if not isinstance(cfg, IDAConfig):
-        raise InputError(f"ida_config must be an hlaid.ida.IDAConfig, got {type(cfg).__name__}")
     motions = as_motions(records, units=cfg.units)
     if len(motions) < 2:
         raise InputError(f"assess needs at least 2 records for a fragility; got {len(motions)}")
@@ -237,73 +223,126 @@ def assess(clone, records, *, n_ensemble: int = 20, ida_config=None, own_motion=
                      "fit that does not match the record (intervals not trustworthy)")
         _progress.warn(notes[-1])
     members = clone_ensemble(clone, n_ensemble, seed=seed)
-    results = []
-    for b in _progress.progress(members, desc="ensemble IDA"):
-        results.append(ida_from_config(clone.member(b), cfg, motions))
+    results = _ensemble_idas(clone, members, cfg, motions)
     t_ida = time.perf_counter() - t0
-    R = len(motions)
-    fits = np.array([_member_fit(r) for r in results])
-    ok = np.isfinite(fits[:, 0])
-    if not ok.any():
-        raise InputError("no ensemble member collapsed under 2 or more records: raise the IDA levels or hunting "
-                         "(ida_config.max_hunt) to reach collapse")
-    if not ok.all():
-        notes.append(f"{int((~ok).sum())} member(s) collapsed under fewer than 2 records and were left out")
-    rng = np.random.default_rng(int(seed) + 1)
-    curves_par = [fits[ok]]
-    boots = [rng.integers(0, R, R) for _ in range(n_boot)]
-    for idx in boots:
-        curves_par.append(np.array([_member_fit(r, idx) for r, good in zip(results, ok) if good]))
-    par = np.concatenate(curves_par)
-    par = par[np.isfinite(par[:, 0])]
-    q = (0.5 - ci / 2, 0.5, 0.5 + ci / 2)
-    hi_im = float(np.quantile(par[:, 0] * np.exp(2.0 * par[:, 1]), 0.95))
-    grid = np.linspace(0.0, hi_im, 200)
-    P = _fragility(grid[None, :], par[:, :1], par[:, 1:])
-    lo_c, med_c, hi_c = np.quantile(P, q, axis=0)
-    med_band = tuple(float(v) for v in np.quantile(par[:, 0], (q[0], q[2])))
-    out = dict(n_ensemble=n_ensemble, n_records=R, n_boot=n_boot, ci=float(ci), im=measure.name, im_label=measure.label,
-               period=period, im_grid=grid, fragility_median=med_c, fragility_lo=lo_c, fragility_hi=hi_c,
-               collapse_median=float(np.median(fits[ok, 0])), collapse_median_band=med_band,
-               beta=float(np.median(fits[ok, 1])), member_median=fits[:, 0], member_beta=fits[:, 1],
-               thresholds=asdict(thr), drift_limits=tuple(results[0].exceedance_limits))
+    band = _FragilityBand(results, n_boot, ci, seed, notes)
+    out = dict(n_ensemble=n_ensemble, n_records=len(motions), n_boot=n_boot, ci=float(ci), im=measure.name,
+               im_label=measure.label, period=period, **band.summary(), thresholds=asdict(thr),
+               drift_limits=tuple(results[0].exceedance_limits))
     if own_motion is not None:
-        own_im = float(intensity(own_motion, measure.name, period=None if not measure.needs_period else period)[0])
-        pm = _fragility(own_im, fits[ok, 0], fits[ok, 1])
-        p_all = _fragility(own_im, par[:, 0], par[:, 1])  # members x record resamples
-        limits = np.array(results[0].exceedance_limits)
-        hits = []  # (member, record, limit)
-        for r in results:
-            e = r.edp_at([own_im])[:, 0]
-            e = np.where(np.isnan(e), np.inf, e)  # above the highest level run: counted as exceeding
-            hits.append(e[:, None] > limits[None, :])
-        hit = np.array(hits, dtype=float)
-        exceed = hit.mean(axis=1)
-        ex_all = np.concatenate([exceed] + [hit[:, idx].mean(axis=1) for idx in boots])
-        bs = [prepare_building(clone.member(b), pdelta=cfg.pdelta,
-                               heights=cfg.heights_mm, gravity_load=cfg.gravity_load_n())[0] for b in members]
-        sub = max(1, int(np.ceil(own_motion.dt / cfg.max_step)))
-        h = np.array([np.asarray(b.height, dtype=float) for b in bs])
-        sim = simulate_response(bs, own_motion, substeps=sub, outputs="peaks", stop_drift=cfg.drift_limit * h)
-        peak = np.max(sim.peak_drift / h, axis=1)
-        resid = np.max(np.abs(sim.residual_drift) / h, axis=1)
-        resid = np.where(sim.status == 0, resid, np.inf)  # stopped or diverged: no re-occupancy
-        colour, reasons = _indicator(p_all, resid, thr)
-        if clone.uncertainty.info and clone.uncertainty.info.get("fit_consistent") is False:
-            reasons.append(f"the identified clone does not fit the record to the noise level (misfit ratio "
-                           f"{clone.uncertainty.info.get('misfit_ratio', float('nan')):.2g}): its intervals are not "
-                           "trustworthy, so the indicator is at least yellow")
-            colour = COLOURS[max(COLOURS.index(colour), 1)]
-        out.update(own_im=own_im, p_collapse=float(pm.mean()),
-                   p_collapse_band=tuple(float(v) for v in np.quantile(p_all, (q[0], q[2]))),
-                   p_exceed=tuple(float(v) for v in exceed.mean(axis=0)),
-                   p_exceed_band=tuple(tuple(float(v) for v in np.quantile(ex_all[:, j], (q[0], q[2])))
-                                       for j in range(ex_all.shape[1])),
-                   own_peak_drift=peak, own_residual_drift=resid, indicator=colour, reasons=tuple(reasons))
+        out.update(_at_own_motion(clone, members, results, band, own_motion, measure, period, cfg, thr))
     out["notes"] = tuple(notes)
     out["timing"] = {"ida_s": t_ida, "total_s": time.perf_counter() - t0,
                      "runs": int(sum(r.timing.get("runs", 0) for r in results))}
     return Assessment(**out)
+
+
+def _checked(clone, ida_config, own_motion, n_ensemble, n_boot, ci):
+    """The IDA config (default: 10 levels) and ensemble size of :func:`assess`, its arguments checked."""
+    from ..ida import IDAConfig
+    from ..motions import GroundMotion
+
+    check_uncertain_clone(clone)
+    n_ensemble = check_ensemble_size(n_ensemble, "n_ensemble")
+    if isinstance(n_boot, bool) or not isinstance(n_boot, int) or not 0 <= n_boot <= 10_000:
+        raise InputError(f"n_boot = {n_boot!r}; expected a whole number in 0..10000")
+    if isinstance(ci, bool) or not isinstance(ci, (int, float)) or not 0 < ci < 1:
+        raise InputError(f"ci = {ci!r}; expected a confidence level in (0, 1), e.g. 0.9")
+    if own_motion is not None and not isinstance(own_motion, GroundMotion):
+        raise InputError(f"own_motion must be a GroundMotion (hlaid.read(path, kind='motion')), got "
+                         f"{type(own_motion).__name__}")
+    cfg = IDAConfig(n_levels=10) if ida_config is None else ida_config
+    if not isinstance(cfg, IDAConfig):
+        raise InputError(f"ida_config must be an hlaid.ida.IDAConfig, got {type(cfg).__name__}")
+    return cfg, n_ensemble
+
+
+def _ensemble_idas(clone, members, cfg, motions) -> list:
+    """The IDA of every member of the ensemble."""
+    from ..ida import ida_from_config
+
+    return [ida_from_config(clone.member(b), cfg, motions) for b in _progress.progress(members, desc="ensemble IDA")]
+
+
+class _FragilityBand:
+    """The members' lognormal collapse fragilities and their record-bootstrap resamples.
+
+    ``fits`` ``(member, 2)`` median and beta (NaN for a member that collapsed under fewer than 2
+    records, left out with a note); ``par`` ``(fit, 2)`` every finite fit of the members and of
+    ``n_boot`` record resamples (``boots``) of each.
+    """
+
+    def __init__(self, results: list, n_boot: int, ci: float, seed: int, notes: list[str]):
+        R = results[0].collapse_im.size
+        self.fits = np.array([_member_fit(r) for r in results])
+        self.ok = np.isfinite(self.fits[:, 0])
+        if not self.ok.any():
+            raise InputError("no ensemble member collapsed under 2 or more records: raise the IDA levels or hunting "
+                             "(ida_config.max_hunt) to reach collapse")
+        if not self.ok.all():
+            notes.append(f"{int((~self.ok).sum())} member(s) collapsed under fewer than 2 records and were left out")
+        rng = np.random.default_rng(int(seed) + 1)
+        curves_par = [self.fits[self.ok]]
+        self.boots = [rng.integers(0, R, R) for _ in range(n_boot)]
+        for idx in self.boots:
+            curves_par.append(np.array([_member_fit(r, idx) for r, good in zip(results, self.ok) if good]))
+        par = np.concatenate(curves_par)
+        self.par = par[np.isfinite(par[:, 0])]
+        self.q = (0.5 - ci / 2, 0.5, 0.5 + ci / 2)
+
+    def summary(self) -> dict:
+        """The :class:`Assessment` fields of the fragility band."""
+        par, fits, ok, q = self.par, self.fits, self.ok, self.q
+        hi_im = float(np.quantile(par[:, 0] * np.exp(2.0 * par[:, 1]), 0.95))
+        grid = np.linspace(0.0, hi_im, 200)
+        P = _fragility(grid[None, :], par[:, :1], par[:, 1:])
+        lo_c, med_c, hi_c = np.quantile(P, q, axis=0)
+        med_band = tuple(float(v) for v in np.quantile(par[:, 0], (q[0], q[2])))
+        return dict(im_grid=grid, fragility_median=med_c, fragility_lo=lo_c, fragility_hi=hi_c,
+                    collapse_median=float(np.median(fits[ok, 0])), collapse_median_band=med_band,
+                    beta=float(np.median(fits[ok, 1])), member_median=fits[:, 0], member_beta=fits[:, 1])
+
+
+def _at_own_motion(clone, members, results, band: _FragilityBand, own_motion, measure, period, cfg,
+                   thr: ReoccupancyThresholds) -> dict:
+    """The :class:`Assessment` fields at the experienced record: P(collapse) and drift-limit
+    exceedance with their bands, the members' replays and the re-occupancy indicator."""
+    from ..ida import intensity, prepare_building
+    from ..simulate import simulate_response
+
+    q, fits, ok = band.q, band.fits, band.ok
+    own_im = float(intensity(own_motion, measure.name, period=None if not measure.needs_period else period)[0])
+    pm = _fragility(own_im, fits[ok, 0], fits[ok, 1])
+    p_all = _fragility(own_im, band.par[:, 0], band.par[:, 1])  # members x record resamples
+    limits = np.array(results[0].exceedance_limits)
+    hits = []  # (member, record, limit)
+    for r in results:
+        e = r.edp_at([own_im])[:, 0]
+        e = np.where(np.isnan(e), np.inf, e)  # above the highest level run: counted as exceeding
+        hits.append(e[:, None] > limits[None, :])
+    hit = np.array(hits, dtype=float)
+    exceed = hit.mean(axis=1)
+    ex_all = np.concatenate([exceed] + [hit[:, idx].mean(axis=1) for idx in band.boots])
+    bs = [prepare_building(clone.member(b), pdelta=cfg.pdelta,
+                           heights=cfg.heights_mm, gravity_load=cfg.gravity_load_n())[0] for b in members]
+    sub = max(1, int(np.ceil(own_motion.dt / cfg.max_step)))
+    h = np.array([np.asarray(b.height, dtype=float) for b in bs])
+    sim = simulate_response(bs, own_motion, substeps=sub, outputs="peaks", stop_drift=cfg.drift_limit * h)
+    peak = np.max(sim.peak_drift / h, axis=1)
+    resid = np.max(np.abs(sim.residual_drift) / h, axis=1)
+    resid = np.where(sim.status == 0, resid, np.inf)  # stopped or diverged: no re-occupancy
+    colour, reasons = _indicator(p_all, resid, thr)
+    if clone.uncertainty.info and clone.uncertainty.info.get("fit_consistent") is False:
+        reasons.append(f"the identified clone does not fit the record to the noise level (misfit ratio "
+                       f"{clone.uncertainty.info.get('misfit_ratio', float('nan')):.2g}): its intervals are not "
+                       "trustworthy, so the indicator is at least yellow")
+        colour = COLOURS[max(COLOURS.index(colour), 1)]
+    return dict(own_im=own_im, p_collapse=float(pm.mean()),
+                p_collapse_band=tuple(float(v) for v in np.quantile(p_all, (q[0], q[2]))),
+                p_exceed=tuple(float(v) for v in exceed.mean(axis=0)),
+                p_exceed_band=tuple(tuple(float(v) for v in np.quantile(ex_all[:, j], (q[0], q[2])))
+                                    for j in range(ex_all.shape[1])),
+                own_peak_drift=peak, own_residual_drift=resid, indicator=colour, reasons=tuple(reasons))
 
 
 def _indicator(p_collapse: np.ndarray, residual: np.ndarray, thr: ReoccupancyThresholds):

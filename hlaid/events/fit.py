@@ -1,0 +1,210 @@
+"""One set of story parameters fitted to a building's events in time order, the state carried.
+
+The events are one history of one building (:class:`~hlaid.events.series.EventSeries`: each
+replay starts where the previous one left the building), so one set of parameters explains them
+all. The search is maximum a posteriori in prior units (:mod:`hlaid.events.vector`): every story
+parameter and the damping ratio move, and the prior holds those the data say little about.
+Each event's residuals are weighted by the information they hold; the weights are estimated
+again at the optimum and the search repeated until they settle (:func:`map_refine`), so a misfit
+that is model error, not sensor noise, does not make the data look more certain than they are.
+:func:`joint_fit` runs it with an identification config's settings, :func:`best_fit` picks
+among searches from several starts and :func:`flags` says where each parameter came from.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import _progress
+from ..errors import InputError
+from ..identify.config import IdentifyConfig
+from ..identify.refine import RefineResult, fit_residuals
+from ..measurement import Measurement
+from ..model import Building
+from ..model.uncertainty import ParameterUncertainty
+from .priors import StructuralPrior
+from .series import at_replay_rate, event_series
+from .state import BuildingState
+from .vector import GaussianPrior, PosteriorResiduals, PriorVector, SystemPrior
+
+WEIGHT_ROUNDS = 3
+"""At most this many searches, each with the weights of the last one's optimum."""
+
+
+@dataclass(frozen=True, eq=False)
+class JointFit:
+    """The outcome of :func:`map_refine`.
+
+    Attributes
+    ----------
+    building : the MAP building
+    result : the last search (in prior units: ``result.x``, ``result.jacobian`` over the data's
+        weighted residuals and the prior's)
+    vector : the prior-unit layout of ``result.x``
+    covariance : ``(P, P)`` the Laplace posterior covariance in prior units
+    prior_sd : ``(P,)`` each entry's standard deviation under the prior alone
+    states : per event the state the building is left in
+    events : per event its weight, ``n_eff`` and residual RMS at the optimum
+    rounds : searches run
+    seconds : wall time
+    squares : ``(event,)`` each event's sum of squared (unweighted) residuals at the optimum
+    prior_cost : half the prior's squared residuals at the optimum
+    """
+
+    building: Building
+    result: RefineResult
+    vector: PriorVector
+    covariance: np.ndarray
+    prior_sd: np.ndarray
+    states: list[BuildingState]
+    events: list[dict]
+    rounds: int
+    seconds: float
+    squares: np.ndarray
+    prior_cost: float
+
+    def score(self, n_eff: np.ndarray) -> float:
+        """The negative log posterior with each event's misfit variance at its maximum
+        (profiled): ``sum_e n_eff_e / 2 log(squares_e) + prior_cost``; ``n_eff`` ``(event,)``
+        common to the fits compared."""
+        return float(np.sum(0.5 * np.asarray(n_eff) * np.log(np.maximum(self.squares, 1e-300))) + self.prior_cost)
+
+    def informed(self) -> np.ndarray:
+        """``(P,)`` how much the data narrowed each entry: 1 - posterior sd / prior sd (0: the
+        prior alone; near 1: the data)."""
+        sd = np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+        return np.clip(1.0 - sd / np.maximum(self.prior_sd, 1e-12), 0.0, 1.0)
+
+
+def map_refine(start: Building, measurements: Sequence[Measurement], prior: SystemPrior | GaussianPrior | None = None,
+               *, system: StructuralPrior | None = None, band_hz=(0.1, 20.0), ground_noise: str = "ignore",
+               damping: bool = True, y0: np.ndarray | None = None, names: Sequence[str] = (),
+               max_iterations: int = 40, ftol: float = 1e-8, substeps: int = 4, jac_substeps: int = 2,
+               tangent_max_mb: float | None = None) -> JointFit:
+    """Maximum a posteriori parameters of one building from its events in time order.
+
+    Parameters
+    ----------
+    start : the search's start (the paper's estimate of the most informative event, an earlier
+        clone, or the prior's median building)
+    measurements : the events, oldest first
+    prior : the prior over the prior-unit vector (None: ``system``'s, with k0 around ``start``'s)
+    system : the structural system (with ``prior`` None)
+    band_hz : band of the compared floor accelerations [Hz]
+    ground_noise : ``"ignore"`` (least squares of each event's residuals) or ``"tangent"``
+        (each event's residuals whitened against its ground sensor's noise, errors in variables,
+        the tangent taken once, along the start's replay from the state it carries into that event)
+    damping : the damping ratio is fitted (else held at ``start``'s)
+    y0 : the state before the first event (``(4*story,)``; None: at rest)
+    names : the events' labels (for the states)
+    """
+    t0 = time.perf_counter()
+    if prior is None and system is None:
+        raise InputError("map_refine needs a prior or a structural system")
+    vector = PriorVector(start, damping=damping)
+    if prior is None:
+        assert system is not None
+        prior = SystemPrior(system, vector, start.k0)
+    hi = float(band_hz[1])
+    events = [at_replay_rate(m, hi) for m in measurements]
+    info: list[dict] = []
+    current = start
+    rr: RefineResult | None = None
+    weights: np.ndarray | None = None
+    fits = 0
+    series = event_series(start, events, band_hz, ground_noise, substeps, jac_substeps, y0, tangent_max_mb)
+    for _ in range(WEIGHT_ROUNDS):
+        info = series.reweigh(current)
+        if weights is not None and bool(np.all(np.abs(np.log(series.weights / weights)) < np.log(1.2))):
+            break
+        weights = series.weights.copy()
+        fits += 1
+        _progress.info(f"[identify] joint fit over {len(events)} event(s), round {fits}: effective samples "
+                       + ", ".join(f"{d['n_eff']:.0f}" for d in info))
+        rr = fit_residuals(vector, PosteriorResiduals(series, vector, prior), max_iterations=max_iterations,
+                           ftol=ftol, jac_substeps=jac_substeps)
+        current = rr.building
+    assert rr is not None
+    for d, w in zip(info, series.weights):
+        d["weight"] = float(w)
+    J = np.asarray(rr.jacobian)
+    cov = np.linalg.pinv(J.T @ J)
+    Jp = _prior_jacobian(prior, vector, np.asarray(rr.x))
+    prior_sd = np.sqrt(np.clip(np.diag(np.linalg.pinv(Jp.T @ Jp)), 0.0, None))
+    states = series.states(current, names)
+    parts, _, _ = series.run([current])
+    squares = np.array([float(np.sum(r[0] ** 2)) for r in parts])
+    prior_cost = 0.5 * float(np.sum(prior.residuals(np.asarray(rr.x)) ** 2))
+    return JointFit(building=current, result=rr, vector=vector, covariance=cov, prior_sd=prior_sd, states=states,
+                    events=info, rounds=fits, seconds=time.perf_counter() - t0, squares=squares,
+                    prior_cost=prior_cost)
+
+
+def _prior_jacobian(prior, vector: PriorVector, x: np.ndarray, h: float = 1e-5) -> np.ndarray:
+    """Finite-difference Jacobian of the prior's residuals at ``x``."""
+    r0 = prior.residuals(x)
+    cols = [(prior.residuals(x + h * (np.arange(x.size) == j)) - r0) / h for j in range(x.size)]
+    return np.array(cols).T
+
+
+INFORMED = 0.5
+"""A parameter whose posterior standard deviation is more than ``1 - INFORMED`` of its prior's
+is flagged as coming from the prior: the data narrowed it by less than half."""
+
+
+def flags(fit: JointFit, prior: str = "prior") -> list[dict]:
+    """Per fitted parameter: value, where it comes from (``"data"``, or ``prior`` where the data
+    narrowed it by less than :data:`INFORMED`: ``"prior"`` for the structural system's,
+    ``"earlier events"`` for an update's), and whether it sits at a limit of the model
+    (alpha at 0 or 0.95, p at 1, delta_eta below 1e-6: a value the search could only approach)."""
+    b, informed = fit.building, fit.informed()
+    out = []
+    for (name, i), inf in zip(fit.vector.slots, informed):
+        if name == "damping":
+            value = b.damping.ratio
+        elif name == "cy":
+            value, name = float(b.dy[i]), "dy"
+        else:
+            value = float(getattr(b, name)[i])
+        at = ((name == "alpha" and not 1e-3 < value < 0.949) or (name == "p" and value < 1.005)
+              or (name == "delta_eta" and value < 1e-6))
+        out.append({"name": name, "story": i + 1 if i >= 0 else None, "value": value,
+                    "source": "data" if inf >= INFORMED else prior, "informed": float(inf), "at_limit": bool(at)})
+    return out
+
+
+def joint_fit(start: Building, measurements: Sequence[Measurement], prior, cfg: IdentifyConfig, *, y0=None,
+              names: Sequence[str] = (), k0_ref: np.ndarray | None = None) -> JointFit:
+    """:func:`map_refine` with the settings of ``cfg.refine`` (errors in
+    variables per event for ``method: eiv``, least squares otherwise)."""
+    rc = cfg.refine
+    if isinstance(prior, StructuralPrior):
+        prior = SystemPrior(prior, PriorVector(start, damping=rc.damping), start.k0 if k0_ref is None else k0_ref)
+    return map_refine(start, measurements, prior,
+                      band_hz=rc.band_hz, ground_noise="tangent" if rc.method == "eiv" else "ignore",
+                      damping=rc.damping, y0=y0, names=names, max_iterations=rc.max_iterations,
+                      tangent_max_mb=rc.tangent_max_mb)
+
+
+def best_fit(fits: Sequence[JointFit]) -> JointFit:
+    """The fit of highest posterior among searches from different starts (the posterior of a
+    first-mode-dominated record can have more than one mode): the lowest
+    :meth:`JointFit.score`, each event's ``n_eff`` the mean of the fits'."""
+    n_eff = np.mean([[e["n_eff"] for e in f.events] for f in fits], axis=0)
+    return min(fits, key=lambda f: f.score(n_eff))
+
+
+def posterior_uncertainty(fit: JointFit, level: float = 0.9) -> ParameterUncertainty:
+    """The Laplace posterior of a joint fit as a Gaussian over the clone's parameters: per story
+    ``log k0, logit(alpha / 0.95), log(p - 1), log dy, log delta_eta`` (and ``log zeta``), an exact
+    linear map of the prior units (``log dy = log Cy + log W - log k0``)."""
+    A, offset = fit.vector.clone_units(fit.building)
+    c = A @ np.asarray(fit.result.x) + offset
+    slots, transforms = fit.vector.clone_slots()
+    info = {"prior": "joint MAP", "informed": fit.informed().tolist(), "level": level}
+    return ParameterUncertainty(slots=slots, transform=transforms, centre=c, covariance=A @ fit.covariance @ A.T,
+                                method="laplace-posterior", info=info)

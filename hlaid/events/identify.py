@@ -1,0 +1,222 @@
+"""A clone learnt from one record, or from a building's records in time order.
+
+:func:`identify_clone`, the entry point of every identification::
+
+    events (time order) -> HLA of each                                   analyse
+                        -> the paper's method on the most informative     hlaid.identify.identify_event
+                           one (one yielding record: the clone), or the
+                           prior's median building where none yielded
+                        -> one set of parameters for all of them, the     hlaid.events.fit.joint_fit
+                           state carried from each event into the next,
+                           the structural system's prior where the data say little
+                        -> the clone, left in the state its last event left it
+
+:func:`hlaid.events.update.update_clone` adds one event to a clone: the clone's posterior is the
+prior, its state the start, the new event the data (sequential updating).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..clone import Clone
+from ..errors import InputError
+from ..hla import HLAResult
+from ..identify.config import IdentifyConfig
+from ..identify.pipeline import identify_event, open_cache
+from ..identify.replaycheck import replay_check
+from ..identify.result import IdentificationResult, file_digest, provenance
+from ..identify.stages import Event, analyse
+from ..identify.tb import TBLogger
+from ..measurement import Measurement
+from ..model import Building, Damping
+from ..units import G_MM_S2
+from .fit import JointFit, best_fit, flags, joint_fit, posterior_uncertainty
+from .priors import StructuralPrior, elf_profile, get_prior, weight_above
+from .series import state_after
+from .vector import PriorVector, SystemPrior
+
+
+def identify_clone(measurements: Measurement | Sequence[Measurement], config: IdentifyConfig | None = None, *,
+                   tensorboard: str | None = None, cache_dir: str | None = None) -> IdentificationResult:
+    """Identify a digital clone from one measurement, or from several of one building in time
+    order, with no expert input.
+
+    One yielding record: the paper's method and the refinement on its data alone
+    (:func:`hlaid.identify.identify_event`; a structural ``system`` named is recorded with the
+    clone: its collapse law for the IDA). Several records, or a record that stays elastic: the
+    paper's method on the most informative record (where one yielded) gives the start, and one
+    set of parameters is then fitted to every record, the state carried from each into the next
+    and the system's prior holding what the data say little about (:mod:`hlaid.events.fit`).
+    The clone is left in the state its last record left the building in (``clone.state``).
+
+    Parameters
+    ----------
+    measurements : ground and floor accelerations (masses optional: mass-normalised clone);
+        several: records of one building, oldest first
+    config : settings (defaults: :class:`~hlaid.identify.IdentifyConfig`)
+    tensorboard : folder for TensorBoard logs (classifier accuracies, confusion matrices,
+        example features, estimates per outer iteration)
+    cache_dir : where trained classifiers are cached (default ``~/.cache/hlaid/svm``,
+        ``HLAID_CACHE`` overrides; ``""`` disables the cache)
+
+    Returns
+    -------
+    IdentificationResult
+    """
+    meas = [measurements] if isinstance(measurements, Measurement) else list(measurements)
+    if not meas:
+        raise InputError("identify_clone: no measurement given")
+    check_series(meas)
+    cfg = config or IdentifyConfig()
+    cache = open_cache(cfg, cache_dir)
+    tb = TBLogger(tensorboard)
+    timings: dict[str, float] = {}
+    t_all = time.perf_counter()
+    events = [analyse(m, cfg) for m in meas]
+    timings["hla"] = time.perf_counter() - t_all
+    best = most_informative(events)
+    single = None
+    if best is not None:
+        single = identify_event(events[best], cfg, cache, tb, timings)
+        m = events[best].measurement
+        state = state_after(single.clone.building, [m], cfg.refine.band_hz, [m.name or "event 1"])
+        single = dataclasses.replace(single, clone=dataclasses.replace(single.clone, events=(event_record(m),),
+                                                                       state=state))
+    if len(meas) == 1 and single is not None:  # one yielding record: the data speak, the paper's method
+        timings["total"] = time.perf_counter() - t_all
+        tb.close()
+        return dataclasses.replace(single, clone=dataclasses.replace(single.clone, system=cfg.system))
+    system = get_prior(cfg.system or "generic")
+    starts = plausible_starts(single, events[0], meas[0], system, cfg)
+    names = [m.name or f"event {k + 1}" for k, m in enumerate(meas)]
+    t = time.perf_counter()
+    fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=events[0].hla.k0) for b in starts]
+    fit = best_fit(fits)
+    start = starts[fits.index(fit)]
+    timings["joint"] = time.perf_counter() - t
+    result = result_of_joint(events, meas, fit, cfg, system=system, start=start, single=single, timings=timings)
+    timings["total"] = time.perf_counter() - t_all
+    tb.close()
+    return result
+
+
+def event_record(meas: Measurement, start: str | None = None) -> dict:
+    """What a clone keeps of an event it learnt from (``start``: where its replay started,
+    ``"carried"`` or ``"undamaged"``, when an update chose it)."""
+    return {"name": meas.name, "source": meas.source or None,
+            "sha256": file_digest(meas.source) if meas.source else None,
+            "pga_g": float(np.max(np.abs(meas.ground_acc)) / G_MM_S2), "duration_s": float(meas.n_samples * meas.dt),
+            "dt": float(meas.dt), "n_floors": int(meas.n_floors),
+            **({"recorded": meas.recorded} if meas.recorded else {}), **({"start": start} if start else {})}
+
+
+def check_series(measurements: Sequence[Measurement]) -> None:
+    """One line (InputError naming the file) where the measurements cannot be events of one
+    building in time order: another number of floors, other masses or story heights, one record
+    given twice, or start times (where the files give them) out of order."""
+    first = measurements[0]
+    for m in measurements[1:]:
+        where = m.source or m.name or None
+        if m.n_floors != first.n_floors:
+            raise InputError(f"{m.n_floors} floor channels, but {first.source or first.name or 'the first event'} "
+                             f"has {first.n_floors}: the events must be records of one building", source=where)
+        for field in ("mass", "height"):
+            a, b = getattr(first, field), getattr(m, field)
+            if (a is None) != (b is None) or (a is not None and not np.allclose(a, b, rtol=1e-6)):
+                raise InputError(f"its floor {field}es differ from the first event's: the events must be records "
+                                 "of one building", source=where)
+    times = [m.recorded for m in measurements]
+    if all(t is not None for t in times):
+        for a, b in zip(measurements[:-1], measurements[1:]):
+            if str(b.recorded) <= str(a.recorded):
+                raise InputError(f"recorded {b.recorded}, not after the previous event ({a.recorded}): give the events "
+                                 "in time order", source=b.source or b.name or None)
+    seen: dict[str, Measurement] = {}
+    for m in measurements:
+        key = hashlib.sha256(np.ascontiguousarray(m.ground_acc, dtype=float).tobytes()).hexdigest()
+        if key in seen:
+            raise InputError(f"the same ground motion as {seen[key].source or seen[key].name or 'an earlier event'}: "
+                             "each event once", source=m.source or m.name or None)
+        seen[key] = m
+
+
+def most_informative(events) -> int | None:
+    """Index of the event with the most yielding half cycles over its identifiable stories (the
+    paper's method runs on it); None where no story of any event yielded."""
+    counts = [sum(len(F) for F, ok in zip(e.features, e.identifiable) if ok) for e in events]
+    return None if max(counts) == 0 else int(np.argmax(counts))
+
+
+def prior_start(hla: HLAResult, meas: Measurement, prior: StructuralPrior, damping_ratio: float | None) -> Building:
+    """The prior's median building with HLA's k0 (the start where no event yielded)."""
+    n = hla.n_stories
+    b = Building(mass=hla.mass, k0=hla.k0, alpha=np.full(n, prior.alpha.median), p=np.full(n, prior.p.median),
+                 dy=np.ones(n), delta_eta=np.full(n, prior.delta_eta.median), height=meas.height,
+                 damping=Damping(ratio=prior.damping.median if damping_ratio is None else damping_ratio),
+                 pdelta=meas.pdelta_active if meas.height is not None else None, name=meas.name)
+    dy = prior.cy.median * elf_profile(b) * weight_above(b) / np.asarray(hla.k0)
+    return b.replace(dy=dy)
+
+
+PLAUSIBLE_SD = 3.0
+"""A start more than this many prior standard deviations from the system's medians (in any
+entry) is implausible: the prior's median building is tried beside it."""
+
+
+def plausible_starts(single: IdentificationResult | None, event: Event, meas: Measurement,
+                     system: StructuralPrior, cfg: IdentifyConfig) -> list[Building]:
+    """Where the joint fit starts: the single-event clone of the most informative event; also the
+    prior's median building (HLA's k0 of the first event) where there is none or the prior finds
+    it implausible (a record whose misfit is model error can drive a single-event fit to extreme
+    values, from which the joint search would not leave)."""
+    median = prior_start(event.hla, meas, system, None)
+    if single is None:
+        return [median]
+    b = single.clone.building
+    prior = SystemPrior(system, PriorVector(b, damping=cfg.refine.damping), event.hla.k0)
+    if np.max(np.abs(prior.residuals(prior.vector.x0))) <= PLAUSIBLE_SD:
+        return [b]
+    return [median, b]
+
+
+def result_of_joint(events: Sequence[Event], meas: Sequence[Measurement], fit: JointFit, cfg: IdentifyConfig, *,
+                    system: StructuralPrior, start: Building, single: IdentificationResult | None = None,
+                    history: Sequence[dict] = (), y0: np.ndarray | None = None,
+                    timings: dict | None = None, last_start: str | None = None) -> IdentificationResult:
+    """The identification result of a joint fit over ``events``: the clone left in the last
+    event's state, its posterior, per event the replay from the state carried into it
+    (``last_start``: the start of the last event, recorded with it, where one was chosen)."""
+    timings = {} if timings is None else timings
+    checks = []
+    y = y0
+    for ev, st in zip(events, fit.states):
+        checks.append(replay_check(fit.building, ev.measurement, ev.hla, y0=y))
+        y = st.vector()
+    per_event = [{"name": m.name, **info, **c.to_dict()} for m, info, c in zip(meas, fit.events, checks)]
+    prior = fit_prior_summary(fit, system)
+    diagnostics = {"joint": {"events": per_event, "rounds": fit.rounds, "prior": prior, "start": start.to_dict(),
+                             "cost_final": fit.result.cost_final, "nfev": fit.result.nfev,
+                             "seconds": fit.seconds},
+                   "parameters": flags(fit, "earlier events" if history else "prior"), "replay": checks[-1].to_dict(),
+                   "single_event": None if single is None else single.clone.diagnostics}
+    prov = provenance(cfg, timings, sources=[m.source or None for m in meas])
+    clone = Clone(building=fit.building, mass_normalised=events[-1].hla.mass_normalised, diagnostics=diagnostics,
+                  provenance=prov, uncertainty=posterior_uncertainty(fit), system=system.name,
+                  events=tuple(history) + tuple(event_record(m) for m in meas[:-1])
+                  + (event_record(meas[-1], start=last_start),), state=fit.states[-1])
+    return IdentificationResult(clone=clone, hla=events[-1].hla,
+                                paper_estimate=start if single is None else single.paper_estimate,
+                                passes=[] if single is None else single.passes,
+                                iterations=0 if single is None else single.iterations, replay=checks[-1],
+                                timings=timings, refinement=fit.result, joint=fit)
+
+
+def fit_prior_summary(fit: JointFit, system: StructuralPrior) -> dict:
+    """What the joint fit's prior was (the system's, or an earlier clone's posterior)."""
+    return {"system": system.name, "sources": list(system.sources)}

@@ -1,0 +1,70 @@
+"""Where a replay of a clone starts: the one place a ``start`` is resolved.
+
+A clone carries the state its last event left the building in (:class:`~hlaid.events.state.BuildingState`).
+A prediction, an IDA or a demand replay starts from it (``"carried"``), at rest (``"undamaged"``),
+or as the clone itself says (``"auto"``): the carried state, unless the clone carries none, or
+its last event was explained better from an undamaged start (an update chose it: the softening
+of the earlier events recovered before it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import InputError
+from .state import BuildingState
+
+if TYPE_CHECKING:
+    from ..clone import Clone
+
+START_STATES = ("auto", "carried", "undamaged")
+"""The starts a replay may be asked for."""
+
+
+@dataclass(frozen=True)
+class Start:
+    """A resolved start.
+
+    Attributes
+    ----------
+    name : ``"carried"`` or ``"undamaged"``
+    state : the carried state (None: at rest)
+    reason : why, in words
+    """
+
+    name: str
+    state: BuildingState | None
+    reason: str
+
+    def vector(self, collapse: bool = False) -> np.ndarray | None:
+        """The simulator's initial state (:meth:`BuildingState.vector`; None: at rest)."""
+        return None if self.state is None else self.state.vector(collapse=collapse)
+
+
+def resolve_start(clone: Clone | object, start: str = "auto") -> Start:
+    """The start ``start`` names for ``clone`` (a :class:`~hlaid.clone.Clone`, or a building,
+    which carries no state). ``"carried"`` on a clone that carries no state is an InputError."""
+    if start not in START_STATES:
+        raise InputError(f"start = {start!r}; expected one of {', '.join(map(repr, START_STATES))}")
+    state = getattr(clone, "state", None)
+    if start == "undamaged":
+        return Start("undamaged", None, "asked for: every replay from rest")
+    if start == "carried":
+        if state is None:
+            source = getattr(getattr(clone, "building", clone), "source", None)
+            raise InputError("start: carried needs a clone that carries the state its last event left it in (a clone "
+                             "of hlaid identify or hlaid update); use start undamaged or auto", source=source)
+        return Start("carried", state, "asked for: the state the clone's events left")
+    if state is None:
+        return Start("undamaged", None, "the clone carries no state")
+    events = getattr(clone, "events", ())
+    if events and events[-1].get("start") == "undamaged":
+        return Start("undamaged", None, "its last event was explained better from an undamaged start: the building "
+                                        "recovered between its events")
+    return Start("carried", state, "the state the clone's events left")
+
+
+__all__ = ["START_STATES", "Start", "resolve_start"]
