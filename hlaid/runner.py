@@ -173,8 +173,8 @@ def _aftershock(clone, before, cfg: RunConfig, tmp: Path, base_dir) -> dict:
 def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> dict | None:
     """Ensemble IDA and re-occupancy indicator at the measured record; writes ``assessment.json`` and
     ``figures/fragility_band.png``; returns the summary's ``assessment`` block (None: no uncertainty)."""
+    from .ida import assess
     from .motions import GroundMotion
-    from .uncertainty import assess
     if clone.uncertainty is None:
         _progress.warn("no identification uncertainty (refinement off): the ensemble assessment is skipped")
         return None

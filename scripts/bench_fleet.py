@@ -5,7 +5,7 @@ alpha, p, dy, delta_eta drawn around Table 1, 3 m stories), each "recorded" unde
 (a built-in record at a PGA of U(0.3, 0.6) g, 20 s around its peak, 200 Hz, 10 % RMS noise),
 written as NPZ measurements with a fleet config into WORK/. The fleet then runs on the local
 cluster (``--workers``, one thread each) or ``--scheduler``: identification (``--identify``
-settings), then ``hlaid.uncertainty.assess`` (ensemble IDA over the first R FEMA P695 far-field
+settings), then ``hlaid.ida.assess`` (ensemble IDA over the first R FEMA P695 far-field
 components) -- or, where that module is missing, the point-clone fallback (ensemble 0).
 
 Printed: wall time, per-unit cost (identify / assess / total; mean, median, worst), the

@@ -76,7 +76,7 @@ def fleet_dir(tmp_path_factory) -> Path:
 
 
 def fake_assess(clone, records, *, n_ensemble=20, ida_config=None, own_motion=None, seed=0):
-    """A quick stand-in with the contract of hlaid.uncertainty.assess: risk from the clone's k0."""
+    """A quick stand-in with the contract of hlaid.ida.assess: risk from the clone's k0."""
     k = float(clone.building.k0[0])
     return {"collapse_median": k / 1e4, "collapse_median_band": [k / 1.2e4, k / 0.8e4], "own_im": 0.5,
             "p_collapse": round(1e4 / k / 10, 4), "drift_limits": [0.01, 0.02], "p_exceed": [0.5, 0.2],
@@ -150,14 +150,14 @@ def test_three_buildings_on_an_in_process_cluster(fleet_dir, tmp_path):
 
 
 def test_three_buildings_with_the_ensemble(fleet_dir, tmp_path):
-    """With the ensemble: hlaid.uncertainty's assess through the fleet's seam."""
+    """With the ensemble: hlaid.ida.assess through the fleet's seam."""
     cfg = load_fleet_config(fleet_dir / "fleet.yaml")
     cfg = dataclasses.replace(cfg, n_ensemble=2, identify=dataclasses.replace(
         cfg.identify, refine=dataclasses.replace(cfg.identify.refine, method="eiv", max_iterations=10)))
     s = run_fleet(cfg, tmp_path / "out", base_dir=fleet_dir, cache_dir=str(tmp_path / "cache"))
     assert not s.failed, [r["reason"] for r in s.rows]
     for r in _rows(tmp_path / "out"):
-        assert r["engine"] == "hlaid.uncertainty" and r["ensemble"] == "2"
+        assert r["engine"] == "hlaid.ida" and r["ensemble"] == "2"
         assert float(r["collapse_median_band_lo"]) <= float(r["collapse_median"]) <= float(r["collapse_median_band_hi"])
         assert r["indicator"] in ("green", "yellow", "red") and 0 <= float(r["p_collapse"]) <= 1
 
@@ -317,7 +317,7 @@ def test_the_seam_is_hlaid_uncertainty():
     from hlaid.fleet.assess import engine_label
 
     fn, engine = default_assess()
-    assert fn is hlaid.uncertainty.assess and engine == "hlaid.uncertainty"
+    assert fn is hlaid.ida.assess and engine == "hlaid.ida"
     assert engine_label(point_assess) == POINT
 
 

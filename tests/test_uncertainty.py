@@ -206,7 +206,7 @@ def test_ensemble_size_out_of_bounds(n):
 
 
 def test_clone_without_uncertainty_is_refused():
-    from hlaid.uncertainty import assess
+    from hlaid.ida import assess
 
     plain = Clone(building=_building())
     with pytest.raises(InputError, match="this clone has no uncertainty"):
@@ -242,8 +242,7 @@ def _motions(n=4, seconds=6.0, dt=0.01, seed=0):
 
 @pytest.fixture(scope="module")
 def small_assessment():
-    from hlaid.ida import IDAConfig
-    from hlaid.uncertainty import assess
+    from hlaid.ida import IDAConfig, assess
 
     c = _uncertain_clone()
     cfg = IDAConfig(n_levels=4, max_hunt=8, max_fill=3, tolerance=0.1, max_step=0.005)
@@ -273,7 +272,7 @@ def test_assess_gives_a_consistent_band_and_indicator(small_assessment):
 
 
 def test_assess_reproducible_and_indicator_follows_intensity(small_assessment):
-    from hlaid.uncertainty import assess
+    from hlaid.ida import assess
 
     c, cfg, own, a = small_assessment
     weak = own.scaled(0.01 / max(a.own_im, 1e-9))  # Sa(T1) = 0.01 g: elastic, nothing happens
@@ -290,7 +289,7 @@ def test_assess_reproducible_and_indicator_follows_intensity(small_assessment):
     ({"own_motion": "elcentro"}, "own_motion must be a GroundMotion"), ({"ida_config": {}}, "ida_config must be"),
 ])
 def test_assess_bad_input(kw, message):
-    from hlaid.uncertainty import assess
+    from hlaid.ida import assess
 
     with pytest.raises(InputError, match=message):
         assess(_uncertain_clone(), _motions(2), **kw)
@@ -299,7 +298,7 @@ def test_assess_bad_input(kw, message):
 def test_inconsistent_fit_is_never_green(small_assessment):
     import dataclasses
 
-    from hlaid.uncertainty import assess
+    from hlaid.ida import assess
 
     c, cfg, own, a = small_assessment
     weak = own.scaled(0.01 / max(a.own_im, 1e-9))

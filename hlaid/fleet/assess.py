@@ -1,13 +1,13 @@
 """The one seam between the fleet and the risk assessment of a clone.
 
-:func:`assess_clone` calls ``hlaid.uncertainty.assess`` (an ensemble of clones, IDA over the
+:func:`assess_clone` calls ``hlaid.ida.assess`` (an ensemble of clones, IDA over the
 ensemble, the collapse fragility with its band, the probabilities at the building's own
 intensity and the re-occupancy indicator). With ``n_ensemble: 0`` the fleet uses
 :func:`point_assess` instead: an IDA of the identified (point) clone alone, labelled
 ``ensemble: 0`` in every result, whose band is the bootstrap interval over records (record-to-
 record variability only, no identification uncertainty).
 
-The contract of an assess function (``hlaid.uncertainty.assess`` and the fakes of the tests)::
+The contract of an assess function (``hlaid.ida.assess`` and the fakes of the tests)::
 
     assess(clone, records, *, n_ensemble=20, ida_config=None, own_motion=None, seed=0) -> Assessment
 
@@ -32,12 +32,12 @@ from ..uncertainty.config import PLACARDS
 POINT = "point clone (n_ensemble: 0)"
 """The ``engine`` entry of a result computed by :func:`point_assess` on request (``n_ensemble: 0``)."""
 
-ENGINE = "hlaid.uncertainty"
+ENGINE = "hlaid.ida"
 
 
 def default_assess() -> tuple[Callable, str]:
-    """``(assess function, engine name)``: ``hlaid.uncertainty.assess`` (imported when needed)."""
-    from ..uncertainty import assess
+    """``(assess function, engine name)``: ``hlaid.ida.assess`` (imported when needed)."""
+    from ..ida import assess
     return assess, ENGINE
 
 

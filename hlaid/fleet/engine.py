@@ -170,7 +170,7 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
         (``cfg.cluster``); ``client``: an already connected ``dask.distributed.Client`` instead
     force : recompute units whose stored result came from other inputs
     assess : an assess function (contract: :mod:`hlaid.fleet.assess`); None:
-        ``hlaid.uncertainty.assess`` (``n_ensemble: 0``: :func:`~hlaid.fleet.assess.point_assess`)
+        ``hlaid.ida.assess`` (``n_ensemble: 0``: :func:`~hlaid.fleet.assess.point_assess`)
     cache_dir : classifier cache of the identifications (None: hlaid's default)
     """
     t0 = time.perf_counter()

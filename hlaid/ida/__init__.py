@@ -4,7 +4,10 @@
 of the simulator, finds each record's collapse intensity (drift limit, IDA slope, or
 divergence; hunt-and-fill refinement) and returns an :class:`IDAResult` with fractile
 curves, lognormal collapse fragility (maximum likelihood, Baker 2015) and drift-limit
-exceedance. Method and verification: ``docs/ida.md``. Names are imported on first use:
+exceedance. :func:`assess` runs it over an ensemble of clones drawn from the identification
+uncertainty: the fragility band, the probabilities at the building's own record and a
+re-occupancy indicator (``docs/uncertainty.md``). Method and verification: ``docs/ida.md``. Names
+are imported on first use:
 :mod:`hlaid.ida.config` (the schema) loads without scipy or torch.
 """
 
@@ -16,6 +19,7 @@ from .._lazy import lazy_exports
 
 if TYPE_CHECKING:
     from .analysis import ida_from_config, run_ida, scan_collapse
+    from .assessment import Assessment, ReoccupancyThresholds, assess
     from .config import IDAConfig, load_ida_config
     from .fragility import (
         LognormalFragility,
@@ -30,6 +34,7 @@ if TYPE_CHECKING:
 
 _WHERE = {
     ".analysis": ("run_ida", "ida_from_config", "scan_collapse"),
+    ".assessment": ("Assessment", "ReoccupancyThresholds", "assess"),
     ".config": ("IDAConfig", "load_ida_config"),
     ".fragility": ("LognormalFragility", "fit_capacities", "fit_counts", "fragility_from_capacities",
                    "fragility_from_exceedance"),
@@ -38,7 +43,8 @@ _WHERE = {
     ".results": ("IDAResult",),
 }
 
-__all__ = ["INTENSITY_MEASURES", "IDAConfig", "IDAResult", "IntensityMeasure", "LognormalFragility", "fit_capacities",
+__all__ = ["Assessment", "ReoccupancyThresholds", "assess",
+           "INTENSITY_MEASURES", "IDAConfig", "IDAResult", "IntensityMeasure", "LognormalFragility", "fit_capacities",
            "fit_counts", "fragility_from_capacities", "fragility_from_exceedance", "get_intensity_measure", "run_ida",
            "ida_from_config", "intensity", "load_ida_config", "prepare_building", "response_spectrum", "scan_collapse"]
 

@@ -20,7 +20,7 @@ its size is not given (assessment, prediction band, loss demands, fleet)."""
 
 @dataclass(frozen=True, kw_only=True)
 class AssessConfig:
-    """The ``assess:`` block of a run config (``hlaid run``, ``hlaid demo``): :func:`hlaid.uncertainty.assess`
+    """The ``assess:`` block of a run config (``hlaid run``, ``hlaid demo``): :func:`hlaid.ida.assess`
     settings.
 
     n_ensemble : clones drawn from the identification uncertainty, each given a full IDA

@@ -37,8 +37,8 @@ from scipy.special import ndtr
 
 from .. import _progress
 from ..errors import InputError
-from .config import N_ENSEMBLE, PLACARDS
-from .ensemble import check_ensemble_size, check_uncertain_clone, clone_ensemble
+from ..uncertainty.config import N_ENSEMBLE, PLACARDS
+from ..uncertainty.ensemble import check_ensemble_size, check_uncertain_clone, clone_ensemble
 
 COLOURS = ("green", "yellow", "red")
 
@@ -165,7 +165,7 @@ class Assessment:
 
 
 def _member_fit(res, idx=None) -> tuple[float, float]:
-    from ..ida import fit_capacities
+    from .fragility import fit_capacities
 
     c = res.collapse_im if idx is None else res.collapse_im[idx]
     cens = res.censored_im if idx is None else res.censored_im[idx]
@@ -201,9 +201,9 @@ def assess(clone, records, *, n_ensemble: int = N_ENSEMBLE, ida_config=None, own
     -------
     Assessment
     """
-    from ..ida import get_intensity_measure, prepare_building
-    from ..ida.measures import period_for
     from ..io.records import as_motions
+    from .measures import get_intensity_measure, period_for
+    from .prepare import prepare_building
 
     t0 = time.perf_counter()
     cfg, n_ensemble = _checked(clone, ida_config, own_motion, n_ensemble, n_boot, ci)
@@ -239,8 +239,8 @@ def assess(clone, records, *, n_ensemble: int = N_ENSEMBLE, ida_config=None, own
 
 def _checked(clone, ida_config, own_motion, n_ensemble, n_boot, ci):
     """The IDA config (default: 10 levels) and ensemble size of :func:`assess`, its arguments checked."""
-    from ..ida import IDAConfig
     from ..motions import GroundMotion
+    from .config import IDAConfig
 
     check_uncertain_clone(clone)
     n_ensemble = check_ensemble_size(n_ensemble, "n_ensemble")
@@ -259,7 +259,7 @@ def _checked(clone, ida_config, own_motion, n_ensemble, n_boot, ci):
 
 def _ensemble_idas(clone, members, cfg, motions) -> list:
     """The IDA of every member of the ensemble."""
-    from ..ida import ida_from_config
+    from .analysis import ida_from_config
 
     return [ida_from_config(clone.member(b), cfg, motions) for b in _progress.progress(members, desc="ensemble IDA")]
 
@@ -307,8 +307,9 @@ def _at_own_motion(clone, members, results, band: _FragilityBand, own_motion, me
                    thr: ReoccupancyThresholds) -> dict:
     """The :class:`Assessment` fields at the experienced record: P(collapse) and drift-limit
     exceedance with their bands, the members' replays and the re-occupancy indicator."""
-    from ..ida import intensity, prepare_building
     from ..simulate import simulate_response
+    from .measures import intensity
+    from .prepare import prepare_building
 
     q, fits, ok = band.q, band.fits, band.ok
     own_im = float(intensity(own_motion, measure.name, period=None if not measure.needs_period else period)[0])
