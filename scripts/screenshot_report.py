@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hlaid.report import _FIGURES, embedded_figures, screenshot
+from hlaid.run.report import _FIGURES, embedded_figures, screenshot
 
 
 def main(argv=None) -> int:

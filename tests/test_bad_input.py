@@ -444,7 +444,7 @@ _PNG = b"\x89PNG\r\n\x1a\n" + bytes(64)
 
 def _run_folder(path: Path) -> Path:
     """A minimal run folder as hlaid run writes it (summary.json and its figures)."""
-    from hlaid.report import _FIGURES
+    from hlaid.run.report import _FIGURES
     frag = {"median_g": 1.1, "beta": 0.4, "median_ci_g": [0.9, 1.3], "beta_ci": [0.3, 0.5], "n_records": 3,
             "n_censored": 0, "ci": 0.9}
     rows = [{"parameter": p, "story": 1, "identified": 1.0, "true": 1.02, "error": 0.02}
@@ -466,7 +466,7 @@ def _run_folder(path: Path) -> Path:
 
 
 def test_report_of_a_valid_folder(tmp_path, capsys):
-    from hlaid.report import embedded_figures
+    from hlaid.run.report import embedded_figures
     run = _run_folder(tmp_path / "run")
     assert main(["report", str(run)]) == 0
     assert len(embedded_figures(run / "report.html")) == 6
@@ -508,7 +508,7 @@ def test_tampered_summary_is_status_2(tmp_path, capsys, path, value, expect):
 def test_any_wrong_type_in_summary_is_an_input_error(tmp_path):
     """Every field, replaced by a value of each other JSON type, is reported or shown: never a crash."""
     from hlaid.errors import InputError
-    from hlaid.report import build_report
+    from hlaid.run.report import build_report
     run = _run_folder(tmp_path / "run")
     good = json.loads((run / "summary.json").read_text())
 

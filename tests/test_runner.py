@@ -15,8 +15,9 @@ from conftest import requires
 
 from hlaid.clone import load_clone
 from hlaid.errors import InputError
-from hlaid.report import _ASSESS_FIGURE, _FIGURES, build_report, embedded_figures, screenshot
-from hlaid.runner import load_run_config, run_pipeline
+from hlaid.run.config import load_run_config
+from hlaid.run.report import _ASSESS_FIGURE, _FIGURES, build_report, embedded_figures, screenshot
+from hlaid.run.runner import run_pipeline
 
 CONFIG = """
 name: small run

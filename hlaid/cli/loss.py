@@ -101,7 +101,8 @@ def run_demands(args) -> int:
 
 
 def run_loss(args) -> int:
-    from ..loss import LossConfig, loss_of_demand_file, loss_of_run
+    from ..loss import LossConfig, loss_of_demand_file
+    from ..run.loss import loss_of_run
 
     src = Path(args.source)
     levels = [] if args.no_curve else (_numbers(" ".join(args.levels), "--levels") if args.levels else None)

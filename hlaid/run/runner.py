@@ -20,20 +20,20 @@ from typing import Any, cast
 
 import numpy as np
 
-from . import _progress
-from ._fileio import atomic_directory, write_json
-from ._inputs import read_json
-from ._version import __version__
-from .config import config_to_dict
-from .errors import InputError
-from .identify import identify_clone
-from .identify.replaycheck import corrcoef
-from .io import read
-from .measurement import Measurement, check_band
-from .model import Building
-from .plots import plot_time_histories, save_figure
-from .runconfig import MeasurementSource, RunConfig, input_paths, load_run_config
-from .synthetic import measurement_from_config
+from .. import _progress
+from .._fileio import atomic_directory, write_json
+from .._inputs import read_json
+from .._version import __version__
+from ..config import config_to_dict
+from ..errors import InputError
+from ..identify import identify_clone
+from ..identify.replaycheck import corrcoef
+from ..io import read
+from ..measurement import Measurement, check_band
+from ..model import Building
+from ..plots import plot_time_histories, save_figure
+from ..synthetic import measurement_from_config
+from .config import MeasurementSource, RunConfig, input_paths, load_run_config
 
 PARAMS = ("alpha", "p", "delta_eta", "dy", "k0")
 
@@ -85,12 +85,12 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
     """Run the pipeline and write everything under ``out``; returns the run summary. An existing
     ``out`` is replaced only with ``force``, when hlaid wrote it and it holds none of ``inputs``
     (the run's own input files are added to them)."""
-    from .hla.plots import plot_loops, plot_stiffness
+    from ..hla.plots import plot_loops, plot_stiffness
     from .report import build_report
     t_all = time.perf_counter()
     timings = {}
     if cfg.loss is not None:  # fail before the pipeline when pelicun is missing
-        from .loss.fema_p58 import require_pelicun
+        from ..loss.fema_p58 import require_pelicun
         require_pelicun()
     inputs = [*inputs, *input_paths(cfg, base_dir), cache_dir]
     with atomic_directory(out, force=force, inputs=inputs) as tmp:
@@ -124,7 +124,7 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
         if cfg.ida is not None:
             t = time.perf_counter()
             _progress.info("[4/4] incremental dynamic analysis of the clone")
-            from .ida import ida_from_config
+            from ..ida import ida_from_config
             ir = ida_from_config(res.clone, cfg.ida, base_dir=base_dir)
             ir.save(tmp / "ida", plots=True, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
             ida_summary = read_json(tmp / "ida" / "summary.json")
@@ -160,8 +160,8 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
 def _aftershock(clone, before, cfg: RunConfig, tmp: Path, base_dir) -> dict:
     """The IDA of the clone from the state its event left it in (``ida-after/``) and the figure of
     the fragility before and after; returns the summary's ``ida_after`` block."""
-    from .ida import ida_from_config
-    from .ida.plots import plot_fragility_before_after
+    from ..ida import ida_from_config
+    from ..ida.plots import plot_fragility_before_after
     assert cfg.ida is not None
     _progress.info("[4/4] incremental dynamic analysis from the state the event left the clone in")
     after = ida_from_config(clone, cfg.ida.replace(start="carried"), base_dir=base_dir)
@@ -173,8 +173,8 @@ def _aftershock(clone, before, cfg: RunConfig, tmp: Path, base_dir) -> dict:
 def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> dict | None:
     """Ensemble IDA and re-occupancy indicator at the measured record; writes ``assessment.json`` and
     ``figures/fragility_band.png``; returns the summary's ``assessment`` block (None: no uncertainty)."""
-    from .motions import GroundMotion
-    from .uncertainty import assess
+    from ..motions import GroundMotion
+    from ..uncertainty import assess
     if clone.uncertainty is None:
         _progress.warn("no identification uncertainty (refinement off): the ensemble assessment is skipped")
         return None
@@ -202,8 +202,9 @@ def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> di
 
 def _loss(clone, meas: Measurement, cfg: RunConfig, tmp: Path, ida_summary, assessment, base_dir) -> dict:
     """FEMA P-58 losses at the measured record and the IDA stripes (``loss/``); the summary's ``loss`` block."""
-    from .loss.assess import assess_losses, run_block, run_collapse
-    from .motions import GroundMotion
+    from ..loss.assess import assess_losses
+    from ..motions import GroundMotion
+    from .loss import run_block, run_collapse
     a, ida_cfg, lc = cfg.assess, cfg.ida, cfg.loss
     if ida_cfg is None or lc is None:  # load_run_config allows a loss block only with an ida block
         raise InputError("the loss block needs an ida block")
@@ -219,8 +220,8 @@ def _loss(clone, meas: Measurement, cfg: RunConfig, tmp: Path, ida_summary, asse
 
 
 def _replay_figure(meas: Measurement, res):
-    from .hla.analysis import floor_motion
-    from .signal import bandpass
+    from ..hla.analysis import floor_motion
+    from ..signal import bandpass
     _, _, _, disp = floor_motion(meas, res.hla.config)
     rep = bandpass(res.replay.disp, meas.dt, res.hla.band_hz)
     series, labels = [disp, rep], ["measured (integrated)", "clone (replayed)"]

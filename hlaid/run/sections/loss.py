@@ -1,4 +1,4 @@
-"""The losses' section of ``report.html`` (:func:`hlaid.report.build_report` embeds it). It lives beside
+"""The losses' section of ``report.html`` (:func:`hlaid.run.report.build_report` embeds it). It lives beside
 the report, not in :mod:`hlaid.loss`, whose run-folder step rebuilds the report (no import cycle)."""
 
 from __future__ import annotations

@@ -17,9 +17,9 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from ._fileio import atomic_write
-from ._inputs import read_bytes, read_json, read_text
-from .errors import InputError, kind_of
+from .._fileio import atomic_write
+from .._inputs import read_bytes, read_json, read_text
+from ..errors import InputError, kind_of
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;\
@@ -247,14 +247,14 @@ def build_report(run_dir: str | os.PathLike) -> Path:
     if s.get("ida"):
         parts.append("<h2>Incremental dynamic analysis</h2>" + _ida_block(s["ida"]))
     if s.get("ida") and s.get("ida_after"):
-        from .report_aftershock import aftershock_section
+        from .sections.aftershock import aftershock_section
         parts.append(aftershock_section(s["ida"], s["ida_after"], _img(d / "figures" / "aftershock.png", src)))
     if s.get("assessment"):
         parts.append("<h2>Collapse risk with identification uncertainty</h2>" + _assess_block(s["assessment"]))
         p = d / _ASSESS_FIGURE[0]
         parts.append(f"<figure>{_img(p, src)}<figcaption>{e(_ASSESS_FIGURE[1])}</figcaption></figure>")
     if s.get("loss"):
-        from .report_loss import LOSS_FIGURES, loss_html
+        from .sections.loss import LOSS_FIGURES, loss_html
         parts.append("<h2>Losses (FEMA P-58 through pelicun)</h2>" + loss_html(s["loss"]))
         for rel, cap in LOSS_FIGURES:
             if (d / rel).exists():
