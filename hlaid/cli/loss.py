@@ -102,7 +102,6 @@ def run_demands(args) -> int:
 
 def run_loss(args) -> int:
     from ..loss import LossConfig, loss_of_demand_file
-    from ..run.loss import loss_of_run
 
     src = Path(args.source)
     levels = [] if args.no_curve else (_numbers(" ".join(args.levels), "--levels") if args.levels else None)
@@ -122,27 +121,14 @@ def run_loss(args) -> int:
         return 0
     if collapse is not None:
         raise InputError("--collapse-median/--collapse-beta are for a demand CSV; a run folder has its own fragility")
-    base = _run_loss_config(src)
-    block = loss_of_run(src, base.replace(**over), records=args.records, force=args.force)
+    from ..run.loss import loss_of_run
+
+    block = loss_of_run(src, changes=over, records=args.records, force=args.force)
     if block["recorded"]:
         _report(block["recorded"], src / "loss")
     if block["stripes"]:
         _progress.info(f"loss curve at {len(block['stripes'])} intensities: {src / 'loss' / 'loss_curve.csv'}")
     return 0
-
-
-def _run_loss_config(run_dir: Path):
-    """The run config's loss block (defaults when it has none)."""
-    from .._inputs import read_json
-    from ..config import config_from_dict
-    from ..loss import LossConfig
-
-    try:
-        conf = read_json(run_dir / "summary.json").get("config") or {}
-    except (InputError, AttributeError):
-        return LossConfig()  # loss_of_run says what is wrong with the folder
-    return config_from_dict(LossConfig, conf["loss"], f"{run_dir}/summary.json: config.loss") if conf.get("loss") \
-        else LossConfig()
 
 
 def _report(s: dict, out) -> None:

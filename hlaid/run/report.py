@@ -1,9 +1,11 @@
 """``report.html``: a self-contained page (images embedded) built from a run folder.
 
-``hlaid report RUN_DIR`` rebuilds it from the saved results: ``summary.json``,
-``figures/*.png``, ``ida/*.png`` and ``ida/summary.json``. The fields it reads are checked
-first (:data:`_SUMMARY`), and a figure the run wrote must still be there: a tampered summary or a
-missing figure is an :class:`~hlaid.errors.InputError` naming the field or file.
+``hlaid report RUN_DIR`` rebuilds it from the saved results: the typed run summary
+(``summary.json``, :class:`~hlaid.run.summary.RunSummary`) and the figures (``figures/*.png``,
+``ida/*.png``, ``loss/*.png``). The summary is checked when it is read and a figure the run wrote
+must still be there: a tampered summary or a missing figure is an :class:`~hlaid.errors.InputError`
+naming the field or file. The page is put together here; each section is a module of
+:mod:`hlaid.run.sections`.
 """
 
 from __future__ import annotations
@@ -18,8 +20,12 @@ import tempfile
 from pathlib import Path
 
 from .._fileio import atomic_write
-from .._inputs import read_bytes, read_json, read_text
-from ..errors import InputError, kind_of
+from .._inputs import read_bytes, read_text
+from ..errors import InputError
+from .sections import aftershock, assessment, ida, identification
+from .sections import loss as loss_section
+from .sections.markup import figure
+from .summary import RunSummary, read_summary
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;\
@@ -33,7 +39,7 @@ figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}figcaption{f
 .kpi b{font-size:1.3em;display:block}
 """
 
-_FIGURES = [
+FIGURES = [
     ("figures/loops.png", "Story restoring force against inter-story drift (HLA), each half cycle in its own colour."),
     ("figures/stiffness.png", "Stiffness evolution: HLA elastic stiffness ke(t) per half cycle against the clone's "
                               "(and the truth when the data were simulated)."),
@@ -43,330 +49,111 @@ _FIGURES = [
     ("ida/fragility.png", "Collapse fragility: lognormal fit by maximum likelihood with its bootstrap band."),
     ("ida/exceedance.png", "Probability of exceeding drift-ratio limits against intensity."),
 ]
-_ASSESS_FIGURE = ("figures/fragility_band.png",
-                  "Collapse fragility over the ensemble of clones drawn from the identification uncertainty: "
-                  "median curve and band (identification and record sampling), the measured record's intensity "
-                  "marked (dashed) with P(collapse) there, coloured by the re-occupancy indicator.")
-_INDICATOR_CSS = {"green": "#1e8e3e", "yellow": "#d4a000", "red": "#c5221f"}
-
+"""The figures of the identification and the IDA (relative path, caption), shown after the parameters."""
 
 _PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
-def _img(path: Path, source: str) -> str:
-    try:
-        raw = read_bytes(path)
-    except InputError as err:
-        raise InputError(f"cannot read figure {path.relative_to(source)} ({err})", source=source) from None
-    if not raw.startswith(_PNG_MAGIC):
-        raise InputError(f"figure {path.relative_to(source)} is not a PNG image", source=source)
-    data = base64.b64encode(raw).decode()
-    return f'<img alt="{html.escape(path.name)}" src="data:image/png;base64,{data}">'
+class Figures:
+    """The PNG figures of a run folder, read to be embedded. ``loss_dir``: where the ``loss/`` figures
+    are when not in the run folder (a loss folder not yet moved into place)."""
+
+    def __init__(self, run_dir: Path, loss_dir: Path | None = None):
+        self.run_dir, self.loss_dir = run_dir, loss_dir
+
+    def path(self, rel: str) -> Path:
+        if self.loss_dir is not None and rel.startswith("loss/"):
+            return self.loss_dir / rel.removeprefix("loss/")
+        return self.run_dir / rel
+
+    def check(self, summary: RunSummary) -> None:
+        """Every figure the run wrote is still there (an InputError naming the first one missing)."""
+        for rel in required_figures(summary):
+            if not self.path(rel).is_file():
+                raise InputError(f"figure {rel} is missing; rerun hlaid run to recreate the folder",
+                                 source=str(self.run_dir))
+
+    def img(self, rel: str) -> str:
+        """The ``<img>`` tag of figure ``rel``, the PNG embedded."""
+        try:
+            raw = read_bytes(self.path(rel))
+        except InputError as err:
+            raise InputError(f"cannot read figure {rel} ({err})", source=str(self.run_dir)) from None
+        if not raw.startswith(_PNG_MAGIC):
+            raise InputError(f"figure {rel} is not a PNG image", source=str(self.run_dir))
+        data = base64.b64encode(raw).decode()
+        return f'<img alt="{html.escape(Path(rel).name)}" src="data:image/png;base64,{data}">'
+
+    def img_if_there(self, rel: str) -> str | None:
+        return self.img(rel) if self.path(rel).exists() else None
 
 
-class _Null:
-    """Schema wrapper: the value may also be null."""
-
-    def __init__(self, spec):
-        self.spec = spec
-
-
-class _Pair:
-    """Schema wrapper: a list of exactly two items."""
-
-    def __init__(self, spec):
-        self.spec = spec
-
-
-_NAMES = {"num": "a number", "int": "an integer", "str": "a string", "bool": "true or false"}
-_FRAG = _Null({"median_g?": _Null("num"), "beta?": _Null("num"), "median_ci_g?": _Null(_Pair(_Null("num"))),
-               "beta_ci?": _Null(_Pair(_Null("num"))), "ci?": _Null("num")})
-_IDA = {"intensity_measure?": {"label?": "any", "name?": "any", "period_s?": _Null("num")},
-        "collapse_criteria?": {"drift_limit?": "num", "slope_ratio?": "num"},
-        "records?": ["any"], "notes?": ["str"],
-        "collapse_fragility?": _Null({"capacities?": _FRAG, "counts?": _FRAG}),
-        "drift_limits?": _Null({"*num": {"fragility?": _FRAG}})}
-_SUMMARY = {"format": "str", "name": "str", "hlaid_version": "str", "n_stories": "int",
-            "mass_normalised?": _Null("bool"), "noise_rms?": _Null("num"),
-            "replay": {"r_measured": ["num"], "r_true?": _Null(["num"]), "stiffness_error": ["num"]},
-            "parameters": [{"parameter": "str", "story": "int", "identified": "num", "true": _Null("num"),
-                            "error": _Null("num")}],
-            "paper_method?": _Null([{"parameter": "str", "story": "int", "identified?": _Null("num"),
-                                     "error?": _Null("num")}]),
-            "outer_iterations": "int", "timings": {"*": "num"}, "ida?": _Null(_IDA), "ida_after?": _Null(_IDA),
-            "assessment?": _Null({"n_ensemble": "int", "n_records": "int", "ci": "num", "im_label": "str",
-                                  "collapse_median": "num", "collapse_median_band": _Pair("num"),
-                                  "own_im": _Null("num"), "p_collapse": _Null("num"),
-                                  "p_collapse_band": _Null(_Pair("num")), "drift_limits": ["num"],
-                                  "p_exceed": ["num"], "indicator": _Null("str"), "placard": _Null("str"),
-                                  "reasons": ["str"], "own_residual_drift_median?": _Null("num"),
-                                  "own_peak_drift_median?": _Null("num")}),
-            "loss?": _Null({"engine": "str", "system": "str", "inventory": "str", "replacement_cost": "num",
-                            "replacement_time": "num", "floor_area_m2": ["num"], "assumptions": ["str"],
-                            "collapse_fragility": {"median_g": _Null("num"), "beta": _Null("num"), "source": "str"},
-                            "irreparable": {"median": "num", "beta": "num"}, "n_ensemble": "int",
-                            "realizations": "int",
-                            "recorded": _Null({"im": "num", "im_label": "str", "repair_cost_median": "num",
-                                               "repair_cost_band": _Pair("num"), "repair_cost_ratio_median": "num",
-                                               "repair_cost_ratio_band": _Pair("num"), "repair_cost_mean": "num",
-                                               "repair_time_parallel_median": "num",
-                                               "repair_time_sequential_median": "num", "p_collapse": "num",
-                                               "p_irreparable": "num", "cost_unit": "str", "n_realizations": "int",
-                                               "n_demand_realisations": "int"}),
-                            "curve": [{"level_g": "num", "repair_cost_ratio_mean": "num", "p_collapse": "num",
-                                       "p_irreparable": "num"}]})}
-"""What :func:`build_report` reads from ``summary.json``: keys ending in ``?`` may be absent, a
-``*`` key stands for every key (``*num``: keys that read as numbers); other keys are ignored."""
-
-
-def _validate(v, spec, path: str, source: str) -> None:
-    """Check a value of summary.json against :data:`_SUMMARY` (an InputError naming the field, never
-    quoting its value)."""
-    def bad(what):
-        raise InputError(f"summary.json: field {path or 'top level'} must be {what}, got {kind_of(v)}", source=source)
-
-    if isinstance(spec, _Null):
-        if v is not None:
-            _validate(v, spec.spec, path, source)
-        return
-    if isinstance(spec, _Pair):
-        if not isinstance(v, list) or len(v) != 2:
-            bad("a list of two values")
-        for i, x in enumerate(v):
-            _validate(x, spec.spec, f"{path}[{i}]", source)
-        return
-    if isinstance(spec, list):
-        if not isinstance(v, list):
-            bad("a list")
-        for i, x in enumerate(v):
-            _validate(x, spec[0], f"{path}[{i}]", source)
-        return
-    if isinstance(spec, dict):
-        if not isinstance(v, dict):
-            bad("a mapping")
-        for key, sub in spec.items():
-            if key.startswith("*"):
-                for k, x in v.items():
-                    if key == "*num":
-                        try:
-                            float(k)
-                        except ValueError:
-                            raise InputError(f"summary.json: field {path} has a key that is not a number",
-                                             source=source) from None
-                    _validate(x, sub, f"{path}.{k}" if path else k, source)
-                continue
-            name = key.rstrip("?")
-            if name not in v:
-                if not key.endswith("?"):
-                    raise InputError(f"summary.json: field {path + '.' if path else ''}{name} is missing",
-                                     source=source)
-                continue
-            _validate(v[name], sub, f"{path}.{name}" if path else name, source)
-        return
-    if spec == "any":
-        return
-    ok = {"num": isinstance(v, (int, float)) and not isinstance(v, bool),
-          "int": isinstance(v, int) and not isinstance(v, bool),
-          "str": isinstance(v, str), "bool": isinstance(v, bool)}[spec]
-    if not ok:
-        bad(_NAMES[spec])
-
-
-def required_figures(summary: dict) -> list[str]:
-    """Figures (relative paths) a run folder must hold: those of :data:`_FIGURES` under
-    ``figures/``, and those under ``ida/`` when the run made an IDA."""
-    out = [rel for rel, _ in _FIGURES if rel.startswith("figures/") or summary.get("ida")]
-    loss = summary.get("loss") or {}
-    out += (["loss/repair_cost.png"] if loss.get("recorded") else []) + (["loss/loss_curve.png"] if loss.get("curve")
-                                                                          else [])
-    out += ["figures/aftershock.png"] if summary.get("ida") and summary.get("ida_after") else []
-    return out + ([_ASSESS_FIGURE[0]] if summary.get("assessment") else [])
-
-
-def _fmt(v, pct=False):
-    if v is None:
-        return "&ndash;"
-    return f"{v:.1%}" if pct else f"{v:.4g}"
+def required_figures(summary: RunSummary) -> list[str]:
+    """Figures (relative paths) a run folder must hold: those of :data:`FIGURES` under ``figures/``,
+    those under ``ida/`` when the run made an IDA, and those of the sections it has."""
+    out = [rel for rel, _ in FIGURES if rel.startswith("figures/") or summary.ida]
+    out += loss_section.required_figures(summary.loss) if summary.loss else []
+    out += [aftershock.FIGURE] if summary.ida and summary.ida_after else []
+    return out + ([assessment.FIGURE] if summary.assessment else [])
 
 
 def build_report(run_dir: str | os.PathLike) -> Path:
     """Write ``run_dir/report.html`` from the results saved there; returns its path."""
     d = Path(run_dir)
-    src = str(d)
-    if not d.is_dir():
-        raise InputError("not found or not a folder; expected a run folder written by hlaid run or hlaid demo"
-                         if not d.exists() else "is not a folder; expected a run folder", source=src)
-    if not os.path.lexists(d / "summary.json"):
-        raise InputError("not an hlaid run folder (no summary.json)", source=src)
-    try:
-        s = read_json(d / "summary.json")
-    except InputError as err:
-        raise InputError(f"not an hlaid run folder ({err})", source=src) from None
-    if not isinstance(s, dict) or s.get("format") != "hlaid-run":
-        raise InputError("summary.json is not an hlaid run summary", source=src)
-    _validate(s, _SUMMARY, "", src)
-    if not s["replay"]["r_measured"]:
-        raise InputError("summary.json: field replay.r_measured is empty", source=src)
-    for rel in required_figures(s):
-        if not (d / rel).is_file():
-            raise InputError(f"figure {rel} is missing; rerun hlaid run to recreate the folder", source=src)
+    summary = read_summary(d)
+    figs = Figures(d)
+    figs.check(summary)
+    text = render_report(summary, figs)
+    return atomic_write(d / "report.html", lambda tmp: tmp.write_text(text))
+
+
+def render_report(s: RunSummary, figs: Figures) -> str:
+    """The page of summary ``s`` with the figures of ``figs`` embedded."""
     e = html.escape
-    parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>{e(s['name'])}</title>"
+    source = (f"<p>Source: <code>{e(str(s.source))}</code>, {s.n_stories} stories"
+              + (", masses unknown: mass-normalised clone" if s.mass_normalised else "")
+              + (f", simulated with {s.noise_rms:.0%} RMS noise" if s.noise_rms else "")
+              + f". hlaid {e(s.hlaid_version)}.</p>")
+    parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>{e(s.name)}</title>"
              f"<style>{_CSS}</style></head><body>",
-             f"<h1>{e(s['name'])}: digital clone and collapse risk</h1>",
-             f"<p>Source: <code>{e(str(s.get('source')))}</code>, {s['n_stories']} stories"
-             + (", masses unknown: mass-normalised clone" if s.get("mass_normalised") else "")
-             + (f", simulated with {s['noise_rms']:.0%} RMS noise" if s.get("noise_rms") else "")
-             + f". hlaid {e(s['hlaid_version'])}.</p>"]
-    rep = s["replay"]
-    r = rep["r_measured"]
-    kpis = [("min R, measured vs replayed", f"{min(r):.3f}")]
-    if rep.get("r_true"):
-        kpis.append(("min R, true vs replayed", f"{min(rep['r_true']):.4f}"))
-    errs = [row["error"] for row in s["parameters"] if row["error"] is not None and row["parameter"] != "k0"]
-    if errs:
-        kpis.append(("parameter error, mean / worst", f"{sum(errs) / len(errs):.1%} / {max(errs):.1%}"))
-    cf = _collapse_fit(s.get("ida"))
-    if cf is not None and cf.get("median_g") is not None:
-        label = s["ida"].get("intensity_measure", {}).get("label", "IM")
-        beta = f" (beta {cf['beta']:.2f})" if cf.get("beta") is not None else ""
-        kpis.append((f"median collapse {label}", f"{cf['median_g']:.3g} g{beta}"))
-    asm = s.get("assessment")
-    if asm and asm.get("indicator") in _INDICATOR_CSS:
-        kpis.append(("re-occupancy indicator", f"<span style='color:{_INDICATOR_CSS[asm['indicator']]}'>"
-                                               f"{e(asm['indicator'].upper())}</span>"))
-    parts.append("<div>" + "".join(f"<span class='kpi'>{e(k)}<b>{v}</b></span>" for k, v in kpis) + "</div>")
-    parts.append("<h2>Identified parameters</h2>")
-    parts.append(_param_table(s))
-    parts.append(f"<p>Outer iterations: {s['outer_iterations']}. Stiffness-evolution error (clone against HLA) per "
-                 f"story: {', '.join(f'{v:.1%}' for v in rep['stiffness_error'])}.</p>")
-    for rel, cap in _FIGURES:
-        p = d / rel
-        if p.exists():
-            parts.append(f"<figure>{_img(p, src)}<figcaption>{e(cap)}</figcaption></figure>")
-    if s.get("ida"):
-        parts.append("<h2>Incremental dynamic analysis</h2>" + _ida_block(s["ida"]))
-    if s.get("ida") and s.get("ida_after"):
-        from .sections.aftershock import aftershock_section
-        parts.append(aftershock_section(s["ida"], s["ida_after"], _img(d / "figures" / "aftershock.png", src)))
-    if s.get("assessment"):
-        parts.append("<h2>Collapse risk with identification uncertainty</h2>" + _assess_block(s["assessment"]))
-        p = d / _ASSESS_FIGURE[0]
-        parts.append(f"<figure>{_img(p, src)}<figcaption>{e(_ASSESS_FIGURE[1])}</figcaption></figure>")
-    if s.get("loss"):
-        from .sections.loss import LOSS_FIGURES, loss_html
-        parts.append("<h2>Losses (FEMA P-58 through pelicun)</h2>" + loss_html(s["loss"]))
-        for rel, cap in LOSS_FIGURES:
-            if (d / rel).exists():
-                parts.append(f"<figure>{_img(d / rel, src)}<figcaption>{e(cap)}</figcaption></figure>")
-    t = s["timings"]
-    parts.append("<h2>Run</h2><p>" + ", ".join(f"{e(k)} {v:.1f} s" for k, v in t.items()) +
+             f"<h1>{e(s.name)}: digital clone and collapse risk</h1>", source,
+             "<div>" + "".join(f"<span class='kpi'>{e(k)}<b>{v}</b></span>" for k, v in _key_figures(s)) + "</div>",
+             identification.section(s)]
+    parts += [figure(figs.img(rel), cap) for rel, cap in FIGURES if figs.path(rel).exists()]
+    if s.ida:
+        parts.append(ida.section(s.ida))
+    if s.ida and s.ida_after:
+        parts.append(aftershock.section(s.ida, s.ida_after, figs.img(aftershock.FIGURE)))
+    if s.assessment:
+        parts.append(assessment.section(s.assessment, figs.img(assessment.FIGURE)))
+    if s.loss:
+        parts.append(loss_section.section(s.loss, figs.img_if_there))
+    parts.append("<h2>Run</h2><p>" + ", ".join(f"{e(k)} {v:.1f} s" for k, v in s.timings.items()) +
                  ". Files: <code>clone.json</code>, <code>parameters.csv</code>, <code>hla/</code>, "
                  "<code>ida/</code>, <code>tensorboard/</code>.</p></body></html>")
-    return atomic_write(d / "report.html", lambda tmp: tmp.write_text("\n".join(parts)))
+    return "\n".join(parts)
 
 
-def _param_table(s: dict) -> str:
-    rows = s["parameters"]
-    paper = {(r["parameter"], r["story"]): r for r in s.get("paper_method") or []}
-    has_truth = any(r["true"] is not None for r in rows)
-    has_iv = any(r.get("lo90") is not None for r in rows)
-    head = "<tr><th class='l'>parameter</th><th>story</th><th>identified</th>"
-    head += "<th>90 % interval</th>" if has_iv else ""
-    head += "<th>true</th><th>error</th>" if has_truth else ""
-    head += "<th>paper method alone</th>" + ("<th>its error</th>" if has_truth else "") + "</tr>"
-    body = []
-    for r in rows:
-        pr = paper.get((r["parameter"], r["story"]), {})
-        cells = [f"<td class='l'>{html.escape(r['parameter'])}</td><td>{r['story']}</td>"
-                 f"<td>{_fmt(r['identified'])}</td>"]
-        if has_iv:
-            lo, hi = r.get("lo90"), r.get("hi90")
-            cells.append("<td>&ndash;</td>" if not isinstance(lo, (int, float)) or not isinstance(hi, (int, float))
-                         else f"<td>{_fmt(lo)} &ndash; {_fmt(hi)}</td>")
-        if has_truth:
-            cls = "ok" if r["error"] is not None and r["error"] <= 0.03 else "bad"
-            cells.append(f"<td>{_fmt(r['true'])}</td><td class='{cls}'>{_fmt(r['error'], True)}</td>")
-        cells.append(f"<td>{_fmt(pr.get('identified'))}</td>")
-        if has_truth:
-            cells.append(f"<td>{_fmt(pr.get('error'), True)}</td>")
-        body.append("<tr>" + "".join(cells) + "</tr>")
-    return "<table>" + head + "".join(body) + "</table>"
-
-
-def _assess_block(a: dict) -> str:
-    """The ensemble assessment: indicator, P(collapse) and drift exceedance at the measured record."""
-    e = html.escape
-    lo, hi = a["collapse_median_band"]
-    ci = f"{a['ci']:.0%}"
-    out = [f"<p>IDA of {a['n_ensemble']} clones drawn from the identification uncertainty over {a['n_records']} "
-           f"records. Median collapse {e(a['im_label'])}: <b>{a['collapse_median']:.3g} g</b> ({ci} band "
-           f"{lo:.3g} &ndash; {hi:.3g} g).</p>"]
-    if a.get("own_im") is not None and a.get("indicator") in _INDICATOR_CSS:
-        colour = _INDICATOR_CSS[a["indicator"]]
-        plo, phi = a["p_collapse_band"]
-        out.append(f"<p style='font-size:1.15em'><span style='display:inline-block;padding:.3em .8em;border-radius:5px;"
-                   f"background:{colour};color:white;font-weight:bold'>{e(a['indicator'].upper())}</span> "
-                   f"{e(a.get('placard') or '')}</p>")
-        rows = [f"<tr><td class='l'>collapse</td><td>{_fmt(a['p_collapse'], True)}</td>"
-                f"<td>{_fmt(plo, True)} &ndash; {_fmt(phi, True)}</td></tr>"]
-        for lim, p, band in zip(a["drift_limits"], a["p_exceed"], a.get("p_exceed_band") or []):
-            rows.append(f"<tr><td class='l'>peak drift ratio &gt; {lim:.1%}</td><td>{_fmt(p, True)}</td>"
-                        f"<td>{_fmt(band[0], True)} &ndash; {_fmt(band[1], True)}</td></tr>")
-        out.append(f"<p>At the measured record's intensity, {e(a['im_label'])} = {a['own_im']:.3g} g:</p>"
-                   f"<table><tr><th class='l'>event</th><th>probability</th><th>{ci} band</th></tr>"
-                   + "".join(rows) + "</table>")
-        if a.get("own_residual_drift_median") is not None:
-            out.append(f"<p>The clones under the measured record: median peak drift ratio "
-                       f"{_fmt(a.get('own_peak_drift_median'), True)}, residual "
-                       f"{_fmt(a['own_residual_drift_median'], True)}."
-                       "</p>")
-        out.append("<ul>" + "".join(f"<li>{e(r)}</li>" for r in a["reasons"]) + "</ul>")
-        out.append("<p>Indicator (assumptions, docs/uncertainty.md): the worse of P(collapse) at the experienced "
-                   "intensity (red &ge; 10 %, ASCE 7-16's target at MCE<sub>R</sub>; yellow &ge; 2 %) and the residual "
-                   "drift ratio (red &ge; 1 %, yellow &ge; 0.5 %: FEMA P-58 residual-drift damage states DS3, DS2), "
-                   "each at the upper end of the ensemble; placards after ATC-20. The clones are undamaged at the "
-                   "start of each IDA.</p>")
-    return "".join(out)
-
-
-def _collapse_fit(ida: dict | None) -> dict | None:
-    """The collapse fragility fit (collapse capacities, else counts), or None."""
-    cf = (ida or {}).get("collapse_fragility") or {}
-    return cf.get("capacities") or cf.get("counts")
-
-
-def _ida_block(ida: dict) -> str:
-    e = html.escape
-    im = ida.get("intensity_measure", {})
-    crit = ida.get("collapse_criteria", {})
-    period = f" at T1 = {im['period_s']:.3f} s" if im.get("period_s") else ""
-    label = e(str(im.get("label", im.get("name", "?"))))
-    head = (f"<p>Intensity measure {label}{period}; EDP: {e(str(ida.get('edp')))}; "
-            f"collapse when a story's drift ratio exceeds {crit.get('drift_limit', 0):.0%} or the IDA slope falls "
-            f"below {crit.get('slope_ratio', 0):.0%} of the elastic slope; {ida.get('n_runs', '?')} analyses of "
-            f"{len(ida.get('records', []))} records.</p>")
-    rows = []
-    cf = _collapse_fit(ida)
-    if cf is not None:
-        rows.append(("collapse", cf))
-    for lim, d in sorted((ida.get("drift_limits") or {}).items(), key=lambda kv: float(kv[0])):
-        if d.get("fragility"):
-            rows.append((f"drift ratio > {float(lim):.1%}", d["fragility"]))
-    if not rows:
-        return head
-    tab = ["<table><tr><th class='l'>limit state</th><th>median [g]</th><th>median interval [g]</th><th>beta</th>"
-           "<th>beta interval</th><th>records (censored)</th></tr>"]
-    for name, f in rows:
-        mci, bci = f.get("median_ci_g") or [None, None], f.get("beta_ci") or [None, None]
-        tab.append(f"<tr><td class='l'>{e(name)}</td><td>{_fmt(f.get('median_g'))}</td>"
-                   f"<td>{_fmt(mci[0])} &ndash; {_fmt(mci[1])}</td><td>{_fmt(f.get('beta'))}</td>"
-                   f"<td>{_fmt(bci[0])} &ndash; {_fmt(bci[1])}</td>"
-                   f"<td>{f.get('n_records')} ({f.get('n_censored', 0)})</td></tr>")
-    ci = next((f.get("ci") for _, f in rows if f.get("ci")), None)
-    tab.append("</table>" + (f"<p>Intervals: {ci:.0%} bootstrap.</p>" if ci else ""))
-    notes = "".join(f"<li>{e(n)}</li>" for n in ida.get("notes", []))
-    return head + "".join(tab) + (f"<ul>{notes}</ul>" if notes else "")
+def _key_figures(s: RunSummary) -> list[tuple[str, str]]:
+    """The figures at the top of the page: replay correlation, parameter error, median collapse
+    intensity, re-occupancy indicator."""
+    r = s.replay
+    kpis = [("min R, measured vs replayed", f"{min(r.r_measured):.3f}")]
+    if r.r_true:
+        kpis.append(("min R, true vs replayed", f"{min(r.r_true):.4f}"))
+    errs = [row.error for row in s.parameters if row.error is not None and row.parameter != "k0"]
+    if errs:
+        kpis.append(("parameter error, mean / worst", f"{sum(errs) / len(errs):.1%} / {max(errs):.1%}"))
+    cf = s.ida.collapse_fit if s.ida else None
+    if s.ida and cf is not None and cf.median_g is not None:
+        label = s.ida.intensity_measure.label or "IM"
+        beta = f" (beta {cf.beta:.2f})" if cf.beta is not None else ""
+        kpis.append((f"median collapse {label}", f"{cf.median_g:.3g} g{beta}"))
+    a = s.assessment
+    if a and a.indicator in assessment.INDICATOR_CSS:
+        kpis.append(("re-occupancy indicator", f"<span style='color:{assessment.INDICATOR_CSS[a.indicator]}'>"
+                                               f"{html.escape(a.indicator.upper())}</span>"))
+    return kpis
 
 
 _BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
@@ -378,7 +165,7 @@ def embedded_figures(report: str | os.PathLike) -> list[tuple[str, int]]:
     out = []
     for alt, data in re.findall(r'<img alt="([^"]*)" src="data:image/png;base64,([^"]+)">', text):
         raw = base64.b64decode(data)
-        if not raw.startswith(b"\x89PNG\r\n\x1a\n"):
+        if not raw.startswith(_PNG_MAGIC):
             raise InputError(f"figure {alt} is not a PNG", source=str(report))
         out.append((alt, len(raw)))
     return out
