@@ -35,7 +35,9 @@ def register(sub) -> None:
                                      "pelicun (needs hlaid[loss])",
                    example="hlaid loss hlaid-demo --system steel-mrf")
     p.add_argument("source", help="a run folder (hlaid run / hlaid demo), or a demand CSV (hlaid demands) with -o")
-    p.add_argument("-o", "--out", help="output folder (default: RUN_DIR/loss; required for a demand CSV)")
+    p.add_argument("-o", "--out", help="output folder of the losses (required for a demand CSV); for a run folder one "
+                                       "outside it, the run folder left as it is (default: RUN_DIR/loss, with the "
+                                       "run's summary.json and report.html updated, all or nothing)")
     p.add_argument("--system", help="default inventory: steel-mrf or rc-frame (default: the run config's, "
                                     "else steel-mrf)")
     p.add_argument("--inventory", metavar="CSV", help="your component inventory (pelicun's component assignment "
@@ -123,11 +125,12 @@ def run_loss(args) -> int:
         raise InputError("--collapse-median/--collapse-beta are for a demand CSV; a run folder has its own fragility")
     from ..run.loss import loss_of_run
 
-    block = loss_of_run(src, changes=over, records=args.records, force=args.force)
+    block = loss_of_run(src, changes=over, records=args.records, out=args.out, force=args.force)
+    folder = Path(args.out) if args.out else src / "loss"
     if block["recorded"]:
-        _report(block["recorded"], src / "loss")
+        _report(block["recorded"], folder)
     if block["stripes"]:
-        _progress.info(f"loss curve at {len(block['stripes'])} intensities: {src / 'loss' / 'loss_curve.csv'}")
+        _progress.info(f"loss curve at {len(block['stripes'])} intensities: {folder / 'loss_curve.csv'}")
     return 0
 
 

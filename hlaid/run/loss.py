@@ -1,5 +1,10 @@
 """``hlaid loss RUN_DIR``: the losses of a run folder (:func:`loss_of_run`), from its clone, its
 measured record and its collapse fragility, through :func:`hlaid.loss.assess_losses`.
+
+Without an output folder the run folder is updated all or nothing: ``loss/``, the ``loss`` block
+of ``summary.json`` and ``report.html`` are written under temporary names and put in place
+together once all are complete; a failure leaves the run folder as it was. With one (``-o OUT``)
+the run folder is only read: ``OUT`` holds what ``RUN_DIR/loss`` would.
 """
 
 from __future__ import annotations
@@ -12,6 +17,8 @@ from typing import Any
 
 from ..errors import InputError
 from ..loss.config import LossConfig
+from ..loss.fema_p58 import require_pelicun
+from .report import Figures, render_report
 from .summary import Assessment, IDASummary, LossSummary, RunSummary, read_summary
 
 
@@ -44,18 +51,22 @@ def _config(cls, block: Mapping | None, source: str):
 
 
 def loss_of_run(run_dir: str | os.PathLike, cfg: LossConfig | None = None, *, changes: Mapping[str, Any] | None = None,
-                records=None, force: bool = False, base_dir: str | os.PathLike | None = None) -> dict:
-    """``hlaid loss RUN_DIR``: losses of a run folder written into ``RUN_DIR/loss/`` (replaced only with
-    ``force``); its summary becomes the ``loss`` block of ``summary.json`` and ``report.html`` is rebuilt.
+                records=None, out: str | os.PathLike | None = None, force: bool = False,
+                base_dir: str | os.PathLike | None = None) -> dict:
+    """``hlaid loss RUN_DIR [-o OUT]``: the losses of a run folder; returns ``loss.json``'s content.
 
     The clone is ``clone.json``; the recorded event the ground motion of ``measurement.npz``; the
     ensemble and the IDA settings those of the run's config (``assess``, ``ida``); the loss settings
     ``cfg`` (None: the run config's ``loss`` block, else the defaults) with ``changes`` (a
     :class:`LossConfig` field each, None values ignored); the stripes' records ``records`` (None: the
     run's IDA records, relative paths from ``base_dir``).
+
+    ``out`` None: ``RUN_DIR/loss/`` (replaced only with ``force``), the ``loss`` block of
+    ``summary.json`` and ``report.html`` are replaced together, or none of them. ``out`` given: the
+    losses go into that folder (outside the run folder; replaced only with ``force``) and the run
+    folder is not written. Either output is checked before the work.
     """
-    from .._fileio import atomic_directory, write_json
-    from .report import build_report
+    from .._fileio import atomic_directory, atomic_files, check_output_file, check_output_folder, json_text
 
     d = Path(run_dir)
     src = str(d)
@@ -63,11 +74,26 @@ def loss_of_run(run_dir: str | os.PathLike, cfg: LossConfig | None = None, *, ch
     cfg = (cfg or run_loss_config(s, src)).replace(**(changes or {}))
     recs = records if records is not None else _ida_config(s, src).record_specs(
         None if base_dir is None else Path(base_dir))
-    inputs = [cfg.inventory, *_files(recs)]  # --force never replaces a folder holding one of them
-    with atomic_directory(d / "loss", force=force, inputs=inputs) as tmp:
+    inputs = [cfg.inventory, *_files(recs), d / "clone.json", d / "measurement.npz"]
+    if out is not None:
+        _outside(Path(out), d)
+        check_output_folder(out, force=force, inputs=[*inputs, d])
+        require_pelicun()
+        with atomic_directory(out, force=force, inputs=[*inputs, d]) as tmp:
+            return _assess(d, s, cfg, recs, tmp, base_dir)
+    check_output_folder(d / "loss", force=force, inputs=inputs)
+    for name in ("summary.json", "report.html"):
+        check_output_file(d / name, force=True)
+    Figures(d).check(dataclasses.replace(s, loss=None))
+    require_pelicun()
+    with atomic_files() as stage, atomic_directory(d / "loss", force=force, inputs=inputs) as tmp:
         block = _assess(d, s, cfg, recs, tmp, base_dir)
-    write_json(d / "summary.json", dataclasses.replace(s, loss=LossSummary.of_losses(block)).to_dict())
-    build_report(d)
+        new = dataclasses.replace(s, loss=LossSummary.of_losses(block))
+        figs = Figures(d, loss_dir=tmp)
+        figs.check(new)
+        page = render_report(new, figs)
+        stage(d / "summary.json", lambda p: p.write_text(json_text(new.to_dict())))
+        stage(d / "report.html", lambda p: p.write_text(page))
     return block
 
 
@@ -99,6 +125,15 @@ def _ida_config(s: RunSummary, src: str):
     from ..ida.config import IDAConfig
 
     return _config(IDAConfig, s.config.ida, f"{src}/summary.json: config.ida") or IDAConfig()
+
+
+def _outside(out: Path, run_dir: Path) -> None:
+    """Refuse an output folder inside the run folder (``-o`` leaves the run folder as it is)."""
+    o = Path(os.path.abspath(out))
+    o, r = o.parent.resolve() / o.name, run_dir.resolve()  # a link named OUT is replaced, not followed
+    if o == r or r in o.parents:
+        raise InputError(f"is inside the run folder {run_dir}; -o writes the losses elsewhere and leaves the run "
+                         "folder as it is (without -o they go into RUN_DIR/loss and its report)", source=str(out))
 
 
 def _files(records) -> list:
