@@ -12,6 +12,7 @@ from this schema, and this hlaid reads both.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,8 +48,7 @@ class ParameterRow(Block):
         if "lo90" not in d and "hi90" not in d:
             return row
         iv = Interval._read_block(d, where)
-        return cls(parameter=row.parameter, story=row.story, identified=row.identified, true=row.true,
-                   error=row.error, interval=(iv.lo90, iv.hi90))
+        return dataclasses.replace(row, interval=(iv.lo90, iv.hi90))
 
     def to_dict(self) -> dict:
         d = {"parameter": self.parameter, "story": self.story, "identified": self.identified, "true": self.true,
