@@ -39,7 +39,7 @@ _LAZY: dict[str, tuple[str, ...]] = {
     # risk
     ".ida": ("run_ida", "IDAConfig", "IDAResult"),
     # pipeline and errors
-    ".runner": ("run_pipeline", "RunConfig"),
+    ".run": ("run_pipeline", "RunConfig"),
     ".errors": ("InputError", "ConfigError", "NotIdentifiableError"),
 }
 """The public API: module (relative to hlaid) -> the names it gives ``hlaid``."""

@@ -33,8 +33,8 @@ from .model import BuildingTensors as BuildingTensors
 from .model import Damping as Damping
 from .motions import GroundMotion as GroundMotion
 from .motions import builtin_records as builtin_records
-from .runner import RunConfig as RunConfig
-from .runner import run_pipeline as run_pipeline
+from .run import RunConfig as RunConfig
+from .run import run_pipeline as run_pipeline
 from .simulate import SimulationResult as SimulationResult
 from .simulate import replay as replay
 from .simulate import simulate_response as simulate_response

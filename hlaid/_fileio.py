@@ -231,11 +231,48 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], object], *, fo
     return path
 
 
+def json_text(obj) -> str:
+    """``obj`` as the indented JSON text hlaid writes (numpy values as numbers, paths as text)."""
+    return json.dumps(obj, indent=2, default=json_default) + "\n"
+
+
 def write_json(path, obj, *, force: bool = True) -> Path:
     """Atomically write ``obj`` as indented JSON."""
-    def w(tmp: Path):
-        tmp.write_text(json.dumps(obj, indent=2, default=json_default) + "\n")
-    return atomic_write(path, w, force=force)
+    return atomic_write(path, lambda tmp: tmp.write_text(json_text(obj)), force=force)
+
+
+@contextlib.contextmanager
+def atomic_files() -> Iterator[Callable[[str | os.PathLike, Callable[[Path], object]], Path]]:
+    """Replace several files together: ``stage(path, write)`` writes each through ``write(tmp)``
+    under a temporary name beside it; when the block ends without an error every one is renamed
+    into place, on an error (Ctrl-C too) none is and the temporary files are removed. The work
+    that may fail goes inside the block, so a failure leaves every file as it was."""
+    staged: list[tuple[Path, Path]] = []
+
+    def stage(path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
+        path = check_output_file(path, force=True)
+        parent = path.parent if str(path.parent) else Path(".")
+        fd, name = tempfile.mkstemp(prefix=f".{_stem(path.name)}.{os.getpid()}-", suffix=".tmp", dir=parent)
+        os.close(fd)
+        staged.append((Path(name), path))
+        try:
+            write(Path(name))
+            os.chmod(name, _creation_mode())
+        except BaseException as err:
+            full = no_space_error(err, path, parent)
+            if full is not None:
+                raise full from None
+            raise
+        return path
+
+    try:
+        yield stage
+    except BaseException:
+        for tmp, _ in staged:
+            tmp.unlink(missing_ok=True)
+        raise
+    for tmp, path in staged:
+        os.replace(tmp, path)
 
 
 def write_npz(path, arrays: dict, *, force: bool = True) -> Path:

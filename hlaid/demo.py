@@ -5,7 +5,7 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
-from .runconfig import load_run_config
+from .run.config import load_run_config
 
 
 def demo_config():
@@ -16,6 +16,6 @@ def demo_config():
 
 def run_demo(out: str | Path = "hlaid-demo", *, force: bool = False, cache_dir: str | None = None) -> Path:
     """Run the demo and write its outputs under ``out`` (report.html, clone.json, ...)."""
-    from .runner import run_pipeline
+    from .run.runner import run_pipeline
     run_pipeline(demo_config(), out, force=force, cache_dir=cache_dir)
     return Path(out)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hlaid.report import _FIGURES, embedded_figures, screenshot
+from hlaid.run.report import FIGURES, embedded_figures, screenshot
 
 
 def main(argv=None) -> int:
@@ -28,7 +28,7 @@ def main(argv=None) -> int:
     run = Path(args.run_dir)
     report = run / "report.html"
     figs = embedded_figures(report)
-    expected = [Path(rel).name for rel, _ in _FIGURES if (run / rel).exists()]
+    expected = [Path(rel).name for rel, _ in FIGURES if (run / rel).exists()]
     missing = sorted(set(expected) - {alt for alt, _ in figs})
     for alt, n in figs:
         print(f"embedded {alt}: {n / 1024:.0f} KiB")

@@ -27,7 +27,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     run = Path(args.run_dir)
     if args.force or not (run / "loss" / "loss.json").exists():
-        from hlaid.loss import loss_of_run
+        from hlaid.run.loss import loss_of_run
 
         loss_of_run(run, force=args.force)
     block = json.loads((run / "loss" / "loss.json").read_text())

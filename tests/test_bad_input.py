@@ -444,7 +444,7 @@ _PNG = b"\x89PNG\r\n\x1a\n" + bytes(64)
 
 def _run_folder(path: Path) -> Path:
     """A minimal run folder as hlaid run writes it (summary.json and its figures)."""
-    from hlaid.report import _FIGURES
+    from hlaid.run.report import FIGURES
     frag = {"median_g": 1.1, "beta": 0.4, "median_ci_g": [0.9, 1.3], "beta_ci": [0.3, 0.5], "n_records": 3,
             "n_censored": 0, "ci": 0.9}
     rows = [{"parameter": p, "story": 1, "identified": 1.0, "true": 1.02, "error": 0.02}
@@ -459,14 +459,14 @@ def _run_folder(path: Path) -> Path:
                  "drift_limits": {"0.01": {"fragility": frag}}, "notes": ["a note"]}}
     path.mkdir()
     (path / "summary.json").write_text(json.dumps(s))
-    for rel, _ in _FIGURES:
+    for rel, _ in FIGURES:
         (path / rel).parent.mkdir(exist_ok=True)
         (path / rel).write_bytes(_PNG)
     return path
 
 
 def test_report_of_a_valid_folder(tmp_path, capsys):
-    from hlaid.report import embedded_figures
+    from hlaid.run.report import embedded_figures
     run = _run_folder(tmp_path / "run")
     assert main(["report", str(run)]) == 0
     assert len(embedded_figures(run / "report.html")) == 6
@@ -495,6 +495,8 @@ def _set(d, path, value):
     ("ida.drift_limits", {"one percent": {}}, "drift_limits"), ("ida.notes", [1], "notes"),
     ("ida.collapse_criteria.drift_limit", "10%", "drift_limit"), ("ida", [1], "ida"),
     ("paper_method.0.story", "1", "paper_method[0].story"), ("outer_iterations", None, "outer_iterations"),
+    ("version", 3, "version 3 is not supported"), ("config", [], "config"),
+    ("parameters.0.lo90", "wide", "parameters[0].lo90"),
 ])
 def test_tampered_summary_is_status_2(tmp_path, capsys, path, value, expect):
     run = _run_folder(tmp_path / "run")
@@ -508,7 +510,7 @@ def test_tampered_summary_is_status_2(tmp_path, capsys, path, value, expect):
 def test_any_wrong_type_in_summary_is_an_input_error(tmp_path):
     """Every field, replaced by a value of each other JSON type, is reported or shown: never a crash."""
     from hlaid.errors import InputError
-    from hlaid.report import build_report
+    from hlaid.run.report import build_report
     run = _run_folder(tmp_path / "run")
     good = json.loads((run / "summary.json").read_text())
 

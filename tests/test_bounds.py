@@ -36,7 +36,7 @@ from hlaid.limits import DEFAULTS
 from hlaid.model.collapse import CollapseModel
 from hlaid.model.params import Building
 from hlaid.model.schema import Damping
-from hlaid.runconfig import RunConfig
+from hlaid.run.config import RunConfig
 from hlaid.specs import SimulationConfig
 
 HUGE = "HUGE-INTEGER"
@@ -82,7 +82,7 @@ def _register() -> None:
     from hlaid.io.columns import ChannelSpec
     from hlaid.io.station import StationChannel
     from hlaid.loss.config import LossConfig
-    from hlaid.runconfig import MeasurementSource
+    from hlaid.run.config import MeasurementSource
     from hlaid.specs import BuildingSpec, MeasurementSpec, MotionSpec, StorySpec
     from hlaid.uncertainty.config import AssessConfig
     _carry(SimulationConfig, SimulationConfig, _SIMULATE, SIM)

@@ -122,3 +122,16 @@ def test_the_type_stub_declares_the_public_api():
                 declared.setdefault("." + (node.module or ""), set()).add(a.name)
     declared.pop(".typing", None)
     assert declared == {m: set(names) for m, names in hlaid._LAZY.items()}
+
+
+def test_run_package_is_a_plain_module():
+    """``hlaid.run`` loads its names on first use through a module-level ``__getattr__`` (no
+    module subclass); none of its names is a submodule's, and reading a run config or a run
+    summary imports nothing heavy."""
+    code = (f"import pkgutil, sys, types, hlaid.run as r; cfg = r.RunConfig; s = r.RunSummary; "
+            f"light = not any(m in sys.modules for m in {HEAVY!r}); f = r.build_report; "
+            "import hlaid.run.report as rep, hlaid.run.loss as lo; "
+            "subs = {m.name for m in pkgutil.iter_modules(r.__path__)}; "
+            "print(type(r) is types.ModuleType, light, r.report is rep, r.loss is lo, f is rep.build_report, "
+            "not subs & set(r.__all__), set(r.__all__) == set(r._WHERE), 'runner' in subs)")
+    assert _fresh(code).split() == ["True"] * 8

@@ -31,6 +31,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from test_loss import needs_pelicun
 
 from hlaid._fileio import MARKER, atomic_directory, is_hlaid_output, write_json
 from hlaid.cli import main
@@ -194,6 +195,104 @@ def test_force_replaces_an_hlaid_output_or_an_empty_folder(tmp_path):
     assert (tmp_path / "link").is_dir() and not (tmp_path / "link").is_symlink()
     assert tree(target) == before
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+# ----------------------------------------------------------------------------- hlaid loss RUN_DIR
+LOSS = ["--no-curve", "--realizations", "50"]
+"""A small loss assessment: the recorded event alone, 50 realisations."""
+
+
+@pytest.fixture(scope="module")
+def loss_run(tmp_path_factory, table1) -> Path:
+    """A run folder ``hlaid loss`` can assess: the summary and figures of a run with an IDA (collapse
+    median 1.1 g, beta 0.4), the clone and the measurement of its event."""
+    from conftest import paper_record, window
+    from test_bad_input import _run_folder
+
+    from hlaid.synthetic import simulate_measurement
+    run = _run_folder(tmp_path_factory.mktemp("loss") / "run")
+    building = table1.replace(height=HEIGHTS)
+    Clone(building=building).save(run / "clone.json")
+    gm = window(paper_record("kocaeli-1999-dzc180"), 8.0)
+    simulate_measurement(building, gm, noise_rms=0.05, seed=0).save(run / "measurement.npz")
+    return run
+
+
+def _copy_run(loss_run: Path, tmp_path: Path) -> Path:
+    import shutil
+    return Path(shutil.copytree(loss_run, tmp_path / "run"))
+
+
+def test_loss_output_names_are_checked_before_the_work(loss_run, tmp_path, capsys):
+    """A 300-byte ``-o``, one inside the run folder (or the run folder itself), a taken folder:
+    refused (one line, exit 2) before any loss is computed, nothing touched."""
+    run = _copy_run(loss_run, tmp_path)
+    refused(capsys, ["loss", run, "-o", tmp_path / ("n" * 300), *LOSS], ["bytes long"], root=tmp_path, within=60)
+    for out in (run / "loss2", run, run / "figures"):
+        refused(capsys, ["loss", run, "-o", out, *LOSS, "--force"], ["inside the run folder"], root=tmp_path,
+                within=60)
+    (tmp_path / "taken").mkdir()
+    (tmp_path / "taken" / "thesis.txt").write_text("four years")
+    refused(capsys, ["loss", run, "-o", tmp_path / "taken", *LOSS], ["--force"], root=tmp_path, within=60)
+    refused(capsys, ["loss", run, "-o", tmp_path, *LOSS, "--force"], ["an input of this run"], root=tmp_path,
+            within=60)
+
+
+def test_loss_with_a_figure_missing_is_refused_before_the_work(loss_run, tmp_path, capsys):
+    """The run folder's report could not be rebuilt: refused before the losses are computed, and
+    the run folder left exactly as it was (no loss/, no loss block)."""
+    run = _copy_run(loss_run, tmp_path)
+    (run / "figures" / "replay.png").unlink()
+    refused(capsys, ["loss", run, *LOSS], ["figures/replay.png is missing"], root=tmp_path, within=60)
+
+
+@needs_pelicun
+def test_loss_with_an_output_folder_leaves_the_run_folder_alone(loss_run, tmp_path, capsys):
+    """``hlaid loss RUN_DIR -o OUT`` writes the losses into OUT and nothing else: the run folder
+    (summary.json, report.html, no loss/) and everything beside OUT keep their hashes."""
+    run = _copy_run(loss_run, tmp_path)
+    out = tmp_path / "out"
+    before = tree(tmp_path)
+    rc, err = main([str(a) for a in ["loss", run, "-o", out, *LOSS]]), capsys.readouterr().err
+    assert rc == 0 and f"wrote {out}/" in err, err
+    assert tree(tmp_path, skip=(out,)) == before
+    loss = json.loads((out / "loss.json").read_text())
+    assert loss["collapse_fragility"] == {"median_g": 1.1, "beta": 0.4, "source": "IDA of the identified clone, "
+                                                                                  "3 records"}
+    assert loss["recorded"]["n_realizations"] == 50 and loss["stripes"] == [] and loss["n_ensemble"] == 0
+    assert (out / "repair_cost.png").is_file() and (out / "recorded" / "demands.csv").is_file()
+    assert is_hlaid_output(out)
+    before = tree(tmp_path)  # a second time: the output exists, replaced only with --force
+    refused(capsys, ["loss", run, "-o", out, *LOSS], ["--force"], root=tmp_path, within=60)
+    assert main([str(a) for a in ["loss", run, "-o", out, *LOSS, "--force"]]) == 0
+    assert tree(tmp_path, skip=(out,)) == {k: v for k, v in before.items() if not k.startswith("out")}
+
+
+@needs_pelicun
+def test_loss_updates_the_run_folder_all_or_nothing(loss_run, tmp_path, capsys):
+    """Without -o: loss/, the loss block of summary.json and report.html are written together; a
+    failure after the work (a figure of the run that is not a PNG, found when the report is
+    rebuilt) leaves the run folder exactly as it was."""
+    run = _copy_run(loss_run, tmp_path)
+    png = (run / "figures" / "loops.png").read_bytes()
+    (run / "figures" / "loops.png").write_text("not an image")
+    refused(capsys, ["loss", run, *LOSS, "-q"], ["figures/loops.png is not a PNG"], root=tmp_path, within=300)
+    (run / "figures" / "loops.png").write_bytes(png)
+    written = ("loss", "summary.json", "report.html")
+    before = tree(tmp_path, skip=tuple(run / n for n in written))
+    old = json.loads((run / "summary.json").read_text())
+    rc, err = main([str(a) for a in ["loss", run, *LOSS]]), capsys.readouterr().err
+    assert rc == 0 and f"wrote {run / 'loss'}/" in err, err
+    assert tree(tmp_path, skip=tuple(run / n for n in written)) == before
+    new = json.loads((run / "summary.json").read_text())
+    loss = json.loads((run / "loss" / "loss.json").read_text())
+    assert new["version"] == 2 and new["loss"]["recorded"] == loss["recorded"] and new["loss"]["curve"] == []
+    assert {k: new[k] for k in old if k != "version"} == {k: v for k, v in old.items() if k != "version"}
+    assert {k: v for k, v in new.items() if k not in old} == {"ida_after": None, "assessment": None,
+                                                              "loss": new["loss"]}
+    page = (run / "report.html").read_text()
+    assert "Losses (FEMA P-58 through pelicun)" in page and 'alt="repair_cost.png"' in page
+    assert [p.name for p in run.iterdir() if p.name.startswith(".")] == []
 
 
 # ----------------------------------------------------------------------------- regular files, sizes
@@ -573,6 +672,8 @@ def test_bad_inputs_are_refused_before_heavy_imports(tmp_path, table1):
     _lying_npz(tmp_path / "tiny.npz", dt=(), ground_acc=(10**10,), floor_acc=(10, 1))
     (tmp_path / "taken").mkdir()
     (tmp_path / "taken" / "keep.txt").write_text("x")
+    from test_bad_input import _run_folder
+    _run_folder(tmp_path / "run")
     t = str(tmp_path)
     cases = [["hla", f"{t}/tiny.npz", "-o", f"{t}/o", "--config", f"{t}/h.yaml"],
              ["ida", f"{t}/c.json", "-o", f"{t}/o", "--config", f"{t}/i.yaml"],
@@ -585,6 +686,8 @@ def test_bad_inputs_are_refused_before_heavy_imports(tmp_path, table1):
              ["hla", f"{t}/tiny.npz", "-o", f"{t}/o"],
              ["hla", f"{t}/tiny.npz", "-o", f"{t}/taken", "--force"],
              ["report", t],
+             ["loss", f"{t}/run", "-o", f"{t}/{'n' * 300}"],
+             ["loss", f"{t}/run", "-o", f"{t}/run/loss2"],
              ["fleet", f"{t}/f.yaml", "-o", f"{t}/o", "--scheduler", "garbage"]]
     env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     r = subprocess.run([sys.executable, "-c", PROBE.format(heavy=HEAVY), json.dumps(cases)], capture_output=True,

@@ -179,7 +179,7 @@ def test_run_config_loss_block(tmp_path):
     from test_runner import CONFIG
 
     from hlaid.errors import InputError
-    from hlaid.runner import load_run_config
+    from hlaid.run.config import load_run_config
 
     (tmp_path / "a.yaml").write_text(CONFIG.split("ida:")[0] + "loss: {system: rc-frame}\n")
     with pytest.raises(InputError, match="the loss block needs an ida block"):

@@ -15,8 +15,11 @@ from conftest import requires
 
 from hlaid.clone import load_clone
 from hlaid.errors import InputError
-from hlaid.report import _ASSESS_FIGURE, _FIGURES, build_report, embedded_figures, screenshot
-from hlaid.runner import load_run_config, run_pipeline
+from hlaid.run.config import load_run_config
+from hlaid.run.report import FIGURES, build_report, embedded_figures, screenshot
+from hlaid.run.runner import run_pipeline
+from hlaid.run.sections import assessment
+from hlaid.run.summary import RunSummary
 
 CONFIG = """
 name: small run
@@ -92,17 +95,20 @@ def test_every_output_is_written(run_dir):
     # intensities is their geometric mean and the (population) standard deviation of their logs
     with np.load(out / "ida" / "ida.npz") as z:
         cap, cen = z["collapse_im"], z["censored_im"]
-    fit = summary["ida"]["collapse_fragility"]["capacities"]
-    assert np.all(np.isfinite(cap)) and not np.any(np.isfinite(cen)) and fit["n_censored"] == 0
-    assert fit["median_g"] == pytest.approx(np.exp(np.mean(np.log(cap))), rel=1e-6)
-    assert fit["beta"] == pytest.approx(np.std(np.log(cap)), rel=1e-4)
-    assert min(summary["replay"]["r_true"]) > 0.999  # the clone's replay against the simulated truth
+    fit = summary.ida.collapse_fragility.capacities
+    assert np.all(np.isfinite(cap)) and not np.any(np.isfinite(cen)) and fit.n_censored == 0
+    assert fit.median_g == pytest.approx(np.exp(np.mean(np.log(cap))), rel=1e-6)
+    assert fit.beta == pytest.approx(np.std(np.log(cap)), rel=1e-4)
+    assert min(summary.replay.r_true) > 0.999  # the clone's replay against the simulated truth
+    # the summary written is the one returned, and reads back as it was written
+    assert written["format"] == "hlaid-run" and written["version"] == 2
+    assert RunSummary.from_dict(written) == summary and RunSummary.from_dict(written).to_dict() == written
 
 
 def test_report_embeds_every_figure(run_dir):
     out, _ = run_dir
     alts = {alt for alt, size in embedded_figures(out / "report.html") if size > 10_000}
-    expected = {rel.split("/")[-1] for rel, _ in _FIGURES} | {_ASSESS_FIGURE[0].split("/")[-1]}
+    expected = {rel.split("/")[-1] for rel, _ in FIGURES} | {assessment.FIGURE.split("/")[-1]}
     assert alts == expected | {"aftershock.png"}  # the fragility before and after the event
     text = (out / "report.html").read_text()
     assert "median collapse" in text and "drift ratio &gt; 1.0%" in text and "src=\"file:" not in text
@@ -113,9 +119,9 @@ def test_report_embeds_every_figure(run_dir):
 
 def test_assessment_is_written(run_dir):
     out, summary = run_dir
-    a = summary["assessment"]
-    assert a["n_ensemble"] == 2 and a["indicator"] in ("green", "yellow", "red")
-    assert 0 <= a["p_collapse"] <= 1 and a["own_im"] > 0
+    a = summary.assessment
+    assert a.n_ensemble == 2 and a.indicator in ("green", "yellow", "red")
+    assert 0 <= a.p_collapse <= 1 and a.own_im > 0
     full = json.loads((out / "assessment.json").read_text())
     assert len(full["member_median"]) == 2 and len(full["fragility_median"]) == len(full["im_grid"])
     clone = load_clone(out / "clone.json")

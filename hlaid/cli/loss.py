@@ -36,7 +36,9 @@ def register(sub) -> None:
                                      "pelicun (needs hlaid[loss])",
                    example="hlaid loss hlaid-demo --system steel-moment-frame")
     p.add_argument("source", help="a run folder (hlaid run / hlaid demo), or a demand CSV (hlaid demands) with -o")
-    p.add_argument("-o", "--out", help="output folder (default: RUN_DIR/loss; required for a demand CSV)")
+    p.add_argument("-o", "--out", help="output folder of the losses (required for a demand CSV); for a run folder one "
+                                       "outside it, the run folder left as it is (default: RUN_DIR/loss, with the "
+                                       "run's summary.json and report.html updated, all or nothing)")
     p.add_argument("--system", help="default inventory: steel-moment-frame or rc-frame (default: the run "
                                     "config's, else steel-moment-frame)")
     p.add_argument("--inventory", metavar="CSV", help="your component inventory (pelicun's component assignment "
@@ -102,7 +104,7 @@ def run_demands(args) -> int:
 
 
 def run_loss(args) -> int:
-    from ..loss import LossConfig, loss_of_demand_file, loss_of_run
+    from ..loss import LossConfig, loss_of_demand_file
 
     src = Path(args.source)
     levels = [] if args.no_curve else (_numbers(" ".join(args.levels), "--levels") if args.levels else None)
@@ -122,27 +124,15 @@ def run_loss(args) -> int:
         return 0
     if collapse is not None:
         raise InputError("--collapse-median/--collapse-beta are for a demand CSV; a run folder has its own fragility")
-    base = _run_loss_config(src)
-    block = loss_of_run(src, base.replace(**over), records=args.records, force=args.force)
+    from ..run.loss import loss_of_run
+
+    block = loss_of_run(src, changes=over, records=args.records, out=args.out, force=args.force)
+    folder = Path(args.out) if args.out else src / "loss"
     if block["recorded"]:
-        _report(block["recorded"], src / "loss")
+        _report(block["recorded"], folder)
     if block["stripes"]:
-        _progress.info(f"loss curve at {len(block['stripes'])} intensities: {src / 'loss' / 'loss_curve.csv'}")
+        _progress.info(f"loss curve at {len(block['stripes'])} intensities: {folder / 'loss_curve.csv'}")
     return 0
-
-
-def _run_loss_config(run_dir: Path):
-    """The run config's loss block (defaults when it has none)."""
-    from .._inputs import read_json
-    from ..config import config_from_dict
-    from ..loss import LossConfig
-
-    try:
-        conf = read_json(run_dir / "summary.json").get("config") or {}
-    except (InputError, AttributeError):
-        return LossConfig()  # loss_of_run says what is wrong with the folder
-    return config_from_dict(LossConfig, conf["loss"], f"{run_dir}/summary.json: config.loss") if conf.get("loss") \
-        else LossConfig()
 
 
 def _report(s: dict, out) -> None:

@@ -24,7 +24,7 @@ def run_run(args) -> int:
     from pathlib import Path
 
     from .._fileio import check_output_folder
-    from ..runconfig import input_paths, load_run_config
+    from ..run.config import input_paths, load_run_config
 
     inputs = [args.config, args.cache]
     check_output_folder(args.out, force=args.force, inputs=inputs)  # fail before the pipeline, not after it
@@ -32,13 +32,13 @@ def run_run(args) -> int:
     base = Path(args.config).parent
     inputs += input_paths(cfg, base)
     check_output_folder(args.out, force=args.force, inputs=inputs)
-    from ..runner import run_pipeline  # the heavy libraries, once the inputs are known to be good
+    from ..run.runner import run_pipeline  # the heavy libraries, once the inputs are known to be good
     run_pipeline(cfg, args.out, base_dir=base, force=args.force, cache_dir=args.cache, inputs=inputs)
     return 0
 
 
 def run_report(args) -> int:
-    from ..report import build_report
+    from ..run.report import build_report
 
     build_report(args.run_dir)
     return 0

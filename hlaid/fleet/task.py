@@ -130,7 +130,8 @@ def make_jobs(cfg: FleetConfig, base_dir: Path | None, records_sha: str, engine:
 def load_unit_measurement(job: UnitJob) -> Measurement:
     """The measurement of a job, masses and heights applied."""
     from ..io.station import read_station
-    from ..runner import MeasurementSource, load_measurement
+    from ..run.config import MeasurementSource
+    from ..run.runner import load_measurement
     m = job.measurement
     base = None if job.base_dir is None else Path(job.base_dir)
     if m.station is not None:

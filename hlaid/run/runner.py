@@ -20,20 +20,21 @@ from typing import Any, cast
 
 import numpy as np
 
-from . import _progress
-from ._fileio import atomic_directory, write_json
-from ._inputs import read_json
-from ._version import __version__
-from .config import config_to_dict
-from .errors import InputError
-from .events.identify import identify_clone
-from .identify.replaycheck import corrcoef
-from .io import read
-from .measurement import Measurement, check_band
-from .model import Building
-from .plots import plot_time_histories, save_figure
-from .runconfig import MeasurementSource, RunConfig, input_paths, load_run_config
-from .synthetic import measurement_from_config
+from .. import _progress
+from .._fileio import atomic_directory, write_json
+from .._inputs import read_json
+from .._version import __version__
+from ..config import config_to_dict
+from ..errors import InputError
+from ..events.identify import identify_clone
+from ..identify.replaycheck import corrcoef
+from ..io import read
+from ..measurement import Measurement, check_band
+from ..model import Building
+from ..plots import plot_time_histories, save_figure
+from ..synthetic import measurement_from_config
+from .config import MeasurementSource, RunConfig, input_paths, load_run_config
+from .summary import Assessment, ConfigRecord, IDASummary, LossSummary, ParameterRow, Replay, RunSummary
 
 PARAMS = ("alpha", "p", "delta_eta", "dy", "k0")
 
@@ -55,20 +56,18 @@ def load_measurement(src: MeasurementSource, base_dir: Path | None) -> Measureme
     return dataclasses.replace(meas, **changes) if changes else meas
 
 
-def parameter_table(identified: Building, truth: Building | None, uncertainty=None) -> list[dict]:
+def parameter_table(identified: Building, truth: Building | None, uncertainty=None) -> list[ParameterRow]:
     """The paper's Table 4 layout: one row per parameter and story (error when the truth is known;
-    with ``uncertainty`` the 90 % interval, ``lo90`` and ``hi90``, None for a parameter without one)."""
+    with ``uncertainty`` the 90 % interval, ``(None, None)`` for a parameter without one)."""
     rows = []
     iv = uncertainty.interval(0.9) if uncertainty is not None else None
     for name in PARAMS:
         for i in range(identified.n_stories):
             v = float(getattr(identified, name)[i])
             t = None if truth is None else float(getattr(truth, name)[i])
-            row = {"parameter": name, "story": i + 1, "identified": v, "true": t,
-                   "error": None if t is None else abs(v / t - 1.0)}
-            if iv is not None:
-                row["lo90"], row["hi90"] = iv.get(f"{name}[{i + 1}]", (None, None))
-            rows.append(row)
+            rows.append(ParameterRow(parameter=name, story=i + 1, identified=v, true=t,
+                                     error=None if t is None else abs(v / t - 1.0),
+                                     interval=None if iv is None else tuple(iv.get(f"{name}[{i + 1}]", (None, None)))))
     return rows
 
 
@@ -81,22 +80,20 @@ def _csv(rows: list[dict]) -> str:
 
 
 def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None = None, force: bool = False,
-                 cache_dir: str | None = None, inputs: Sequence[str | Path | None] = ()) -> dict:
+                 cache_dir: str | None = None, inputs: Sequence[str | Path | None] = ()) -> RunSummary:
     """Run the pipeline and write everything under ``out``; returns the run summary. An existing
     ``out`` is replaced only with ``force``, when hlaid wrote it and it holds none of ``inputs``
     (the run's own input files are added to them)."""
-    from .hla.plots import plot_loops, plot_stiffness
     from .report import build_report
     t_all = time.perf_counter()
     timings = {}
     if cfg.loss is not None:  # fail before the pipeline when pelicun is missing
-        from .loss.fema_p58 import require_pelicun
+        from ..loss.fema_p58 import require_pelicun
         require_pelicun()
     inputs = [*inputs, *input_paths(cfg, base_dir), cache_dir]
     with atomic_directory(out, force=force, inputs=inputs) as tmp:
         tmp = Path(tmp)
-        figs = tmp / "figures"
-        figs.mkdir()
+        (tmp / "figures").mkdir()
         t = time.perf_counter()
         _progress.info("[1/4] measurement")
         meas = load_measurement(cfg.measurement, Path(base_dir) if base_dir else None)
@@ -108,73 +105,98 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
         _progress.info("[2/4] hysteresis loop analysis and identification")
         res = identify_clone(meas, cfg.identify, tensorboard=str(tmp / "tensorboard"), cache_dir=cache_dir)
         timings["identify"] = time.perf_counter() - t
-        res.clone.save(tmp / "clone.json")
-        res.hla.save(tmp / "hla")
-        truth = meas.truth.building if meas.truth is not None else None
-        table = parameter_table(res.clone.building, truth, res.clone.uncertainty)
-        paper = parameter_table(res.paper_estimate, truth)
-        write_json(tmp / "parameters.json", {"identified": table, "paper_method": paper})
-        (tmp / "parameters.csv").write_text(_csv(table))
-        write_json(tmp / "identification.json", res.clone.diagnostics)
-        _progress.info("[3/4] figures")
-        save_figure(plot_loops(res.hla), figs / "loops.png")
-        save_figure(plot_stiffness(res.hla, meas.truth, clone_ke=res.replay.ke), figs / "stiffness.png")
-        save_figure(_replay_figure(meas, res), figs / "replay.png")
-        ida_summary = ida_after = None
-        if cfg.ida is not None:
-            t = time.perf_counter()
-            _progress.info("[4/4] incremental dynamic analysis of the clone")
-            from .ida import ida_from_config
-            ir = ida_from_config(res.clone, cfg.ida, base_dir=base_dir)
-            ir.save(tmp / "ida", plots=True, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
-            ida_summary = read_json(tmp / "ida" / "summary.json")
-            timings["ida"] = time.perf_counter() - t
-            if res.clone.state is not None and cfg.ida.start == "undamaged":
-                t = time.perf_counter()
-                ida_after = _aftershock(res.clone, ir, cfg, tmp, base_dir)
-                timings["ida_after"] = time.perf_counter() - t
-        assessment = None
-        if cfg.ida is not None and cfg.assess is not None:
-            t = time.perf_counter()
-            assessment = _assess(res.clone, meas, cfg, tmp, base_dir)
-            timings["assess"] = time.perf_counter() - t
-        loss = None
-        if cfg.ida is not None and cfg.loss is not None:
-            t = time.perf_counter()
-            loss = _loss(res.clone, meas, cfg, tmp, ida_summary, assessment, base_dir)
-            timings["loss"] = time.perf_counter() - t
+        table, paper = _identification_outputs(meas, res, tmp)
+        risk = _risk(res.clone, meas, cfg, tmp, base_dir, timings)
         timings["total"] = time.perf_counter() - t_all
-        summary = {"format": "hlaid-run", "version": 1, "name": cfg.name, "hlaid_version": __version__,
-                   "config": config_to_dict(cfg), "source": meas.source, "n_stories": meas.n_floors,
-                   "mass_normalised": res.clone.mass_normalised, "parameters": table, "paper_method": paper,
-                   "replay": res.replay.to_dict(), "outer_iterations": res.iterations,
-                   "identify_timings": res.timings, "timings": timings, "ida": ida_summary, "ida_after": ida_after,
-                   "noise_rms": meas.noise_rms, "assessment": assessment, "loss": loss}
-        write_json(tmp / "summary.json", summary)
+        rc = res.replay
+        summary = RunSummary(
+            name=cfg.name, hlaid_version=__version__, source=meas.source, n_stories=meas.n_floors,
+            config=ConfigRecord.from_dict(config_to_dict(cfg), file="summary.json", path="config"),
+            mass_normalised=res.clone.mass_normalised, parameters=tuple(table), paper_method=tuple(paper),
+            replay=Replay(r_measured=tuple(rc.r_measured.tolist()),
+                          r_true=None if rc.r_true is None else tuple(rc.r_true.tolist()),
+                          stiffness_error=tuple(rc.stiffness_error.tolist())),
+            outer_iterations=res.iterations, identify_timings=dict(res.timings), timings=timings,
+            noise_rms=meas.noise_rms, **risk)
+        write_json(tmp / "summary.json", summary.to_dict())
         build_report(tmp)
     _progress.info(f"wrote {out}/ (report.html, clone.json, hla/, ida/, figures/, tensorboard/) in "
                    f"{timings['total']:.0f} s")
     return summary
 
 
-def _aftershock(clone, before, cfg: RunConfig, tmp: Path, base_dir) -> dict:
+def _identification_outputs(meas: Measurement, res, tmp: Path) -> tuple[list[ParameterRow], list[ParameterRow]]:
+    """The clone, HLA, parameter tables and identification figures of a run (into ``tmp``); returns
+    the parameter tables of the clone and of the paper's method alone."""
+    from ..hla.plots import plot_loops, plot_stiffness
+    res.clone.save(tmp / "clone.json")
+    res.hla.save(tmp / "hla")
+    truth = meas.truth.building if meas.truth is not None else None
+    table = parameter_table(res.clone.building, truth, res.clone.uncertainty)
+    paper = parameter_table(res.paper_estimate, truth)
+    rows = [r.to_dict() for r in table]
+    write_json(tmp / "parameters.json", {"identified": rows, "paper_method": [r.to_dict() for r in paper]})
+    (tmp / "parameters.csv").write_text(_csv(rows))
+    write_json(tmp / "identification.json", res.clone.diagnostics)
+    _progress.info("[3/4] figures")
+    figs = tmp / "figures"
+    save_figure(plot_loops(res.hla), figs / "loops.png")
+    save_figure(plot_stiffness(res.hla, meas.truth, clone_ke=res.replay.ke), figs / "stiffness.png")
+    save_figure(_replay_figure(meas, res), figs / "replay.png")
+    return table, paper
+
+
+def _risk(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir, timings: dict) -> dict:
+    """The IDA (before and after the event), the ensemble assessment and the losses a run's config
+    asks for (into ``tmp``, their times into ``timings``); returns the summary's blocks of them."""
+    out: dict = dict.fromkeys(("ida", "ida_after", "assessment", "loss"))
+    if cfg.ida is None:
+        return out
+    t = time.perf_counter()
+    _progress.info("[4/4] incremental dynamic analysis of the clone")
+    from ..ida import ida_from_config
+    ir = ida_from_config(clone, cfg.ida, base_dir=base_dir)
+    ir.save(tmp / "ida", plots=True, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
+    out["ida"] = _ida_summary(tmp / "ida")
+    timings["ida"] = time.perf_counter() - t
+    if clone.state is not None and cfg.ida.start == "undamaged":
+        t = time.perf_counter()
+        out["ida_after"] = _aftershock(clone, ir, cfg, tmp, base_dir)
+        timings["ida_after"] = time.perf_counter() - t
+    if cfg.assess is not None:
+        t = time.perf_counter()
+        out["assessment"] = _assess(clone, meas, cfg, tmp, base_dir)
+        timings["assess"] = time.perf_counter() - t
+    if cfg.loss is not None:
+        t = time.perf_counter()
+        out["loss"] = _loss(clone, meas, cfg, tmp, out["ida"], out["assessment"], base_dir)
+        timings["loss"] = time.perf_counter() - t
+    return out
+
+
+def _ida_summary(folder: Path) -> IDASummary:
+    """The IDA's ``summary.json`` in ``folder``, as the run summary's block."""
+    return IDASummary.from_dict(read_json(folder / "summary.json"), file=f"{folder.name}/summary.json")
+
+
+def _aftershock(clone, before, cfg: RunConfig, tmp: Path, base_dir) -> IDASummary:
     """The IDA of the clone from the state its event left it in (``ida-after/``) and the figure of
     the fragility before and after; returns the summary's ``ida_after`` block."""
-    from .ida import ida_from_config
-    from .ida.plots import plot_fragility_before_after
+    from ..ida import ida_from_config
+    from ..ida.plots import plot_fragility_before_after
     assert cfg.ida is not None
     _progress.info("[4/4] incremental dynamic analysis from the state the event left the clone in")
     after = ida_from_config(clone, cfg.ida.replace(start="carried"), base_dir=base_dir)
     after.save(tmp / "ida-after", plots=False, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
     save_figure(plot_fragility_before_after(before, after), tmp / "figures" / "aftershock.png")
-    return read_json(tmp / "ida-after" / "summary.json")
+    return _ida_summary(tmp / "ida-after")
 
 
-def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> dict | None:
+def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> Assessment | None:
     """Ensemble IDA and re-occupancy indicator at the measured record; writes ``assessment.json`` and
     ``figures/fragility_band.png``; returns the summary's ``assessment`` block (None: no uncertainty)."""
-    from .ida import assess
-    from .motions import GroundMotion
+    from ..ida import assess
+    from ..motions import GroundMotion
     if clone.uncertainty is None:
         _progress.warn("no identification uncertainty (refinement off): the ensemble assessment is skipped")
         return None
@@ -190,37 +212,34 @@ def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> di
     d = res.to_dict()
     write_json(tmp / "assessment.json", d)
     save_figure(res.plot(), tmp / "figures" / "fragility_band.png")
-    keep = ("n_ensemble", "n_records", "ci", "im_label", "period", "collapse_median", "collapse_median_band",
-            "beta", "own_im", "p_collapse", "p_collapse_band", "drift_limits", "p_exceed", "p_exceed_band",
-            "indicator", "placard", "reasons", "thresholds")
-    out = {k: d[k] for k in keep}
-    # both are set when own_motion is given
-    out["own_residual_drift_median"] = float(np.median(cast(np.ndarray, res.own_residual_drift)))
-    out["own_peak_drift_median"] = float(np.median(cast(np.ndarray, res.own_peak_drift)))
-    return out
+    medians = {"own_residual_drift_median": float(np.median(cast(np.ndarray, res.own_residual_drift))),
+               "own_peak_drift_median": float(np.median(cast(np.ndarray, res.own_peak_drift)))}  # own_motion given
+    return Assessment.from_dict({**d, **medians}, file="assessment.json")
 
 
-def _loss(clone, meas: Measurement, cfg: RunConfig, tmp: Path, ida_summary, assessment, base_dir) -> dict:
+def _loss(clone, meas: Measurement, cfg: RunConfig, tmp: Path, ida_summary: IDASummary | None,
+          assessment: Assessment | None, base_dir) -> LossSummary:
     """FEMA P-58 losses at the measured record and the IDA stripes (``loss/``); the summary's ``loss`` block."""
-    from .loss.assess import assess_losses, run_block, run_collapse
-    from .motions import GroundMotion
+    from ..loss.assess import assess_losses
+    from ..motions import GroundMotion
+    from .loss import run_collapse
     a, ida_cfg, lc = cfg.assess, cfg.ida, cfg.loss
     if ida_cfg is None or lc is None:  # load_run_config allows a loss block only with an ida block
         raise InputError("the loss block needs an ida block")
     _progress.info("[4/4] FEMA P-58 losses through pelicun: the measured record and the IDA stripes")
-    collapse, src = run_collapse(tmp, {"assessment": assessment, "ida": ida_summary})
+    collapse, src = run_collapse(assessment, ida_summary, source=str(tmp))
     n_ens = a.n_ensemble if a is not None and assessment is not None else 0
-    levels = lc.levels if lc.levels is not None else (ida_summary or {}).get("levels_g") or []
+    levels = lc.levels if lc.levels is not None else list(ida_summary.levels_g if ida_summary is not None else ())
     own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name="measured")
     block = assess_losses(clone, own, records=ida_cfg.record_specs(base_dir), levels=levels, collapse=collapse,
                           cfg=lc, ida_config=ida_cfg, n_ensemble=n_ens, seed=a.seed if a is not None else 0,
                           folder=tmp / "loss", collapse_source=src, base_dir=base_dir)
-    return run_block(block)
+    return LossSummary.of_losses(block)
 
 
 def _replay_figure(meas: Measurement, res):
-    from .hla.analysis import floor_motion
-    from .signal import bandpass
+    from ..hla.analysis import floor_motion
+    from ..signal import bandpass
     _, _, _, disp = floor_motion(meas, res.hla.config)
     rep = bandpass(res.replay.disp, meas.dt, res.hla.band_hz)
     series, labels = [disp, rep], ["measured (integrated)", "clone (replayed)"]
@@ -233,7 +252,8 @@ def _replay_figure(meas: Measurement, res):
                                title="Floor displacement relative to the ground: measured against replayed clone")
 
 
-def run_from_file(path: str | Path, out: str | Path, *, force: bool = False, cache_dir: str | None = None) -> dict:
+def run_from_file(path: str | Path, out: str | Path, *, force: bool = False,
+                  cache_dir: str | None = None) -> RunSummary:
     cfg = load_run_config(path)
     return run_pipeline(cfg, out, base_dir=Path(path).parent, force=force, cache_dir=cache_dir, inputs=[path])
 

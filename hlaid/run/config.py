@@ -10,15 +10,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .bounds import check_bounds, with_bounds
-from .config import config_from_node, load_yaml
-from .errors import InputError
-from .ida.config import IDAConfig
-from .identify.config import IdentifyConfig
-from .loss.config import LossConfig
-from .model.schema import STORY_BOUNDS
-from .specs import SimulationConfig
-from .uncertainty.config import AssessConfig
+from ..bounds import check_bounds, with_bounds
+from ..config import config_from_node, load_yaml
+from ..errors import InputError
+from ..ida.config import IDAConfig
+from ..identify.config import IdentifyConfig
+from ..loss.config import LossConfig
+from ..model.schema import STORY_BOUNDS
+from ..specs import SimulationConfig
+from ..uncertainty.config import AssessConfig
 
 
 @dataclass(frozen=True, kw_only=True)

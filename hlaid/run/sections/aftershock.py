@@ -5,40 +5,38 @@ from __future__ import annotations
 
 import html
 
+from ..summary import Fragility, IDASummary
+from .markup import figure, fmt
+
+FIGURE = "figures/aftershock.png"
 CAPTION = ("Collapse fragility of the clone before the event (undamaged) and after it (every run from "
            "the residual drift, hysteretic state and degradation the event left): each record's collapse "
            "intensity and the lognormal fit.")
 
 
-def _fit(ida: dict) -> dict:
-    cf = ida.get("collapse_fragility") or {}
-    return cf.get("capacities") or cf.get("counts") or {}
-
-
-def _num(v, fmt: str = ".3g") -> str:
-    return "&ndash;" if v is None else format(v, fmt)
-
-
-def aftershock_html(before: dict, after: dict) -> str:
-    """HTML of the section from the ``ida`` and ``ida_after`` blocks of ``summary.json``."""
+def aftershock_html(before: IDASummary, after: IDASummary) -> str:
+    """HTML of the section from the ``ida`` and ``ida_after`` blocks of the run summary."""
     e = html.escape
     rows = []
     for name, ida in (("before the event (undamaged)", before), ("after the event (state carried)", after)):
-        f = _fit(ida)
-        ci = f.get("median_ci_g") or [None, None]
-        rows.append(f"<tr><td class='l'>{e(name)}</td><td>{_num(f.get('median_g'))}</td>"
-                    f"<td>{_num(ci[0])} &ndash; {_num(ci[1])}</td><td>{_num(f.get('beta'), '.2f')}</td>"
-                    f"<td>{f.get('n_records')} ({f.get('n_censored', 0)})</td></tr>")
-    m0, m1 = _fit(before).get("median_g"), _fit(after).get("median_g")
+        f = ida.collapse_fit or Fragility()
+        ci = f.median_ci_g or (None, None)
+        rows.append(f"<tr><td class='l'>{e(name)}</td><td>{fmt(f.median_g, '.3g')}</td>"
+                    f"<td>{fmt(ci[0], '.3g')} &ndash; {fmt(ci[1], '.3g')}</td><td>{fmt(f.beta, '.2f')}</td>"
+                    f"<td>{f.n_records} ({f.n_censored or 0})</td></tr>")
+    m0, m1 = (ida.collapse_fit.median_g if ida.collapse_fit else None for ida in (before, after))
     change = "" if not (m0 and m1) else f"<p>The event moved the median collapse intensity by {m1 / m0 - 1:+.1%}.</p>"
-    notes = [n for n in after.get("notes", []) if n.startswith(("collapse model", "start: carried"))]
+    notes = [n for n in after.notes if n.startswith(("collapse model", "start: carried"))]
     law = "".join(f"<li>{e(n)}</li>" for n in notes)
     return ("<table><tr><th class='l'>clone</th><th>median [g]</th><th>median interval [g]</th><th>beta</th>"
             "<th>records (censored)</th></tr>" + "".join(rows) + "</table>" + change
             + (f"<ul>{law}</ul>" if law else ""))
 
 
-def aftershock_section(before: dict, after: dict, image: str) -> str:
+def section(before: IDASummary, after: IDASummary, image: str) -> str:
     """The whole section: heading, table, notes and the figure (``image``: its ``<img>`` tag)."""
     return ("<h2>Aftershock: collapse fragility before and after the event</h2>" + aftershock_html(before, after)
-            + f"<figure>{image}<figcaption>{html.escape(CAPTION)}</figcaption></figure>")
+            + figure(image, CAPTION))
+
+
+__all__ = ["section", "aftershock_html", "FIGURE", "CAPTION"]
