@@ -26,6 +26,10 @@ STORY_BOUNDS: dict[str, Bounds] = {
 }
 """Bounds of the per-story parameters of a building (units N, mm, t, s)."""
 
+DAMPING_RATIO_MAX = 0.5
+"""Largest damping ratio an identification gives or an ensemble draws (a clone file may state up
+to 1): more than half the critical damping is no building's."""
+
 STATE_BOUNDS: dict[str, Bounds] = {
     "drift": Bounds(-1e6, 1e6, unit="mm"),
     "z": Bounds(-1e6, 1e6, unit="mm"),
@@ -89,4 +93,4 @@ class Damping:
         return {"kind": self.kind, "ratio": self.ratio, "modes": list(self.modes)}
 
 
-__all__ = ["STORY_BOUNDS", "WEIGHT_KN", "DAMPING_KINDS", "Damping", "check_story_value"]
+__all__ = ["STORY_BOUNDS", "DAMPING_RATIO_MAX", "WEIGHT_KN", "DAMPING_KINDS", "Damping", "check_story_value"]

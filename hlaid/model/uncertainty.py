@@ -23,6 +23,7 @@ from scipy.stats import norm
 
 from ..errors import InputError
 from .params import Building, Damping
+from .schema import DAMPING_RATIO_MAX, STORY_BOUNDS
 
 TRANSFORMS = ("log", "linear", "logit", "log1")
 """``theta`` of a value ``x``: ``log x``; ``x``; ``logit(x / 0.95)`` (alpha, within its bounds);
@@ -53,9 +54,11 @@ def from_theta(transform: str, theta):
     if transform == "log1":
         return 1.0 + np.exp(np.minimum(theta, 700.0))
     return theta
-BOUNDS = {"k0": (0.0, math.inf), "alpha": (0.0, 0.95), "p": (1.0, 10.0), "dy": (0.0, math.inf),
-          "delta_eta": (0.0, math.inf), "damping": (0.0, 0.5)}
-"""Physical range of each parameter (draws and intervals are clipped to it)."""
+BOUNDS = {n: (STORY_BOUNDS[n].lo, min(float(STORY_BOUNDS[n].upper()), ALPHA_SCALE if n == "alpha" else math.inf))
+          for n in ("k0", "alpha", "p", "dy", "delta_eta")} | {"damping": (0.0, DAMPING_RATIO_MAX)}
+"""Range of each parameter: the building's own (:data:`hlaid.model.schema.STORY_BOUNDS`; alpha
+within the identification's 0.95, damping ratio within :data:`~hlaid.model.schema.DAMPING_RATIO_MAX`).
+Draws and intervals are clipped to it, so every member of an ensemble is a building a clone file may hold."""
 
 
 @dataclass(frozen=True, eq=False)
