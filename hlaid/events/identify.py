@@ -4,8 +4,9 @@
 
     events (time order) -> HLA of each                                   analyse
                         -> the paper's method on the most informative     hlaid.identify.identify_event
-                           one (one yielding record: the clone), or the
-                           prior's median building where none yielded
+                           one (one yielding record and no system: the
+                           clone), or the prior's median building where
+                           none yielded
                         -> one set of parameters for all of them, the     hlaid.events.fit.joint_fit
                            state carried from each event into the next,
                            the structural system's prior where the data say little
@@ -47,12 +48,13 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     """Identify a digital clone from one measurement, or from several of one building in time
     order, with no expert input.
 
-    One yielding record: the paper's method and the refinement on its data alone
-    (:func:`hlaid.identify.identify_event`; a structural ``system`` named is recorded with the
-    clone: its collapse law for the IDA). Several records, or a record that stays elastic: the
-    paper's method on the most informative record (where one yielded) gives the start, and one
-    set of parameters is then fitted to every record, the state carried from each into the next
-    and the system's prior holding what the data say little about (:mod:`hlaid.events.fit`).
+    One yielding record and no structural ``system``: the paper's method and the refinement on its
+    data alone (:func:`hlaid.identify.identify_event`). Several records, a record that stays
+    elastic, or a ``system`` named: the paper's method on the most informative record (where one
+    yielded) gives the start, and one set of parameters is then fitted to every record, the state
+    carried from each into the next and the system's prior holding what the data say little about
+    (:mod:`hlaid.events.fit`): the posterior (intervals, ensemble draws) is never wider than the
+    system's prior.
     The clone is left in the state its last record left the building in (``clone.state``).
 
     Parameters
@@ -88,7 +90,7 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
         state = state_after(single.clone.building, [m], cfg.refine.band_hz, [m.name or "event 1"])
         single = dataclasses.replace(single, clone=dataclasses.replace(single.clone, events=(event_record(m),),
                                                                        state=state))
-    if len(meas) == 1 and single is not None:  # one yielding record: the data speak, the paper's method
+    if len(meas) == 1 and single is not None and cfg.system is None:  # no system named: the paper's method
         timings["total"] = time.perf_counter() - t_all
         tb.close()
         return dataclasses.replace(single, clone=dataclasses.replace(single.clone, system=cfg.system))
