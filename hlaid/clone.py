@@ -14,7 +14,8 @@ Layout::
      "diagnostics": {...}, "provenance": {...},
      "uncertainty": null | {...},                          (version 2 and later)
      "system": null | "steel-moment-frame" | ...,          (version 3)
-     "events": [{"name": ..., "source": ..., "sha256": ..., "pga_g": ..., "duration_s": ...}, ...],
+     "events": [{"name": ..., "source": ..., "sha256": ..., "pga_g": ..., "duration_s": ...,
+                 "peak_drift": [...] (optional: the measured peak story drifts [mm])}, ...],
      "state": null | {"drift": [...], "z": [...], "work": [...], "peak_positive": [...],
                       "peak_negative": [...], "events": [...]}}
 
@@ -50,6 +51,7 @@ from ._inputs import read_json
 from .errors import InputError, escape_controls, kind_of
 from .events.state import BuildingState
 from .model import Building, Damping
+from .model.schema import STATE_BOUNDS
 from .systems import SYSTEMS
 from .units import UNITS_JSON
 
@@ -88,6 +90,21 @@ class Clone:
     system: str | None = None
     events: tuple[dict, ...] = ()
     state: BuildingState | None = None
+
+    def survived_drift(self, *, measured_only: bool = False) -> np.ndarray | None:
+        """``(story,)`` the largest drift of each story the building survived [mm]: the measured
+        peak of each event it was identified from (``events[k]["peak_drift"]``) and, unless
+        ``measured_only``, the largest drifts of the state the clone carries (its replay of those
+        events); None where neither is known."""
+        n = self.building.n_stories
+        peaks = [np.asarray(e["peak_drift"], dtype=float) for e in self.events
+                 if isinstance(e.get("peak_drift"), list) and len(e["peak_drift"]) == n]
+        if self.state is not None and not measured_only:
+            peaks.append(np.maximum(self.state.peak_positive, self.state.peak_negative))
+        if not peaks:
+            return None
+        out = np.max(peaks, axis=0)
+        return out if np.all(np.isfinite(out)) and np.any(out > 0) else None
 
     def with_state(self, state: BuildingState | None) -> Clone:
         """The same clone left in ``state``."""
@@ -211,6 +228,11 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dic
         _no_unknown(e, _EVENT_KEYS, f"events[{i}].", source)
         if e.get("start") not in (None, "carried", "undamaged"):
             raise InputError(f"field 'events[{i}].start' must be 'carried' or 'undamaged'", source=source)
+        pk = e.get("peak_drift")
+        bound = STATE_BOUNDS["peak_positive"]
+        if pk is not None and not (isinstance(pk, list) and len(pk) == n and all(bound.contains(v) for v in pk)):
+            raise InputError(f"field 'events[{i}].peak_drift' must be {n} drifts [mm] in {bound.lo:g}..{bound.hi:g}, "
+                             "one per story", source=source)
     state = None
     if d.get("state") is not None:
         st = d["state"]
@@ -226,7 +248,7 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dic
     return system, tuple(events), state
 
 
-_EVENT_KEYS = ("name", "source", "sha256", "pga_g", "duration_s", "dt", "n_floors", "recorded", "start")
+_EVENT_KEYS = ("name", "source", "sha256", "pga_g", "duration_s", "dt", "n_floors", "recorded", "start", "peak_drift")
 
 _TOP_KEYS = ("format", "version", "units", "name", "stories", "damping", "pdelta", "mass_normalised",
              "diagnostics", "provenance", "collapse")

@@ -37,6 +37,7 @@ from ..identify.tb import TBLogger
 from ..measurement import Measurement
 from ..model import Building, Damping
 from ..units import G_MM_S2
+from .evidence import measured_peak_drift
 from .fit import JointFit, best_fit, flags, joint_fit, posterior_uncertainty
 from .priors import StructuralPrior, elf_profile, get_prior, weight_above
 from .series import state_after
@@ -88,8 +89,8 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
         single = identify_event(events[best], cfg, cache, tb, timings)
         m = events[best].measurement
         state = state_after(single.clone.building, [m], cfg.refine.band_hz, [m.name or "event 1"])
-        single = dataclasses.replace(single, clone=dataclasses.replace(single.clone, events=(event_record(m),),
-                                                                       state=state))
+        record = event_record(m, hla=events[best].hla)
+        single = dataclasses.replace(single, clone=dataclasses.replace(single.clone, events=(record,), state=state))
     if len(meas) == 1 and single is not None and cfg.system is None:  # no system named: the paper's method
         timings["total"] = time.perf_counter() - t_all
         tb.close()
@@ -108,14 +109,17 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     return result
 
 
-def event_record(meas: Measurement, start: str | None = None) -> dict:
+def event_record(meas: Measurement, start: str | None = None, hla: HLAResult | None = None) -> dict:
     """What a clone keeps of an event it learnt from (``start``: where its replay started,
-    ``"carried"`` or ``"undamaged"``, when an update chose it)."""
+    ``"carried"`` or ``"undamaged"``, when an update chose it; ``peak_drift``: the largest story
+    drifts measured, with ``hla`` HLA's, :func:`~hlaid.events.evidence.measured_peak_drift`)."""
+    peak = measured_peak_drift(meas, hla)
     return {"name": meas.name, "source": meas.source or None,
             "sha256": file_digest(meas.source) if meas.source else None,
             "pga_g": float(np.max(np.abs(meas.ground_acc)) / G_MM_S2), "duration_s": float(meas.n_samples * meas.dt),
             "dt": float(meas.dt), "n_floors": int(meas.n_floors),
-            **({"recorded": meas.recorded} if meas.recorded else {}), **({"start": start} if start else {})}
+            **({"recorded": meas.recorded} if meas.recorded else {}), **({"start": start} if start else {}),
+            **({"peak_drift": peak} if peak is not None else {})}
 
 
 def check_series(measurements: Sequence[Measurement]) -> None:
@@ -210,8 +214,8 @@ def result_of_joint(events: Sequence[Event], meas: Sequence[Measurement], fit: J
     prov = provenance(cfg, timings, sources=[m.source or None for m in meas])
     clone = Clone(building=fit.building, mass_normalised=events[-1].hla.mass_normalised, diagnostics=diagnostics,
                   provenance=prov, uncertainty=posterior_uncertainty(fit), system=system.name,
-                  events=tuple(history) + tuple(event_record(m) for m in meas[:-1])
-                  + (event_record(meas[-1], start=last_start),), state=fit.states[-1])
+                  events=tuple(history) + tuple(event_record(m, hla=ev.hla) for m, ev in zip(meas[:-1], events))
+                  + (event_record(meas[-1], start=last_start, hla=events[-1].hla),), state=fit.states[-1])
     return IdentificationResult(clone=clone, hla=events[-1].hla,
                                 paper_estimate=start if single is None else single.paper_estimate,
                                 passes=[] if single is None else single.passes,

@@ -180,7 +180,8 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
     band_hz : band of the comparison [Hz] (None: HLA's band of ``meas`` under ``hla_config``,
         the default HLA settings when None)
     start : ``"carried"``, ``"undamaged"`` or ``"auto"`` (:func:`~hlaid.events.start.resolve_start`)
-    n_ensemble : clones drawn from ``clone.uncertainty`` for the predictive band (0: none). The
+    n_ensemble : clones drawn from ``clone.uncertainty`` for the predictive band (0: none), those
+        that collapse under the clone's own events rejected (:func:`hlaid.events.evidence.survivors`). The
         band holds the central :data:`BAND_LEVEL` of the ensemble's predictions, widened on each
         side by the same quantile of a Gaussian error of ``misfit`` times each floor's predicted RMS:
         the parameters' uncertainty and the model's own misfit (as the clone replayed its events)
@@ -217,9 +218,12 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
     resolved = resolve_start(clone, start)
     buildings = [b]
     if n_ensemble:
-        from ..uncertainty.ensemble import clone_ensemble
+        from .evidence import survivors
 
-        buildings += clone_ensemble(clone, n_ensemble, seed=seed)
+        surv = survivors(clone, n_ensemble, seed=seed)
+        for note in surv.notes:
+            _progress.debug(note)
+        buildings += list(surv.members)
     sim = simulate_response(buildings, ground, y0=resolved.vector(collapse=b.collapse is not None))
     assert sim.disp is not None and sim.acc is not None
     compare = _Comparison(meas, cfg, sim, ground)
@@ -230,7 +234,7 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
     xm, xp = pp.story_drift(measured), pp.story_drift(predicted[0])
     pm, pk = np.max(np.abs(xm), axis=0), np.max(np.abs(xp), axis=0)
     r_true = None if meas.truth is None else corrcoef(np.nan_to_num(sim.disp[0]), meas.truth.disp)
-    pband = None if not n_ensemble else _band(clone, measured, predicted, misfit, n_ensemble)
+    pband = None if not n_ensemble else _band(clone, measured, predicted, misfit, len(buildings) - 1)
     check = None if not check_hla else _hla_check(clone, res, sim, compare, band, xp)
     return Prediction(event=meas.name, source=meas.source, start=resolved.name, start_reason=resolved.reason,
                       band_hz=band, pga_g=float(np.max(np.abs(meas.ground_acc)) / G_MM_S2),

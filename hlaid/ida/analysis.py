@@ -194,7 +194,7 @@ def _auto_levels(elastic_slope: np.ndarray, drift_limit: float, n: int) -> list[
 # ---------------------------------------------------------------------------- the analysis
 def run_ida(model: Clone | Building | str | os.PathLike,
             records: str | os.PathLike | GroundMotion | Sequence[str | os.PathLike | GroundMotion],
-            config: IDAConfig | None = None) -> IDAResult:
+            config: IDAConfig | None = None, *, event_motions: Sequence[GroundMotion] = ()) -> IDAResult:
     """Incremental dynamic analysis of a clone (or building) over a record set.
 
     Parameters
@@ -212,6 +212,10 @@ def run_ida(model: Clone | Building | str | os.PathLike,
         every step), ``pdelta``, ``heights_mm``, ``gravity_kN`` and ``collapse`` (see
         :func:`prepare_building`), ``period`` and ``units`` (of text records) are used here; the
         bootstrap settings are for :meth:`IDAResult.save`
+    event_motions : ground motions of the clone's events at hand (matched to its events); the
+        others are read from the events' files. The clone is replayed through its events with the
+        collapse law in force (:func:`hlaid.events.evidence.survivors`): a note says whether it
+        survives them, as the building did
 
     Returns
     -------
@@ -231,6 +235,8 @@ def run_ida(model: Clone | Building | str | os.PathLike,
         model = Clone.load(model)
     building, notes = prepare_building(model, pdelta=cfg.pdelta, heights=cfg.heights_mm,
                                        gravity_load=cfg.gravity_load_n(), collapse=cfg.collapse)
+    if isinstance(model, Clone) and model.events:
+        notes.extend(survival_notes(model, building, cfg, event_motions))
     start = start_state(model, building, cfg.start, notes)
     motions = as_motions(records, units=cfg.units)
     measure, T1, im0 = record_intensities(motions, cfg.im, building, cfg.period)
@@ -328,6 +334,21 @@ def _refine(runner: _Runner, slope_el: np.ndarray, cfg: IDAConfig) -> dict:
     return state
 
 
+def survival_notes(clone: Clone, building: Building, cfg: IDAConfig, motions: Sequence[GroundMotion] = ()) -> list[str]:
+    """Whether the prepared ``building`` of ``clone`` survives the clone's events, in words."""
+    from ..events.evidence import survivors
+
+    surv = survivors(clone, 0, prepare=lambda _: building, motions=motions, drift_limit=cfg.drift_limit,
+                     max_step=cfg.max_step)
+    out = list(surv.notes)
+    if surv.nominal_survives and surv.nominal_peak is not None:
+        h = np.asarray(building.height, dtype=float)  # prepare_building requires the heights
+        drifts = ", ".join(f"{100 * d / hi:.2f}" for d, hi in zip(surv.nominal_peak, h))
+        out.append(f"survival: the clone survives {', '.join(surv.events)} (events it was identified from) with its "
+                   f"collapse law, largest drift {drifts} %")
+    return out
+
+
 def start_state(model, building: Building, start: str, notes: list[str]) -> Start:
     """Where every IDA run starts (:func:`hlaid.events.start.resolve_start`), and a note saying
     which: at rest, or the state the clone's events left (``"carried"`` needs a clone that carries
@@ -380,11 +401,12 @@ def _settings(cfg: IDAConfig) -> dict:
     return d
 
 
-def ida_from_config(model, cfg: IDAConfig, records=None, *, base_dir: str | Path | None = None) -> IDAResult:
+def ida_from_config(model, cfg: IDAConfig, records=None, *, base_dir: str | Path | None = None,
+                    event_motions: Sequence[GroundMotion] = ()) -> IDAResult:
     """Run :func:`run_ida` on the config's own records (relative paths from ``base_dir``) unless
     ``records`` are given."""
     recs = records if records is not None else cfg.record_specs(base_dir)
     if recs is None:
         raise InputError("no records: give them in the config ('records:') or on the command line (--records)")
-    return run_ida(model, recs, cfg)
+    return run_ida(model, recs, cfg, event_motions=event_motions)
 

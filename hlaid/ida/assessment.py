@@ -37,8 +37,9 @@ from scipy.special import ndtr
 
 from .. import _progress
 from ..errors import InputError
+from ..events.evidence import survivors
 from ..uncertainty.config import N_ENSEMBLE, PLACARDS
-from ..uncertainty.ensemble import check_ensemble_size, check_uncertain_clone, clone_ensemble
+from ..uncertainty.ensemble import check_ensemble_size, check_uncertain_clone
 
 COLOURS = ("green", "yellow", "red")
 
@@ -90,7 +91,13 @@ class Assessment:
     own_peak_drift, own_residual_drift : (n_ensemble,) the members' largest story peak and
         residual drift ratio under the experienced record
     indicator : ``"green"``, ``"yellow"``, ``"red"`` (None without ``own_motion``)
-    reasons : why (one line per measure, and one when the clone's fit is inconsistent)
+    reasons : why (one line per measure, and one when the clone's fit is inconsistent or it
+        collapses under an event it was identified from)
+    events : per event the clone was identified from whose ground motion is at hand: ``name``,
+        ``im`` [g], ``p_collapse`` (mean over members) and ``p_collapse_band``, from the undamaged
+        fragility (the building survived every one of them)
+    survival : the ensemble conditioned on those events (:meth:`hlaid.events.evidence.Survival.to_dict`:
+        members drawn and rejected for collapsing under them, the nominal clone's own check)
     thresholds : the :class:`ReoccupancyThresholds` used, as a mapping
     notes, timing : what was decided on the way and how long it took
     """
@@ -121,6 +128,8 @@ class Assessment:
     own_residual_drift: np.ndarray | None = None
     indicator: str | None = None
     reasons: tuple = ()
+    events: tuple = ()
+    survival: dict = field(default_factory=dict)
     thresholds: dict = field(default_factory=dict)
     notes: tuple = ()
     timing: dict = field(default_factory=dict)
@@ -222,19 +231,55 @@ def assess(clone, records, *, n_ensemble: int = N_ENSEMBLE, ida_config=None, own
         notes.append("identification misfit above the noise level: the ensemble describes the curvature at a "
                      "fit that does not match the record (intervals not trustworthy)")
         _progress.warn(notes[-1])
-    members = clone_ensemble(clone, n_ensemble, seed=seed)
+    cfg = cfg.replace(collapse=nominal.collapse.to_dict() if nominal.collapse is not None else "none")
+    surv = survivors(clone, n_ensemble, seed=seed, prepare=member_preparer(cfg), motions=[own_motion],
+                     drift_limit=cfg.drift_limit, max_step=cfg.max_step)
+    notes.extend(surv.notes)
+    members = list(surv.members)
     results = _ensemble_idas(clone, members, cfg, motions)
     t_ida = time.perf_counter() - t0
     band = _FragilityBand(results, n_boot, ci, seed, notes)
-    out = dict(n_ensemble=n_ensemble, n_records=len(motions), n_boot=n_boot, ci=float(ci), im=measure.name,
+    out = dict(n_ensemble=len(members), n_records=len(motions), n_boot=n_boot, ci=float(ci), im=measure.name,
                im_label=measure.label, period=period, **band.summary(), thresholds=asdict(thr),
-               drift_limits=tuple(results[0].exceedance_limits))
+               drift_limits=tuple(results[0].exceedance_limits), survival=surv.to_dict(),
+               events=_at_events(surv, band, measure, period))
     if own_motion is not None:
         out.update(_at_own_motion(clone, members, results, band, own_motion, measure, period, cfg, thr))
+        if surv.nominal_survives is False:
+            out["reasons"] += (f"the clone collapses under {surv.nominal_collapsed_in}, an event it was identified "
+                               "from: its risk is overstated (check the story heights and the collapse law), so the "
+                               "indicator is at least yellow",)
+            out["indicator"] = COLOURS[max(COLOURS.index(out["indicator"]), 1)]
     out["notes"] = tuple(notes)
     out["timing"] = {"ida_s": t_ida, "total_s": time.perf_counter() - t0,
                      "runs": int(sum(r.timing.get("runs", 0) for r in results))}
     return Assessment(**out)
+
+
+def member_preparer(cfg):
+    """The building an ensemble member runs under the IDA settings ``cfg`` (whose ``collapse`` is the
+    nominal clone's law, so every member follows the same one)."""
+    from .prepare import prepare_building
+
+    def prepare(member):
+        return prepare_building(member, pdelta=cfg.pdelta, heights=cfg.heights_mm, gravity_load=cfg.gravity_load_n(),
+                                collapse=cfg.collapse)[0]
+    return prepare
+
+
+def _at_events(surv, band: _FragilityBand, measure, period) -> tuple:
+    """P(collapse) of the undamaged fragility at the intensity of every event the clone was
+    identified from (each survived)."""
+    from .measures import intensity
+
+    q, fits, ok = band.q, band.fits, band.ok
+    out = []
+    for name, m in surv.motions.available:
+        im = float(intensity(m, measure.name, period=None if not measure.needs_period else period)[0])
+        p_all = _fragility(im, band.par[:, 0], band.par[:, 1])
+        out.append({"name": name, "im": im, "p_collapse": float(_fragility(im, fits[ok, 0], fits[ok, 1]).mean()),
+                    "p_collapse_band": [float(v) for v in np.quantile(p_all, (q[0], q[2]))]})
+    return tuple(out)
 
 
 def _checked(clone, ida_config, own_motion, n_ensemble, n_boot, ci):
@@ -309,7 +354,6 @@ def _at_own_motion(clone, members, results, band: _FragilityBand, own_motion, me
     exceedance with their bands, the members' replays and the re-occupancy indicator."""
     from ..simulate import simulate_response
     from .measures import intensity
-    from .prepare import prepare_building
 
     q, fits, ok = band.q, band.fits, band.ok
     own_im = float(intensity(own_motion, measure.name, period=None if not measure.needs_period else period)[0])
@@ -324,8 +368,8 @@ def _at_own_motion(clone, members, results, band: _FragilityBand, own_motion, me
     hit = np.array(hits, dtype=float)
     exceed = hit.mean(axis=1)
     ex_all = np.concatenate([exceed] + [hit[:, idx].mean(axis=1) for idx in band.boots])
-    bs = [prepare_building(clone.member(b), pdelta=cfg.pdelta,
-                           heights=cfg.heights_mm, gravity_load=cfg.gravity_load_n())[0] for b in members]
+    prepare = member_preparer(cfg)
+    bs = [prepare(clone.member(b)) for b in members]
     sub = max(1, int(np.ceil(own_motion.dt / cfg.max_step)))
     h = np.array([np.asarray(b.height, dtype=float) for b in bs])
     sim = simulate_response(bs, own_motion, substeps=sub, outputs="peaks", stop_drift=cfg.drift_limit * h)

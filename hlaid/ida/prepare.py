@@ -11,7 +11,7 @@ from ..clone import Clone
 from ..errors import InputError
 from ..limits import check_count
 from ..model import Building
-from ..model.collapse import get_collapse_model
+from ..model.collapse import accommodate, get_collapse_model
 from ..systems import SYSTEMS
 
 
@@ -27,7 +27,10 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     combined with it. Story heights are required (``require_heights``): IDA reports drift ratios.
     ``collapse`` (a name, a mapping or a CollapseModel; see :mod:`hlaid.model.collapse`) replaces
     the clone's strength-loss model; None keeps the clone's, else the collapse law of the
-    clone's structural system (``clone.system``), else ``none``.
+    clone's structural system (``clone.system``), else ``none``. The law in force is made
+    consistent with the drifts the building survived (:meth:`Clone.survived_drift`;
+    :func:`hlaid.model.collapse.accommodate`: a capping drift below them is moved to them), with
+    a note saying how.
     """
     source = None
     if isinstance(model, (str, os.PathLike)):
@@ -73,6 +76,12 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
             building = building.replace(collapse=law)
             notes.append(f"collapse model {law.name!r} chosen for the clone's structural system {system!r}: "
                          f"strength loss as measured on such members ({law.source})")
+    if building.collapse is not None and building.height is not None:
+        survived = model.survived_drift() if isinstance(model, Clone) else None
+        law, changed = accommodate(building.collapse, dy=building.dy, height=building.height, survived=survived)
+        if changed:
+            building = building.replace(collapse=law)
+            notes.extend(changed)
     if building.collapse is None:
         notes.append("collapse model 'none': the stories never lose strength, so collapse comes only from the "
                      "drift limit or the slope criterion (optimistic); choose one with collapse: steel-mrf, "

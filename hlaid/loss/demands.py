@@ -69,6 +69,9 @@ class Demands:
     level : the IDA stripe's IM [g], or None for records as recorded
     drift_limit : the collapse drift ratio of the runs
     notes : what was decided on the way
+    flags : what a reader of the demands must know (extrapolation beyond the drifts observed, a
+        clone that collapses under its own events)
+    survival : the ensemble conditioned on the clone's events (:meth:`hlaid.events.evidence.Survival.to_dict`)
     """
 
     pid: np.ndarray
@@ -86,6 +89,8 @@ class Demands:
     level: float | None
     drift_limit: float
     notes: tuple = field(default_factory=tuple)
+    flags: tuple = field(default_factory=tuple)
+    survival: dict = field(default_factory=dict)
 
     @property
     def n_realisations(self) -> int:
@@ -138,7 +143,8 @@ class Demands:
                 "pid_median": med(self.pid), "pfa_median_g": None if not ok.any() else
                 (np.median(self.pfa[ok], axis=0) / G_MM_S2).tolist(),
                 "rid_median": med(self.rid), "rid_settling_max": float(np.max(self.rid_settling[ok]))
-                if ok.any() else None, "notes": list(self.notes)}
+                if ok.any() else None, "notes": list(self.notes), "flags": list(self.flags),
+                "survival": dict(self.survival)}
 
 
 def _num(v: float) -> str:
@@ -149,22 +155,24 @@ def _num(v: float) -> str:
     return f"{v:.8g}"
 
 
-def _members(clone: Clone, n_ensemble: int, seed: int, cfg) -> tuple[list, list[str]]:
-    """The buildings to run (prepared as IDA prepares them) and notes."""
+def _members(clone: Clone, n_ensemble: int, seed: int, cfg, motions=()) -> tuple[list, list[str], Any]:
+    """The buildings to run (prepared as IDA prepares them: the nominal clone, then the members
+    that survive the clone's events, :func:`hlaid.events.evidence.survivors`), notes and the survival."""
+    from ..events.evidence import survivors
+    from ..ida.assessment import member_preparer
     from ..ida.prepare import prepare_building
 
-    def prep(model):
-        return prepare_building(model, pdelta=cfg.pdelta, heights=cfg.heights_mm, gravity_load=cfg.gravity_load_n(),
-                                collapse=cfg.collapse)
-
-    nominal, notes = prep(clone)
+    nominal, notes = prepare_building(clone, pdelta=cfg.pdelta, heights=cfg.heights_mm,
+                                      gravity_load=cfg.gravity_load_n(), collapse=cfg.collapse)
+    cfg = cfg.replace(collapse=nominal.collapse.to_dict() if nominal.collapse is not None else "none")
+    prep = member_preparer(cfg)
+    surv = survivors(clone, n_ensemble, seed=seed, prepare=prep, motions=motions, drift_limit=cfg.drift_limit,
+                     max_step=cfg.max_step)
+    notes += list(surv.notes)
     if n_ensemble == 0:
-        return [nominal], notes + ["the identified clone alone (no ensemble): no identification uncertainty"]
-    from ..uncertainty.ensemble import clone_ensemble
-
-    members = clone_ensemble(clone, n_ensemble, seed=seed)
-    out = [prep(clone.member(b))[0] for b in members]
-    return [nominal] + out, notes + [f"{n_ensemble} clones drawn from the identification uncertainty (seed {seed})"]
+        return [nominal], notes + ["the identified clone alone (no ensemble): no identification uncertainty"], surv
+    out = [prep(clone.member(b)) for b in surv.members]
+    return [nominal] + out, notes + [f"{len(out)} clones drawn from the identification uncertainty (seed {seed})"], surv
 
 
 def _checked(clone, level, n_ensemble, ida_config) -> tuple[Clone, Any]:
@@ -255,11 +263,11 @@ def clone_demands(clone: Clone | str | os.PathLike, records, *, level: float | N
     from ..io.records import as_motions
 
     clone, cfg = _checked(clone, level, n_ensemble, ida_config)
-    buildings, notes = _members(clone, int(n_ensemble), seed, cfg)
+    motions = as_motions(records, units=cfg.units)
+    buildings, notes, surv = _members(clone, int(n_ensemble), seed, cfg, motions if level is None else ())
     nominal = buildings[0]
     if n_ensemble:
         buildings = buildings[1:]
-    motions = as_motions(records, units=cfg.units)
     measure, period, im0 = record_intensities(motions, cfg.im, nominal, cfg.period)
     scale = np.ones(len(motions)) if level is None else float(level) / im0
     tail, window = residual_window(buildings)
@@ -273,12 +281,31 @@ def clone_demands(clone: Clone | str | os.PathLike, records, *, level: float | N
     if collapsed.any():
         notes.append(f"{int(collapsed.sum())} of {collapsed.size} realisation(s) reached the {cfg.drift_limit:.0%} "
                      "drift limit or diverged (collapsed)")
+    flags = list(extrapolation_flags(clone, pid[~collapsed], np.asarray(nominal.height, dtype=float)))
+    if surv.nominal_survives is False:
+        flags.append(f"the clone collapses under {surv.nominal_collapsed_in}, an event it was identified from")
     members = np.repeat(np.arange(nb) if n_ensemble else np.full(nb, -1), nm)
     return Demands(pid=pid.reshape(-1, n), pfa=pfa.reshape(-1, n + 1), rid=rid.reshape(-1, n),
                    rid_settling=settle.reshape(-1, n), im=np.tile(im0 * scale, nb), collapsed=collapsed.ravel(),
                    member=members, record=np.tile(np.arange(nm), nb), record_names=tuple(m.name for m in motions),
                    im_name=measure.name, im_label=measure.label, period=float(period),
-                   level=None if level is None else float(level), drift_limit=cfg.drift_limit, notes=tuple(notes))
+                   level=None if level is None else float(level), drift_limit=cfg.drift_limit, notes=tuple(notes),
+                   flags=tuple(flags), survival=surv.to_dict())
+
+
+def extrapolation_flags(clone: Clone, pid: np.ndarray, height: np.ndarray) -> list[str]:
+    """A line where the median peak drift ratio of the realisations ``pid`` ``(realisation,
+    story)`` lies beyond the largest the building was measured to survive: demands the clone
+    extrapolates to."""
+    seen = clone.survived_drift(measured_only=True)
+    if seen is None or pid.size == 0:
+        return []
+    worst = float(np.max(seen / height))
+    median = float(np.median(np.max(pid, axis=-1)))
+    if median <= worst:
+        return []
+    return [f"demands extrapolated beyond what was observed: median peak drift ratio {median:.2%}, the largest the "
+            f"building was measured to survive {worst:.2%}"]
 
 
 def _settle(buildings, motions, r, ok: np.ndarray, window: float) -> tuple[np.ndarray, np.ndarray]:

@@ -28,7 +28,7 @@ frames: the story's plastic drift is the hinges' plastic rotation); see docs/col
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -106,6 +106,51 @@ class CollapseModel:
         out[:, 6] = np.where(plateau, b["xz"], NO_CAP)  # ...to zero
         out[:, 7] = np.where(plateau, -kpc, 0.0)
         return out
+
+
+def accommodate(law: CollapseModel, *, dy, height, survived=None) -> tuple[CollapseModel, list[str]]:
+    """``law`` made consistent with a building that survived drifts ``survived`` ``(story,)`` [mm]
+    (None: unknown), and notes saying how.
+
+    * A capping drift ``dy/h + theta_p`` below a survived drift contradicts the record (the story
+      would have been losing strength in an event it came through): ``theta_p`` is raised so that
+      every story caps at or beyond its survived drift, and ``theta_u`` with it (the post-capping
+      branch and the residual plateau keep their extent).
+    * An ultimate drift ``theta_u`` not beyond every story's capping drift (a story of large
+      ``dy``) is raised to ``dy/h + theta_p`` of that story plus the law's own ``theta_u - theta_p``.
+
+    ``dy``, ``height`` ``(story,)`` [mm]. An InputError where the survived drifts exceed the story
+    heights (no law caps beyond them: check the heights).
+    """
+    dy, h = np.asarray(dy, dtype=float), np.asarray(height, dtype=float)
+    theta_p, theta_u = law.theta_p, law.theta_u
+    notes: list[str] = []
+    if survived is not None:
+        s = np.asarray(survived, dtype=float)
+        need = (s - dy) / h
+        i = int(np.argmax(need))
+        if need[i] > theta_p:
+            if s[i] >= h[i]:
+                raise InputError(f"story {i + 1} survived a drift of {s[i]:.4g} mm, beyond its height {h[i]:g} mm: "
+                                 "check the story heights (heights_mm, --heights)")
+            theta_p = float(need[i])
+            theta_u = law.theta_u + (theta_p - law.theta_p)
+            notes.append(f"collapse law {law.name!r}: its capping drift dy/h + {law.theta_p:g} lay below a drift the "
+                         f"building survived (story {i + 1}: {s[i]:.1f} mm, {s[i] / h[i]:.2%} of its height "
+                         f"{h[i]:g} mm; all stories: " + ", ".join(f"{v:.1f}" for v in s)
+                         + f" mm): theta_p raised to {theta_p:.4g} and theta_u to {theta_u:.4g}, so every story caps "
+                         "at or beyond the drift it survived")
+    cap = float(np.max(dy / h)) + theta_p
+    if theta_u <= cap:
+        theta_u = cap + (law.theta_u - law.theta_p)
+        notes.append(f"collapse law {law.name!r}: theta_u raised to {theta_u:.4g}, beyond every story's capping drift "
+                     f"ratio (largest {cap:.4g}, dy/h + theta_p)")
+    if not notes:
+        return law, notes
+    if theta_p >= 1.0 or theta_u >= 10.0:
+        raise InputError(f"collapse law {law.name!r}: the drifts survived need a capping drift ratio of {theta_p:.3g}, "
+                         "beyond any story's: check the story heights (heights_mm, --heights)")
+    return replace(law, theta_p=theta_p, theta_u=theta_u), notes
 
 
 def no_collapse(n_stories: int) -> np.ndarray:
