@@ -33,6 +33,9 @@ def register(sub) -> None:
                         "gradient: least squares through the differentiable model; ukf: unscented Kalman filter. "
                         "Every method writes the same clone file format")
     p.add_argument("--config", help="identification config YAML of --method hlasvm (see configs/identify.yaml)")
+    p.add_argument("--system", metavar="NAME",
+                   help="structural system (steel-moment-frame, rc-frame, generic): its prior holds what the data "
+                        "say little about, its collapse law is the IDA's (default: the config's, else none)")
     p.add_argument("--tensorboard", metavar="DIR", help="write TensorBoard logs here")
     p.add_argument("--cache", metavar="DIR", help="classifier cache folder (default ~/.cache/hlaid/svm)")
     p.add_argument("--no-cache", action="store_true", help="train every classifier afresh and cache nothing")
@@ -57,6 +60,12 @@ def run_identify(args) -> int:
     from ..identify.config import IdentifyConfig  # light: no torch, numba or scipy
 
     cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
+    if args.system is not None:
+        if args.method != "hlasvm":
+            raise InputError(f"--system configures --method hlasvm, not {args.method}")
+        import dataclasses
+
+        cfg = dataclasses.replace(cfg, system=args.system)  # an unknown name is refused, listing the known ones
     for path in args.measurement:
         check_input(path)
     from ..io import read
@@ -140,6 +149,9 @@ def print_summary(clone, seconds: float | None = None) -> None:
         lines.append(f"state after {len(clone.events)} event(s): residual drift {drift} mm, eta {eta}")
     if clone.system:
         lines.append(f"structural system: {clone.system}")
+    from ..run.decision import identification_flags
+
+    lines += [f"flag: {f}" for f in identification_flags(clone)]
     if seconds is not None:
         lines.append(f"wall time {seconds:.1f} s")
     _progress.info("\n".join(lines))

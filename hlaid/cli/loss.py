@@ -98,6 +98,8 @@ def run_demands(args) -> int:
     _progress.info(f"wrote {args.out}: {d.n_realisations} realisations ({s['n_collapsed']} collapsed), "
                    f"median peak drift ratio {max(s['pid_median'] or [0]):.2%}, median residual "
                    f"{max(s['rid_median'] or [0]):.2%}, {d.im_label} {float(d.im.max()):.3g} g")
+    for flag in d.flags:
+        _progress.warn(f"flag: {flag}")
     for note in d.notes:
         _progress.debug(f"note: {note}")
     return 0
@@ -140,5 +142,6 @@ def _report(s: dict, out) -> None:
     _progress.info(f"repair cost: median {s['repair_cost_median']:,.0f} {s['cost_unit']} "
                    f"({s['repair_cost_ratio_median']:.1%} of replacement), 90 % band {lo:,.0f} - {hi:,.0f}; "
                    f"repair time median {s['repair_time_parallel_median']:.0f} worker-days (parallel); "
-                   f"P(collapse) {s['p_collapse']:.1%}, P(irreparable) {s['p_irreparable']:.1%}")
+                   + ("P(collapse) not assessed (no collapse fragility)" if s['p_collapse'] is None
+                      else f"P(collapse) {s['p_collapse']:.1%}") + f", P(irreparable) {s['p_irreparable']:.1%}")
     _progress.info(f"wrote {out}/ (loss.json, pelicun's inputs: demands.csv, inventory.csv, config.json)")

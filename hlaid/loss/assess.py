@@ -101,6 +101,10 @@ def assess_demands(demands: Demands, asset: Asset, cfg: LossConfig, folder: str 
     else:
         sample = run_pelicun(folder)
     s = summarise(sample, asset.replacement_cost, asset.replacement_time)
+    if asset.collapse_median_g is None:  # no fragility given: collapse not assessed (pelicun counted none)
+        s.update(p_collapse=None, p_replacement=None)
+        notes.append("collapse not assessed: no collapse fragility; the losses are those of the realisations that did "
+                     "not collapse")
     s.update(name=name, level_g=demands.level, im=float(np.median(demands.im)), im_label=demands.im_label,
              n_demand_realisations=demands.n_realisations, n_collapsed_in_replay=int(demands.collapsed.sum()),
              notes=notes)
@@ -143,7 +147,8 @@ def assess_losses(clone, own_motion, *, records=None, levels=(), collapse: tuple
     if levels and records is None:
         raise InputError("the loss curve needs the IDA records (give --records or the run's ida.records)")
     for k, lv in enumerate(_progress.progress(levels, desc="loss stripes")):
-        d = clone_demands(clone, records, level=lv, n_ensemble=n_ensemble, seed=seed, ida_config=ida_config)
+        d = clone_demands(clone, records, level=lv, n_ensemble=n_ensemble, seed=seed, ida_config=ida_config,
+                          event_motions=[own_motion] if own_motion is not None else ())
         results.append(assess_demands(d, b, cfg, folder / f"stripe-{k + 1}", f"stripe-{k + 1}"))
     if not results:
         raise InputError("nothing to assess: give the recorded ground motion or stripe levels")
@@ -216,8 +221,9 @@ def loss_of_demand_file(path: str | os.PathLike, cfg: LossConfig, out: str | os.
                         force: bool = False, base_dir: str | os.PathLike | None = None) -> dict:
     """``hlaid loss DEMANDS.csv -o OUT``: pelicun's FEMA P-58 assessment of a demand file (e.g. one
     written by ``hlaid demands``) with ``cfg``'s inventory (``floor_area_m2`` required: the file
-    has no masses) and an optional collapse fragility in the file's intensity column. Writes
-    pelicun's inputs and ``loss.json`` into ``out``; returns the summary."""
+    has no masses) and an optional collapse fragility in the file's intensity column (without one,
+    P(collapse) and P(replacement) are None: not assessed). Writes pelicun's inputs and
+    ``loss.json`` into ``out``; returns the summary."""
     from .._fileio import atomic_directory
     from .demands import read_demand_csv
 
@@ -236,6 +242,10 @@ def loss_of_demand_file(path: str | os.PathLike, cfg: LossConfig, out: str | os.
                                realizations=cfg.realizations, seed=cfg.seed)
         write_inputs(tmp, inputs)
         s = summarise(run_pelicun(tmp), asset.replacement_cost, asset.replacement_time)
+        if collapse is None:  # pelicun counted no collapse because none was asked for: not assessed, not 0
+            s.update(p_collapse=None, p_replacement=None)
+            s["notes"] = ["collapse not assessed: no collapse fragility given (--collapse-median, --collapse-beta); "
+                          "the repair costs and times are those of the realisations that did not collapse"]
         s.update(demand_file=str(path), inventory=asset.inventory_source, n_demand_realisations=df.n_realisations,
                  collapse_fragility={"median_g": asset.collapse_median_g, "beta": asset.collapse_beta},
                  engine=_engine(), assumptions=ASSUMPTIONS)

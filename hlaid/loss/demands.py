@@ -239,7 +239,7 @@ def residual_window(buildings) -> tuple[float, float]:
 
 
 def clone_demands(clone: Clone | str | os.PathLike, records, *, level: float | None = None, n_ensemble: int = 0,
-                  seed: int = 0, ida_config=None) -> Demands:
+                  seed: int = 0, ida_config=None, event_motions=()) -> Demands:
     """Demands of a clone (and its ensemble) under records, as recorded or at one IM level.
 
     Parameters
@@ -254,6 +254,9 @@ def clone_demands(clone: Clone | str | os.PathLike, records, *, level: float | N
     seed : seed of the ensemble
     ida_config : :class:`hlaid.ida.IDAConfig` (its ``im``, ``period``, ``drift_limit``, ``max_step``,
         ``pdelta``, ``heights_mm``, ``gravity_kN``, ``collapse`` and ``units`` are used); None: defaults
+    event_motions : ground motions of the clone's events at hand (the records themselves when
+        ``level`` is None); the ensemble is conditioned on surviving them
+        (:func:`hlaid.events.evidence.survivors`), the others read from the events' files
 
     Returns
     -------
@@ -264,7 +267,8 @@ def clone_demands(clone: Clone | str | os.PathLike, records, *, level: float | N
 
     clone, cfg = _checked(clone, level, n_ensemble, ida_config)
     motions = as_motions(records, units=cfg.units)
-    buildings, notes, surv = _members(clone, int(n_ensemble), seed, cfg, motions if level is None else ())
+    buildings, notes, surv = _members(clone, int(n_ensemble), seed, cfg,
+                                      [*event_motions, *(motions if level is None else ())])
     nominal = buildings[0]
     if n_ensemble:
         buildings = buildings[1:]

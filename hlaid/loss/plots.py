@@ -19,7 +19,7 @@ def plot_loss_curve(stripes, own=None):
     ax.fill_between(x, lo, hi, color="C0", alpha=0.2, label=f"{s[0]['ci']:.0%} band")
     ax.plot(x, [v["repair_cost_ratio_median"] for v in s], "C0-o", ms=4, label="median")
     ax.plot(x, [v["repair_cost_ratio_mean"] for v in s], "k--", lw=1.5, label="mean (expected loss)")
-    ax2.plot(x, [v["p_collapse"] for v in s], "C3-o", ms=4, label="collapse")
+    ax2.plot(x, [np.nan if v["p_collapse"] is None else v["p_collapse"] for v in s], "C3-o", ms=4, label="collapse")
     ax2.plot(x, [v["p_irreparable"] for v in s], "C1-s", ms=4, label="irreparable (residual drift)")
     ax2.plot(x, [v["p_replacement"] for v in s], "C7:", lw=1.5, label="replacement (either)")
     if own is not None:

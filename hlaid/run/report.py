@@ -22,7 +22,7 @@ from pathlib import Path
 from .._fileio import atomic_write
 from .._inputs import read_bytes, read_text
 from ..errors import InputError
-from .sections import aftershock, assessment, ida, identification
+from .sections import aftershock, assessment, decision, ida, identification
 from .sections import loss as loss_section
 from .sections.markup import figure
 from .summary import RunSummary, read_summary
@@ -118,7 +118,7 @@ def render_report(s: RunSummary, figs: Figures) -> str:
              f"<style>{_CSS}</style></head><body>",
              f"<h1>{e(s.name)}: digital clone and collapse risk</h1>", source,
              "<div>" + "".join(f"<span class='kpi'>{e(k)}<b>{v}</b></span>" for k, v in _key_figures(s)) + "</div>",
-             identification.section(s)]
+             decision.section(s), identification.section(s)]
     parts += [figure(figs.img(rel), cap) for rel, cap in FIGURES if figs.path(rel).exists()]
     if s.ida:
         parts.append(ida.section(s.ida))

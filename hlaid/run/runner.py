@@ -34,7 +34,18 @@ from ..model import Building
 from ..plots import plot_time_histories, save_figure
 from ..synthetic import measurement_from_config
 from .config import MeasurementSource, RunConfig, input_paths, load_run_config
-from .summary import Assessment, ConfigRecord, IDASummary, LossSummary, ParameterRow, Replay, RunSummary
+from .decision import event_risks, run_flags
+from .summary import (
+    Assessment,
+    ConfigRecord,
+    EventRisk,
+    IDASummary,
+    LossSummary,
+    ParameterRow,
+    Replay,
+    RunSummary,
+    Survival,
+)
 
 PARAMS = ("alpha", "p", "delta_eta", "dy", "k0")
 
@@ -107,6 +118,11 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
         timings["identify"] = time.perf_counter() - t
         table, paper = _identification_outputs(meas, res, tmp)
         risk = _risk(res.clone, meas, cfg, tmp, base_dir, timings)
+        flags = run_flags(res.clone, stiffness_error=res.replay.stiffness_error.tolist(),
+                          survival=risk.pop("survival_dict"), assessment=risk.pop("assessment_dict"),
+                          heights_given=_heights_given(cfg), loss=risk.pop("loss_dict"))
+        for flag in flags:
+            _progress.warn(f"flag: {flag}")
         timings["total"] = time.perf_counter() - t_all
         rc = res.replay
         summary = RunSummary(
@@ -117,7 +133,7 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
                           r_true=None if rc.r_true is None else tuple(rc.r_true.tolist()),
                           stiffness_error=tuple(rc.stiffness_error.tolist())),
             outer_iterations=res.iterations, identify_timings=dict(res.timings), timings=timings,
-            noise_rms=meas.noise_rms, **risk)
+            noise_rms=meas.noise_rms, flags=tuple(flags), **risk)
         write_json(tmp / "summary.json", summary.to_dict())
         build_report(tmp)
     _progress.info(f"wrote {out}/ (report.html, clone.json, hla/, ida/, figures/, tensorboard/) in "
@@ -146,30 +162,62 @@ def _identification_outputs(meas: Measurement, res, tmp: Path) -> tuple[list[Par
     return table, paper
 
 
+def _heights_given(cfg: RunConfig) -> list[float] | None:
+    """The story heights the config gives (the measurement's ``height_mm``, else the IDA's
+    ``heights_mm``), None where the heights are the measurement's own."""
+    m = cfg.measurement
+    if m.height_mm is not None and m.simulate is None:
+        return list(m.height_mm)
+    if cfg.ida is not None and cfg.ida.heights_mm is not None:
+        return list(cfg.ida.heights_mm)
+    return None
+
+
+def _own_motion(meas: Measurement):
+    from ..motions import GroundMotion
+    return GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name=meas.name or "measured",
+                        source=meas.source or "")
+
+
 def _risk(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir, timings: dict) -> dict:
     """The IDA (before and after the event), the ensemble assessment and the losses a run's config
-    asks for (into ``tmp``, their times into ``timings``); returns the summary's blocks of them."""
-    out: dict = dict.fromkeys(("ida", "ida_after", "assessment", "loss"))
+    asks for (into ``tmp``, their times into ``timings``); returns the summary's blocks of them
+    (and, for the flags, ``*_dict``: the survival, the assessment and the losses as mappings)."""
+    out: dict = dict.fromkeys(("ida", "ida_after", "assessment", "loss", "survival", "survival_dict",
+                               "assessment_dict", "loss_dict"))
+    out["events"] = ()
     if cfg.ida is None:
         return out
     t = time.perf_counter()
     _progress.info("[4/4] incremental dynamic analysis of the clone")
+    from ..events.evidence import survivors
     from ..ida import ida_from_config
-    ir = ida_from_config(clone, cfg.ida, base_dir=base_dir)
+    own = _own_motion(meas)
+    ir = ida_from_config(clone, cfg.ida, base_dir=base_dir, event_motions=[own])
     ir.save(tmp / "ida", plots=True, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
     out["ida"] = _ida_summary(tmp / "ida")
     timings["ida"] = time.perf_counter() - t
+    surv = survivors(clone, 0, prepare=lambda _: ir.building, motions=[own], drift_limit=cfg.ida.drift_limit,
+                     max_step=cfg.ida.max_step)
+    out["survival_dict"] = surv.to_dict()
     if clone.state is not None and cfg.ida.start == "undamaged":
         t = time.perf_counter()
-        out["ida_after"] = _aftershock(clone, ir, cfg, tmp, base_dir)
+        out["ida_after"] = _aftershock(clone, ir, cfg, tmp, base_dir, own)
         timings["ida_after"] = time.perf_counter() - t
     if cfg.assess is not None:
         t = time.perf_counter()
-        out["assessment"] = _assess(clone, meas, cfg, tmp, base_dir)
+        out["assessment"], out["assessment_dict"] = _assess(clone, meas, cfg, tmp, base_dir)
         timings["assess"] = time.perf_counter() - t
+        if out["assessment_dict"] is not None:
+            out["survival_dict"] = {**out["survival_dict"], **out["assessment_dict"]["survival"],
+                                    "nominal_survives": surv.nominal_survives,
+                                    "nominal_collapsed_in": surv.nominal_collapsed_in}
+    out["survival"] = Survival.from_dict(out["survival_dict"], file="summary.json", path="survival")
+    out["events"] = tuple(EventRisk.from_dict(e, file="summary.json", path="events")
+                          for e in event_risks(out["assessment_dict"], ir, surv.motions.available))
     if cfg.loss is not None:
         t = time.perf_counter()
-        out["loss"] = _loss(clone, meas, cfg, tmp, out["ida"], out["assessment"], base_dir)
+        out["loss"], out["loss_dict"] = _loss(clone, meas, cfg, tmp, out["ida"], out["assessment"], base_dir)
         timings["loss"] = time.perf_counter() - t
     return out
 
@@ -179,34 +227,34 @@ def _ida_summary(folder: Path) -> IDASummary:
     return IDASummary.from_dict(read_json(folder / "summary.json"), file=f"{folder.name}/summary.json")
 
 
-def _aftershock(clone, before, cfg: RunConfig, tmp: Path, base_dir) -> IDASummary:
+def _aftershock(clone, before, cfg: RunConfig, tmp: Path, base_dir, own) -> IDASummary:
     """The IDA of the clone from the state its event left it in (``ida-after/``) and the figure of
     the fragility before and after; returns the summary's ``ida_after`` block."""
     from ..ida import ida_from_config
     from ..ida.plots import plot_fragility_before_after
     assert cfg.ida is not None
     _progress.info("[4/4] incremental dynamic analysis from the state the event left the clone in")
-    after = ida_from_config(clone, cfg.ida.replace(start="carried"), base_dir=base_dir)
+    after = ida_from_config(clone, cfg.ida.replace(start="carried"), base_dir=base_dir, event_motions=[own])
     after.save(tmp / "ida-after", plots=False, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
     save_figure(plot_fragility_before_after(before, after), tmp / "figures" / "aftershock.png")
     return _ida_summary(tmp / "ida-after")
 
 
-def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> Assessment | None:
+def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> tuple[Assessment | None, dict | None]:
     """Ensemble IDA and re-occupancy indicator at the measured record; writes ``assessment.json`` and
-    ``figures/fragility_band.png``; returns the summary's ``assessment`` block (None: no uncertainty)."""
+    ``figures/fragility_band.png``; returns the summary's ``assessment`` block and the assessment
+    as a mapping (None: no uncertainty)."""
     from ..ida import assess
-    from ..motions import GroundMotion
     if clone.uncertainty is None:
         _progress.warn("no identification uncertainty (refinement off): the ensemble assessment is skipped")
-        return None
+        return None, None
     a, ida_cfg = cfg.assess, cfg.ida
     if a is None or ida_cfg is None:  # load_run_config allows an assess block only with an ida block
-        return None
+        return None, None
     _progress.info(f"[4/4] ensemble assessment: IDA of {a.n_ensemble} clones drawn from the identification "
-                   "uncertainty")
+                   "uncertainty, those that collapse under the measured record rejected")
     recs = ida_cfg.record_specs(base_dir)
-    own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name="measured")
+    own = _own_motion(meas)
     res = assess(clone, recs, n_ensemble=a.n_ensemble, ida_config=ida_cfg, own_motion=own, seed=a.seed,
                  n_boot=a.n_boot, ci=a.ci)
     d = res.to_dict()
@@ -214,14 +262,13 @@ def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> As
     save_figure(res.plot(), tmp / "figures" / "fragility_band.png")
     medians = {"own_residual_drift_median": float(np.median(cast(np.ndarray, res.own_residual_drift))),
                "own_peak_drift_median": float(np.median(cast(np.ndarray, res.own_peak_drift)))}  # own_motion given
-    return Assessment.from_dict({**d, **medians}, file="assessment.json")
+    return Assessment.from_dict({**d, **medians}, file="assessment.json"), d
 
 
 def _loss(clone, meas: Measurement, cfg: RunConfig, tmp: Path, ida_summary: IDASummary | None,
-          assessment: Assessment | None, base_dir) -> LossSummary:
+          assessment: Assessment | None, base_dir) -> tuple[LossSummary, dict]:
     """FEMA P-58 losses at the measured record and the IDA stripes (``loss/``); the summary's ``loss`` block."""
     from ..loss.assess import assess_losses
-    from ..motions import GroundMotion
     from .loss import run_collapse
     a, ida_cfg, lc = cfg.assess, cfg.ida, cfg.loss
     if ida_cfg is None or lc is None:  # load_run_config allows a loss block only with an ida block
@@ -230,11 +277,11 @@ def _loss(clone, meas: Measurement, cfg: RunConfig, tmp: Path, ida_summary: IDAS
     collapse, src = run_collapse(assessment, ida_summary, source=str(tmp))
     n_ens = a.n_ensemble if a is not None and assessment is not None else 0
     levels = lc.levels if lc.levels is not None else list(ida_summary.levels_g if ida_summary is not None else ())
-    own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name="measured")
+    own = _own_motion(meas)
     block = assess_losses(clone, own, records=ida_cfg.record_specs(base_dir), levels=levels, collapse=collapse,
                           cfg=lc, ida_config=ida_cfg, n_ensemble=n_ens, seed=a.seed if a is not None else 0,
                           folder=tmp / "loss", collapse_source=src, base_dir=base_dir)
-    return LossSummary.of_losses(block)
+    return LossSummary.of_losses(block), block
 
 
 def _replay_figure(meas: Measurement, res):

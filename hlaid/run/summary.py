@@ -7,7 +7,8 @@ one :class:`~hlaid.errors.InputError` naming summary.json and the field. The JSO
 field names; :meth:`RunSummary.to_dict` writes them in this order, after ``format`` and ``version``.
 
 Versions: 1 (hlaid 0.1) and 2 (this one) hold the same fields; version 2 is the first written
-from this schema, and this hlaid reads both.
+from this schema, and this hlaid reads both. Fields added since (``events``, ``survival``,
+``flags``, the assessment's ``events`` and ``survival``) are optional: older summaries read without them.
 """
 
 from __future__ import annotations
@@ -140,6 +141,37 @@ class IDASummary(Document):
         return None if cf is None else cf.capacities or cf.counts
 
 
+# ------------------------------------------------------------------ what the building survived
+@dataclass(frozen=True, kw_only=True)
+class EventRisk(Block):
+    """P(collapse) at the intensity of an event the clone was identified from (the building
+    survived it): ``source`` says whose fragility (the ensemble's, or the identified clone's IDA)."""
+
+    name: str
+    im: float | None = None
+    p_collapse: float | None = None
+    p_collapse_band: tuple[float, float] | None = None
+    source: str | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Survival(Block):
+    """The clone's events as evidence (:meth:`hlaid.events.evidence.Survival.to_dict`): members
+    drawn and rejected for collapsing under an event the building survived, and whether the nominal
+    clone survives them with the collapse law in force."""
+
+    n_wanted: int = 0
+    n_drawn: int = 0
+    n_rejected: int = 0
+    n_members: int = 0
+    events: tuple[str, ...] = ()
+    unchecked: tuple[str, ...] = ()
+    nominal_survives: bool | None = None
+    nominal_collapsed_in: str | None = None
+    nominal_peak_drift_mm: tuple[float, ...] | None = None
+    notes: tuple[str, ...] = ()
+
+
 # ------------------------------------------------------------------ ensemble assessment
 @dataclass(frozen=True, kw_only=True)
 class Assessment(Block):
@@ -167,6 +199,8 @@ class Assessment(Block):
     thresholds: dict[str, float] | None = None
     own_residual_drift_median: float | None = None
     own_peak_drift_median: float | None = None
+    events: tuple[EventRisk, ...] = ()
+    survival: Survival | None = None
 
 
 # ------------------------------------------------------------------ losses
@@ -192,7 +226,7 @@ class RecordedLoss(Block):
     repair_time_parallel_band: tuple[float | None, float | None] | None = None
     repair_time_sequential_median: float
     repair_time_sequential_band: tuple[float | None, float | None] | None = None
-    p_collapse: float
+    p_collapse: float | None = None
     p_irreparable: float
     p_replacement: float | None = None
     name: str | None = None
@@ -279,7 +313,11 @@ class RunSummary(Block):
     """A run's summary (``summary.json``): the run (name, hlaid version, config as run, measurement
     source, timings), the identification (parameters against the truth when known, the paper's
     method alone, the replay), the IDA before and after the event, the ensemble assessment and the
-    losses (each None when the run did not compute it)."""
+    losses (each None when the run did not compute it); P(collapse) at the intensity of every event
+    the clone was identified from (``events``), the clone's events as evidence (``survival``) and
+    what a reader must know (``flags``: large stiffness-evolution errors, parameters at limits or
+    from the prior, a clone that collapses under its own event, extrapolation, assumed heights or
+    masses)."""
 
     name: str
     hlaid_version: str
@@ -298,6 +336,9 @@ class RunSummary(Block):
     noise_rms: float | None = None
     assessment: Assessment | None = None
     loss: LossSummary | None = None
+    events: tuple[EventRisk, ...] = ()
+    survival: Survival | None = None
+    flags: tuple[str, ...] = ()
 
     @classmethod
     def from_dict(cls, d, *, file: str = FILE, source: str | None = None, path: str = "") -> RunSummary:
@@ -333,5 +374,6 @@ def read_summary(run_dir: str | os.PathLike) -> RunSummary:
 
 
 __all__ = ["RunSummary", "read_summary", "ParameterRow", "Replay", "IDASummary", "Fragility", "CollapseFits",
+           "EventRisk", "Survival",
            "IntensityMeasure", "CollapseCriteria", "DriftLimit", "Assessment", "LossSummary", "RecordedLoss",
            "LossCurvePoint", "CollapseUsed", "Irreparable", "ConfigRecord", "FORMAT", "VERSION", "READS"]

@@ -49,7 +49,7 @@ def loss_html(loss: LossSummary) -> str:
                  f"{fmt(rlo, '.1%')} &ndash; {fmt(rhi, '.1%')}"),
                 ("repair time, median (parallel / sequential)",
                  f"{r.repair_time_parallel_median:,.0f} / {r.repair_time_sequential_median:,.0f} worker-days", ""),
-                ("P(collapse)", fmt(r.p_collapse, ".1%"), ""),
+                ("P(collapse)", "not assessed" if r.p_collapse is None else fmt(r.p_collapse, ".1%"), ""),
                 ("P(irreparable: residual drift)", fmt(r.p_irreparable, ".1%"), "")]
         out.append(f"<p>At the measured record ({e(r.im_label)} = {r.im:.3g} g; {r.n_demand_realisations} "
                    f"demand realisations, {r.n_realizations} loss realisations):</p><table><tr><th class='l'>"
