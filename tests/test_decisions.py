@@ -90,6 +90,10 @@ def test_prepare_building_applies_the_survived_drift(table1):
     assert any("lay below a drift the building survived" in n for n in notes)
     plain, _ = prepare_building(dataclasses.replace(c, events=()))
     assert plain.collapse.theta_p == COLLAPSE_MODELS["steel-mrf"].theta_p
+    # an ensemble member of large dy (dy/h + theta_p beyond theta_u) is prepared, not refused
+    big = table1.replace(height=np.full(3, 100.0), dy=np.array([7.0, 9.0, 3.0]))
+    member, notes = prepare_building(big, collapse="steel-mrf")
+    assert member.collapse.theta_u > 0.09 + 0.025 and any("theta_u raised" in n for n in notes)
 
 
 # ---------------------------------------------------------------------------- survival as evidence

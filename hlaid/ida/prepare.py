@@ -46,6 +46,8 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     source = source or building.source
     check_count(building.n_stories, "STORIES", "stories", source=source)
     notes: list[str] = []
+    law = building.collapse  # resolved below, once the heights are known and against them
+    building = building.replace(collapse=None)
     if heights is not None:
         building = building.replace(height=heights)
     if gravity_load is not None:
@@ -69,19 +71,17 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
         notes.append("P-Delta off" + (" (requested)" if pdelta is False else " (story heights unknown)"))
     building = building.replace(pdelta=want)
     if collapse is not None:
-        building = building.replace(collapse=get_collapse_model(collapse))
-    elif building.collapse is None and system is not None:
+        law = get_collapse_model(collapse)
+    elif law is None and system is not None:
         law = get_collapse_model(SYSTEMS[system].collapse if system in SYSTEMS else "none")
         if law is not None:
-            building = building.replace(collapse=law)
             notes.append(f"collapse model {law.name!r} chosen for the clone's structural system {system!r}: "
                          f"strength loss as measured on such members ({law.source})")
-    if building.collapse is not None and building.height is not None:
+    if law is not None and building.height is not None:
         survived = model.survived_drift() if isinstance(model, Clone) else None
-        law, changed = accommodate(building.collapse, dy=building.dy, height=building.height, survived=survived)
-        if changed:
-            building = building.replace(collapse=law)
-            notes.extend(changed)
+        law, changed = accommodate(law, dy=building.dy, height=building.height, survived=survived)
+        notes.extend(changed)
+    building = building.replace(collapse=law)
     if building.collapse is None:
         notes.append("collapse model 'none': the stories never lose strength, so collapse comes only from the "
                      "drift limit or the slope criterion (optimistic); choose one with collapse: steel-mrf, "
