@@ -124,6 +124,12 @@ def test_assessment_is_written(run_dir):
     assert 0 <= a.p_collapse <= 1 and a.own_im > 0
     full = json.loads((out / "assessment.json").read_text())
     assert len(full["member_median"]) == 2 and len(full["fragility_median"]) == len(full["im_grid"])
+    # the building survived its record: P(collapse) there from the ensemble, which is conditioned on it
+    (ev,) = summary.events
+    assert ev.p_collapse == pytest.approx(a.p_collapse) and ev.im == pytest.approx(a.own_im)
+    assert summary.survival.nominal_survives is True and summary.survival.n_members == 2
+    assert summary.survival.n_drawn == 2 + summary.survival.n_rejected
+    assert "What the decision rests on" in (out / "report.html").read_text()
     clone = load_clone(out / "clone.json")
     assert clone.uncertainty is not None and clone.uncertainty.info["fit_consistent"] in (True, False)
     rows = json.loads((out / "parameters.json").read_text())["identified"]

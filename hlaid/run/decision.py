@@ -61,6 +61,14 @@ def parameter_flags(clone: Clone) -> list[str]:
     at = [label(r) for r in rows if isinstance(r, dict) and r.get("at_limit")]
     prior = [label(r) for r in rows if isinstance(r, dict) and r.get("source") not in (None, "data")]
     out = []
+    u = clone.uncertainty
+    if u is not None:
+        slots = set(u.slots)
+        held = [f"{n}[{i + 1}]" for n in ("alpha", "p", "dy", "delta_eta") for i in range(clone.building.n_stories)
+                if (n, i) not in slots]
+        if held:
+            out.append("parameters held at their value without an interval (not identified, no structural system's "
+                       "prior to give one; name one with --system): " + ", ".join(held))
     if at:
         out.append(f"parameters at a limit of the model (the search could only approach them): {', '.join(at)}")
     if prior:
@@ -89,14 +97,35 @@ def identification_flags(clone: Clone, stiffness_error: Sequence[float] | None =
     return out
 
 
-def run_flags(clone: Clone, *, stiffness_error: Sequence[float] = (), survival: dict | None = None,
+P_SURVIVED_FLAG = 0.5
+"""P(collapse) at the intensity of an event the building survived from which on the run says the
+fragility contradicts the record more likely than not."""
+
+
+def run_flags(clone: Clone, *, stiffness_error: Sequence[float] | None = None, survival: dict | None = None,
               assessment: dict | None = None, heights_given: Sequence[float] | None = None,
-              loss: dict | None = None) -> list[str]:
-    """The flags of a run (see the module doc): ``stiffness_error`` per story, the ``survival``
+              loss: dict | None = None, events: Sequence[dict] = (), drift_limit: float | None = None) -> list[str]:
+    """The flags of a run (see the module doc): ``stiffness_error`` per story (None: the clone's
+    replay diagnostics), the ``survival``
     block, the ``assessment`` (its members' own peak drift against what was observed), the story
-    heights the config gave (None: the measurement's own) and the ``loss`` block (its demands'
-    flags)."""
+    heights the config gave (None: the measurement's own), the ``loss`` block (its demands'
+    flags) and P(collapse) at each recorded event (``events``, :func:`event_risks`; at or above
+    :data:`P_SURVIVED_FLAG` the drifts survived and the IDA's ``drift_limit`` are named)."""
     out = identification_flags(clone, stiffness_error)
+    seen = clone.survived_drift(measured_only=True)
+    h = clone.building.height if heights_given is None else np.asarray(heights_given, dtype=float)
+    for e in events:
+        if e.get("p_collapse") is not None and e["p_collapse"] >= P_SURVIVED_FLAG:
+            what = ""
+            if seen is not None and h is not None:
+                ratio = np.asarray(seen) / np.asarray(h, dtype=float)
+                what = (f": the building reached {float(ratio.max()):.1%} drift ("
+                        + ", ".join(f"{d:.0f}" for d in seen) + " mm at heights "
+                        + ", ".join(f"{v:g}" for v in np.asarray(h, dtype=float)) + " mm)"
+                        + (f", the collapse criterion is {drift_limit:.0%}" if drift_limit else ""))
+            out.append(f"P(collapse) {e['p_collapse']:.0%} at the intensity of {e['name']} ({e.get('im', 0):.3g} g), "
+                       f"which the building survived{what}; check the story heights, the collapse law and the drift "
+                       "limit before acting on the fragility")
     if survival and survival.get("nominal_survives") is False:
         out.append(f"the clone collapses under {survival.get('nominal_collapsed_in')}, an event it was identified "
                    "from and the building survived: its collapse risk is overstated (check the story heights and "
@@ -106,8 +135,6 @@ def run_flags(clone: Clone, *, stiffness_error: Sequence[float] = (), survival: 
                    "events and were rejected (the posterior conditioned on survival)")
     if survival and survival.get("unchecked"):
         out.append("survival not checked for: " + "; ".join(survival["unchecked"]))
-    seen = clone.survived_drift(measured_only=True)
-    h = clone.building.height if heights_given is None else np.asarray(heights_given, dtype=float)
     if assessment and seen is not None and h is not None and assessment.get("own_peak_drift") is not None:
         own = float(np.median(np.asarray(assessment["own_peak_drift"], dtype=float)))
         worst = float(np.max(np.asarray(seen) / np.asarray(h, dtype=float)))
@@ -122,4 +149,5 @@ def run_flags(clone: Clone, *, stiffness_error: Sequence[float] = (), survival: 
     return out
 
 
-__all__ = ["STIFFNESS_ERROR_FLAG", "event_risks", "identification_flags", "parameter_flags", "run_flags"]
+__all__ = ["P_SURVIVED_FLAG", "STIFFNESS_ERROR_FLAG", "event_risks", "identification_flags", "parameter_flags",
+           "run_flags"]

@@ -120,7 +120,9 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
         risk = _risk(res.clone, meas, cfg, tmp, base_dir, timings)
         flags = run_flags(res.clone, stiffness_error=res.replay.stiffness_error.tolist(),
                           survival=risk.pop("survival_dict"), assessment=risk.pop("assessment_dict"),
-                          heights_given=_heights_given(cfg), loss=risk.pop("loss_dict"))
+                          heights_given=_heights_given(cfg), loss=risk.pop("loss_dict"),
+                          events=[e.to_dict() for e in risk["events"]],
+                          drift_limit=cfg.ida.drift_limit if cfg.ida is not None else None)
         for flag in flags:
             _progress.warn(f"flag: {flag}")
         timings["total"] = time.perf_counter() - t_all
