@@ -18,6 +18,14 @@ nominal coverage) in ``<out>/coverage.png`` and the figures in ``<out>/coverage.
 ``bootstrap``: on the Table 1 structure under one to three records (PGA 0.62 g), the Laplace
 standard deviations against a parametric bootstrap (re-identification on re-noised
 simulations of the clone).
+``system``: the posterior of a single-event clone identified with a structural system's prior
+(the MAP fit over the event from the paper's estimate): the Table 1 structure under its five
+records at PGA 0.62 g (system ``--table1-system``, default ``steel-moment-frame``) and ``--n``
+random buildings of ``--set`` (system ``--system``, default ``generic``), 10 % noise; the share of
+true parameters inside each clone's 90 % interval (every parameter: k0, alpha, p, dy, delta_eta
+and the damping ratio), into ``<out>/system/coverage.json`` (resumable per case).
+
+    python $S --part system --n 20 --out runs/study_uncert --cache runs/uq_cache
 """
 
 from __future__ import annotations
@@ -247,9 +255,62 @@ def bootstrap(args) -> None:
         (out / "bootstrap.json").write_text(json.dumps(rows, indent=1))
 
 
+def system_case(truth, gm, seed: int, system: str, cache: str) -> dict:
+    """One clone identified with ``system``'s prior: per parameter its z-score against the truth
+    and whether the truth lies inside the 90 % interval."""
+    from hlaid.model.uncertainty import to_theta
+
+    meas = simulate_measurement(truth, gm, noise_rms=0.10, seed=seed)
+    t = time.perf_counter()
+    res = identify_clone(meas, IdentifyConfig(system=system), cache_dir=cache)
+    u = res.clone.uncertainty
+    true_x = np.array([truth.damping.ratio if n == "damping" else getattr(truth, n)[i] for n, i in u.slots])
+    theta = np.array([float(to_theta(tr, v)) for tr, v in zip(u.transform, true_x)])
+    z = (theta - u.centre) / np.maximum(u.std, 1e-300)
+    iv = u.interval(0.9)
+    inside = [bool(lo <= v <= hi) for (lo, hi), v in zip(iv.values(), true_x)]
+    return {"record": gm.name, "stories": truth.n_stories, "system": system, "names": u.names,
+            "z": z.tolist(), "inside": inside, "method": u.method, "seconds": time.perf_counter() - t}
+
+
+def system_study(args) -> None:
+    out = Path(args.out) / "system"
+    out.mkdir(parents=True, exist_ok=True)
+    truth = load_simulation_config("configs/poc_3story.yaml").building.build()
+    from study_identification import TABLE1_RECORDS
+
+    jobs = [(f"table1_{k}", truth, read(r, "motion").scaled_to_pga(0.62), k, args.table1_system)
+            for k, r in enumerate(TABLE1_RECORDS)]
+    jobs += [(f"{args.set}_{j:03d}", b, gm, seed, args.system)
+             for j, (b, gm, seed) in enumerate(cases(args.set, args.n))]
+    rows = []
+    for name, b, gm, seed, system in jobs:
+        path = out / f"{name}.json"
+        if not path.exists():
+            path.write_text(json.dumps(system_case(b, gm, seed, system, args.cache)))
+        rows.append({"case": name, **json.loads(path.read_text())})
+        r = rows[-1]
+        print(f"{name} ({r['system']}, {r['stories']} stories, {r['record']}): {sum(r['inside'])}/{len(r['inside'])} "
+              f"inside, {r['seconds']:.0f} s", flush=True)
+    report = {}
+    for label, sel in (("table1", [r for r in rows if r["case"].startswith("table1")]),
+                       ("random", [r for r in rows if not r["case"].startswith("table1")]), ("all", rows)):
+        inside = np.concatenate([r["inside"] for r in sel]) if sel else np.zeros(0)
+        names = np.concatenate([[n.split("[")[0] for n in r["names"]] for r in sel]) if sel else np.zeros(0)
+        report[label] = {"cases": len(sel), "intervals": int(inside.size),
+                         "coverage_90": float(inside.mean()) if inside.size else None,
+                         "per_parameter": {p: float(inside[names == p].mean()) for p in (*PARAMS, "damping")
+                                           if (names == p).any()}}
+        print(f"{label}: {report[label]['coverage_90']:.1%} of {inside.size} true values inside the 90 % intervals "
+              f"({len(sel)} cases); " + ", ".join(f"{p} {v:.0%}" for p, v in report[label]["per_parameter"].items()))
+    (out / "coverage.json").write_text(json.dumps(report, indent=1))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--part", choices=["run", "analyse", "bootstrap"], default="run")
+    ap.add_argument("--part", choices=["run", "analyse", "bootstrap", "system"], default="run")
+    ap.add_argument("--system", default="generic", help="structural system of the random cases (--part system)")
+    ap.add_argument("--table1-system", default="steel-moment-frame", help="of the Table 1 cases (--part system)")
     ap.add_argument("--set", choices=list(SET_SEEDS), default="heldout")
     ap.add_argument("--n", type=int, default=60)
     ap.add_argument("--out", default="runs/study_uncert")
@@ -258,7 +319,7 @@ def main(argv=None) -> int:
     ap.add_argument("--n-boot-cases", type=int, default=3)
     args = ap.parse_args(argv)
     _progress.set_verbosity(0)
-    {"run": run, "analyse": analyse, "bootstrap": bootstrap}[args.part](args)
+    {"run": run, "analyse": analyse, "bootstrap": bootstrap, "system": system_study}[args.part](args)
     return 0
 
 
