@@ -299,9 +299,9 @@ def clone_demands(clone: Clone | str | os.PathLike, records, *, level: float | N
 
 def extrapolation_flags(clone: Clone, pid: np.ndarray, height: np.ndarray) -> list[str]:
     """A line where the median peak drift ratio of the realisations ``pid`` ``(realisation,
-    story)`` lies beyond the largest the building was measured to survive: demands the clone
+    story)`` lies beyond the largest the building survived (:meth:`Clone.survived_drift`): demands the clone
     extrapolates to."""
-    seen = clone.survived_drift(measured_only=True)
+    seen = clone.survived_drift()
     if seen is None or pid.size == 0:
         return []
     worst = float(np.max(seen / height))
@@ -309,7 +309,7 @@ def extrapolation_flags(clone: Clone, pid: np.ndarray, height: np.ndarray) -> li
     if median <= worst:
         return []
     return [f"demands extrapolated beyond what was observed: median peak drift ratio {median:.2%}, the largest the "
-            f"building was measured to survive {worst:.2%}"]
+            f"building survived (measured, or the clone's replay of its events) {worst:.2%}"]
 
 
 def _settle(buildings, motions, r, ok: np.ndarray, window: float) -> tuple[np.ndarray, np.ndarray]:

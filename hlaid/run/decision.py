@@ -17,6 +17,10 @@ import numpy as np
 from ..clone import Clone
 from ..motions import GroundMotion
 
+WIDE_INTERVAL_FLAG = 100.0
+"""A 90 % interval whose upper end is more than this many times its lower end is flagged: the
+data hardly bound the parameter (without a structural system nothing else does)."""
+
 STIFFNESS_ERROR_FLAG = 0.20
 """A story whose stiffness-evolution error (the clone's elastic stiffness against HLA's along the
 record) exceeds this is flagged: the clone does not follow the building's degradation there."""
@@ -69,6 +73,12 @@ def parameter_flags(clone: Clone) -> list[str]:
         if held:
             out.append("parameters held at their value without an interval (not identified, no structural system's "
                        "prior to give one; name one with --system): " + ", ".join(held))
+    if u is not None:
+        wide = [k for k, (lo, hi) in u.interval(0.9).items() if not hi <= WIDE_INTERVAL_FLAG * lo]
+        if wide:
+            out.append(f"90 % intervals wider than a factor {WIDE_INTERVAL_FLAG:g} (the data hardly bound them"
+                       + ("; the structural system's prior is that wide" if clone.system else
+                          "; name the structural system to bound them by its prior") + "): " + ", ".join(wide))
     if at:
         out.append(f"parameters at a limit of the model (the search could only approach them): {', '.join(at)}")
     if prior:
@@ -112,7 +122,7 @@ def run_flags(clone: Clone, *, stiffness_error: Sequence[float] | None = None, s
     flags) and P(collapse) at each recorded event (``events``, :func:`event_risks`; at or above
     :data:`P_SURVIVED_FLAG` the drifts survived and the IDA's ``drift_limit`` are named)."""
     out = identification_flags(clone, stiffness_error)
-    seen = clone.survived_drift(measured_only=True)
+    seen = clone.survived_drift()
     h = clone.building.height if heights_given is None else np.asarray(heights_given, dtype=float)
     for e in events:
         if e.get("p_collapse") is not None and e["p_collapse"] >= P_SURVIVED_FLAG:
@@ -140,7 +150,8 @@ def run_flags(clone: Clone, *, stiffness_error: Sequence[float] | None = None, s
         worst = float(np.max(np.asarray(seen) / np.asarray(h, dtype=float)))
         if own > worst:
             out.append(f"demands extrapolated: the clones' median peak drift ratio under the record {own:.2%} lies "
-                       f"beyond the largest measured, {worst:.2%}")
+                       f"beyond the largest the building survived (measured, or the clone's replay of its events), "
+                       f"{worst:.2%}")
     for name, d in ((loss or {}).get("demands") or {}).items():
         out += [f"losses ({name}): {f}" for f in d.get("flags", ())]
     if heights_given is not None:
@@ -149,5 +160,5 @@ def run_flags(clone: Clone, *, stiffness_error: Sequence[float] | None = None, s
     return out
 
 
-__all__ = ["P_SURVIVED_FLAG", "STIFFNESS_ERROR_FLAG", "event_risks", "identification_flags", "parameter_flags",
-           "run_flags"]
+__all__ = ["P_SURVIVED_FLAG", "STIFFNESS_ERROR_FLAG", "WIDE_INTERVAL_FLAG", "event_risks", "identification_flags",
+           "parameter_flags", "run_flags"]
