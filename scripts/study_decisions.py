@@ -138,7 +138,7 @@ def multi_case(spec, events: list[str], data_dir: str, folder: Path, args) -> di
     a = None
     if clone.uncertainty is not None:
         a = assess(clone, "builtin-suite", n_ensemble=args.n_ensemble, ida_config=cfg, own_motion=motions[-1],
-                   n_boot=20).to_dict()
+                   n_boot=20, event_motions=motions[:-1]).to_dict()
     from hlaid.events.evidence import survivors
     surv = survivors(clone, 0, prepare=lambda _: before.building, motions=motions, drift_limit=cfg.drift_limit)
     survival = {**surv.to_dict(), **((a or {}).get("survival") or {}), "nominal_survives": surv.nominal_survives,

@@ -95,6 +95,8 @@ def test_quick_start_command_lines_identify_table1(cli_folder):
         assert err.max() < 0.05, f"{k}: identified {clone[k]}, true {TABLE1[k]}"
     summary = json.loads((cli_folder / "ida-out" / "summary.json").read_text(encoding="utf-8"))
     assert len(summary["records"]) == 10  # builtin-suite: the ten built-in far-field records
+    # the demo's building, the demo's collapse law: the structural system named on the command line
+    assert any("collapse model 'steel-mrf' chosen for the clone's structural system" in n for n in summary["notes"])
 
 
 def test_quick_start_python_gives_the_command_lines_clone(cli_folder, python_folder):

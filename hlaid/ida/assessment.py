@@ -190,7 +190,8 @@ def _fragility(im, median, beta):
 
 
 def assess(clone, records, *, n_ensemble: int = N_ENSEMBLE, ida_config=None, own_motion=None, seed: int = 0,
-           n_boot: int = 30, ci: float = 0.90, thresholds: ReoccupancyThresholds | None = None) -> Assessment:
+           n_boot: int = 30, ci: float = 0.90, thresholds: ReoccupancyThresholds | None = None,
+           event_motions=()) -> Assessment:
     """IDA over an ensemble of the clone, fragility band, risk at the experienced intensity.
 
     Parameters
@@ -205,6 +206,9 @@ def assess(clone, records, *, n_ensemble: int = N_ENSEMBLE, ida_config=None, own
     n_boot : record bootstrap resamples per member for the band (0: members only)
     ci : level of the bands
     thresholds : the re-occupancy indicator's (default :class:`ReoccupancyThresholds`)
+    event_motions : ground motions of the clone's other events at hand (GroundMotions, matched to
+        its events; ``own_motion`` is one too); the others are read from the events' files. The
+        ensemble is conditioned on surviving them (:func:`hlaid.events.evidence.survivors`)
 
     Returns
     -------
@@ -232,7 +236,7 @@ def assess(clone, records, *, n_ensemble: int = N_ENSEMBLE, ida_config=None, own
                      "fit that does not match the record (intervals not trustworthy)")
         _progress.warn(notes[-1])
     cfg = cfg.replace(collapse=nominal.collapse.to_dict() if nominal.collapse is not None else "none")
-    surv = survivors(clone, n_ensemble, seed=seed, prepare=member_preparer(cfg), motions=[own_motion],
+    surv = survivors(clone, n_ensemble, seed=seed, prepare=member_preparer(cfg), motions=[own_motion, *event_motions],
                      drift_limit=cfg.drift_limit, max_step=cfg.max_step)
     notes.extend(surv.notes)
     members = list(surv.members)
