@@ -80,7 +80,8 @@ def run_demands(args) -> int:
     from ..ida import IDAConfig, load_ida_config
     from ..loss import clone_demands
 
-    check_output_file(args.out, force=args.force, inputs=[args.clone, args.motion, args.config, *(args.records or [])])
+    inputs = [args.clone, args.motion, args.config, *(args.records or [])]
+    check_output_file(args.out, force=args.force, inputs=inputs)
     if args.records and args.level is None:
         raise InputError("--records needs --level G (the stripe's intensity); for the recorded event use --motion")
     if args.motion and args.level is not None:
@@ -89,6 +90,7 @@ def run_demands(args) -> int:
     n_ens = args.n_ensemble if args.n_ensemble is not None else (20 if clone.uncertainty is not None else 0)
     cfg = load_ida_config(args.config) if args.config else IDAConfig()
     records = _own_motion(args.motion) if args.motion else args.records
+    check_output_file(args.out, force=args.force, inputs=inputs)  # and the files they named (a columns YAML's table)
     d = clone_demands(clone, records, level=args.level, n_ensemble=n_ens, seed=args.seed, ida_config=cfg)
     d.write_csv(args.out, force=args.force)
     s = d.summary()
@@ -121,8 +123,11 @@ def run_loss(args) -> int:
         return 0
     if collapse is not None:
         raise InputError("--collapse-median/--collapse-beta are for a demand CSV; a run folder has its own fragility")
-    base = _run_loss_config(src)
-    block = loss_of_run(src, base.replace(**over), records=args.records, force=args.force)
+    from .._inputs import rewrites
+
+    with rewrites(src / "summary.json"):  # the run's summary gets the loss block
+        base = _run_loss_config(src)
+        block = loss_of_run(src, base.replace(**over), records=args.records, force=args.force)
     if block["recorded"]:
         _report(block["recorded"], src / "loss")
     if block["stripes"]:
