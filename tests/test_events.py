@@ -14,11 +14,12 @@ from reference_systems import ShearBuildingRef
 from hlaid.clone import Clone
 from hlaid.errors import InputError
 from hlaid.identify import IdentifyConfig
-from hlaid.identify.events import check_series, posterior_uncertainty, prior_of_clone
+from hlaid.identify.events import posterior_uncertainty, prior_of_clone
 from hlaid.identify.joint import PriorVector, effective_samples, map_refine
 from hlaid.identify.pipeline import identify_clone
 from hlaid.identify.priors import SYSTEMS, from_units, get_prior, to_units
 from hlaid.identify.update import update_clone
+from hlaid.measurement import check_series
 from hlaid.model.state import BuildingState, settle_time
 from hlaid.prediction import predict_event
 from hlaid.simulate import simulate_response

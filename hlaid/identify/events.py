@@ -17,7 +17,7 @@ the prior, its state the start, the new event the data (sequential updating).
 from __future__ import annotations
 
 import datetime
-import hashlib
+import functools
 from collections.abc import Sequence
 
 import numpy as np
@@ -25,7 +25,6 @@ import numpy as np
 from .._version import __version__
 from ..clone import Clone
 from ..config import config_to_dict
-from ..errors import InputError
 from ..hla import HLAResult
 from ..measurement import Measurement
 from ..model import Building, Damping
@@ -34,6 +33,7 @@ from ..model.uncertainty import ParameterUncertainty
 from .config import IdentifyConfig
 from .joint import GaussianPrior, JointFit, PriorVector, SystemPrior, map_refine
 from .priors import StructuralPrior, elf_profile, weight_above
+from .refiners import fit_or_fall_back
 from .replaycheck import replay_check
 from .result import IdentificationResult, event_record
 from .stages import Event
@@ -41,36 +41,6 @@ from .stages import Event
 INFORMED = 0.5
 """A parameter whose posterior standard deviation is more than ``1 - INFORMED`` of its prior's
 is flagged as coming from the prior: the data narrowed it by less than half."""
-
-
-def check_series(measurements: Sequence[Measurement]) -> None:
-    """One line (InputError naming the file) where the measurements cannot be events of one
-    building in time order: another number of floors, other masses or story heights, one record
-    given twice, or start times (where the files give them) out of order."""
-    first = measurements[0]
-    for m in measurements[1:]:
-        where = m.source or m.name or None
-        if m.n_floors != first.n_floors:
-            raise InputError(f"{m.n_floors} floor channels, but {first.source or first.name or 'the first event'} "
-                             f"has {first.n_floors}: the events must be records of one building", source=where)
-        for field in ("mass", "height"):
-            a, b = getattr(first, field), getattr(m, field)
-            if (a is None) != (b is None) or (a is not None and not np.allclose(a, b, rtol=1e-6)):
-                raise InputError(f"its floor {field}es differ from the first event's: the events must be records "
-                                 "of one building", source=where)
-    times = [m.recorded for m in measurements]
-    if all(t is not None for t in times):
-        for a, b in zip(measurements[:-1], measurements[1:]):
-            if str(b.recorded) <= str(a.recorded):
-                raise InputError(f"recorded {b.recorded}, not after the previous event ({a.recorded}): give the events "
-                                 "in time order", source=b.source or b.name or None)
-    seen: dict[str, Measurement] = {}
-    for m in measurements:
-        key = hashlib.sha256(np.ascontiguousarray(m.ground_acc, dtype=float).tobytes()).hexdigest()
-        if key in seen:
-            raise InputError(f"the same ground motion as {seen[key].source or seen[key].name or 'an earlier event'}: "
-                             "each event once", source=m.source or m.name or None)
-        seen[key] = m
 
 
 def most_informative(events) -> int | None:
@@ -184,10 +154,9 @@ def joint_fit(start: Building, measurements: Sequence[Measurement], prior, cfg: 
     rc = cfg.refine
     if isinstance(prior, StructuralPrior):
         prior = SystemPrior(prior, PriorVector(start, damping=rc.damping), start.k0 if k0_ref is None else k0_ref)
-    return map_refine(start, measurements, prior,
-                      band_hz=rc.band_hz, ground_noise="tangent" if rc.method == "eiv" else "ignore",
-                      damping=rc.damping, y0=y0, names=names, max_iterations=rc.max_iterations,
-                      tangent_max_mb=rc.tangent_max_mb)
+    fit = functools.partial(map_refine, start, measurements, prior, band_hz=rc.band_hz, damping=rc.damping, y0=y0,
+                            names=names, max_iterations=rc.max_iterations, tangent_max_mb=rc.tangent_max_mb)
+    return fit_or_fall_back(fit, "tangent" if rc.method == "eiv" else "ignore")
 
 
 def best_fit(fits: Sequence[JointFit]) -> JointFit:

@@ -30,12 +30,12 @@ from .._version import __version__
 from ..clone import Clone
 from ..config import config_to_dict
 from ..errors import InputError
-from ..measurement import Measurement
+from ..measurement import Measurement, check_series
 from ..model import Building
 from ..uncertainty.laplace import uncertainty_of_refinement
 from .cache import MachineCache, default_cache_dir
 from .config import IdentifyConfig
-from .events import best_fit, check_series, joint_fit, most_informative, plausible_starts, result_of_joint, state_after
+from .events import best_fit, joint_fit, most_informative, plausible_starts, result_of_joint, state_after
 from .passes import ClassifierPasses, voted
 from .priors import get_prior
 from .refiners import Refinement, RefineProblem, get_refiner

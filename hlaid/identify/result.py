@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from .._inputs import file_sha256
 from ..clone import Clone
+from ..errors import InputError
 from ..hla import HLAResult
-from ..measurement import Measurement
+from ..measurement import Measurement, ground_digest
 from ..model import Building
 from ..units import G_MM_S2
 from .joint import JointFit
@@ -47,18 +48,20 @@ class IdentificationResult:
 
 
 def file_digest(path: str) -> str | None:
-    """SHA-256 of the file at ``path`` (None where it is not a file)."""
-    p = Path(path)
-    if not p.is_file():
+    """SHA-256 of the file at ``path`` (None where it is not a regular file hlaid reads)."""
+    if not Path(path).is_file():
         return None
-    return hashlib.sha256(p.read_bytes()).hexdigest()
+    try:
+        return file_sha256(path)
+    except InputError:
+        return None
 
 
 def event_record(meas: Measurement, start: str | None = None) -> dict:
     """What a clone keeps of an event it learnt from (``start``: where its replay started,
     ``"carried"`` or ``"undamaged"``, when an update chose it)."""
     return {"name": meas.name, "source": meas.source or None,
-            "sha256": file_digest(meas.source) if meas.source else None,
+            "sha256": file_digest(meas.source) if meas.source else None, "ground_sha256": ground_digest(meas),
             "pga_g": float(np.max(np.abs(meas.ground_acc)) / G_MM_S2), "duration_s": float(meas.n_samples * meas.dt),
             "dt": float(meas.dt), "n_floors": int(meas.n_floors),
             **({"recorded": meas.recorded} if meas.recorded else {}), **({"start": start} if start else {})}

@@ -14,7 +14,7 @@ import dataclasses
 from .. import _progress
 from ..clone import Clone
 from ..errors import InputError
-from ..measurement import Measurement
+from ..measurement import Measurement, check_not_learnt
 from .config import IdentifyConfig
 from .events import best_fit, joint_fit, prior_of_clone, result_of_joint
 from .joint import PriorVector
@@ -51,6 +51,7 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
     if measurement.n_floors != b.n_stories:
         raise InputError(f"{measurement.n_floors} floor channels, but the clone has {b.n_stories} stories: the "
                          "measurement is not of this building", source=src)
+    check_not_learnt(clone.events, measurement)
     last = clone.events[-1].get("recorded") if clone.events else None
     if last is not None and measurement.recorded is not None and str(measurement.recorded) <= str(last):
         raise InputError(f"recorded {measurement.recorded}, not after the clone's last event ({last})", source=src)
