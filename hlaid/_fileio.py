@@ -265,6 +265,8 @@ def check_output_folder(path: str | os.PathLike, *, force: bool = False,
     check_name(path)
     if path.exists() and not path.is_dir():
         raise InputError("exists and is not a folder", source=str(path))
+    if path.is_symlink() and not path.exists() and not force:
+        raise InputError("exists as a symbolic link (to nothing); use --force to replace the link", source=str(path))
     if path.is_dir():
         real = _real(path)
         for p in [*_input_paths(inputs), *run_inputs()]:

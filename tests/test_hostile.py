@@ -824,6 +824,9 @@ def test_a_symlink_output_into_a_missing_folder(tmp_path, capsys, clone_file):
             root=tmp_path)
     assert main(["export-opensees", str(clone_file), "-o", str(link), "--force", "-q"]) == 0
     assert link.is_file() and not link.is_symlink() and not (tmp_path / "missing").exists()
+    folder = tmp_path / "link-out"
+    folder.symlink_to(tmp_path / "missing" / "dir")
+    refused(capsys, ["ida", clone_file, "-o", folder], ["exists as a symbolic link"], root=tmp_path)
 
 
 def test_long_folder_names_in_output_paths(tmp_path, capsys, clone_file):
