@@ -29,11 +29,13 @@ LEVELS = {0: logging.WARNING, 1: logging.INFO, 2: logging.DEBUG}
 
 
 class _Escaping(logging.Formatter):
-    """The message alone, control characters escaped line by line (a file name quoted in a progress
-    line or a warning must not reach the terminal as an escape sequence)."""
+    """The message alone as one line, control characters (newlines too) escaped: a file name quoted
+    in a progress line or a warning can neither drive the terminal nor start a line of its own
+    (``-o $'out\\nhlaid hla: error: ...'`` must not print a fake error). A message of several lines
+    is logged line by line."""
 
     def format(self, record: logging.LogRecord) -> str:
-        return "\n".join(escape_controls(line) for line in super().format(record).split("\n"))
+        return escape_controls(super().format(record))
 
 
 class _StderrHandler(logging.StreamHandler):

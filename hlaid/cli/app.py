@@ -95,9 +95,10 @@ def _main(argv: list[str] | None) -> int:
         prog = f"hlaid {args.command}"
         for name in check_environment():  # a bad HLAID_MAX_* is exit 2 before any work
             _progress.warn(f"environment variable {name} is no limit of hlaid (a typo?); it is ignored")
-        from .. import _fileio
+        from .. import _fileio, _inputs
         _fileio.command = prog  # named in the marker of every output folder
-        return int(args.func(args) or 0)
+        with _inputs.recording():  # every file the command reads is an input it must not replace
+            return int(args.func(args) or 0)
     except InputError as err:
         _progress.end_line()
         print(f"{prog}: error: {err}", file=sys.stderr)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from .. import _progress
@@ -50,17 +51,28 @@ def run_update(args) -> int:
     from ..errors import InputError
     from ..identify.config import IdentifyConfig  # light: no torch, numba or scipy
 
-    out = check_output_file(args.out, force=args.force, inputs=[args.clone, args.measurement, args.config])
+    inputs = [args.clone, args.measurement, args.config]
+    out = check_output_file(args.out, force=args.force, inputs=inputs)
     if not 0 < args.widen < 100:
         raise InputError(f"--widen {args.widen}; expected a factor in (0, 100), 1 for none")
     cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
     check_input(args.clone)
     check_input(args.measurement)
+    from .._inputs import file_sha256
     from ..clone import Clone
     from ..io import read
+    from ..measurement import check_not_learnt, check_of_building
 
     clone = Clone.load(args.clone)
+    if Path(args.measurement).is_file():  # the clone's own file again: refused from its bytes
+        check_not_learnt(clone.events, sha256=file_sha256(args.measurement), source=args.measurement)
     meas = read(args.measurement, "measurement")
+    check_output_file(args.out, force=args.force, inputs=inputs)  # and the files it named
+    check_of_building(meas, clone.building, mass_normalised=clone.mass_normalised)
+    check_not_learnt(clone.events, meas)
+    from .identify import check_identify_bands
+
+    check_identify_bands(meas, cfg, args.config)
     from ..events.update import update_clone  # the heavy libraries, once the inputs are good
     from .identify import print_summary
 
@@ -79,8 +91,8 @@ def run_predict(args) -> int:
 
     inputs = [args.clone, args.measurement]
     check_output_folder(args.out, force=args.force, inputs=inputs)
-    if args.band is not None and not 0 <= args.band[0] < args.band[1]:
-        raise InputError(f"--band {args.band[0]:g} {args.band[1]:g}; expected LO HI with 0 <= LO < HI [Hz]")
+    if args.band is not None and not (0 <= args.band[0] < args.band[1] and math.isfinite(args.band[1])):
+        raise InputError(f"--band {args.band[0]:g} {args.band[1]:g}; expected LO HI with 0 <= LO < HI [Hz], finite")
     if args.ensemble < 0:
         raise InputError(f"--ensemble {args.ensemble}; expected a number of clones >= 0")
     check_count(args.ensemble, "BOOTSTRAP", "--ensemble")
@@ -88,10 +100,15 @@ def run_predict(args) -> int:
     check_input(args.measurement)
     from ..clone import Clone
     from ..io import read
-    from ..measurement import check_band
+    from ..measurement import check_band, check_of_building
 
     clone = Clone.load(args.clone)
+    if args.start == "carried" and clone.state is None:
+        raise InputError("--start carried: the clone carries no state (identified by an older hlaid?); use "
+                         "--start undamaged", source=args.clone)
     meas = read(args.measurement, "measurement")
+    check_output_folder(args.out, force=args.force, inputs=inputs)  # and the files it named
+    check_of_building(meas, clone.building, mass_normalised=clone.mass_normalised)
     if args.band is not None:
         check_band(meas, tuple(args.band), "--band")
     n = args.ensemble if clone.uncertainty is not None else 0

@@ -30,10 +30,11 @@ def register(sub) -> None:
 
 
 def run_fleet_cli(args) -> int:
-    from ..fleet.address import parse_address
+    from ..fleet.address import parse_address, probe
 
     if args.scheduler:
-        parse_address(args.scheduler)  # before the config is read; probed before dask connects
+        parse_address(args.scheduler)  # at once, before the config is read
+        probe(args.scheduler)  # nothing listening, no scheduler, no TLS settings: before anything heavy loads
     from ..fleet.config import load_fleet_config
     from ..fleet.output import check_output
 

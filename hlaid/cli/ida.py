@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shlex
 from pathlib import Path
 
 from .. import _progress
@@ -136,6 +137,6 @@ def run_export(args) -> int:
                             if args.gravity_kN else None)
     path = export_opensees(b, args.out, force=args.force)
     _progress.info(f"wrote {path} ({b.n_stories} stories, P-Delta {'on' if b.pdelta_active else 'off'}); "
-                   f"run it with: python {path} RECORD.AT2 [--pga-g 0.5] [--out peaks.json]")
+                   f"run it with: python {shlex.quote(str(path))} RECORD.AT2 [--pga-g 0.5] [--out peaks.json]")
     return 0
 

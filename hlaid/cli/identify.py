@@ -41,7 +41,7 @@ def register(sub) -> None:
 
 
 def run_identify(args) -> int:
-    from .._fileio import check_output_file
+    from .._fileio import check_name, check_output_file
     from .._inputs import check_input
     from ..config import load_config
     from ..errors import InputError
@@ -52,27 +52,25 @@ def run_identify(args) -> int:
     if len(args.measurement) > 1 and args.method != "hlasvm":
         raise InputError(f"--method {args.method} identifies from one measurement; several need --method hlasvm")
     tb = Path(args.tensorboard) if args.tensorboard else None
-    if tb is not None and tb.exists() and not tb.is_dir():
-        raise InputError("exists and is not a folder; --tensorboard writes a folder of logs", source=str(tb))
+    if tb is not None:
+        check_name(tb)
+        if tb.exists() and not tb.is_dir():
+            raise InputError("exists and is not a folder; --tensorboard writes a folder of logs", source=str(tb))
     from ..identify.config import IdentifyConfig  # light: no torch, numba or scipy
 
     cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
     for path in args.measurement:
         check_input(path)
+    check_distinct(args.measurement)
     from ..io import read
-    from ..measurement import check_band
+    from ..measurement import check_band, check_series
     records = [read(path, "measurement") for path in args.measurement]
+    check_output_file(args.out, force=args.force, inputs=[*args.measurement, args.config])  # and the files they named
+    if len(records) > 1:
+        check_series(records)
     if args.method == "hlasvm":
         for m in records:
             check_identify_bands(m, cfg, args.config)
-        if len(records) > 1:
-            from ..events.identify import check_series
-
-            check_series(records)
-    if args.method != "hlasvm" and len(records) > 1:
-        from ..errors import InputError
-        raise InputError(f"--method {args.method} identifies from one measurement; several events need the "
-                         "default method (hlasvm)")
     meas = records[0] if len(records) == 1 else records
     from ..baselines.registry import get_identifier  # the heavy libraries, once the inputs are good
     from ..estimators import HLASVMIdentifier
@@ -99,12 +97,31 @@ def run_identify(args) -> int:
 
 
 def check_identify_bands(meas, cfg: IdentifyConfig, config: str | None) -> None:
-    """The band-pass corners of an identification config must suit the measurement's sample rate."""
+    """The band-pass corners of an identification config must suit the measurement's sample rate
+    (the default corners are capped at 0.9 x its Nyquist frequency, given ones refused above it)."""
+    from ..identify.config import RefineConfig
     from ..measurement import check_band
 
     where = f" (in {config})" if config else " (default)"
     check_band(meas, cfg.hla.preprocess.band_hz, "hla.preprocess.band_hz" + where)
-    check_band(meas, cfg.refine.band_hz, "refine.band_hz" + where)
+    check_band(meas, cfg.refine.band_hz, "refine.band_hz" + where, default=RefineConfig().band_hz)
+
+
+def check_distinct(paths) -> None:
+    """Refuse one measurement file given twice (the same file, or the same bytes under two names),
+    from their raw bytes, before any is parsed: each event once."""
+    from .._inputs import file_sha256
+    from ..errors import InputError
+
+    if len(paths) < 2:
+        return
+    seen: dict[str, str] = {}
+    for path in paths:
+        key = file_sha256(path) if Path(path).is_file() else None
+        if key is not None and key in seen:
+            raise InputError(f"the same file as {seen[key]}: each event once", source=str(path))
+        if key is not None:
+            seen[key] = str(path)
 
 
 def print_summary(clone, seconds: float | None = None) -> None:
@@ -142,7 +159,8 @@ def print_summary(clone, seconds: float | None = None) -> None:
         lines.append(f"structural system: {clone.system}")
     if seconds is not None:
         lines.append(f"wall time {seconds:.1f} s")
-    _progress.info("\n".join(lines))
+    for line in lines:
+        _progress.info(line)
 
 
 def print_parameters(est) -> None:
@@ -152,4 +170,5 @@ def print_parameters(est) -> None:
     lines += [f"{i + 1:5d} {b.k0[i]:8.5g} {b.alpha[i]:8.3f} {b.p[i]:6.2f} {b.dy[i]:7.3f} {b.delta_eta[i]:10.3f}"
               for i in range(b.n_stories)]
     lines.append(f"{type(est).__name__}, wall time {est.fit_seconds_:.1f} s")
-    _progress.info("\n".join(lines))
+    for line in lines:
+        _progress.info(line)

@@ -83,7 +83,8 @@ def run_demands(args) -> int:
     from ..ida import IDAConfig, load_ida_config
     from ..loss import clone_demands
 
-    check_output_file(args.out, force=args.force, inputs=[args.clone, args.motion, args.config, *(args.records or [])])
+    inputs = [args.clone, args.motion, args.config, *(args.records or [])]
+    check_output_file(args.out, force=args.force, inputs=inputs)
     if args.records and args.level is None:
         raise InputError("--records needs --level G (the stripe's intensity); for the recorded event use --motion")
     if args.motion and args.level is not None:
@@ -92,6 +93,7 @@ def run_demands(args) -> int:
     n_ens = args.n_ensemble if args.n_ensemble is not None else (N_ENSEMBLE if clone.uncertainty is not None else 0)
     cfg = load_ida_config(args.config) if args.config else IDAConfig()
     records = _own_motion(args.motion) if args.motion else args.records
+    check_output_file(args.out, force=args.force, inputs=inputs)  # and the files they named (a columns YAML's table)
     d = clone_demands(clone, records, level=args.level, n_ensemble=n_ens, seed=args.seed, ida_config=cfg)
     d.write_csv(args.out, force=args.force)
     s = d.summary()
@@ -124,9 +126,11 @@ def run_loss(args) -> int:
         return 0
     if collapse is not None:
         raise InputError("--collapse-median/--collapse-beta are for a demand CSV; a run folder has its own fragility")
+    from .._inputs import rewrites
     from ..run.loss import loss_of_run
 
-    block = loss_of_run(src, changes=over, records=args.records, out=args.out, force=args.force)
+    with rewrites(src / "summary.json", src / "report.html"):  # without -o the run folder gets the losses
+        block = loss_of_run(src, changes=over, records=args.records, out=args.out, force=args.force)
     folder = Path(args.out) if args.out else src / "loss"
     if block["recorded"]:
         _report(block["recorded"], folder)

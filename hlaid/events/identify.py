@@ -18,7 +18,6 @@ prior, its state the start, the new event the data (sequential updating).
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import time
 from collections.abc import Sequence
 
@@ -33,7 +32,7 @@ from ..identify.replaycheck import replay_check
 from ..identify.result import IdentificationResult, file_digest, provenance
 from ..identify.stages import Event, analyse
 from ..identify.tb import TBLogger
-from ..measurement import Measurement
+from ..measurement import Measurement, check_series, ground_digest
 from ..model import Building, Damping
 from ..units import G_MM_S2
 from .fit import JointFit, best_fit, flags, joint_fit, posterior_uncertainty
@@ -110,40 +109,10 @@ def event_record(meas: Measurement, start: str | None = None) -> dict:
     """What a clone keeps of an event it learnt from (``start``: where its replay started,
     ``"carried"`` or ``"undamaged"``, when an update chose it)."""
     return {"name": meas.name, "source": meas.source or None,
-            "sha256": file_digest(meas.source) if meas.source else None,
+            "sha256": file_digest(meas.source) if meas.source else None, "ground_sha256": ground_digest(meas),
             "pga_g": float(np.max(np.abs(meas.ground_acc)) / G_MM_S2), "duration_s": float(meas.n_samples * meas.dt),
             "dt": float(meas.dt), "n_floors": int(meas.n_floors),
             **({"recorded": meas.recorded} if meas.recorded else {}), **({"start": start} if start else {})}
-
-
-def check_series(measurements: Sequence[Measurement]) -> None:
-    """One line (InputError naming the file) where the measurements cannot be events of one
-    building in time order: another number of floors, other masses or story heights, one record
-    given twice, or start times (where the files give them) out of order."""
-    first = measurements[0]
-    for m in measurements[1:]:
-        where = m.source or m.name or None
-        if m.n_floors != first.n_floors:
-            raise InputError(f"{m.n_floors} floor channels, but {first.source or first.name or 'the first event'} "
-                             f"has {first.n_floors}: the events must be records of one building", source=where)
-        for field in ("mass", "height"):
-            a, b = getattr(first, field), getattr(m, field)
-            if (a is None) != (b is None) or (a is not None and not np.allclose(a, b, rtol=1e-6)):
-                raise InputError(f"its floor {field}es differ from the first event's: the events must be records "
-                                 "of one building", source=where)
-    times = [m.recorded for m in measurements]
-    if all(t is not None for t in times):
-        for a, b in zip(measurements[:-1], measurements[1:]):
-            if str(b.recorded) <= str(a.recorded):
-                raise InputError(f"recorded {b.recorded}, not after the previous event ({a.recorded}): give the events "
-                                 "in time order", source=b.source or b.name or None)
-    seen: dict[str, Measurement] = {}
-    for m in measurements:
-        key = hashlib.sha256(np.ascontiguousarray(m.ground_acc, dtype=float).tobytes()).hexdigest()
-        if key in seen:
-            raise InputError(f"the same ground motion as {seen[key].source or seen[key].name or 'an earlier event'}: "
-                             "each event once", source=m.source or m.name or None)
-        seen[key] = m
 
 
 def most_informative(events) -> int | None:

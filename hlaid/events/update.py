@@ -17,7 +17,7 @@ from ..errors import InputError
 from ..identify.config import IdentifyConfig
 from ..identify.result import IdentificationResult
 from ..identify.stages import analyse
-from ..measurement import Measurement
+from ..measurement import Measurement, check_not_learnt
 from .fit import best_fit, joint_fit
 from .identify import result_of_joint
 from .priors import get_prior
@@ -52,6 +52,7 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
     if measurement.n_floors != b.n_stories:
         raise InputError(f"{measurement.n_floors} floor channels, but the clone has {b.n_stories} stories: the "
                          "measurement is not of this building", source=src)
+    check_not_learnt(clone.events, measurement)
     last = clone.events[-1].get("recorded") if clone.events else None
     if last is not None and measurement.recorded is not None and str(measurement.recorded) <= str(last):
         raise InputError(f"recorded {measurement.recorded}, not after the clone's last event ({last})", source=src)

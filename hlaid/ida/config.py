@@ -13,7 +13,7 @@ from ..config import load_config
 from ..errors import InputError
 from ..limits import check_count
 from ..model.schema import STORY_BOUNDS, WEIGHT_KN
-from ..units import kn_to_n
+from ..units import check_units, kn_to_n
 
 DEFAULT_EXCEEDANCE = (0.005, 0.01, 0.02, 0.04)
 """Drift-ratio limits whose probability of exceedance is reported (0.5, 1, 2, 4 %)."""
@@ -81,6 +81,7 @@ class IDAConfig:
 
     def __post_init__(self):
         check_bounds(self)
+        check_units(self.units, "units")
         if self.levels is not None:
             check_count(len(self.levels), "IDA_LEVELS", "number of levels")
             check_levels(self.levels)

@@ -7,7 +7,7 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
-from .._inputs import check_readable_file, read_text
+from .._inputs import NotTextError, check_readable_file, read_text
 from ..errors import InputError
 from ..measurement import Measurement
 from .columns import read_columns
@@ -36,9 +36,10 @@ MEASUREMENT_READERS: dict[str, Callable[..., Measurement]] = {
 
 
 def _head(p: Path) -> str:
+    """The first 40 lines of ``p`` ("" for a binary file); a file that cannot be read is an error."""
     try:
         return "\n".join(read_text(p).splitlines()[:40])
-    except InputError:
+    except NotTextError:
         return ""
 
 

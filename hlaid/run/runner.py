@@ -21,12 +21,13 @@ from typing import Any, cast
 import numpy as np
 
 from .. import _progress
-from .._fileio import atomic_directory, write_json
+from .._fileio import atomic_directory, check_output_folder, write_json
 from .._inputs import read_json
 from .._version import __version__
 from ..config import config_to_dict
 from ..errors import InputError
 from ..events.identify import identify_clone
+from ..identify.config import RefineConfig
 from ..identify.replaycheck import corrcoef
 from ..io import read
 from ..measurement import Measurement, check_band
@@ -98,7 +99,8 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
         _progress.info("[1/4] measurement")
         meas = load_measurement(cfg.measurement, Path(base_dir) if base_dir else None)
         check_band(meas, cfg.identify.hla.preprocess.band_hz, "identify.hla.preprocess.band_hz")
-        check_band(meas, cfg.identify.refine.band_hz, "identify.refine.band_hz")
+        check_band(meas, cfg.identify.refine.band_hz, "identify.refine.band_hz", default=RefineConfig().band_hz)
+        check_output_folder(out, force=force, inputs=inputs)  # and the files the measurement named: before the work
         meas.save(tmp / "measurement.npz")
         timings["measurement"] = time.perf_counter() - t
         t = time.perf_counter()
