@@ -632,7 +632,7 @@ def test_interrupted_identify_removes_its_tensorboard_folder(tmp_path, capsys, m
 
     monkeypatch.setattr(hlaid.io, "read", lambda *a, **k: object())
     monkeypatch.setattr(cli, "check_identify_bands", lambda *a: None)
-    monkeypatch.setattr(importlib.import_module("hlaid.identify"), "HLASVMIdentifier", Interrupted)
+    monkeypatch.setattr(importlib.import_module("hlaid.estimators"), "HLASVMIdentifier", Interrupted)
     (tmp_path / "runs").mkdir()
     (tmp_path / "m.npz").write_bytes(b"read by the stand-in reader")
     rc = main(["identify", str(tmp_path / "m.npz"), "-o", str(tmp_path / "c.json"), "--tensorboard",
@@ -956,7 +956,7 @@ def test_the_errors_in_variables_stage_falls_back_when_it_fails_numerically(monk
 
     import scipy.linalg
 
-    import hlaid.identify.events as events
+    import hlaid.events.fit as events
     from hlaid.errors import UnstableTangentError
     from hlaid.identify.eiv import TangentWhitener
 
@@ -1067,7 +1067,7 @@ def _gzip_bomb(path: Path, inflated_mb: int) -> Path:
 
 CHILD = """
 import contextlib, io, json, sys
-from hlaid.cli.main import main
+from hlaid.cli.app import main
 err = io.StringIO()
 with contextlib.redirect_stderr(err):
     rc = main(json.loads(sys.argv[1]))

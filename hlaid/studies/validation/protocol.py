@@ -109,7 +109,7 @@ def run_validation(cfg: ValidationConfig, *, clone_dir: str | None = None, struc
                 for ev in [src] + spec.targets_of(src):
                     preds.append(study_prediction(ic.clone, get(ev), icfg.hla, compare_band_hz=spec.compare_band_hz,
                                                   input_lowpass_hz=spec.input_lowpass_hz, self_replay=ev == src,
-                                                  labels=(spec.name, src, ic.kind)))
+                                                  labels=(spec.name, src, ev, ic.kind)))
                     p = preds[-1]
                     _progress.info(f"[validate] {spec.name}: {src} -> {ev}: R {np.round(p.r, 3)}, "
                                    f"stiffness error {_fmt_pct(nanmean(p.stiffness_error))}")
