@@ -238,8 +238,9 @@ def warn_unusual_rate(meas: Measurement) -> None:
 def check_band(meas: Measurement, band_hz, field: str) -> None:
     """Refuse band-pass corners ``band_hz`` (the setting ``field``, e.g. ``"hla.preprocess.band_hz"``)
     whose low corner is not below 0.45 x the sample rate of ``meas`` (the high corner is capped
-    there), before a filter design fails on it."""
-    if band_hz is None:
+    there), before a filter design fails on it. ``None`` and ``"auto"`` (chosen from the record)
+    pass."""
+    if band_hz is None or isinstance(band_hz, str):
         return
     from .signal import max_corner  # scipy: only where a band is checked
     top = max_corner(meas.dt)
