@@ -130,7 +130,9 @@ def test_table1_gets_the_fixed_settings(table1):
     yielding: every rule gives the former fixed value, so the Table 1 results stay as they were."""
     meas = simulate_measurement(table1, paper_record("elcentro-1940-ns"), noise_rms=0.10, seed=0)
     r = resolve_settings(meas, IdentifyConfig())
-    assert _chosen(r) == {**FIXED, "hla.preprocess.displacement": "integrate"}
+    assert _chosen(r) == {**FIXED, "hla.preprocess.displacement": "integrate", "system": None}
+    assert r.config.refine == RefineConfig(method="eiv", parameters=("k0", "alpha", "p", "dy", "delta_eta"),
+                                           damping=False, band_hz=(0.1, 20.0))
 
 
 @pytest.mark.parametrize("zeta,expected", [(0.01, "regression"), (0.05, "rayleigh")])
@@ -207,7 +209,7 @@ def test_more_records_of_a_clone_are_analysed_as_it_was(frame, shear):
     again = resolve_like(prov, shear[0], IdentifyConfig())
     assert again.config.hla.preprocess.band_hz == chosen.config.hla.preprocess.band_hz
     assert again.config.refine == chosen.config.refine
-    kept = [c for c in again.choices if c.setting != "hla.preprocess.displacement"]  # the record's own
+    kept = [c for c in again.choices if c.setting not in ("hla.preprocess.displacement", "system")]  # not kept
     assert len(kept) == 7 and all(c.reason.startswith("as the clone was identified") for c in kept)
     assert resolve_like({}, shear[0], IdentifyConfig()).config.hla.preprocess.band_hz is None
 

@@ -100,6 +100,10 @@ def resolve_settings(measurements: Measurement | Sequence[Measurement], cfg: Ide
         choices.append(Choice("refine.damping", new["damping"], why))
     if new:
         cfg = dataclasses.replace(cfg, refine=dataclasses.replace(rc, **new))
+    if cfg.system is None:
+        choices.append(Choice("system", None, "not in the data (the records cannot tell a steel frame from a concrete "
+                                              "one): the generic prior holds what they say little about (several "
+                                              "records, or one that stays nearly elastic); name it where known"))
     return Resolution(config=cfg, choices=tuple(choices))
 
 
