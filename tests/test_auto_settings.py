@@ -22,12 +22,12 @@ from hlaid import identify_clone
 from hlaid.clone import Clone
 from hlaid.config import config_to_dict, load_config
 from hlaid.errors import InputError
-from hlaid.hla import HLAConfig, resolve_hla, run_hla
+from hlaid.hla import Choice, HLAConfig, resolve_hla, run_hla
 from hlaid.hla import analysis as hla_analysis
 from hlaid.hla.auto import shear_frequencies
 from hlaid.hla.config import PreprocessConfig, auto_hla_config
 from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig
-from hlaid.identify.auto import resolve_like, resolve_settings
+from hlaid.identify.auto import Resolution, damping_ran_away, held_damping, resolve_like, resolve_settings
 from hlaid.measurement import Measurement
 from hlaid.model import Damping
 from hlaid.motions import load_builtin
@@ -226,3 +226,17 @@ def test_the_clone_keeps_the_choices(table1, tmp_path):
     assert "refine.method" not in got  # given: not chosen
     assert all(c["reason"] for c in choices)
     assert clone.provenance["config"]["hla"]["force"]["damping"] == "rayleigh"
+
+
+def test_a_damping_ratio_fitted_to_its_bound_is_held(table1):
+    """A fit that runs the damping ratio to the model's bound took up model error with it: the
+    identification holds it and fits again, and the choice says why."""
+    cfg = IdentifyConfig(refine=RefineConfig(damping=True))
+    settings = Resolution(config=cfg, choices=(Choice("refine.damping", True, "HLA's damping is regression"),))
+    assert damping_ran_away(cfg, table1.replace(damping=Damping(ratio=0.5)))
+    assert not damping_ran_away(cfg, table1.replace(damping=Damping(ratio=0.02)))
+    assert not damping_ran_away(IdentifyConfig(refine=RefineConfig(damping=False)),
+                                table1.replace(damping=Damping(ratio=0.5)))
+    held = held_damping(settings, 0.5, 0.04)
+    assert held.config.refine.damping is False and [c.setting for c in held.choices] == ["refine.damping"]
+    assert held.choices[0].value is False and "ran to 0.50" in held.choices[0].reason

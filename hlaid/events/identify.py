@@ -29,7 +29,7 @@ from ..clone import Clone
 from ..errors import InputError
 from ..hla import HLAResult
 from ..hla.config import fixed
-from ..identify.auto import Resolution, resolve_settings
+from ..identify.auto import Resolution, damping_ran_away, held_damping, resolve_settings
 from ..identify.config import IdentifyConfig
 from ..identify.pipeline import identify_event, open_cache
 from ..identify.replaycheck import replay_check
@@ -104,6 +104,12 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     t = time.perf_counter()
     fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=events[0].hla.k0) for b in starts]
     fit = best_fit(fits)
+    if damping_ran_away(cfg, fit.building):  # the damping took up model error: held, the fit again
+        settings = held_damping(settings, fit.building.damping.ratio, starts[fits.index(fit)].damping.ratio)
+        _progress.warn(settings.choices[-1].line())
+        cfg = settings.config
+        fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=events[0].hla.k0) for b in starts]
+        fit = best_fit(fits)
     start = starts[fits.index(fit)]
     timings["joint"] = time.perf_counter() - t
     result = result_of_joint(events, meas, fit, cfg, system=system, start=start, single=single, timings=timings)

@@ -107,6 +107,28 @@ def resolve_settings(measurements: Measurement | Sequence[Measurement], cfg: Ide
     return Resolution(config=cfg, choices=tuple(choices))
 
 
+DAMPING_RUNAWAY = 0.45
+"""A fitted damping ratio at or above this (the model's bound is 0.5) took up model error, not the
+building's damping (a mini shake-table model whose accelerations a heavily damped clone fits
+best, at R 0.3): it is held instead."""
+
+
+def damping_ran_away(cfg: IdentifyConfig, building) -> bool:
+    """Whether ``cfg`` fitted the damping and ``building``'s ratio ran to the model's bound."""
+    return cfg.refine.damping is True and building.damping.ratio >= DAMPING_RUNAWAY
+
+
+def held_damping(settings: Resolution, fitted: float, held: float) -> Resolution:
+    """``settings`` with the damping held at ``held`` after a fit ran it to ``fitted``: the
+    ``refine.damping`` choice says so (the config: ``refine.damping`` false)."""
+    cfg = settings.config
+    cfg = dataclasses.replace(cfg, refine=dataclasses.replace(cfg.refine, damping=False))
+    why = (f"fitted, the damping ratio ran to {fitted:.2f}, the model's bound: it took up model error, not the "
+           f"building's damping; held at {held:.3g} and fitted again")
+    choices = tuple(c for c in settings.choices if c.setting != "refine.damping")
+    return Resolution(config=cfg, choices=choices + (Choice("refine.damping", False, why),))
+
+
 def resolve_like(provenance: dict | None, measurements: Measurement | Sequence[Measurement],
                  cfg: IdentifyConfig) -> Resolution:
     """The ``"auto"`` settings of ``cfg`` as a clone was identified with them (its
@@ -159,4 +181,5 @@ def _with(cfg: IdentifyConfig, values: dict) -> IdentifyConfig:
     return config_from_dict(IdentifyConfig, d, source="the clone's settings")
 
 
-__all__ = ["Resolution", "resolve_settings", "resolve_like", "HLAResolution", "Choice"]
+__all__ = ["Resolution", "resolve_settings", "resolve_like", "damping_ran_away", "held_damping",
+           "HLAResolution", "Choice"]
