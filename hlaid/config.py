@@ -262,7 +262,9 @@ def _show(v) -> str:
     return repr(v)
 
 
-def _build_dataclass(cls, node: _Node, where: str, source: str):
+def _build_dataclass(cls, node: _Node, where: str, source: str, base=None):
+    """``cls`` from a mapping; keys it does not give take ``base``'s values where given (a nested
+    section's: the default of the enclosing schema for it), else the field defaults."""
     if not isinstance(node.value, dict):
         if not where:  # the whole file: perhaps not a config at all, so quote none of it
             got = kind_of(node.value, none='an empty document')
@@ -278,8 +280,14 @@ def _build_dataclass(cls, node: _Node, where: str, source: str):
         if key not in fields:
             raise ConfigError(f"{source}:{keys.get(key, node.line)}: unknown key {path!r}; "
                               f"expected one of: {', '.join(fields)}")
-        kwargs[key] = _build(hints[key], sub, path, source)
+        inner = _section_default(fields[key], base)
+        if inner is not None and dataclasses.is_dataclass(hints[key]) and isinstance(sub.value, dict):
+            kwargs[key] = _build_dataclass(hints[key], sub, path, source, base=inner)
+        else:
+            kwargs[key] = _build(hints[key], sub, path, source)
         _check_field(fields[key], kwargs[key], sub, path, source)
+    if base is not None:
+        kwargs.update({k: getattr(base, k) for k in fields if k not in kwargs})
     missing = [k for k, f in fields.items()
                if k not in kwargs and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
     if missing:
@@ -290,6 +298,14 @@ def _build_dataclass(cls, node: _Node, where: str, source: str):
         key = _key_named_in(str(e), node.value)
         line = node.value[key].line if key is not None else node.line
         raise ConfigError(f"{source}:{line}: {where or 'top level'}: {e}") from None
+
+
+def _section_default(f: dataclasses.Field, base):
+    """The default of a nested section (a dataclass-valued field): ``base``'s value of it, else
+    the field's ``default_factory`` product; None for any other field."""
+    value = getattr(base, f.name) if base is not None else (
+        f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
+    return value if dataclasses.is_dataclass(value) and not isinstance(value, type) else None
 
 
 def _check_field(f: dataclasses.Field, value, node: _Node, path: str, source: str) -> None:

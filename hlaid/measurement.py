@@ -245,8 +245,9 @@ def check_band(meas: Measurement, band_hz, field: str, *, default=None) -> None:
     """Refuse band-pass corners ``band_hz`` (the setting ``field``, e.g. ``"hla.preprocess.band_hz"``)
     that are not finite, whose low corner is not below 0.45 x the sample rate of ``meas`` or, where
     the corners were given (not the setting's ``default``, which is capped there), whose high
-    corner is above it: before a filter design fails on them, and instead of changing them."""
-    if band_hz is None:
+    corner is above it: before a filter design fails on them, and instead of changing them.
+    ``None`` and ``"auto"`` (chosen from the record) pass."""
+    if band_hz is None or isinstance(band_hz, str):
         return
     from .signal import max_corner
 

@@ -23,9 +23,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .. import _progress
 from ..clone import Clone
 from ..errors import InputError
 from ..hla import HLAResult
+from ..hla.config import fixed
+from ..identify.auto import Resolution, damping_ran_away, held_damping, resolve_settings
 from ..identify.config import IdentifyConfig
 from ..identify.pipeline import identify_event, open_cache
 from ..identify.replaycheck import replay_check
@@ -72,7 +75,9 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     if not meas:
         raise InputError("identify_clone: no measurement given")
     check_series(meas)
-    cfg = config or IdentifyConfig()
+    settings = resolve_settings(meas, config or IdentifyConfig())
+    announce(settings)
+    cfg = settings.config
     cache = open_cache(cfg, cache_dir)
     tb = TBLogger(tensorboard)
     timings: dict[str, float] = {}
@@ -90,19 +95,40 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     if len(meas) == 1 and single is not None:  # one yielding record: the data speak, the paper's method
         timings["total"] = time.perf_counter() - t_all
         tb.close()
-        return dataclasses.replace(single, clone=dataclasses.replace(single.clone, system=cfg.system))
+        return with_choices(dataclasses.replace(single, clone=dataclasses.replace(single.clone, system=cfg.system)),
+                            settings)
     system = get_prior(cfg.system or "generic")
     starts = plausible_starts(single, events[0], meas[0], system, cfg)
     names = [m.name or f"event {k + 1}" for k, m in enumerate(meas)]
     t = time.perf_counter()
     fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=events[0].hla.k0) for b in starts]
     fit = best_fit(fits)
+    if damping_ran_away(cfg, fit.building):  # the damping took up model error: held, the fit again
+        settings = held_damping(settings, fit.building.damping.ratio, starts[fits.index(fit)].damping.ratio)
+        _progress.warn(settings.choices[-1].line())
+        cfg = settings.config
+        fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=events[0].hla.k0) for b in starts]
+        fit = best_fit(fits)
     start = starts[fits.index(fit)]
     timings["joint"] = time.perf_counter() - t
     result = result_of_joint(events, meas, fit, cfg, system=system, start=start, single=single, timings=timings)
     timings["total"] = time.perf_counter() - t_all
     tb.close()
-    return result
+    return with_choices(result, settings)
+
+
+def announce(settings: Resolution) -> None:
+    """Say which settings were chosen from the data, one line each."""
+    if settings.choices:
+        _progress.info("[identify] settings chosen from the data (a config value overrides any):\n"
+                       + "\n".join(f"  {line}" for line in settings.lines()))
+
+
+def with_choices(result: IdentificationResult, settings: Resolution) -> IdentificationResult:
+    """``result`` whose clone keeps the settings chosen from the data (``provenance["choices"]``)."""
+    clone = result.clone
+    prov = {**(clone.provenance or {}), "choices": settings.to_list()}
+    return dataclasses.replace(result, clone=dataclasses.replace(clone, provenance=prov))
 
 
 def event_record(meas: Measurement, start: str | None = None) -> dict:
@@ -148,7 +174,7 @@ def plausible_starts(single: IdentificationResult | None, event: Event, meas: Me
     if single is None:
         return [median]
     b = single.clone.building
-    prior = SystemPrior(system, PriorVector(b, damping=cfg.refine.damping), event.hla.k0)
+    prior = SystemPrior(system, PriorVector(b, damping=fixed(cfg.refine.damping, "refine.damping")), event.hla.k0)
     if np.max(np.abs(prior.residuals(prior.vector.x0))) <= PLAUSIBLE_SD:
         return [b]
     return [median, b]
