@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .app import subcommand
+from .app import add_plots, subcommand
 
 
 def register(sub) -> None:
@@ -11,6 +11,7 @@ def register(sub) -> None:
     p.add_argument("config", help="run config YAML (measurement, identify, ida)")
     p.add_argument("-o", "--out", required=True, help="output folder")
     p.add_argument("--cache", metavar="DIR", help="classifier cache folder (default ~/.cache/hlaid/svm)")
+    add_plots(p)
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
     p.set_defaults(func=run_run)
 
@@ -33,7 +34,8 @@ def run_run(args) -> int:
     inputs += input_paths(cfg, base)
     check_output_folder(args.out, force=args.force, inputs=inputs)
     from ..run.runner import run_pipeline  # the heavy libraries, once the inputs are known to be good
-    run_pipeline(cfg, args.out, base_dir=base, force=args.force, cache_dir=args.cache, inputs=inputs)
+    run_pipeline(cfg, args.out, base_dir=base, force=args.force, cache_dir=args.cache, inputs=inputs,
+                 plots=not args.no_plots)
     return 0
 
 
