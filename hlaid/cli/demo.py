@@ -9,7 +9,7 @@ def register(sub) -> None:
     p = subcommand(sub, "demo", help="the whole pipeline on the embedded Table 1 case: simulate, HLA, identify, "
                                      "replay, IDA, report.html",
                    example="hlaid demo --out hlaid-demo")
-    p.add_argument("--out", default="hlaid-demo", help="output folder (default ./hlaid-demo)")
+    p.add_argument("-o", "--out", default="hlaid-demo", help="output folder (default ./hlaid-demo)")
     p.add_argument("--cache", metavar="DIR", help="classifier cache folder (default ~/.cache/hlaid/svm)")
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
     p.set_defaults(func=run_demo_command)
