@@ -199,7 +199,7 @@ def test_force_replaces_an_hlaid_output_or_an_empty_folder(tmp_path):
 
 # ----------------------------------------------------------------------------- hlaid loss RUN_DIR
 LOSS = ["--no-curve", "--realizations", "50"]
-"""A small loss assessment: the recorded event alone, 50 realisations."""
+"""A small loss assessment: the recorded event alone, 50 realizations."""
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ import numpy as np
 
 
 def plot_loss_curve(stripes, own=None):
-    """Repair cost ratio against intensity (mean, median and 90 % band over pelicun's realisations)
+    """Repair cost ratio against intensity (mean, median and 90 % band over pelicun's realizations)
     and P(collapse), P(irreparable); the recorded event marked. ``stripes``/``own``: LossResults."""
     import matplotlib.pyplot as plt
 
@@ -56,9 +56,9 @@ def plot_repair_cost(own, replacement_cost: float):
     ax.axvline(replacement_cost / 1e3, color="C3", ls="--", lw=1.5,
                label=f"replacement {replacement_cost / 1e3:.4g} k (P = {s['p_replacement']:.1%})")
     ax.set_xlabel(f"repair cost [thousand {s['cost_unit']}]")
-    ax.set_ylabel("realisations")
+    ax.set_ylabel("realizations")
     ax.set_title(f"Repair cost at the recorded event ({s['im_label']} = {s['im']:.3g} g, "
-                 f"{s['n_realizations']} realisations)", fontsize=10)
+                 f"{s['n_realizations']} realizations)", fontsize=10)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
