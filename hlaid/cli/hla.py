@@ -37,14 +37,14 @@ def run_hla(args) -> int:
     check_output_folder(args.out, force=args.force, inputs=inputs)  # and the files it named (a columns YAML's table)
     check_band(meas, cfg.preprocess.band_hz, f"preprocess.band_hz (in {args.config})")
     from ..hla import run_hla  # the heavy libraries, once the inputs are known to be good
-    from ..hla.plots import plot_loops, plot_stiffness
+    from ..hla.plots import plot_loops, plot_stiffness, wide_band
     from ..plots import save_figure
     _progress.info(f"HLA of {meas.n_floors} stories, {meas.n_samples} samples at {1 / meas.dt:g} Hz")
     res = run_hla(meas, cfg)
     with atomic_directory(args.out, force=args.force, inputs=inputs) as tmp:
         res.save(tmp)
         if not args.no_plots:
-            save_figure(plot_loops(res), Path(tmp) / "loops.png")
+            save_figure(plot_loops(res, wide=wide_band(meas, res)), Path(tmp) / "loops.png")
             save_figure(plot_stiffness(res, meas.truth), Path(tmp) / "stiffness.png")
     for s in res.stories:
         hc = s.half_cycles

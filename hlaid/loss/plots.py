@@ -28,10 +28,11 @@ def plot_loss_curve(stripes, own=None):
             a.axvline(o["im"], color="k", ls=":", lw=1)
         ax.plot([o["im"]], [o["repair_cost_ratio_median"]], "D", color="C2", ms=8, mec="k",
                 label=f"recorded event ({o['im']:.3g} g): median {o['repair_cost_ratio_median']:.1%}")
+    right = max(float(x.max()), own.summary["im"] if own is not None else 0.0) * 1.05  # the event inside the axes
     for a, yl in ((ax, "repair cost / replacement cost"), (ax2, "probability")):
         a.set_xlabel(f"{label} [g]")
         a.set_ylabel(yl)
-        a.set_xlim(0, float(x.max()) * 1.05)
+        a.set_xlim(0, right)
         a.set_ylim(0, 1.02)
         a.grid(alpha=0.3)
         a.legend(fontsize=8, loc="upper left")

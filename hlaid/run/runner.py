@@ -147,7 +147,7 @@ def _identification_outputs(meas: Measurement, res, tmp: Path, step: _Steps, plo
                             ) -> tuple[list[ParameterRow], list[ParameterRow]]:
     """The clone, HLA, parameter tables and identification figures of a run (into ``tmp``); returns
     the parameter tables of the clone and of the paper's method alone."""
-    from ..hla.plots import plot_loops, plot_stiffness
+    from ..hla.plots import plot_loops, plot_stiffness, wide_band
     res.clone.save(tmp / "clone.json")
     res.hla.save(tmp / "hla")
     truth = meas.truth.building if meas.truth is not None else None
@@ -161,7 +161,7 @@ def _identification_outputs(meas: Measurement, res, tmp: Path, step: _Steps, plo
     if not plots:
         return table, paper
     figs = tmp / "figures"
-    save_figure(plot_loops(res.hla), figs / "loops.png")
+    save_figure(plot_loops(res.hla, wide=wide_band(meas, res.hla)), figs / "loops.png")
     save_figure(plot_stiffness(res.hla, meas.truth, clone_ke=res.replay.ke), figs / "stiffness.png")
     save_figure(_replay_figure(meas, res), figs / "replay.png")
     return table, paper
@@ -275,7 +275,7 @@ def _replay_figure(meas: Measurement, res):
         labels.insert(0, "true")
     r = corrcoef(rep, disp)
     notes = [f"R = {v:.3f}" for v in r]
-    return plot_time_histories(meas.time, series, labels, ylabel="disp. [mm]", annotate=notes,
+    return plot_time_histories(meas.time, series, labels, ylabel="disp. [mm]", annotate=notes, panel="floor",
                                title="Floor displacement relative to the ground: measured against replayed clone")
 
 
