@@ -20,5 +20,9 @@ def run_demo_command(args) -> int:
 
     check_output_folder(args.out, force=args.force, inputs=[args.cache])  # fail before the pipeline, not after it
     from ..demo import run_demo
+    from ..run.summary import read_summary
+    from .run import print_run_summary
+
     run_demo(args.out, force=args.force, cache_dir=args.cache)
+    print_run_summary(read_summary(args.out), args.out)
     return 0
