@@ -305,7 +305,7 @@ def _grid(runner: _Runner, levels: np.ndarray, drift_limit: float) -> None:
     ar = np.arange(R)
     chunks = np.array_split(np.arange(levels.size), min(levels.size, 5))
     alive = np.ones(R, dtype=bool)
-    with _progress.stage(f"IDA grid: {R} records", levels.size, unit="levels") as bar:
+    with _progress.stage(f"IDA grid of {R} records", levels.size, unit="levels") as bar:
         for ch in chunks:
             recs = np.flatnonzero(alive)
             runner.run(recs, np.broadcast_to(levels[ch], (recs.size, ch.size)), "grid")

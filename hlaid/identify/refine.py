@@ -239,7 +239,7 @@ def fit_residuals(vector: SearchVector, residuals: Residuals, *, max_iterations:
     plain_of: dict = {}  # the unweighted cost of every point the search evaluated (a float each)
 
     best, counting = [np.inf], [True]
-    bar = _progress.stage(f"{desc} of {vector.x0.size} parameters", max_iterations, unit="evaluations")
+    bar = _progress.stage(f"{desc} ({vector.x0.size} parameters)", max_iterations, unit="evaluations")
 
     def fun(x):
         key = x.tobytes()

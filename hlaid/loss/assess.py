@@ -89,7 +89,7 @@ def assumption_lines(asset: Asset, cfg: LossConfig, *, given_inventory: bool) ->
     area = asset.floor_area_m2
     same = len(set(round(a, 6) for a in area)) == 1
     shown = f"{area[0]:.4g} m2 per story" if same else "[" + ", ".join(f"{a:.4g}" for a in area) + "] m2"
-    lines = [f"loss assumption: floor area {shown} ({'given' if asset.area_source == 'given' else asset.area_source})"]
+    lines = [f"loss assumption: floor area {shown}, {asset.area_source}"]
     if not given_inventory:
         rows = list(csv.reader(io.StringIO(asset.inventory_csv)))[1:]
         qty = [float(r[4]) for r in rows if len(r) > 4 and r[1] == "ea"]
@@ -170,7 +170,7 @@ def assess_losses(clone, own_motion, *, records=None, levels=(), collapse: tuple
     levels = list(levels or ())
     if levels and records is None:
         raise InputError("the loss curve needs the IDA records (give --records or the run's ida.records)")
-    for k, lv in enumerate(_progress.progress(levels, desc="loss stripes")):
+    for k, lv in enumerate(_progress.progress(levels, desc="loss stripes", unit="levels")):
         d = clone_demands(clone, records, level=lv, n_ensemble=n_ensemble, seed=seed, ida_config=ida_config)
         results.append(assess_demands(d, b, cfg, folder / f"stripe-{k + 1}", f"stripe-{k + 1}"))
     if not results:

@@ -202,7 +202,7 @@ def _replays(buildings, motions, scale: np.ndarray, cfg, tail: float, window: fl
     settle = np.full((nb, nm, n), np.nan)
     status = np.empty((nb, nm), dtype=np.int64)
     sub = np.maximum(1, np.ceil(np.array([m.dt for m in motions]) / cfg.max_step - 1e-9)).astype(np.int64)
-    for s in _progress.progress(np.unique(sub), desc="demands"):
+    for s in _progress.progress(np.unique(sub), desc=f"demands of {nb} clone(s) x {nm} record(s)", unit="batches"):
         idx = np.flatnonzero(sub == s)
         mot = [upsampled(motions[j], int(s)) for j in idx]
         r = simulate_response(buildings, mot, scale[idx][:, None], substeps=1, outputs="peaks", free_vibration=tail,

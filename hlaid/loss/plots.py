@@ -29,13 +29,13 @@ def plot_loss_curve(stripes, own=None):
         ax.plot([o["im"]], [o["repair_cost_ratio_median"]], "D", color="C2", ms=8, mec="k",
                 label=f"recorded event ({o['im']:.3g} g): median {o['repair_cost_ratio_median']:.1%}")
     right = max(float(x.max()), own.summary["im"] if own is not None else 0.0) * 1.05  # the event inside the axes
-    for a, yl in ((ax, "repair cost / replacement cost"), (ax2, "probability")):
+    for a, yl, where in ((ax, "repair cost / replacement cost", "lower right"), (ax2, "probability", "center right")):
         a.set_xlabel(f"{label} [g]")
         a.set_ylabel(yl)
         a.set_xlim(0, right)
         a.set_ylim(0, 1.02)
         a.grid(alpha=0.3)
-        a.legend(fontsize=8, loc="upper left")
+        a.legend(fontsize=8, loc=where)  # the curves rise on the left and stay at 1 on the top right
     ax.set_title("Repair cost against intensity (FEMA P-58, pelicun)", fontsize=10)
     ax2.set_title("Collapse and irreparable damage", fontsize=10)
     fig.tight_layout()
