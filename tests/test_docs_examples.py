@@ -131,7 +131,8 @@ def _folder(tmp: Path, page_blocks: list[Block], cache: Path) -> tuple[Path, dic
         (work / "data").symlink_to(DATA)
     bin_dir = tmp / "bin"
     bin_dir.mkdir()
-    for name, body in (("hlaid", f'exec "{sys.executable}" -m hlaid "$@"'), ("python", f'exec "{sys.executable}" "$@"')):
+    shims = {"hlaid": f'exec "{sys.executable}" -m hlaid "$@"', "python": f'exec "{sys.executable}" "$@"'}
+    for name, body in shims.items():
         shim = bin_dir / name
         shim.write_text(f"#!/bin/sh\n{body}\n")
         shim.chmod(0o755)
