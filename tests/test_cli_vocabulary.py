@@ -15,6 +15,7 @@ import argparse
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import hlaid
@@ -126,3 +127,23 @@ def test_library_hint_reaches_the_user_as_a_flag(tmp_path, capsys, table1):
                str(tmp_path / "d.csv")])
     err = capsys.readouterr().err
     assert rc == 2 and "--heights MM,MM,..." in err and "IDAConfig" not in err
+
+
+def test_read_passes_reader_options_to_every_reading_command(data_dir, tmp_path, capsys):
+    """The hotel's .mat holds 21 earthquakes: without an event the error names the flag, with
+    --read event=13 the command reads that one (the same samples as hlaid.read(path, event=13))."""
+    mat = data_dir / "structural_response" / "phycnn_6story_hotel" / "data_exp.mat"
+    rc = main(["hla", str(mat), "-o", str(tmp_path / "a"), "--no-plots"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--read event=N" in err and "read(path" not in err
+    rc = main(["hla", str(mat), "-o", str(tmp_path / "b"), "--no-plots", "--read", "event=13"])
+    assert rc == 0, capsys.readouterr().err
+    import json
+
+    summary = json.loads((tmp_path / "b" / "hla.json").read_text())
+    direct = hlaid.run_hla(hlaid.read(mat, event=13))
+    assert summary["n_samples"] == direct.time.size
+    np.testing.assert_allclose([s["k0"] for s in summary["stories"]], direct.k0, rtol=1e-12)
+    assert not list((tmp_path / "b").glob("*.png"))  # --no-plots
+    rc = main(["hla", str(mat), "-o", str(tmp_path / "c"), "--read", "event=99"])
+    assert rc == 2 and "no event 99" in capsys.readouterr().err
