@@ -146,6 +146,7 @@ PYTHON_HINTS = {
     "IDAConfig(pdelta=False)": "--no-pdelta",
     "read(path, event=N)": "--read event=N",
     "read(path, ground=N, floors=[N, ...])": "--read ground=N --read floors=N,N,...",
+    "records=[...]": "--records DIR|builtin-suite|FILE",
 }
 """Library messages name Python arguments (``IDAConfig(heights_mm=[...])``); on the command line
 each is shown as the flag that sets it (a test checks that every flag exists and every phrase is

@@ -401,6 +401,7 @@ def ida_from_config(model, cfg: IDAConfig, records=None, *, base_dir: str | Path
     ``records`` are given."""
     recs = records if records is not None else cfg.record_specs(base_dir)
     if recs is None:
-        raise InputError("no records: give them in the config ('records:') or on the command line (--records)")
+        raise InputError("no records: give them in the config ('records:') or as the records argument "
+                         "(records=[...])")
     return run_ida(model, recs, cfg)
 

@@ -169,7 +169,7 @@ def assess_losses(clone, own_motion, *, records=None, levels=(), collapse: tuple
         results.append(assess_demands(d, b, cfg, folder / "recorded", "recorded"))
     levels = list(levels or ())
     if levels and records is None:
-        raise InputError("the loss curve needs the IDA records (give --records or the run's ida.records)")
+        raise InputError("the loss curve needs the IDA records (records=[...], or the run's ida.records)")
     for k, lv in enumerate(_progress.progress(levels, desc="loss stripes", unit="levels")):
         d = clone_demands(clone, records, level=lv, n_ensemble=n_ensemble, seed=seed, ida_config=ida_config)
         results.append(assess_demands(d, b, cfg, folder / f"stripe-{k + 1}", f"stripe-{k + 1}"))
