@@ -89,8 +89,9 @@ def add_read(p: argparse.ArgumentParser) -> None:
 def add_ensemble(p: argparse.ArgumentParser, what: str) -> None:
     """``--ensemble N``: clones drawn from the clone's identification uncertainty."""
     from ..uncertainty.config import N_ENSEMBLE
+    what = f" {what}" if what else ""
     p.add_argument("--ensemble", type=int, default=None, metavar="N",
-                   help=f"clones drawn from the clone's identification uncertainty {what} (default {N_ENSEMBLE} "
+                   help=f"clones drawn from the clone's identification uncertainty{what} (default {N_ENSEMBLE} "
                         "when the clone has it, else 0; 0: the identified clone alone)")
 
 
