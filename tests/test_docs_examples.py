@@ -8,7 +8,8 @@ example. HTML comments on the lines just above its fence tell this test what to 
 - ``<!-- needs: meas.npz, clone.json, data, openseespy, pelicun -->``: what it needs: files made
   first in its folder (``meas.npz``: the README's simulated measurement; ``clone.json``: its
   clone), ``data`` (the real datasets as ``data/``, docs/data.md#getting-the-data), an optional
-  package; without one it is skipped (failed under ``CI=true``);
+  package; without one that block is left out, the page's others still run, and the test is
+  skipped at the end (failed under ``CI=true``);
 - ``<!-- run: fast -->``: also run by the default test run (every other example is ``slow``).
 
 The blocks of one page run in order in one folder (a later block may use what an earlier one
@@ -123,6 +124,22 @@ def test_docs_do_not_point_outside_the_repository():
 
 
 # ----------------------------------------------------------------------------- running them
+def _missing(b: Block) -> str | None:
+    """What block ``b`` needs that is not here (the datasets, a package), or None."""
+    for need in b.needs:
+        if need == "data" and not DATA.is_dir():
+            return f"the datasets (not found at {DATA})"
+        if need in PACKAGES and importlib.util.find_spec(PACKAGES[need].split(".")[0]) is None:
+            return need
+        if need == "openseespy":
+            from hlaid.opensees import OpenSeesUnavailable, import_opensees
+            try:
+                import_opensees()
+            except OpenSeesUnavailable:
+                return "a usable openseespy"
+    return None
+
+
 def _folder(tmp: Path, page_blocks: list[Block], cache: Path) -> tuple[Path, dict]:
     work = tmp / "work"
     work.mkdir()
@@ -142,16 +159,6 @@ def _folder(tmp: Path, page_blocks: list[Block], cache: Path) -> tuple[Path, dic
     made: set[str] = set()
     for b in page_blocks:
         for need in b.needs:
-            if need == "data" and not DATA.is_dir():
-                skip_or_fail(f"{b.name} needs the datasets (not found at {DATA})")
-            if need in PACKAGES and importlib.util.find_spec(PACKAGES[need].split(".")[0]) is None:
-                skip_or_fail(f"{b.name} needs {need}")
-            if need == "openseespy":
-                from hlaid.opensees import OpenSeesUnavailable, import_opensees
-                try:
-                    import_opensees()
-                except OpenSeesUnavailable:
-                    skip_or_fail(f"{b.name} needs a usable openseespy")
             for cmd in RECIPES.get(need, []):
                 if cmd[cmd.index("-o") + 1] not in made:
                     _run([sys.executable, "-m", "hlaid", *cmd], work, env, f"making {need} for {b.name}")
@@ -165,19 +172,23 @@ def _run(args: list[str], cwd: Path, env: dict, what: str) -> None:
 
 
 def _run_page(page: Path, tmp: Path, cache: Path, *, fast_only: bool) -> None:
+    """Run the page's examples in order; one that needs what is not here is left out (and the test
+    skipped, failed under ``CI=true``, once the others have run)."""
     run = [b for b in examples(page) if b.runs_here and (b.marks.get("run") == "fast" or not fast_only)]
     if not run:
         pytest.skip(f"{page.name}: no example to run here")
-    work, env = _folder(tmp, run, cache)
-    for k, b in enumerate(run):
-        if b.lang in SHELLS:
-            script = work / f".block{k}.sh"
+    left_out = [(b, why) for b in run if (why := _missing(b)) is not None]
+    run = [b for b in run if _missing(b) is None]
+    if run:
+        work, env = _folder(tmp, run, cache)
+        for k, b in enumerate(run):
+            script = work / (f".block{k}.sh" if b.lang in SHELLS else f".block{k}.py")
             script.write_text(b.code)
-            _run(["bash", "-e", str(script)], work, env, b.name)
-        else:
-            script = work / f".block{k}.py"
-            script.write_text(b.code)
-            _run([sys.executable, str(script)], work, env, b.name)
+            _run(["bash", "-e", str(script)] if b.lang in SHELLS else [sys.executable, str(script)], work, env,
+                 b.name)
+    if left_out:
+        skip_or_fail("; ".join(f"{b.name} needs {why}" for b, why in left_out)
+                     + (f" (the page's other {len(run)} example(s) ran)" if run else ""))
 
 
 @pytest.fixture(scope="module")
