@@ -230,6 +230,23 @@ class Measurement:
         return "\n".join(head) + "\n" + ",".join(names) + "\n" + body + "\n"
 
 
+def building_name(meas: Measurement) -> str:
+    """What the building a measurement is of is called (a clone identified from it takes the name):
+    the simulated building's name, else the folder its file lies in (a building's records kept
+    together, e.g. ``shake_table_3story_steel_mrf_fixedbase``; the folder itself for a folder of
+    channels), else the measurement's own name. Not the event's name: the clone outlives its first
+    event."""
+    if meas.truth is not None and meas.truth.building.name:
+        return meas.truth.building.name
+    src = meas.source
+    if src and ":" not in src.split(os.sep)[0]:  # a file or folder, not simulated:... or builtin:...
+        p = Path(src).absolute()
+        name = p.name if p.is_dir() else p.parent.name
+        if name:
+            return name
+    return meas.name
+
+
 def warn_unusual_rate(meas: Measurement) -> None:
     """Warn (loudly: always shown) when the sample rate is legal but outside :data:`RATE_USUAL_HZ`."""
     rate = 1.0 / meas.dt

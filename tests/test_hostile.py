@@ -199,7 +199,7 @@ def test_force_replaces_an_hlaid_output_or_an_empty_folder(tmp_path):
 
 # ----------------------------------------------------------------------------- hlaid loss RUN_DIR
 LOSS = ["--no-curve", "--realizations", "50"]
-"""A small loss assessment: the recorded event alone, 50 realisations."""
+"""A small loss assessment: the recorded event alone, 50 realizations."""
 
 
 @pytest.fixture(scope="module")
@@ -289,7 +289,7 @@ def test_loss_updates_the_run_folder_all_or_nothing(loss_run, tmp_path, capsys):
     assert new["version"] == 2 and new["loss"]["recorded"] == loss["recorded"] and new["loss"]["curve"] == []
     assert {k: new[k] for k in old if k != "version"} == {k: v for k, v in old.items() if k != "version"}
     assert {k: v for k, v in new.items() if k not in old} == {"ida_after": None, "assessment": None,
-                                                              "loss": new["loss"]}
+                                                              "loss": new["loss"], "figures": True}
     page = (run / "report.html").read_text()
     assert "Losses (FEMA P-58 through pelicun)" in page and 'alt="repair_cost.png"' in page
     assert [p.name for p in run.iterdir() if p.name.startswith(".")] == []
@@ -609,7 +609,7 @@ def test_sigterm_during_identify_workers(tmp_path):
     measurement_from_config(cfg, base_dir=REPO / "configs").save(tmp_path / "meas.npz")
     (tmp_path / "out").mkdir()
     rc, elapsed, lines = _interrupt(["identify", "meas.npz", "-o", "out/c.json", "--no-cache", "--tensorboard", "tb"],
-                                    tmp_path, after="path-driven training sets", workers=2, delay=1.0,
+                                    tmp_path, after="[identify] hysteresis loop analysis", workers=2, delay=1.0,
                                     signum=signal.SIGTERM, group=False)
     assert rc == 143 and elapsed < 10
     assert lines[-1] == "hlaid identify: terminated"
@@ -728,7 +728,7 @@ def test_files_named_in_a_columns_yaml_are_inputs_of_the_run(tmp_path, capsys, t
     nor a folder holding it, even with --force (refused before the work)."""
     _measurement(tmp_path / "data.csv", table1)
     yaml_file = _columns_yaml(tmp_path / "map.yaml", "data.csv")
-    refused(capsys, ["demands", clone_file, "--motion", yaml_file, "--n-ensemble", "0", "-o", tmp_path / "data.csv",
+    refused(capsys, ["demands", clone_file, "--motion", yaml_file, "--ensemble", "0", "-o", tmp_path / "data.csv",
                      "--force"], ["is an input of this run"], root=tmp_path, within=60)
     out = tmp_path / "colout"
     with atomic_directory(out) as tmp:

@@ -35,7 +35,7 @@ from ..identify.replaycheck import replay_check
 from ..identify.result import IdentificationResult, file_digest, provenance
 from ..identify.stages import Event, analyse
 from ..identify.tb import TBLogger
-from ..measurement import Measurement, check_series, ground_digest
+from ..measurement import Measurement, building_name, check_series, ground_digest
 from ..model import Building, Damping
 from ..units import G_MM_S2
 from .fit import JointFit, best_fit, flags, joint_fit, posterior_uncertainty
@@ -154,7 +154,7 @@ def prior_start(hla: HLAResult, meas: Measurement, prior: StructuralPrior, dampi
     b = Building(mass=hla.mass, k0=hla.k0, alpha=np.full(n, prior.alpha.median), p=np.full(n, prior.p.median),
                  dy=np.ones(n), delta_eta=np.full(n, prior.delta_eta.median), height=meas.height,
                  damping=Damping(ratio=prior.damping.median if damping_ratio is None else damping_ratio),
-                 pdelta=meas.pdelta_active if meas.height is not None else None, name=meas.name)
+                 pdelta=meas.pdelta_active if meas.height is not None else None, name=building_name(meas))
     dy = prior.cy.median * elf_profile(b) * weight_above(b) / np.asarray(hla.k0)
     return b.replace(dy=dy)
 

@@ -254,21 +254,26 @@ def _run_on(client, todo: list[UnitJob], records, assess, out: Path, results: di
     computed: list[str] = []
     failed: list[str] = []
     try:
-        for i, fut in enumerate(distributed.as_completed(futures), 1):
-            job = futures[fut]
-            try:
-                res = fut.result()
-            except Exception as err:  # noqa: BLE001 - a lost worker, an unpicklable result ...
-                res = {"format": RESULT_FORMAT, "version": 1, "unit": job.unit, "building": job.building,
-                       "event": job.event, "digest": job.digest, "status": "failed", "stage": "worker",
-                       "reason": f"worker: {type(err).__name__}: {' '.join(str(err).split())[:300]}", "timings": {}}
-            write_json(result_path(out, job), res)
-            results[job.unit] = res
-            (computed if res["status"] == "ok" else failed).append(job.unit)
-            t = res.get("timings", {}).get("total_s")
-            what = (_risk_text(res["row"]) if res["status"] == "ok" else res["reason"])
-            _progress.info(f"[{i}/{len(todo)}] {job.unit}: {res['status']}"
-                           + (f" in {t:.1f} s" if t is not None else "") + f" ({what})")
+        with _progress.stage("fleet", len(todo), unit="units") as bar:
+            for i, fut in enumerate(distributed.as_completed(futures), 1):
+                job = futures[fut]
+                try:
+                    res = fut.result()
+                except Exception as err:  # noqa: BLE001 - a lost worker, an unpicklable result ...
+                    res = {"format": RESULT_FORMAT, "version": 1, "unit": job.unit, "building": job.building,
+                           "event": job.event, "digest": job.digest, "status": "failed", "stage": "worker",
+                           "reason": f"worker: {type(err).__name__}: {' '.join(str(err).split())[:300]}",
+                           "timings": {}}
+                write_json(result_path(out, job), res)
+                results[job.unit] = res
+                (computed if res["status"] == "ok" else failed).append(job.unit)
+                t = res.get("timings", {}).get("total_s")
+                what = (_risk_text(res["row"]) if res["status"] == "ok" else res["reason"])
+                line = f"{job.unit}: {res['status']}" + (f" in {t:.1f} s" if t is not None else "") + f" ({what})"
+                quiet = res["status"] == "ok" and _progress.drawing()  # on a terminal the bar shows it
+                (_progress.debug if quiet else _progress.info)(f"[{i}/{len(todo)}] {line}")
+                bar.update(1, note=f"last {line}"[:80])
+            bar.done(f"{len(computed)} ok, {len(failed)} failed")
     except BaseException:  # Ctrl-C: stop the remaining tasks before the cluster closes
         _quiet()
         client.cancel(list(futures), force=True)

@@ -29,8 +29,9 @@ class IDAConfig:
         paths are taken from the config file's folder); the command line's ``--records`` wins
     units : acceleration units of text records (AT2 files state theirs)
     im : intensity measure, ``sa_t1`` (Sa(T1, 5%)) or ``pga``
-    levels : IM levels [g], strictly increasing; None: ``n_levels`` levels up to the
-        equal-displacement estimate of the median IM at the drift limit
+    levels : IM levels [g], strictly increasing; None: ``n_levels`` levels in geometric steps up to
+        the equal-displacement estimate of the median IM at the drift limit, from half that at the
+        smallest exceedance limit (the small-drift fragilities rise at low intensities)
     drift_limit : collapse when a story's drift ratio exceeds it (0.10 is 10 %)
     slope_ratio : collapse when the IDA curve's slope drops below this fraction of the elastic slope
     exceedance_limits : drift ratios whose probability of exceedance is reported; None: 0.5, 1,

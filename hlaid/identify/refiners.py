@@ -137,7 +137,6 @@ class LeastSquares(Refiner):
     kept where its cost is at least 20 % lower."""
 
     def refine(self, problem: RefineProblem) -> Refinement:
-        _progress.info("[identify] replay refinement against the measured accelerations")
         info: dict[str, Any] = {}
         start = self._k0_stage(problem, info)
         rr = self._fit(start, problem, info)
@@ -160,7 +159,8 @@ class LeastSquares(Refiner):
         error), then the regressions again with it: the start of the full fit."""
         if "k0" not in self.parameters:
             return problem.start
-        s1 = self._replay(problem.start, problem, parameters=("k0",), damping=False)
+        s1 = self._replay(problem.start, problem, parameters=("k0",), damping=False,
+                          desc="[identify] replay fit, k0 alone")
         info["stage1_k0"] = {"cost_initial": s1.cost_initial, "cost_final": s1.cost_final, "nfev": s1.nfev}
         return problem.regress(s1.building.k0.copy())
 
@@ -175,7 +175,7 @@ class LeastSquares(Refiner):
         if self.restart_ratio is not None and ratio > self.restart_ratio:
             _progress.info(f"[identify] the refined replay misses the data by {ratio:.1f}x its noise level: "
                            "refining again from a neutral start")
-            alt = self._replay(problem.neutral_start(), problem)
+            alt = self._replay(problem.neutral_start(), problem, desc="[identify] replay fit from a neutral start")
             kept = alt.cost_final < 0.8 * rr.cost_final
             info["restart"] = {"noise_ratio": ratio, "cost_final": alt.cost_final, "nfev": alt.nfev, "kept": kept,
                                "stories": "all"}
@@ -225,7 +225,8 @@ class ErrorsInVariables(LeastSquares):
         None and the reason where the tangent is unstable or larger than ``tangent_max_mb``."""
         try:
             eiv = self._replay(building, problem, stories=problem.stories, ftol=EIV_FTOL, ground_noise="tangent",
-                               tangent_max_mb=self.tangent_max_mb)
+                               tangent_max_mb=self.tangent_max_mb,
+                               desc=f"[identify] errors-in-variables fit from the {start}")
         except NUMERICAL_FAILURES as err:
             return None, {"why": " ".join(str(err).split())[:200] or type(err).__name__}
         return eiv, {"start": start, "cost_initial": eiv.cost_initial, "cost_final": eiv.cost_final, "nfev": eiv.nfev,

@@ -26,7 +26,7 @@ from ..hla.analysis import reanalyse_story
 from ..hla.config import fixed
 from ..hla.features import HalfCycleFeatures, half_cycle_features
 from ..hla.result import StoryHLA
-from ..measurement import Measurement, measured_ground
+from ..measurement import Measurement, building_name, measured_ground
 from ..model import Building, Damping
 from ..motions import GroundMotion
 from .config import IdentifyConfig
@@ -94,7 +94,7 @@ class Estimate:
         meas = event.measurement
         return Building(mass=event.hla.mass, k0=self.k0, alpha=self.alpha, p=self.p, dy=self.dy,
                         delta_eta=self.delta_eta, height=meas.height, damping=Damping(ratio=damping_ratio),
-                        pdelta=meas.pdelta_active if meas.height is not None else None, name=meas.name)
+                        pdelta=meas.pdelta_active if meas.height is not None else None, name=building_name(meas))
 
     def replace(self, **changes) -> Estimate:
         return dataclasses.replace(self, **changes)
