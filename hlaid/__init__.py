@@ -41,6 +41,8 @@ _LAZY: dict[str, tuple[str, ...]] = {
     # pipeline and errors
     ".run": ("run_pipeline", "RunConfig"),
     ".errors": ("InputError", "ConfigError", "NotIdentifiableError"),
+    # messages: progress on stderr from Python
+    "._progress": ("verbose",),
 }
 """The public API: module (relative to hlaid) -> the names it gives ``hlaid``."""
 

@@ -2,6 +2,7 @@
 # The same names as ``_LAZY`` there (tests/test_cli_startup.py checks it).
 from typing import Any
 
+from ._progress import verbose as verbose
 from .clone import Clone as Clone
 from .clone import load_clone as load_clone
 from .errors import ConfigError as ConfigError

@@ -3,40 +3,44 @@
 Every output is built under a temporary name next to its destination and renamed into place when
 complete, so a reader sees the old result or the whole new one and a failure (a full disk, Ctrl-C,
 SIGTERM) leaves nothing behind. An output folder carries a marker (:data:`MARKER`) naming the hlaid
-command that wrote it: ``--force`` replaces only such a folder or an empty one, and never one that
+command that wrote it, the entries it wrote and the folder it wrote them in (:mod:`hlaid._outdir`):
+``--force`` replaces only such a folder holding nothing else, or an empty one, and never one that
 holds an input of the same run or the current folder; an output file is never an input of its run.
+The inputs of the run are those named to the command and every file it has read since
+(:func:`hlaid._inputs.run_inputs`: also the files a config names). A folder that cannot be renamed
+(a mount point) is replaced in place, entry by entry.
 """
 
 from __future__ import annotations
 
 import contextlib
 import errno
-import hashlib
 import json
 import os
-import re
 import shutil
 import tempfile
-import time
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
-from . import _progress
-from ._inputs import read_json, read_text
-from ._version import __version__
+from . import _outdir
+from ._inputs import input_named, read_text, run_inputs
+from ._outdir import MARKER, remove_stale
+from ._outdir import STALE_AFTER_S as STALE_AFTER_S  # where it was defined before
+from ._outdir import stem as _stem
 from .errors import InputError
 
 read_file_text = read_text
 """The old name of :func:`hlaid._inputs.read_text`."""
-
-MARKER = ".hlaid-output.json"
-"""The file that makes a folder an output of hlaid (``--force`` may replace it)."""
 
 command = "hlaid"
 """The command writing outputs now (set by the command line, e.g. ``"hlaid hla"``), named in :data:`MARKER`."""
 
 NO_SPACE = (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC))
 """``errno`` values of a full disk or an exhausted quota."""
+
+NO_RENAME = (errno.EBUSY, errno.EXDEV, errno.EPERM, errno.EACCES, errno.ENOTEMPTY, errno.EEXIST, errno.EINVAL)
+"""``errno`` values of a rename refused where writing works (a mount point, a bind mount, a
+sticky folder): the output is then written in place."""
 
 
 def no_space_error(err: BaseException, path: str | os.PathLike, folder: str | os.PathLike) -> InputError | None:
@@ -101,22 +105,27 @@ def _name_max(folder: Path) -> int:
 
 
 def check_name(path: Path) -> None:
-    """Refuse an output name longer than the file system allows (before the work, not after it)."""
-    parent = path.parent if str(path.parent) else Path(".")
-    top = _name_max(parent if parent.is_dir() else Path("."))
-    size = len(os.fsencode(path.name))
-    if size > top:
-        raise InputError(f"the name is {size} bytes long; the file system allows at most {top}", source=str(path))
+    """Refuse a path with a name longer than the file system allows, in any of its components, or
+    longer than the system allows a path (before the work, not after it)."""
+    folder = path.parent if str(path.parent) else Path(".")
+    while not os.path.isdir(folder) and folder != folder.parent:  # isdir: False for a name too long, no error
+        folder = folder.parent
+    top = _name_max(folder if os.path.isdir(folder) else Path("."))
+    for part in path.parts:
+        size = len(os.fsencode(part))
+        if size > top and part != path.anchor:
+            what = "the name" if part == path.name else f"a folder name in it ({size} bytes)"
+            raise InputError(f"{what} is {size} bytes long; the file system allows at most {top}"
+                             if part == path.name else f"{what} is longer than the file system allows ({top} bytes)",
+                             source=_short(path))
+    whole = len(os.fsencode(os.path.abspath(path)))
+    if whole > 4000:
+        raise InputError(f"the path is {whole} bytes long; the system allows at most 4096", source=_short(path))
 
 
-def _stem(name: str) -> str:
-    """``name`` in the temporary names of its output: shortened (with a hash, so different names stay
-    different) when ``.NAME.PID-XXXXXXXX.tmp.SUFFIX`` would exceed the file system's limit."""
-    raw = os.fsencode(name)
-    if len(raw) <= 200:
-        return name
-    digest = hashlib.sha1(raw).hexdigest()[:10]
-    return os.fsdecode(raw[:180]) + "~" + digest
+def _short(path: Path) -> str:
+    text = str(path)
+    return text if len(text) <= 300 else text[:140] + "..." + text[-140:]
 
 
 def _real(p: str | os.PathLike) -> str:
@@ -131,76 +140,37 @@ def _input_paths(inputs: Iterable[str | os.PathLike | None]) -> list[str]:
     return [str(p) for p in inputs if p and not str(p).startswith("builtin")]
 
 
+def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
+    if _real(a) == _real(b):
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except (OSError, ValueError):
+        return False
+
+
 def check_output_file(path: str | os.PathLike, *, force: bool = False,
                       inputs: Iterable[str | os.PathLike | None] = ()) -> Path:
-    """Refuse an output file that :func:`atomic_write` would refuse (an existing file without
+    """Refuse an output file that :func:`atomic_write` would refuse (an existing file or link without
     ``force``, a folder in its place, a missing or unwritable folder, a name too long), or that is
-    one of the run's ``inputs`` (even with ``force``), so a long job fails before it runs."""
+    one of the run's ``inputs`` or a file the run has read (even with ``force``), so a long job
+    fails before it runs."""
     path = Path(path)
     check_name(path)
     if path.is_dir():
         raise InputError("is a folder; expected an output file name", source=str(path))
     if os.path.lexists(path):
-        real = _real(path)
-        for p in _input_paths(inputs):
-            if _real(p) == real or (os.path.exists(p) and os.path.samefile(p, path)):
-                raise InputError(f"is an input of this run ({p}); write the output to another file "
-                                 "(--force never replaces an input)", source=str(path))
-    if path.exists() and not force:
-        raise InputError("already exists; use --force to overwrite", source=str(path))
+        read = input_named(path)
+        named = [p for p in _input_paths(inputs) if _same_file(p, path)]
+        if named or read:
+            raise InputError(f"is an input of this run ({named[0] if named else read}); write the output to another "
+                             "file (--force never replaces an input)", source=str(path))
+        if not force:
+            what = "exists as a symbolic link; use --force to replace it" if path.is_symlink() else \
+                "already exists; use --force to overwrite"
+            raise InputError(what, source=str(path))
     check_parent(path)
     return path
-
-
-STALE_AFTER_S = 3600.0
-"""A temporary output (``.NAME.PID-*.tmp``) older than this whose process is gone was left by a
-killed run; the next write of ``NAME`` removes it."""
-
-
-def _pid_alive(pid: int) -> bool:
-    if pid == os.getpid() or os.name == "nt":  # os.kill on Windows would terminate the process
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:  # e.g. another user's process
-        return True
-    return True
-
-
-def remove_stale(parent: Path, name: str) -> list[str]:
-    """Remove what killed runs left while writing ``parent/name``; returns the names removed.
-
-    That is ``.NAME.PID-*.tmp*`` (a temporary file or folder) and, when ``NAME`` itself exists,
-    ``.NAME.old-PID`` (a replaced folder), each only when older than :data:`STALE_AFTER_S` and
-    its process ``PID`` is no longer running.
-    """
-    pat = re.compile(re.escape(f".{_stem(name)}.") + r"(?:(\d+)-\w+\.tmp.*|old-(\d+))\Z", re.S)
-    try:
-        entries = list(os.scandir(parent))
-    except OSError:
-        return []
-    removed = []
-    now = time.time()
-    for e in entries:
-        m = pat.match(e.name)
-        if not m or (m.group(2) and not (parent / name).exists()):  # an old- folder may be the only copy
-            continue
-        try:
-            young = now - e.stat(follow_symlinks=False).st_mtime < STALE_AFTER_S
-            if young or _pid_alive(int(m.group(1) or m.group(2))):
-                continue
-            if e.is_dir(follow_symlinks=False):
-                shutil.rmtree(e.path)
-            else:
-                os.unlink(e.path)
-        except OSError:
-            continue
-        removed.append(e.name)
-    if removed:
-        _progress.debug(f"removed {len(removed)} stale temporary output(s) in {parent}: {', '.join(removed)}")
-    return removed
 
 
 def atomic_write(path: str | os.PathLike, write: Callable[[Path], object], *, force: bool = True) -> Path:
@@ -220,7 +190,8 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], object], *, fo
         tmp = Path(name)
         write(tmp)
         os.chmod(tmp, _creation_mode())
-        os.replace(tmp, path)
+        check_output_file(path, force=force)  # a file read by the work since (a record of a folder) stays
+        _put(tmp, path)
     except BaseException as err:  # Ctrl-C too: nothing is left behind
         full = no_space_error(err, path, parent)
         if tmp is not None:
@@ -234,6 +205,18 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], object], *, fo
 def json_text(obj) -> str:
     """``obj`` as the indented JSON text hlaid writes (numpy values as numbers, paths as text)."""
     return json.dumps(obj, indent=2, default=json_default) + "\n"
+
+
+def _put(tmp: Path, path: Path) -> None:
+    """Rename ``tmp`` onto ``path``; where the rename is refused (a bind-mounted file) copy it into
+    ``path`` instead."""
+    try:
+        os.replace(tmp, path)
+    except OSError as err:
+        if err.errno not in NO_RENAME or path.is_dir() or path.is_symlink() or not path.exists():
+            raise
+        shutil.copyfile(tmp, path)
+        tmp.unlink()
 
 
 def write_json(path, obj, *, force: bool = True) -> Path:
@@ -272,7 +255,7 @@ def atomic_files() -> Iterator[Callable[[str | os.PathLike, Callable[[Path], obj
             tmp.unlink(missing_ok=True)
         raise
     for tmp, path in staged:
-        os.replace(tmp, path)
+        _put(tmp, path)
 
 
 def write_npz(path, arrays: dict, *, force: bool = True) -> Path:
@@ -297,45 +280,52 @@ def json_default(o):
 
 
 def is_hlaid_output(folder: str | os.PathLike) -> bool:
-    """Whether ``folder`` carries the :data:`MARKER` of an hlaid command (a readable, regular file)."""
-    try:
-        d = read_json(Path(folder) / MARKER)
-    except InputError:
-        return False
-    return isinstance(d, dict) and d.get("format") == "hlaid-output"
+    """Whether ``folder`` carries a :data:`MARKER` written there by hlaid (not made by hand, copied
+    in, or written by an hlaid that kept no list of its files)."""
+    return _outdir.written_here(folder) is not None
 
 
-def marker(what: str | None = None) -> dict:
-    """The content of :data:`MARKER`: which hlaid command wrote the folder, and when."""
-    return {"format": "hlaid-output", "version": 1, "command": what or command, "hlaid_version": __version__,
-            "written": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+def marker(what: str | None, folder: str | os.PathLike, *, skip: tuple[str, ...] = ()) -> dict:
+    """The content of :data:`MARKER` of ``folder`` as it is now: the command that wrote it
+    (``what``, default :data:`command`), every entry in it (but ``skip``) and its identity."""
+    return _outdir.marker(what or command, _outdir.listing(folder, skip), folder)
 
 
 def check_output_folder(path: str | os.PathLike, *, force: bool = False,
                         inputs: Iterable[str | os.PathLike | None] = ()) -> Path:
     """Refuse an output folder that :func:`atomic_directory` would refuse, so a long job fails
-    before it runs: a file in its place, a missing or unwritable parent, a name too long; a folder
-    that holds one of the run's ``inputs`` or the current folder; a non-empty folder without
-    ``force``, or with ``force`` one that is not an hlaid output (no :data:`MARKER`)."""
+    before it runs: a file in its place, a missing or unwritable parent (of a folder that can be
+    renamed), a name too long; a folder that holds one of the run's ``inputs``, a file the run has
+    read, or the current folder; a non-empty folder without ``force``, or with ``force`` one that
+    :func:`hlaid._outdir.not_ours` refuses (no marker of its own, or entries hlaid did not write)."""
     path = Path(path)
     check_name(path)
     if path.exists() and not path.is_dir():
         raise InputError("exists and is not a folder", source=str(path))
+    if path.is_symlink() and not path.exists() and not force:
+        raise InputError("exists as a symbolic link (to nothing); use --force to replace the link", source=str(path))
     if path.is_dir():
         real = _real(path)
-        for p in _input_paths(inputs):
+        for p in [*_input_paths(inputs), *run_inputs()]:
             if _inside(_real(p), real):
                 raise InputError(f"holds {p}, an input of this run; choose another output folder (--force never "
                                  "replaces an input)", source=str(path))
         if _inside(_real("."), real):
             raise InputError("holds the current folder; choose another output folder", source=str(path))
-        if any(path.iterdir()):
+        own = f".{_stem(path.name)}.{os.getpid()}-"  # this run's temporary folder inside a mount point
+        skip = tuple(e.name for e in os.scandir(path) if e.name.startswith(own) and e.name.endswith(".tmp"))
+        if any(e.name not in skip for e in os.scandir(path)):
             if not force:
                 raise InputError("output folder exists and is not empty; use --force to replace it", source=str(path))
-            if not is_hlaid_output(path):
-                raise InputError(f"is not an output folder of hlaid (it has no {MARKER}): --force replaces only a "
-                                 "folder hlaid wrote, or an empty one; move its contents away or choose another "
-                                 "folder", source=str(path))
+            why = _outdir.not_ours(path, skip)
+            if why is not None:
+                raise InputError(f"{why}: --force replaces only a folder hlaid wrote, holding only what hlaid wrote "
+                                 "there, or an empty one; move its contents away or choose another folder",
+                                 source=str(path))
+        if _outdir.cannot_rename(path):
+            if not os.access(path, os.W_OK | os.X_OK):
+                raise InputError("folder is not writable", source=str(path))
+            return path
     check_parent(path)
     return path
 
@@ -346,38 +336,66 @@ def atomic_directory(path: str | os.PathLike, *, force: bool = False,
     """Build an output folder in a temporary sibling and move it into place on success.
 
     The folder gets a :data:`MARKER` naming the command that wrote it (``what``, default
-    :data:`command`). With ``force`` an existing folder is replaced only when
-    :func:`check_output_folder` allows it (an hlaid output holding none of ``inputs``, or an empty
-    folder), checked before and again after the work, and only once the new one is complete;
-    without it an existing, non-empty folder is an error. On failure the temporary folder is
-    removed and the existing folder, if any, is untouched. A symlink in ``path``'s place is
-    replaced by the folder; what it pointed to is left alone.
+    :data:`command`), what it wrote and the folder. With ``force`` an existing folder is replaced
+    only when :func:`check_output_folder` allows it (an hlaid output holding nothing else and none
+    of ``inputs``, or an empty folder), checked before and again after the work, and only once the
+    new one is complete; without it an existing, non-empty folder is an error. On failure the
+    temporary folder is removed and the existing folder, if any, is untouched. A symlink in
+    ``path``'s place is replaced by the folder; what it pointed to is left alone. A folder that
+    cannot be renamed (a mount point) is built inside itself and replaced in place, entry by
+    entry (:func:`hlaid._outdir.replace_contents`); so is one whose rename fails at the end.
     """
     inputs = list(inputs)
     path = check_output_folder(path, force=force, inputs=inputs)
     parent = path.parent if str(path.parent) else Path(".")
-    remove_stale(parent, path.name)
-    tmp = None
+    in_place = _outdir.cannot_rename(path)
+    home = path if in_place else parent
+    remove_stale(home, path.name)
+    tmp, placing = None, False
     try:
-        tmp = Path(tempfile.mkdtemp(prefix=f".{_stem(path.name)}.{os.getpid()}-", suffix=".tmp", dir=parent))
+        tmp = Path(tempfile.mkdtemp(prefix=f".{_stem(path.name)}.{os.getpid()}-", suffix=".tmp", dir=home))
         yield tmp
-        write_json(tmp / MARKER, marker(what))
         os.chmod(tmp, _creation_mode(directory=True))
-        check_output_folder(path, force=force, inputs=inputs)  # what is there now may differ from before the work
+        check_output_folder(path, force=force, inputs=inputs)  # what is there now may differ from before
+        placing, files = True, _outdir.listing(tmp)
+        if in_place or not _renamed(tmp, path, _outdir.marker(what or command, files, tmp)):
+            _outdir.replace_contents(path, tmp)
+            write_json(path / MARKER, _outdir.marker(what or command, files, path))
+        tmp = None
     except BaseException as err:  # Ctrl-C too: nothing is left behind
         full = no_space_error(err, path, parent)
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
         if full is not None:
             raise full from None
+        if placing and isinstance(err, OSError):
+            raise InputError(f"cannot be put in place ({err.strerror or err})", source=str(path)) from None
         raise
+
+
+def _renamed(tmp: Path, path: Path, body: dict) -> bool:
+    """Put the complete folder ``tmp`` in ``path``'s place by renames, its marker ``body`` written
+    first; False (nothing changed, no marker) where a rename is refused: ``path`` is a mount point."""
+    write_json(tmp / MARKER, body)
     old = None
     if os.path.lexists(path):
         old = path.with_name(f".{_stem(path.name)}.old-{os.getpid()}")
-        os.replace(path, old)
-    os.replace(tmp, path)
+        try:
+            os.replace(path, old)
+        except OSError as err:
+            if err.errno not in NO_RENAME or not path.is_dir() or path.is_symlink():
+                raise
+            (tmp / MARKER).unlink()
+            return False
+    try:
+        os.replace(tmp, path)
+    except OSError:
+        if old is not None:
+            os.replace(old, path)  # the existing folder back where it was
+        raise
     if old is not None:
         if old.is_symlink() or not old.is_dir():
             old.unlink(missing_ok=True)
         else:
             shutil.rmtree(old, ignore_errors=True)
+    return True

@@ -16,6 +16,12 @@ file to the same rules before a byte is read or an array allocated:
 
 Third-party readers that take a path (``scipy.io.loadmat``, ObsPy) are given a file only after
 :func:`check_readable_file`.
+
+Every file opened this way while a command runs (:func:`recording`, which the command line sets up)
+is an input of the run, however it was named: on the command line, in a config, in a columns YAML,
+in a records folder. :mod:`hlaid._fileio` refuses an output that is, or holds, one of them. Files
+hlaid keeps for itself (output markers, classifier cache entries, a fleet's stored results) are read
+inside :func:`own_files` and are no inputs.
 """
 
 from __future__ import annotations
@@ -28,7 +34,9 @@ import json
 import math
 import os
 import stat
+import threading
 import zipfile
+import zlib
 from collections.abc import Iterator
 from typing import IO, Any
 
@@ -40,6 +48,87 @@ MAX_JSON_DEPTH = 64
 
 MAX_JSON_DIGITS = 40
 """Longest integer (in digits) that a JSON file hlaid reads gives as an integer."""
+
+GZIP_FREE_MB = 16
+"""A gzipped input may inflate to this many MiB whatever its ratio (see :data:`GZIP_MAX_RATIO`)."""
+
+GZIP_MAX_RATIO = 100
+"""Beyond :data:`GZIP_FREE_MB`, a gzipped input may inflate to at most this many times the
+compressed bytes read so far: data compresses 2-10 times, a gzip bomb a thousand times, and is
+refused after a few MiB instead of after ``HLAID_MAX_FILE_MB``."""
+
+
+# ---------------------------------------------------------------------------- inputs of the run
+_inputs: dict[tuple[int, int], str] | None = None  # (device, inode) -> real path, while recording
+_rewritten: set[str] = set()  # real paths the command rewrites by design (:func:`rewrites`)
+_own = threading.local()
+
+
+@contextlib.contextmanager
+def recording() -> Iterator[None]:
+    """Record every file opened inside the block as an input of the run (:func:`run_inputs`)."""
+    global _inputs
+    before, _inputs = _inputs, {}
+    try:
+        yield
+    finally:
+        _inputs = before
+
+
+@contextlib.contextmanager
+def own_files() -> Iterator[None]:
+    """Files read inside the block (in this thread) are hlaid's own (markers, cache entries,
+    stored results it rewrites), not inputs of the run."""
+    depth = getattr(_own, "depth", 0)
+    _own.depth = depth + 1
+    try:
+        yield
+    finally:
+        _own.depth = depth
+
+
+@contextlib.contextmanager
+def rewrites(*paths: str | os.PathLike) -> Iterator[None]:
+    """The files ``paths`` are read and rewritten in place by design inside the block (the summary
+    of a run folder that ``hlaid loss`` adds its block to): reading them makes no input of them."""
+    added = {os.path.realpath(os.path.abspath(p)) for p in paths} - _rewritten
+    _rewritten.update(added)
+    try:
+        yield
+    finally:
+        _rewritten.difference_update(added)
+
+
+def _register(path: str | os.PathLike, st: os.stat_result) -> None:
+    own: int = getattr(_own, "depth", 0)
+    if _inputs is None or own > 0 or not stat.S_ISREG(st.st_mode):
+        return
+    real = os.path.realpath(os.path.abspath(path))
+    if real not in _rewritten:
+        _inputs.setdefault((st.st_dev, st.st_ino), real)
+
+
+def run_inputs() -> list[str]:
+    """The real paths of the files opened as inputs since :func:`recording` began (none outside it)."""
+    return list(_inputs.values()) if _inputs else []
+
+
+def input_named(path: str | os.PathLike) -> str | None:
+    """The input of the run that ``path`` is (the same file, also through a link), or None."""
+    if not _inputs:
+        return None
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        st = None
+    if st is not None and (st.st_dev, st.st_ino) in _inputs:
+        return _inputs[(st.st_dev, st.st_ino)]
+    real = os.path.realpath(os.path.abspath(path))
+    return real if real in _inputs.values() else None
+
+
+class NotTextError(InputError):
+    """A file read as text holds binary data (a format sniffer may try the next format)."""
 
 
 def _special(mode: int) -> str | None:
@@ -70,7 +159,9 @@ def check_readable_file(path: str | os.PathLike) -> int:
         return 0
     if stat.S_ISDIR(st.st_mode):
         return 0
-    return _check_stat(st, str(path))
+    size = _check_stat(st, str(path))
+    _register(path, st)  # a third-party reader opens it next
+    return size
 
 
 def check_input(path: str | os.PathLike) -> None:
@@ -107,6 +198,7 @@ def open_input(path: str | os.PathLike) -> Iterator[IO[bytes]]:
         if stat.S_ISDIR(st.st_mode):
             raise InputError("is a folder; expected a file", source=source)
         _check_stat(st, source)
+        _register(path, st)
         if hasattr(os, "set_blocking"):
             os.set_blocking(fd, True)
         fh = os.fdopen(fd, "rb")
@@ -134,20 +226,36 @@ def read_text(path: str | os.PathLike) -> str:
     """Text of a file, transparently gunzipped (inflated size limited too); binary files refused."""
     raw = read_bytes(path)
     if raw[:2] == b"\x1f\x8b":
-        top = max_file_bytes()
-        try:
-            with gzip.GzipFile(fileobj=io.BytesIO(raw)) as gz:
-                raw = gz.read(top + 1)
-        except (OSError, EOFError) as err:
-            raise InputError(f"cannot read it as gzip ({err})", source=str(path)) from None
-        if len(raw) > top:
-            raise InputError(f"holds more than {file_limit_text()}", source=str(path))
+        raw = gunzip(raw, str(path))
     if b"\x00" in raw[:4096]:
-        raise InputError("is a binary file; expected text", source=str(path))
+        raise NotTextError("is a binary file; expected text", source=str(path))
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError:
         return raw.decode("latin-1")
+
+
+def gunzip(raw: bytes, source: str) -> bytes:
+    """``raw`` (gzip) inflated in blocks, refused as soon as it passes ``HLAID_MAX_FILE_MB`` or
+    inflates more than :data:`GZIP_MAX_RATIO` times beyond :data:`GZIP_FREE_MB` (a gzip bomb is
+    refused after a few MiB, not after it filled memory)."""
+    top, free = max_file_bytes(), GZIP_FREE_MB * 2**20
+    src = io.BytesIO(raw)
+    parts, size = [], 0
+    try:
+        with gzip.GzipFile(fileobj=src) as gz:
+            while block := gz.read(1 << 20):
+                parts.append(block)
+                size += len(block)
+                if size > top:
+                    raise InputError(f"holds more than {file_limit_text()}", source=source)
+                if size > free and size > GZIP_MAX_RATIO * max(src.tell(), 1):
+                    raise InputError(f"inflates more than {GZIP_MAX_RATIO} times ({size / 2**20:.3g} MiB from "
+                                     f"{src.tell() / 2**10:.3g} KiB read so far): no data file compresses so well "
+                                     "(a gzip bomb?)", source=source)
+    except (OSError, EOFError, zlib.error) as err:
+        raise InputError(f"cannot read it as gzip ({' '.join(str(err).split())[:80]})", source=source) from None
+    return b"".join(parts)
 
 
 def file_sha256(path: str | os.PathLike) -> str:
@@ -181,10 +289,25 @@ def _check_depth(obj: Any) -> None:
         stack.extend((x, depth + 1) for x in items if isinstance(x, (dict, list)))
 
 
+class _DuplicateKey(ValueError):
+    pass
+
+
+def _no_duplicates(pairs: list[tuple[str, Any]]) -> dict:
+    out = dict(pairs)
+    if len(out) != len(pairs):
+        seen: set[str] = set()
+        key = next(k for k, _ in pairs if k in seen or seen.add(k))  # type: ignore[func-returns-value]
+        raise _DuplicateKey(f"key {key!r} appears twice in one object" if len(key) <= 40 and key.isprintable()
+                            else "a key appears twice in one object")
+    return out
+
+
 def loads_json(text: str, source: str | None = None) -> Any:
-    """Parse JSON text with bounded depth and integer length; errors name ``source`` and the line."""
+    """Parse JSON text with bounded depth and integer length, each key once per object; errors
+    name ``source`` and the line."""
     try:
-        obj = json.loads(text, parse_int=_bounded_int)  # type: ignore[arg-type]
+        obj = json.loads(text, parse_int=_bounded_int, object_pairs_hook=_no_duplicates)  # type: ignore[arg-type]
         _check_depth(obj)
     except InputError as err:
         raise InputError(f"not a JSON file hlaid reads: {err}", source=source) from None
@@ -193,6 +316,8 @@ def loads_json(text: str, source: str | None = None) -> Any:
                          source=source) from None
     except json.JSONDecodeError as err:
         raise InputError(f"not valid JSON (line {err.lineno}: {err.msg})", source=source) from None
+    except _DuplicateKey as err:
+        raise InputError(f"not a JSON file hlaid reads: {err}", source=source) from None
     return obj
 
 

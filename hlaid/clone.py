@@ -51,7 +51,7 @@ from ._inputs import read_json
 from .errors import InputError, escape_controls, kind_of
 from .events.state import BuildingState
 from .model import Building, Damping
-from .model.schema import STATE_BOUNDS
+from .model.schema import STATE_BOUNDS, check_event, check_state
 from .systems import SYSTEMS
 from .units import UNITS_JSON
 
@@ -206,6 +206,8 @@ class Clone:
             if any(i >= b.n_stories for n, i in unc.slots):
                 raise InputError(f"uncertainty names a story beyond the clone's {b.n_stories}", source=source)
         system, events, state = _history(d, b.n_stories, source)
+        if state is not None:
+            _checked(check_state, state.z, b.dy, source=source)
         return cls(building=b, mass_normalised=d.get("mass_normalised", False),
                    diagnostics=d.get("diagnostics") or {}, provenance=d.get("provenance") or {}, uncertainty=unc,
                    system=system, events=events, state=state)
@@ -226,6 +228,7 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dic
         raise InputError("field 'events' must be a list of mappings", source=source)
     for i, e in enumerate(events):
         _no_unknown(e, _EVENT_KEYS, f"events[{i}].", source)
+        _checked(check_event, e, i, source=source)
         if e.get("start") not in (None, "carried", "undamaged"):
             raise InputError(f"field 'events[{i}].start' must be 'carried' or 'undamaged'", source=source)
         pk = e.get("peak_drift")
@@ -248,7 +251,17 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dic
     return system, tuple(events), state
 
 
-_EVENT_KEYS = ("name", "source", "sha256", "pga_g", "duration_s", "dt", "n_floors", "recorded", "start", "peak_drift")
+_EVENT_KEYS = ("name", "source", "sha256", "ground_sha256", "pga_g", "duration_s", "dt", "n_floors", "recorded",
+               "start", "peak_drift")
+
+
+def _checked(check, *args, source: str | None) -> None:
+    """``check(*args)``, its InputError said of ``source``."""
+    try:
+        check(*args)
+    except InputError as err:
+        raise InputError(str(err), source=source) from None
+
 
 _TOP_KEYS = ("format", "version", "units", "name", "stories", "damping", "pdelta", "mass_normalised",
              "diagnostics", "provenance", "collapse")

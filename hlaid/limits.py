@@ -19,6 +19,9 @@ variable                   default     what it limits
                                        (``training.samples``)
 ``HLAID_MAX_TANGENT_MB``   4096        memory of the ground tangent of ``refine.method: eiv``
                                        [MiB] (samples x lags x floors, 4 copies)
+``HLAID_MAX_CONFIG_NODES`` 20000       keys and values of one YAML config (a config of 200 000
+                                       keys is refused in a fraction of a second)
+``HLAID_MAX_INVENTORY``    10000       component rows of a loss inventory CSV
 =========================  ==========  =========================================================
 
 A value over its limit is an :class:`~hlaid.errors.InputError` (one line naming the value,
@@ -42,6 +45,8 @@ DEFAULTS: dict[str, float] = {
     "BOOTSTRAP": 100_000,
     "TRAINING": 20_000,
     "TANGENT_MB": 4096,
+    "CONFIG_NODES": 20_000,
+    "INVENTORY": 10_000,
 }
 """Default limits by name; ``HLAID_MAX_<NAME>`` overrides each."""
 
@@ -55,6 +60,8 @@ RANGES: dict[str, tuple[float, float]] = {
     "BOOTSTRAP": (1, 1e8),
     "TRAINING": (20, 1e7),
     "TANGENT_MB": (1, 2**20),
+    "CONFIG_NODES": (100, 1e8),
+    "INVENTORY": (1, 1e8),
 }
 """What each ``HLAID_MAX_<NAME>`` may be set to, ``(lowest, highest)``: a limit, however raised, stays finite."""
 

@@ -6,7 +6,9 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,6 +19,7 @@ from ._fileio import atomic_write, write_npz
 from .errors import InputError
 from .limits import check_count
 from .model import Building
+from .model.schema import STORY_BOUNDS
 from .motions.record import GroundMotion
 from .units import G_MM_S2
 
@@ -141,6 +144,9 @@ class Measurement:
                                  source=src)
             if not np.all(np.isfinite(a) & (a > 0)):
                 raise InputError(f"{name} must be positive numbers, got {a.tolist()}", source=src)
+            bad = STORY_BOUNDS[name].offending(a)
+            if bad is not None:
+                raise InputError(STORY_BOUNDS[name].message(f"{name}[{bad[0]}]", bad[1]), source=src)
             a.setflags(write=False)
             object.__setattr__(self, name, a)
         g.setflags(write=False)
@@ -224,6 +230,23 @@ class Measurement:
         return "\n".join(head) + "\n" + ",".join(names) + "\n" + body + "\n"
 
 
+def building_name(meas: Measurement) -> str:
+    """What the building a measurement is of is called (a clone identified from it takes the name):
+    the simulated building's name, else the folder its file lies in (a building's records kept
+    together, e.g. ``shake_table_3story_steel_mrf_fixedbase``; the folder itself for a folder of
+    channels), else the measurement's own name. Not the event's name: the clone outlives its first
+    event."""
+    if meas.truth is not None and meas.truth.building.name:
+        return meas.truth.building.name
+    src = meas.source
+    if src and ":" not in src.split(os.sep)[0]:  # a file or folder, not simulated:... or builtin:...
+        p = Path(src).absolute()
+        name = p.name if p.is_dir() else p.parent.name
+        if name:
+            return name
+    return meas.name
+
+
 def warn_unusual_rate(meas: Measurement) -> None:
     """Warn (loudly: always shown) when the sample rate is legal but outside :data:`RATE_USUAL_HZ`."""
     rate = 1.0 / meas.dt
@@ -235,18 +258,105 @@ def warn_unusual_rate(meas: Measurement) -> None:
                        "the rate squared")
 
 
-def check_band(meas: Measurement, band_hz, field: str) -> None:
+def check_band(meas: Measurement, band_hz, field: str, *, default=None) -> None:
     """Refuse band-pass corners ``band_hz`` (the setting ``field``, e.g. ``"hla.preprocess.band_hz"``)
-    whose low corner is not below 0.45 x the sample rate of ``meas`` (the high corner is capped
-    there), before a filter design fails on it."""
-    if band_hz is None:
+    that are not finite, whose low corner is not below 0.45 x the sample rate of ``meas`` or, where
+    the corners were given (not the setting's ``default``, which is capped there), whose high
+    corner is above it: before a filter design fails on them, and instead of changing them.
+    ``None`` and ``"auto"`` (chosen from the record) pass."""
+    if band_hz is None or isinstance(band_hz, str):
         return
-    from .signal import max_corner  # scipy: only where a band is checked
+    from .signal import max_corner
+
+    lo, hi = (float(v) for v in band_hz)
+    src = meas.source or None
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise InputError(f"{field}: corners {lo:g} {hi:g} Hz; expected finite frequencies", source=src)
     top = max_corner(meas.dt)
-    if not float(band_hz[0]) < top:
-        raise InputError(f"{field}: low corner {float(band_hz[0]):g} Hz is not below {top:.4g} Hz (0.9 x the "
-                         f"Nyquist frequency of this {1.0 / meas.dt:.4g} Hz measurement); lower it",
-                         source=meas.source or None)
+    rule = f"{top:.4g} Hz (0.9 x the Nyquist frequency of this {1.0 / meas.dt:.4g} Hz measurement)"
+    if not lo < top:
+        raise InputError(f"{field}: low corner {lo:g} Hz is not below {rule}; lower it", source=src)
+    given = default is None or tuple(float(v) for v in default) != (lo, hi)
+    if given and hi > top:
+        raise InputError(f"{field}: high corner {hi:g} Hz is above {rule}, the highest corner hlaid uses; lower "
+                         "it", source=src)
+
+
+def check_series(measurements) -> None:
+    """One line (InputError naming the file) where the measurements cannot be events of one
+    building in time order: another number of floors, other masses or story heights, one record
+    given twice, or start times (where the files give them) out of order. Needs numpy only: it
+    runs before the identification's libraries load."""
+    first = measurements[0]
+    for m in measurements[1:]:
+        where = m.source or m.name or None
+        if m.n_floors != first.n_floors:
+            raise InputError(f"{m.n_floors} floor channels, but {first.source or first.name or 'the first event'} "
+                             f"has {first.n_floors}: the events must be records of one building", source=where)
+        for name in ("mass", "height"):
+            a, b = getattr(first, name), getattr(m, name)
+            if (a is None) != (b is None) or (a is not None and not np.allclose(a, b, rtol=1e-6)):
+                raise InputError(f"its floor {name}es differ from the first event's: the events must be records "
+                                 "of one building", source=where)
+    times = [m.recorded for m in measurements]
+    if all(t is not None for t in times):
+        for a, b in zip(measurements[:-1], measurements[1:]):
+            if str(b.recorded) <= str(a.recorded):
+                raise InputError(f"recorded {b.recorded}, not after the previous event ({a.recorded}): give the events "
+                                 "in time order", source=b.source or b.name or None)
+    seen: dict[str, Measurement] = {}
+    for m in measurements:
+        key = ground_digest(m)
+        if key in seen:
+            raise InputError(f"the same ground motion as {seen[key].source or seen[key].name or 'an earlier event'}: "
+                             "each event once", source=m.source or m.name or None)
+        seen[key] = m
+
+
+def ground_digest(meas: Measurement) -> str:
+    """SHA-256 of the ground record's samples (float64): the same event, however its file was written."""
+    return hashlib.sha256(np.ascontiguousarray(meas.ground_acc, dtype=np.float64).tobytes()).hexdigest()
+
+
+def check_not_learnt(events, meas: Measurement | None = None, sha256: str | None = None,
+                     source: str | None = None) -> None:
+    """Refuse an event a clone has learnt from already (``events``: its ``events[]`` records): the
+    same file (``sha256`` of the file at ``source``) or the same ground record (``meas``), also in
+    a clone that kept no digest of its ground record (same peak, duration and sample interval)."""
+    for k, e in enumerate(events):
+        name = e.get("name") or f"event {k + 1}"
+        same = sha256 is not None and e.get("sha256") == sha256
+        if meas is not None and not same:
+            if e.get("ground_sha256") is not None:
+                same = e["ground_sha256"] == ground_digest(meas)
+            elif all(isinstance(e.get(f), (int, float)) for f in ("pga_g", "dt", "duration_s")):
+                pga = float(np.max(np.abs(meas.ground_acc)) / G_MM_S2)
+                same = (math.isclose(e["pga_g"], pga, rel_tol=1e-9) and math.isclose(e["dt"], meas.dt, rel_tol=1e-9)
+                        and math.isclose(e["duration_s"], meas.n_samples * meas.dt, rel_tol=1e-9))
+        if same:
+            raise InputError(f"the clone has learnt from this event already ({name}, its event {k + 1}): each event "
+                             "once", source=source or (meas.source if meas is not None else None) or None)
+
+
+MASS_RTOL = 0.01
+"""Floor masses of a measurement may differ this much (relative) from its clone's."""
+
+
+def check_of_building(meas: Measurement, building: Building, *, mass_normalised: bool = False,
+                      what: str = "the clone") -> None:
+    """Refuse a measurement that is not of ``building``: another number of floors, or floor masses
+    (where both are known, and the clone's are not normalised) more than :data:`MASS_RTOL` off."""
+    src = meas.source or None
+    if meas.n_floors != building.n_stories:
+        raise InputError(f"{meas.n_floors} floor channels, but {what} has {building.n_stories} stories: the "
+                         "measurement is not of this building", source=src)
+    if meas.mass is not None and not mass_normalised:
+        ratio = np.asarray(meas.mass) / np.asarray(building.mass)
+        worst = int(np.argmax(np.abs(ratio - 1.0)))
+        if abs(ratio[worst] - 1.0) > MASS_RTOL:
+            raise InputError(f"floor {worst + 1}'s mass is {float(meas.mass[worst]):.4g} t, {what}'s "
+                             f"{float(building.mass[worst]):.4g} t: the measurement is not of this building",
+                             source=src)
 
 
 def measured_ground(meas: Measurement, hi_hz: float, *, name: str = "measured") -> GroundMotion:

@@ -12,13 +12,14 @@ A corner used for analysis is at most :func:`max_corner` (``0.45 / dt``, i.e. 0.
 Nyquist frequency); :func:`cap_corner` applies the rule. The filter design itself only guards
 against unrealisable corners (above 0.95 x Nyquist it designs at 0.95 x Nyquist), so a corner
 given explicitly is used as given when it is realisable.
+
+scipy is imported where a filter is designed or applied, so that the rule itself
+(:func:`max_corner`) is checked before any heavy library loads.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy import integrate
-from scipy import signal as _scipy_signal
 
 MAX_CORNER_RATIO = 0.45
 """Highest analysis corner as a fraction of the sample rate (0.9 x Nyquist)."""
@@ -40,6 +41,12 @@ def cap_corner(hi_hz: float, dt: float) -> float:
     return min(hi_hz, max_corner(dt))
 
 
+def _scipy_signal():
+    from scipy import signal
+
+    return signal
+
+
 def butter_sos(band_hz, dt: float, order: int = 4, kind: str = "bandpass") -> np.ndarray | None:
     """Butterworth second-order sections for the corners ``band_hz = (lo, hi)`` [Hz].
 
@@ -58,17 +65,17 @@ def butter_sos(band_hz, dt: float, order: int = 4, kind: str = "bandpass") -> np
     lo, hi = band_hz
     hi = min(hi, DESIGN_GUARD * nyq)
     if kind == "bandpass" and lo > 0:
-        return _scipy_signal.butter(order, [lo / nyq, hi / nyq], btype="bandpass", output="sos")
+        return _scipy_signal().butter(order, [lo / nyq, hi / nyq], btype="bandpass", output="sos")
     if kind == "bandpass":
-        return _scipy_signal.butter(order, hi / nyq, btype="lowpass", output="sos")
+        return _scipy_signal().butter(order, hi / nyq, btype="lowpass", output="sos")
     if lo <= 0:
         return None
-    return _scipy_signal.butter(order, lo / nyq, btype="highpass", output="sos")
+    return _scipy_signal().butter(order, lo / nyq, btype="highpass", output="sos")
 
 
 def bandpass(x: np.ndarray, dt: float, band_hz, order: int = 4, *, axis: int = 0) -> np.ndarray:
     """Zero-phase band-pass of ``x`` between ``band_hz = (lo, hi)`` [Hz] (a low-pass when ``lo`` is 0)."""
-    return _scipy_signal.sosfiltfilt(butter_sos(band_hz, dt, order), x, axis=axis)
+    return _scipy_signal().sosfiltfilt(butter_sos(band_hz, dt, order), x, axis=axis)
 
 
 def lowpass(x: np.ndarray, dt: float, hi_hz: float, order: int = 4, *, axis: int = 0) -> np.ndarray:
@@ -80,7 +87,7 @@ def highpass(x: np.ndarray, dt: float, band_hz, order: int = 4) -> np.ndarray:
     """Zero-phase high-pass at ``band_hz[0]`` [Hz] along axis 0; only the mean is removed when
     that corner is 0."""
     sos = butter_sos(band_hz, dt, order, "highpass")
-    return x - x.mean(axis=0) if sos is None else _scipy_signal.sosfiltfilt(sos, x, axis=0)
+    return x - x.mean(axis=0) if sos is None else _scipy_signal().sosfiltfilt(sos, x, axis=0)
 
 
 def integrate_twice(acc: np.ndarray, dt: float, band_hz, order: int = 4) -> tuple[np.ndarray, np.ndarray]:
@@ -89,6 +96,8 @@ def integrate_twice(acc: np.ndarray, dt: float, band_hz, order: int = 4) -> tupl
     Trapezoidal integration, each result high-passed at ``band_hz[0]`` (so the drift that
     integration makes of offsets and noise never accumulates). Returns ``(vel, disp)``.
     """
+    from scipy import integrate
+
     vel = highpass(integrate.cumulative_trapezoid(acc, dx=dt, axis=0, initial=0.0), dt, band_hz, order)
     disp = highpass(integrate.cumulative_trapezoid(vel, dx=dt, axis=0, initial=0.0), dt, band_hz, order)
     return vel, disp

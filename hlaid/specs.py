@@ -17,6 +17,7 @@ from .config import load_config
 from .errors import InputError
 from .limits import check_count
 from .model.schema import STORY_BOUNDS, WEIGHT_KN, Damping
+from .units import check_units
 
 if TYPE_CHECKING:
     from .model import Building
@@ -82,6 +83,7 @@ class MotionSpec:
         if self.pga_g is not None and self.scale is not None:
             raise InputError("give pga_g or scale, not both")
         check_bounds(self)
+        check_units(self.units, "motion.units")
 
     def path(self, base_dir: str | Path | None = None) -> str:
         """``file``, a relative path taken from ``base_dir``."""

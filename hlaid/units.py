@@ -59,6 +59,19 @@ def acceleration_factor(unit: str) -> float:
     return _lookup(ACCELERATION_UNITS, unit, "acceleration")
 
 
+def check_units(unit: str | None, field: str) -> None:
+    """Refuse acceleration units (the setting ``field``) that are not in :data:`ACCELERATION_UNITS`
+    (None: the file states its own)."""
+    if unit is None:
+        return
+    from .errors import InputError
+
+    if not isinstance(unit, str) or unit.strip().lower().replace(" ", "") not in ACCELERATION_UNITS:
+        shown = repr(unit) if isinstance(unit, str) and len(unit) <= 20 and unit.isprintable() else "that"
+        raise InputError(f"{field} = {shown} is no acceleration unit; expected one of "
+                         f"{', '.join(sorted(ACCELERATION_UNITS))}")
+
+
 def length_factor(unit: str) -> float:
     """Factor converting a length in ``unit`` to mm."""
     return _lookup(LENGTH_UNITS, unit, "length")

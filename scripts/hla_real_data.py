@@ -31,7 +31,7 @@ from hlaid.config import load_config  # noqa: E402
 from hlaid.errors import InputError  # noqa: E402
 from hlaid.hla import HLAConfig, run_hla  # noqa: E402
 from hlaid.hla.analysis import story_force  # noqa: E402
-from hlaid.hla.plots import plot_loops, plot_stiffness  # noqa: E402
+from hlaid.hla.plots import plot_loops, plot_stiffness, wide_band  # noqa: E402
 from hlaid.hla.preprocess import dominant_frequency  # noqa: E402
 from hlaid.io import read_mini_shake_table, read_steel_frame  # noqa: E402
 from hlaid.plots import plt, save_figure  # noqa: E402
@@ -117,8 +117,9 @@ def steel_frame(data: Path, figures: Path | None, force: bool) -> None:
         return
     best = res_f
     for j in (0, 3):
-        fig = plot_loops(best[j])
-        fig.suptitle(f"steel frame run s{j + 1}, first-mode band: story force / total mass against drift")
+        fig = plot_loops(best[j], wide=wide_band(runs[j], best[j]))
+        fig.suptitle(f"steel frame run s{j + 1}: story force / total mass against drift, first-mode band (top) "
+                     "and the wide band (bottom)")
         save_figure(fig, figures / f"steel_s{j + 1}_loops.png", dpi=80)
     fig = plot_stiffness(best[3])
     fig.suptitle("steel frame run s4, first-mode band: stiffness evolution (k/M)")

@@ -42,6 +42,7 @@ import numpy as np
 from hlaid import _progress
 from hlaid._fileio import atomic_directory, atomic_write, write_json
 from hlaid.errors import InputError
+from hlaid.hla import resolve_hla
 from hlaid.plots import plot_measured_predicted, save_figure
 from hlaid.studies.validation import identify_config_of, load_validation_config, read_event
 from hlaid.studies.validation.linear_peer import PeerCase, compared_band, max_decimation, peer_cases, peer_grid
@@ -64,10 +65,12 @@ def _events(spec) -> list[str]:
 def run_structure(cfg, spec, grid_options: dict, mapper, log) -> list[tuple[str, PeerCase]]:
     """Every case of one structure, as ``(kind, case)`` with kind ``alone``, ``history`` or ``from``."""
     icfg = identify_config_of(spec, source=cfg.source)
-    hla_cfg = icfg.hla if spec.compare_band_hz is None else dataclasses.replace(
-        icfg.hla, preprocess=dataclasses.replace(icfg.hla.preprocess, band_hz=tuple(spec.compare_band_hz)))
     order = _events(spec)
     meas = {n: read_event(spec, n, cfg.data_dir) for n in order}
+    hla_cfg = resolve_hla(list(meas.values()), icfg.hla).config  # its "auto" settings, from the events
+    if spec.compare_band_hz is not None:
+        hla_cfg = dataclasses.replace(hla_cfg, preprocess=dataclasses.replace(hla_cfg.preprocess,
+                                                                             band_hz=tuple(spec.compare_band_hz)))
 
     m0 = meas[order[0]]
     dmax = max_decimation(m0.dt, compared_band(m0, hla_cfg))

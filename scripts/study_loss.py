@@ -40,7 +40,7 @@ def main(argv=None) -> int:
           f"replacement {block['replacement_cost']:,.0f} USD_2011, {block['replacement_time']:,.0f} worker-days; "
           f"collapse fragility median {block['collapse_fragility']['median_g']:.3g} g, beta "
           f"{block['collapse_fragility']['beta']:.2f} ({block['collapse_fragility']['source']}); "
-          f"{block['n_ensemble']} clones, {block['realizations']} realisations per assessment.\n")
+          f"{block['n_ensemble']} clones, {block['realizations']} realizations per assessment.\n")
     print("| measure | median | 90 % band |\n|---|---|---|")
     lo, hi = r["repair_cost_band"]
     print(f"| repair cost [USD_2011] | {r['repair_cost_median']:,.0f} | {lo:,.0f} - {hi:,.0f} |")
@@ -58,7 +58,7 @@ def main(argv=None) -> int:
         lo, hi = s["repair_cost_ratio_band"]
         print(f"| {s['level_g']:.3g} | {s['repair_cost_ratio_mean']:.1%} | {s['repair_cost_ratio_median']:.1%} | "
               f"{lo:.1%} - {hi:.1%} | {s['p_collapse']:.1%} | {s['p_irreparable']:.1%} | "
-              f"{s['n_collapsed_in_replay']} / {s['n_demand_realisations']} |")
+              f"{s['n_collapsed_in_replay']} / {s['n_demand_realizations']} |")
     print(f"\nwrote {FIGURES / 'loss_curve.png'} and {FIGURES / 'loss_repair_cost.png'}")
     return 0
 

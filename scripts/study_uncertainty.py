@@ -42,6 +42,7 @@ from study_identification import RANDOM_RECORDS, random_building, scale_to_yield
 
 from hlaid import _progress, identify_clone
 from hlaid.identify import IdentifyConfig
+from hlaid.identify.auto import BROAD_BAND_HZ
 from hlaid.io import read
 from hlaid.studies.bootstrap import parametric_bootstrap
 from hlaid.synthetic import load_simulation_config, simulate_measurement
@@ -104,7 +105,7 @@ class _RR:
 
 def load(folder: Path) -> list:
     """(refinement, true values, floors, misfit ratio) of every identified case in ``folder``."""
-    s0 = noise_residual_rms(0.10, IdentifyConfig().refine.band_hz, 1 / 200.0)
+    s0 = noise_residual_rms(0.10, BROAD_BAND_HZ, 1 / 200.0)  # refine.band_hz chosen on simulated data
     out = []
     for p in sorted(folder.glob("case_*.npz")):
         z = np.load(p, allow_pickle=False)

@@ -28,6 +28,7 @@ LOADERS = {
     "compare.yaml": ("hlaid.studies.compare", "CompareConfig"),
     "validate_real.yaml": ("hlaid.studies.validation", "ValidationConfig"),
     "fleet_example.yaml": ("hlaid.fleet", "load_fleet_config"),
+    "columns_example.yaml": ("hlaid.io", "ColumnsConfig"),
 }
 """Each config file and its schema (a dataclass) or loader (a function). A new config must
 be listed here."""

@@ -14,14 +14,16 @@ from reference_systems import ShearBuildingRef
 from hlaid.clone import Clone
 from hlaid.errors import InputError
 from hlaid.events.fit import map_refine, posterior_uncertainty
-from hlaid.events.identify import check_series, identify_clone
+from hlaid.events.identify import identify_clone
 from hlaid.events.predict import predict_event
 from hlaid.events.priors import PRIORS, get_prior
 from hlaid.events.series import effective_samples
+from hlaid.events.start import resolve_start
 from hlaid.events.state import BuildingState, settle_time
 from hlaid.events.update import update_clone
 from hlaid.events.vector import PriorVector, from_units, prior_of_clone, to_units
 from hlaid.identify import IdentifyConfig
+from hlaid.measurement import check_series
 from hlaid.simulate import simulate_response
 from hlaid.synthetic import simulate_events, simulate_measurement
 
@@ -154,7 +156,7 @@ def test_update_agrees_with_the_joint_fit(table1, pieces):
     assert [e["name"] for e in upd.events] == ["one", meas[1].name]
     assert upd.state is not None and upd.state.events[-1] == meas[1].name
     assert upd.events[-1]["start"] == "carried"  # the damage was carried: the event says so
-    assert upd.initial_state("auto") is not None
+    assert resolve_start(upd, "auto").state is not None
 
 
 def test_an_update_finds_a_building_that_recovered(table1, pieces):
@@ -170,8 +172,8 @@ def test_an_update_finds_a_building_that_recovered(table1, pieces):
                   system="generic", events=({"name": "one"},))
     second = simulate_measurement(table1, pieces[1], noise_rms=0.05, seed=9)  # from rest: recovered
     upd = update_clone(clone, second, cfg).clone
-    assert upd.events[-1]["start"] == "undamaged" and upd.initial_state("auto") is None
-    assert upd.initial_state("carried") is not None
+    assert upd.events[-1]["start"] == "undamaged" and resolve_start(upd, "auto").state is None
+    assert resolve_start(upd, "carried").state is not None
 
 
 def test_an_elastic_record_gives_a_clone_from_the_prior(table1, pieces):
@@ -194,13 +196,15 @@ def test_clone_files_keep_the_state_and_read_older_versions(table1, tmp_path):
     path = c.save(tmp_path / "c.json")
     back = Clone.load(path)
     assert back.system == "steel-moment-frame" and back.state.to_dict() == st.to_dict()
-    np.testing.assert_allclose(back.initial_state("carried"), st.vector())
-    assert back.initial_state("undamaged") is None
+    np.testing.assert_allclose(resolve_start(back, "carried").vector(), st.vector())
+    assert resolve_start(back, "undamaged").vector() is None
     d = c.to_dict()
     for key in ("system", "events", "state"):
         d.pop(key)
     old = Clone.from_dict({**d, "version": 2})
-    assert old.state is None and old.initial_state() is None
+    assert old.state is None and resolve_start(old, "auto").vector() is None
+    with pytest.raises(InputError, match="start: carried needs a clone that carries"):
+        resolve_start(old, "carried")
     with pytest.raises(InputError, match="unknown field 'system'"):
         Clone.from_dict({**c.to_dict(), "version": 2})
     bad = c.to_dict()

@@ -199,7 +199,7 @@ def test_force_replaces_an_hlaid_output_or_an_empty_folder(tmp_path):
 
 # ----------------------------------------------------------------------------- hlaid loss RUN_DIR
 LOSS = ["--no-curve", "--realizations", "50"]
-"""A small loss assessment: the recorded event alone, 50 realisations."""
+"""A small loss assessment: the recorded event alone, 50 realizations."""
 
 
 @pytest.fixture(scope="module")
@@ -289,7 +289,8 @@ def test_loss_updates_the_run_folder_all_or_nothing(loss_run, tmp_path, capsys):
     assert new["version"] == 2 and new["loss"]["recorded"] == loss["recorded"] and new["loss"]["curve"] == []
     assert {k: new[k] for k in old if k != "version"} == {k: v for k, v in old.items() if k != "version"}
     assert {k: v for k, v in new.items() if k not in old} == {"ida_after": None, "assessment": None, "events": [],
-                                                              "survival": None, "flags": [], "loss": new["loss"]}
+                                                              "survival": None, "flags": [], "loss": new["loss"],
+                                                              "figures": True}
     page = (run / "report.html").read_text()
     assert "Losses (FEMA P-58 through pelicun)" in page and 'alt="repair_cost.png"' in page
     assert [p.name for p in run.iterdir() if p.name.startswith(".")] == []
@@ -609,7 +610,7 @@ def test_sigterm_during_identify_workers(tmp_path):
     measurement_from_config(cfg, base_dir=REPO / "configs").save(tmp_path / "meas.npz")
     (tmp_path / "out").mkdir()
     rc, elapsed, lines = _interrupt(["identify", "meas.npz", "-o", "out/c.json", "--no-cache", "--tensorboard", "tb"],
-                                    tmp_path, after="path-driven training sets", workers=2, delay=1.0,
+                                    tmp_path, after="[identify] hysteresis loop analysis", workers=2, delay=1.0,
                                     signum=signal.SIGTERM, group=False)
     assert rc == 143 and elapsed < 10
     assert lines[-1] == "hlaid identify: terminated"
@@ -632,7 +633,7 @@ def test_interrupted_identify_removes_its_tensorboard_folder(tmp_path, capsys, m
 
     monkeypatch.setattr(hlaid.io, "read", lambda *a, **k: object())
     monkeypatch.setattr(cli, "check_identify_bands", lambda *a: None)
-    monkeypatch.setattr(importlib.import_module("hlaid.identify"), "HLASVMIdentifier", Interrupted)
+    monkeypatch.setattr(importlib.import_module("hlaid.estimators"), "HLASVMIdentifier", Interrupted)
     (tmp_path / "runs").mkdir()
     (tmp_path / "m.npz").write_bytes(b"read by the stand-in reader")
     rc = main(["identify", str(tmp_path / "m.npz"), "-o", str(tmp_path / "c.json"), "--tensorboard",
@@ -696,3 +697,438 @@ def test_bad_inputs_are_refused_before_heavy_imports(tmp_path, table1):
     for command, rc, heavy, err in json.loads(r.stdout):
         assert rc == 2 and "\n" not in err and "error" in err, (command, err)
         assert heavy == [], (command, heavy, err)
+
+
+# ----------------------------------------------------------------------------- inputs named inside inputs
+def _measurement(path: Path, table1, *, mass_factor: float = 1.0, seed: int = 0, n_floors: int = 3) -> Path:
+    """A measurement file of ``table1``'s floors (made-up accelerations of plausible size: every case
+    below is refused before any analysis)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(2000) * 0.01
+    g = 2000.0 * np.sin(2 * np.pi * 1.3 * t) * np.exp(-0.1 * t) + rng.normal(0, 50, t.size)
+    f = g[:, None] * np.linspace(1.2, 2.0, n_floors) + rng.normal(0, 50, (t.size, n_floors))
+    mass = np.asarray(table1.mass[:n_floors], dtype=float) * mass_factor
+    if path.suffix == ".csv":
+        cols = ",".join(["t", "g", *(f"f{j + 1}" for j in range(n_floors))])
+        path.write_text(cols + "\n" + "\n".join(",".join(f"{v:.6g}" for v in (t[i], g[i], *f[i]))
+                                                   for i in range(t.size)) + "\n")
+    else:
+        with open(path, "wb") as fh:
+            np.savez(fh, dt=np.float64(0.01), ground_acc=g, floor_acc=f, mass=mass)
+    return path
+
+
+def _columns_yaml(path: Path, data: str) -> Path:
+    path.write_text(f"file: {data}\ntime: t\nground: {{column: g, units: mm/s^2}}\nfloors:\n"
+                    + "".join(f"  - {{column: f{j}, units: mm/s^2}}\n" for j in (1, 2, 3)))
+    return path
+
+
+def test_files_named_in_a_columns_yaml_are_inputs_of_the_run(tmp_path, capsys, table1, clone_file):
+    """A table named by a columns YAML is an input like the YAML itself: no output may replace it,
+    nor a folder holding it, even with --force (refused before the work)."""
+    _measurement(tmp_path / "data.csv", table1)
+    yaml_file = _columns_yaml(tmp_path / "map.yaml", "data.csv")
+    refused(capsys, ["demands", clone_file, "--motion", yaml_file, "--ensemble", "0", "-o", tmp_path / "data.csv",
+                     "--force"], ["is an input of this run"], root=tmp_path, within=60)
+    out = tmp_path / "colout"
+    with atomic_directory(out) as tmp:
+        _measurement(tmp / "data.csv", table1)
+    outside = _columns_yaml(tmp_path / "map2.yaml", "colout/data.csv")
+    refused(capsys, ["hla", outside, "-o", out, "--force"], ["an input of this run"], root=tmp_path, within=60)
+    refused(capsys, ["predict", clone_file, outside, "-o", out, "--force"], ["an input of this run"], root=tmp_path,
+            within=60)
+    refused(capsys, ["identify", outside, "-o", out / "data.csv", "--force"], ["is an input of this run"],
+            root=tmp_path, within=60)
+
+
+# ----------------------------------------------------------------------------- what --force removes
+def test_a_hand_made_marker_is_not_trusted(tmp_path, capsys):
+    v = tmp_path / "F"
+    (v / ".ssh").mkdir(parents=True)
+    (v / ".ssh" / "id_ed25519").write_text("a key")
+    (v / "thesis").mkdir()
+    (v / "thesis" / "ch1.tex").write_text("four years")
+    (v / MARKER).write_text('{"format": "hlaid-output"}')
+    m = tmp_path / "m.npz"
+    m.write_bytes(b"a measurement")
+    refused(capsys, ["hla", m, "-o", v, "--force"], ["not written there by hlaid"], root=tmp_path)
+    # a real marker copied into another folder is no marker of that folder
+    real = tmp_path / "real"
+    with atomic_directory(real) as tmp:
+        (tmp / "hla.json").write_text("{}")
+    (v / MARKER).write_bytes((real / MARKER).read_bytes())
+    (v / "hla.json").write_text("{}")
+    refused(capsys, ["hla", m, "-o", v, "--force"], ["not written there by hlaid"], root=tmp_path)
+    assert not is_hlaid_output(v) and is_hlaid_output(real)
+
+
+def test_force_keeps_what_the_user_put_into_an_output_folder(tmp_path, capsys):
+    out = tmp_path / "out"
+    with atomic_directory(out) as tmp:
+        (tmp / "hla.json").write_text("{}")
+        (tmp / "figures").mkdir()
+        (tmp / "figures" / "loops.png").write_bytes(b"png")
+    mark = json.loads((out / MARKER).read_text())
+    assert mark["files"] == ["figures", "figures/loops.png", "hla.json"]
+    assert mark["folder"] == {"device": out.stat().st_dev, "inode": out.stat().st_ino}
+    (out / "notes.txt").write_text("mine")
+    (out / "figures" / "sketch.png").write_bytes(b"mine too")
+    m = tmp_path / "m.npz"
+    m.write_bytes(b"a measurement")
+    line = refused(capsys, ["hla", m, "-o", out, "--force"], ["hlaid did not write there"], root=tmp_path)
+    assert "2 entries" in line and "figures/sketch.png" in line and "notes.txt" in line
+    # a folder written into an output later by hlaid (RUN/loss/) is hlaid's: replaced with it
+    (out / "notes.txt").unlink()
+    (out / "figures" / "sketch.png").unlink()
+    with atomic_directory(out / "loss") as tmp:
+        (tmp / "loss.json").write_text("{}")
+    with atomic_directory(out, force=True) as tmp:
+        (tmp / "new.json").write_text("{}")
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "new.json"]
+
+
+# ----------------------------------------------------------------------------- folders that cannot be renamed
+def test_an_output_folder_whose_rename_is_refused_is_replaced_in_place(tmp_path, monkeypatch):
+    """A mount point (EBUSY on rename): the output is written into the folder itself, nothing left
+    beside or inside it; only what hlaid wrote there is replaced."""
+    out = tmp_path / "out"
+    with atomic_directory(out) as tmp:
+        (tmp / "old.json").write_text("{}")
+        (tmp / "keep").mkdir()
+        (tmp / "keep" / "a.txt").write_text("a")
+    inode = out.stat().st_ino
+    real_replace = os.replace
+
+    def busy(src, dst, *a, **k):
+        if Path(src) == out or Path(dst) == out:
+            raise OSError(errno.EBUSY, "Device or resource busy", str(src))
+        return real_replace(src, dst, *a, **k)
+    monkeypatch.setattr(os, "replace", busy)
+    with atomic_directory(out, force=True) as tmp:
+        (tmp / "new.json").write_text('{"new": 1}')
+        (tmp / "sub").mkdir()
+        (tmp / "sub" / "b.txt").write_text("b")
+    assert out.stat().st_ino == inode
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "new.json", "sub"]
+    assert json.loads((out / "new.json").read_text()) == {"new": 1} and (out / "sub" / "b.txt").read_text() == "b"
+    assert json.loads((out / MARKER).read_text())["files"] == ["new.json", "sub", "sub/b.txt"]
+    assert is_hlaid_output(out)
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]
+    # an output file that cannot be renamed over (a bind-mounted file) is rewritten in place
+    f = tmp_path / "f.json"
+    write_json(f, {"a": 1})
+    monkeypatch.setattr(os, "replace", lambda src, dst, *a, **k: (_ for _ in ()).throw(
+        OSError(errno.EBUSY, "Device or resource busy")) if Path(dst) == f else real_replace(src, dst))
+    write_json(f, {"a": 2})
+    assert json.loads(f.read_text()) == {"a": 2} and sorted(p.name for p in tmp_path.iterdir()) == ["f.json", "out"]
+
+
+MOUNTED = """
+import os, sys
+from pathlib import Path
+from hlaid._fileio import atomic_directory
+from hlaid.errors import InputError
+out = Path(sys.argv[1])
+for name in ("a.json", "b.json"):
+    with atomic_directory(out, force=True) as tmp:
+        (tmp / name).write_text("{}")
+    print(sorted(os.listdir(out)))
+(out / "mine.txt").write_text("x")
+try:
+    with atomic_directory(out, force=True) as tmp:
+        (tmp / "c.json").write_text("{}")
+except InputError as err:
+    print("refused", err.detail.split(" (")[0])
+print(sorted(os.listdir(out)), sorted(os.listdir(out.parent)))
+"""
+
+
+@pytest.mark.skipif(not _unshare_works(), reason="needs a private mount namespace (unshare -rm) for a mount point")
+def test_a_mount_point_as_the_output_folder(tmp_path):
+    """A real mount point (a tmpfs mounted on the output folder): written, replaced with --force,
+    a user's file in it refused, and no temporary folder left anywhere."""
+    script = tmp_path / "write.py"
+    script.write_text(MOUNTED)
+    (tmp_path / "mnt").mkdir()
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    r = subprocess.run(["unshare", "-rm", "sh", "-c", f"mount -t tmpfs -o size=1m tmpfs {tmp_path}/mnt && "
+                        f"{sys.executable} {script} {tmp_path}/mnt"], capture_output=True, text=True, timeout=300,
+                       env=env)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.splitlines() == ["['.hlaid-output.json', 'a.json']", "['.hlaid-output.json', 'b.json']",
+                                     "refused holds 1 entry hlaid did not write there",
+                                     "['.hlaid-output.json', 'b.json', 'mine.txt'] ['mnt', 'write.py']"]
+
+
+# ----------------------------------------------------------------------------- inventories
+def test_inventories_are_bounded(tmp_path, capsys):
+    demands = tmp_path / "d.csv"
+    demands.write_text(",1-PID-1-1,1-PID-2-1,1-PID-3-1,1-RID-1-1\nUnits,rad,rad,rad,rad\n"
+                       + "".join(f"{i},0.01,0.012,0.008,0.001\n" for i in range(5)))
+    head = "ID,Units,Location,Direction,Theta_0\n"
+    inv = tmp_path / "inv.csv"
+    for rows, expect in (("B.10.35.021,ea,1,1,1e300\n", "line 2: column Theta_0: 1e+300"),
+                         ("B.10.35.021,ea,1,1,nan\n", "column Theta_0: no number"),
+                         ("B.10.35.021,ea,1,1,2\n" * 200_000, "more than 10000 component rows (line 10002)")):
+        inv.write_text(head + rows)
+        refused(capsys, ["loss", demands, "-o", tmp_path / "loss", "--floor-area", "100", "--inventory", inv],
+                [expect], root=tmp_path, within=60)
+
+
+# ----------------------------------------------------------------------------- events
+def test_update_refuses_an_event_the_clone_has_learnt(tmp_path, capsys, table1):
+    from hlaid.io import read
+    from hlaid.measurement import ground_digest
+    m = _measurement(tmp_path / "ev1.npz", table1)
+    meas = read(m, "measurement")
+    record = {"name": "ev1", "source": str(m), "sha256": hashlib.sha256(m.read_bytes()).hexdigest(),
+              "pga_g": float(np.abs(meas.ground_acc).max() / 9806.65), "duration_s": meas.n_samples * meas.dt,
+              "dt": meas.dt, "n_floors": 3}
+    for extra in ({}, {"ground_sha256": ground_digest(meas)}):
+        d = _clone_dict(table1)
+        d["events"] = [{**record, **extra}]
+        clone = tmp_path / "clone.json"
+        clone.write_text(json.dumps(d))
+        refused(capsys, ["update", clone, m, "-o", tmp_path / "c2.json"], ["has learnt from this event already"],
+                root=tmp_path, within=60)
+        copy = tmp_path / "ev1-copy.csv"  # the same record written again in another format
+        copy.write_text("# dt_s: 0.01\ntime_s,ground_acc,floor_acc_1,floor_acc_2,floor_acc_3\n" + "\n".join(
+            ",".join(repr(float(v)) for v in (i * 0.01, meas.ground_acc[i], *meas.floor_acc[i]))
+            for i in range(meas.n_samples)) + "\n")
+        refused(capsys, ["update", clone, copy, "-o", tmp_path / "c2.json"], ["has learnt from this event already"],
+                root=tmp_path, within=60)
+        copy.unlink()
+
+
+def test_predict_refuses_a_carried_start_without_a_state(tmp_path, capsys, table1, clone_file):
+    m = _measurement(tmp_path / "ev.npz", table1)
+    refused(capsys, ["predict", clone_file, m, "-o", tmp_path / "p", "--start", "carried"], ["carries no state"],
+            root=tmp_path, within=60)
+
+
+@pytest.mark.parametrize("band", [["0.3", "inf"], ["0.3", "5000"], ["0.3", "49"]])
+def test_bands_above_the_nyquist_frequency_are_refused(tmp_path, capsys, table1, clone_file, band):
+    m = _measurement(tmp_path / "ev.npz", table1)  # 100 Hz: corners up to 45 Hz
+    expect = ["finite"] if band[1] == "inf" else ["above 45 Hz (0.9 x the Nyquist frequency"]
+    refused(capsys, ["predict", clone_file, m, "-o", tmp_path / "p", "--band", *band], expect, root=tmp_path,
+            within=60)
+    if band[1] != "inf":
+        cfg = tmp_path / "hla.yaml"
+        cfg.write_text(f"preprocess: {{band_hz: [{band[0]}, {band[1]}]}}\n")
+        refused(capsys, ["hla", m, "-o", tmp_path / "h", "--config", cfg], expect, root=tmp_path, within=60)
+        cfg.unlink()
+
+
+# ----------------------------------------------------------------------------- the last internal errors
+def test_a_symlink_output_into_a_missing_folder(tmp_path, capsys, clone_file):
+    link = tmp_path / "link.py"
+    link.symlink_to(tmp_path / "missing" / "dir" / "x.py")
+    refused(capsys, ["export-opensees", clone_file, "-o", link], ["exists as a symbolic link; use --force"],
+            root=tmp_path)
+    assert main(["export-opensees", str(clone_file), "-o", str(link), "--force", "-q"]) == 0
+    assert link.is_file() and not link.is_symlink() and not (tmp_path / "missing").exists()
+    folder = tmp_path / "link-out"
+    folder.symlink_to(tmp_path / "missing" / "dir")
+    refused(capsys, ["ida", clone_file, "-o", folder], ["exists as a symbolic link"], root=tmp_path)
+
+
+def test_long_folder_names_in_output_paths(tmp_path, capsys, clone_file):
+    long = tmp_path / ("p" * 300)
+    for argv in (["export-opensees", clone_file, "-o", long / "x.py"], ["ida", clone_file, "-o", long / "out"],
+                 ["identify", "m.npz", "-o", tmp_path / "c.json", "--tensorboard", long / "tb"],
+                 ["identify", "m.npz", "-o", tmp_path / "c.json", "--tensorboard", tmp_path / ("t" * 300)]):
+        refused(capsys, argv, ["longer than the file system allows", "bytes long"], root=tmp_path)
+
+
+def test_a_control_character_in_a_yaml_string(tmp_path, capsys):
+    cfg = tmp_path / "esc.yaml"
+    cfg.write_text("building: {stories: [{mass_t: 1, k0: 1, alpha: 0.1, p: 2, dy: 1, delta_eta: 0}]}\n"
+                   "motion: {file: 'builtin:elcentro-1940-ns'}\nname: \"a\x1bb\"\n")
+    line = refused(capsys, ["simulate", cfg, "-o", tmp_path / "m.npz"], ["control character"], root=tmp_path)
+    assert "esc.yaml:3:" in line and "\x1b" not in line
+
+
+def test_the_errors_in_variables_stage_falls_back_when_it_fails_numerically(monkeypatch):
+    """A whitening matrix that is not positive definite (a very soft first story under a stiff
+    superstructure) is a numerical failure of that stage: least squares instead, with a warning
+    and a note kept in the clone's diagnostics, never an internal error."""
+    import dataclasses
+
+    import scipy.linalg
+
+    import hlaid.events.fit as events
+    from hlaid.errors import UnstableTangentError
+    from hlaid.identify.eiv import TangentWhitener
+
+    def not_pd(*a, **k):
+        raise np.linalg.LinAlgError("2-th leading minor not positive definite")
+    monkeypatch.setattr(scipy.linalg, "cholesky_banded", not_pd)
+    tangent = SimpleNamespace(lead=1, n_lags=3, floors=1, response=np.ones((20, 3, 1)))
+    with pytest.raises(UnstableTangentError, match="not positive definite"):
+        TangentWhitener(tangent, np.ones(1), 1.0)
+
+    @dataclasses.dataclass(frozen=True)
+    class Fit:
+        events: list
+    calls = []
+
+    def fake_map_refine(*a, ground_noise="ignore", **k):
+        calls.append(ground_noise)
+        if ground_noise == "tangent":
+            raise np.linalg.LinAlgError("2-th leading minor not positive definite")
+        return Fit(events=[{"n_eff": 10.0}, {"n_eff": 12.0}])
+    monkeypatch.setattr(events, "map_refine", fake_map_refine)
+    cfg = SimpleNamespace(refine=SimpleNamespace(method="eiv", damping=False, band_hz=(0.1, 20.0), max_iterations=5,
+                                                 tangent_max_mb=100.0))
+    with pytest.warns(HlaidWarning, match="errors-in-variables stage skipped .*not positive definite"):
+        fit = events.joint_fit(object(), [], None, cfg)
+    assert calls == ["tangent", "ignore"]
+    assert [e["errors_in_variables"]["fitted_by"] for e in fit.events] == ["least squares"] * 2
+    assert fit.events[0]["n_eff"] == 10.0
+
+
+# ----------------------------------------------------------------------------- values that make no sense
+def test_clone_states_and_events_that_no_building_has(tmp_path, capsys, table1, clone_file):
+    for change, expect in ((lambda d: d.update(state={"drift": [0.0] * 3, "z": [1e6, 0.0, 0.0], "work": [0.0] * 3,
+                                                      "peak_positive": [0.0] * 3, "peak_negative": [0.0] * 3}),
+                            "state.z[0] = 1000000 mm is beyond the story's dy"),
+                           (lambda d: d.update(events=[{"name": "e", "dt": float("nan")}]), "events[0].dt"),
+                           (lambda d: d.update(events=[{"name": "e", "pga_g": "big"}]), "events[0].pga_g")):
+        d = _clone_dict(table1)
+        change(d)
+        bad = tmp_path / "bad.json"
+        bad.write_text(json.dumps(d))
+        refused(capsys, ["export-opensees", bad, "-o", tmp_path / "m.py"], [expect], root=tmp_path)
+    text = clone_file.read_text()
+    dup = tmp_path / "dup.json"
+    dup.write_text(text.replace('"name":', '"name": "first", "name":', 1))
+    refused(capsys, ["export-opensees", dup, "-o", tmp_path / "m.py"], ["key 'name' appears twice"], root=tmp_path)
+
+
+def test_measurement_masses_out_of_bounds_or_of_another_building(tmp_path, capsys, table1, clone_file):
+    huge = _measurement(tmp_path / "huge.npz", table1, mass_factor=1e300 / float(table1.mass[0]))
+    refused(capsys, ["hla", huge, "-o", tmp_path / "h"], ["mass[0] = 1e+300 is out of range"], root=tmp_path,
+            within=60)
+    heavy = _measurement(tmp_path / "heavy.npz", table1, mass_factor=10.0)
+    refused(capsys, ["predict", clone_file, heavy, "-o", tmp_path / "p"], ["not of this building"], root=tmp_path,
+            within=60)
+    refused(capsys, ["update", clone_file, heavy, "-o", tmp_path / "c.json"], ["not of this building"],
+            root=tmp_path, within=60)
+
+
+def test_units_that_are_no_units(tmp_path, capsys, clone_file):
+    refused(capsys, ["ida", clone_file, "--units", "furlong", "-o", tmp_path / "i"], ["'furlong' is no acceleration"],
+            root=tmp_path)
+    cfg = tmp_path / "ida.yaml"
+    cfg.write_text("records: builtin-suite\nunits: furlongs\n")
+    line = refused(capsys, ["ida", clone_file, "--config", cfg, "-o", tmp_path / "i"], ["is no acceleration unit"],
+                   root=tmp_path)
+    assert "ida.yaml:2:" in line
+    sim = tmp_path / "sim.yaml"
+    sim.write_text("building: {stories: [{mass_t: 1, k0: 1, alpha: 0.1, p: 2, dy: 1, delta_eta: 0}]}\n"
+                   "motion: {file: 'builtin:elcentro-1940-ns', units: furlongs}\n")
+    refused(capsys, ["simulate", sim, "-o", tmp_path / "m.npz"], ["is no acceleration unit"], root=tmp_path)
+
+
+# ----------------------------------------------------------------------------- names in messages
+def test_a_newline_in_an_output_name_starts_no_line(tmp_path, capsys, clone_file):
+    out = tmp_path / "m\nhlaid export-opensees: error: FAKE.py"
+    assert main(["export-opensees", str(clone_file), "-o", str(out)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and not any(line.startswith("hlaid export-opensees: error") for line in err), err
+    assert "\\x0ahlaid export-opensees: error: FAKE.py" in err[0]
+    spaced = tmp_path / "my model.py"
+    assert main(["export-opensees", str(clone_file), "-o", str(spaced)]) == 0
+    assert f"run it with: python '{spaced}' RECORD.AT2" in capsys.readouterr().err
+
+
+# ----------------------------------------------------------------------------- refusals that need the data
+def test_tls_scheduler_without_tls_settings(tmp_path, capsys, monkeypatch):
+    for var in [k for k in os.environ if k.startswith("DASK_DISTRIBUTED__COMM__TLS")]:
+        monkeypatch.delenv(var)
+    srv, port = _server(None)
+    with srv:
+        refused(capsys, ["fleet", _fleet_yaml(tmp_path), "-o", tmp_path / "f", "--scheduler", f"tls://127.0.0.1:{port}"],
+                ["needs dask's TLS settings"], root=tmp_path)
+    with socket.socket() as unused:
+        unused.bind(("127.0.0.1", 0))
+        port = unused.getsockname()[1]
+    refused(capsys, ["fleet", _fleet_yaml(tmp_path), "-o", tmp_path / "f", "--scheduler", f"tls://127.0.0.1:{port}"],
+            ["cannot connect"], root=tmp_path)
+
+
+def _gzip_bomb(path: Path, inflated_mb: int) -> Path:
+    """A gzip file of ``inflated_mb`` MiB of CSV-like text, a thousandth of that on disk (one member repeated)."""
+    import gzip
+    member = gzip.compress(b"0.0,0.0,0.0\n" * (2**20 // 12), compresslevel=9)
+    path.write_bytes(member * inflated_mb)
+    return path
+
+
+CHILD = """
+import contextlib, io, json, sys
+from hlaid.cli.app import main
+err = io.StringIO()
+with contextlib.redirect_stderr(err):
+    rc = main(json.loads(sys.argv[1]))
+with open("/proc/self/status") as fh:  # the peak resident memory of this process (not its parent's before exec)
+    peak = int(next(line for line in fh if line.startswith("VmHWM:")).split()[1]) // 1024
+print(json.dumps([rc, err.getvalue().strip(), peak, sorted(m for m in {heavy!r} if m in sys.modules)]))
+"""
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="peak memory from Linux's /proc")
+def test_big_configs_and_gzip_bombs_are_refused_with_little_memory(tmp_path):
+    """A YAML config of 200 000 keys and a gzip file inflating to 600 MiB: refused (exit 2, one
+    line) by an interpreter that never held them (peak memory far below what they inflate to) and
+    never imported torch, numba or scipy."""
+    big = tmp_path / "big.yaml"
+    big.write_text("".join(f"key{i}: {i}\n" for i in range(200_000)))
+    bomb = _gzip_bomb(tmp_path / "bomb.csv.gz", 600)
+    assert bomb.stat().st_size < 2 * 2**20
+    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    for argv, expect in ((["simulate", str(big), "-o", str(tmp_path / "m.npz")], "big.yaml:10000: more than 20000"),
+                         (["hla", str(bomb), "-o", str(tmp_path / "h")], "inflates more than 100 times")):
+        r = subprocess.run([sys.executable, "-c", CHILD.format(heavy=HEAVY), json.dumps(argv)], capture_output=True,
+                           text=True, env=env, cwd=tmp_path, timeout=300)
+        assert r.returncode == 0, r.stderr
+        rc, err, peak_mib, heavy = json.loads(r.stdout)
+        assert rc == 2 and "\n" not in err and expect in err, err
+        assert peak_mib < 200 and heavy == [], (argv[0], peak_mib, heavy)
+
+
+def test_refusals_that_need_the_data_come_before_heavy_imports(tmp_path, table1):
+    """Stories or masses of another building, one record twice, the clone's own event again, a
+    closed scheduler port: read from the files (numpy only) and refused before torch, numba or
+    scipy load."""
+    three = _measurement(tmp_path / "three.npz", table1)
+    _measurement(tmp_path / "two.npz", table1, n_floors=2)
+    clone = Clone(building=table1.replace(height=HEIGHTS)).save(tmp_path / "clone.json")
+    d = json.loads(clone.read_text())
+    d["events"] = [{"name": "three", "sha256": hashlib.sha256(three.read_bytes()).hexdigest()}]
+    (tmp_path / "learnt.json").write_text(json.dumps(d))
+    (tmp_path / "copy.npz").write_bytes(three.read_bytes())
+    _fleet_yaml(tmp_path)
+    with socket.socket() as unused:
+        unused.bind(("127.0.0.1", 0))
+        port = unused.getsockname()[1]
+    t = str(tmp_path)
+    cases = [["identify", f"{t}/three.npz", f"{t}/two.npz", "-o", f"{t}/c.json"],
+             ["identify", f"{t}/three.npz", f"{t}/three.npz", "-o", f"{t}/c.json"],
+             ["identify", f"{t}/three.npz", f"{t}/copy.npz", "-o", f"{t}/c.json"],
+             ["update", f"{t}/clone.json", f"{t}/two.npz", "-o", f"{t}/c.json"],
+             ["update", f"{t}/learnt.json", f"{t}/three.npz", "-o", f"{t}/c.json"],
+             ["predict", f"{t}/clone.json", f"{t}/two.npz", "-o", f"{t}/p"],
+             ["fleet", f"{t}/fleet.yaml", "-o", f"{t}/f", "--scheduler", f"127.0.0.1:{port}"]]
+    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    r = subprocess.run([sys.executable, "-c", PROBE.format(heavy=HEAVY), json.dumps(cases)], capture_output=True,
+                       text=True, env=env, cwd=tmp_path, timeout=300)
+    assert r.returncode == 0, r.stderr
+    expect = ["2 floor channels", "the same file as", "the same file as", "not of this building",
+              "learnt from this event already", "not of this building", "cannot connect"]
+    for (command, rc, heavy, err), want in zip(json.loads(r.stdout), expect):
+        assert rc == 2 and "\n" not in err and want in err, (command, err)
+        assert heavy == [], (command, heavy, err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["clone.json", "copy.npz", "fleet.yaml", "learnt.json",
+                                                          "three.npz", "two.npz"]

@@ -257,13 +257,23 @@ def test_building_argument_kinds(table1, motions, tmp_path):
 @pytest.mark.parametrize("n", [1, 20, 99, 100, 200, 1000])
 def test_auto_levels_stay_strictly_increasing(n):
     """Rounding keeps the automatic levels distinct for any count (n_levels 200 once failed
-    with "level 142 is not above level 141"); the default 20 keeps 3 digits."""
+    with "level 142 is not above level 141"); the default 20 keeps 3 digits. The levels are
+    geometric from half the equal-displacement IM of the smallest reported drift (0.5 %: top / 40),
+    so the small-drift fragilities, which rise there, have stripes on their rise."""
     from hlaid.ida.analysis import _auto_levels
     from hlaid.ida.config import check_levels
 
     for top in (0.37, 1.0, 9.87, 13.8):
-        lv = _auto_levels(np.array([top / 0.1]), 0.1, n)
+        lv = _auto_levels(np.array([top / 0.1]), 0.1, n, 0.005)
         assert len(lv) == n and check_levels(lv) == lv
         assert lv[-1] == pytest.approx(top, rel=1e-3)
+        if n > 1:
+            assert lv[0] == pytest.approx(min(top / n, top / 40), rel=5e-3)
+            exact = np.geomspace(min(top / n, top / 40), top, n)  # one ratio from level to level
+            np.testing.assert_allclose(lv, exact, rtol=5e-3)
         if n == 20:
             assert all(v == float(f"{v:.3g}") for v in lv)
+            assert sum(v < top * 0.005 / 0.1 * 2 for v in lv) >= 5  # stripes where the 0.5 % fragility rises
+        if n > 1:
+            equal = _auto_levels(np.array([top / 0.1]), 0.1, n)  # no smallest limit: from top / n
+            assert equal[0] == pytest.approx(top / n, rel=5e-3)

@@ -120,7 +120,7 @@ def test_ctrl_c_during_identify_path_training(measurement, tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     rc, elapsed, lines = _interrupt(["identify", str(measurement), "-o", "out/c.json", "--no-cache"], tmp_path,
-                                    after="path-driven training sets", workers=2, delay=1.0)
+                                    after="[identify] hysteresis loop analysis", workers=2, delay=1.0)
     _assert_interrupted(rc, elapsed, lines, "identify")
     assert _leftovers(out, "c.json") == []
 
@@ -136,7 +136,7 @@ def test_ctrl_c_during_ida(table1, tmp_path):
 
 def test_ctrl_c_during_demo(tmp_path):
     rc, elapsed, lines = _interrupt(["demo", "--out", "demo-out", "--cache", "cache"], tmp_path,
-                                    after="path-driven training sets", delay=1.0)
+                                    after="hysteresis loop analysis and identification", delay=1.0)
     _assert_interrupted(rc, elapsed, lines, "demo")
     assert _leftovers(tmp_path, "demo-out") == []
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from io_checks import data_path
@@ -85,6 +87,8 @@ def test_index_columns_whitespace_dt_and_offsets(tmp_path):
     (YAML.replace("  - {column: d2_in, units: in}\n", ""), "one displacement per floor"),
     (YAML.replace("weight_kN: [171.85, 90]", "weight_kN: [171.85]"), "weight_kN has 1 values"),
     (YAML.replace("floors:", "floors: 3\nfloorz:"), "expected a list"),
+    (YAML + "format: columns\n", "format: 'columns' is not a delimiter; this key (now delimiter:)"),
+    (YAML + "format: csv\ndelimiter: csv\n", "give delimiter only"),
 ])
 def test_bad_configs_name_file_and_line(tmp_path, yaml_text, message):
     _table(tmp_path)
@@ -117,3 +121,16 @@ def test_reproduces_the_mini_shake_table_reader_on_real_data(tmp_path):
     assert a.dt == pytest.approx(b.dt)
     np.testing.assert_allclose(a.ground_acc, b.ground_acc, atol=1e-9)
     np.testing.assert_allclose(a.floor_acc, b.floor_acc, atol=1e-9)
+
+
+def test_the_shipped_example_reads_and_format_is_the_older_name_of_delimiter(tmp_path):
+    """configs/columns_example.yaml reads its table (g and cm/s^2 converted to mm/s^2, weights to
+    masses); ``format: csv`` (the older key) reads the same."""
+    example = Path(__file__).resolve().parents[1] / "configs" / "columns_example.yaml"
+    m = read_columns(example)
+    assert (m.n_floors, m.n_samples, m.dt) == (3, 1000, pytest.approx(0.01))
+    np.testing.assert_allclose(m.mass, np.array([171.85, 171.85, 90.0]) / 9.80665, rtol=1e-12)
+    assert 0.2 * 9806.65 < np.max(np.abs(m.ground_acc)) < 0.4 * 9806.65  # El Centro at 0.3 g
+    (tmp_path / "columns_example.csv").write_bytes(example.with_suffix(".csv").read_bytes())
+    (tmp_path / "old.yaml").write_text(example.read_text().replace("delimiter: csv", "format: csv"))
+    np.testing.assert_array_equal(read_columns(tmp_path / "old.yaml").floor_acc, m.floor_acc)

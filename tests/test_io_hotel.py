@@ -93,7 +93,7 @@ def test_first_mode_and_shape_ratio_are_the_same_in_every_event(events):
 
 def test_errors(tmp_path):
     path = data_path(*MAT)
-    with pytest.raises(InputError, match="give event="):
+    with pytest.raises(InputError, match=r"read\(path, event=N\)"):
         read(path, "measurement")
     with pytest.raises(InputError, match="no event 22"):
         read_hotel(path, 22)

@@ -66,7 +66,7 @@ def test_pelicun_through_hlaid_equals_pelicuns_command_line(demo_clone, stripe, 
                                    err_msg=name)
     s = res.summary
     assert s["repair_cost_median"] == pytest.approx(np.median([float(r["repair_cost-"]) for r in rows]), rel=1e-9)
-    # collapse: pelicun samples hlaid's fragility at each realisation's Sa(T1) = 1.0 g
+    # collapse: pelicun samples hlaid's fragility at each realization's Sa(T1) = 1.0 g
     p = float(ndtr(np.log(1.0 / median) / beta))
     assert abs(s["p_collapse"] - p) < 4 * np.sqrt(p * (1 - p) / 200)
     col = res.sample["collapse"] > 0.5

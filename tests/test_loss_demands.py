@@ -51,7 +51,7 @@ def test_residual_drift_is_the_settled_drift_of_a_long_free_vibration(strong):
     assert d.rid_settling.max() < 0.02 * ref.max()  # the oscillation left over the averaging window
 
 
-def test_peaks_follow_the_full_histories_realisation_by_realisation():
+def test_peaks_follow_the_full_histories_realization_by_realization():
     """2 buildings x 2 records x a stripe: every row is its own member and record (ordering), PID and
     PFA are the peaks of the full histories, PFA-0 the scaled PGA, the intensity the stripe's."""
     from hlaid.uncertainty import ParameterUncertainty
@@ -66,7 +66,7 @@ def test_peaks_follow_the_full_histories_realisation_by_realisation():
     from hlaid.uncertainty import clone_ensemble
 
     members = clone_ensemble(c, 2, seed=3)
-    assert d.n_realisations == 4 and list(d.member) == [0, 0, 1, 1] and list(d.record) == [0, 1, 0, 1]
+    assert d.n_realizations == 4 and list(d.member) == [0, 0, 1, 1] and list(d.record) == [0, 1, 0, 1]
     T1 = c.building.periods()[0]
     for i in range(4):
         b, gm = members[d.member[i]], recs[d.record[i]]
@@ -89,7 +89,7 @@ def test_demand_csv_is_pelicuns_format_and_reads_back(strong, tmp_path):
     row = np.array(lines[2].split(",")[1:], dtype=float)
     np.testing.assert_allclose(row, np.concatenate([d.pfa[0] / G_MM_S2, d.pid[0], d.rid[0], d.im]), rtol=1e-7)
     f = read_demand_csv(path)
-    assert (f.n_stories, f.im_type, f.n_realisations) == (3, f"SA_{T}", 1)
+    assert (f.n_stories, f.im_type, f.n_realizations) == (3, f"SA_{T}", 1)
 
 
 def test_a_collapsed_run_is_flagged_and_written_above_the_limit():

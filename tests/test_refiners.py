@@ -39,8 +39,8 @@ def _assert_near(building, truth, rtol):
 
 
 def test_the_names(table1):
-    assert list(REFINERS) == ["eiv", "least_squares", "none"] and RefineConfig().method == "eiv"
-    with pytest.raises(InputError, match="'eiv', 'least_squares', 'none'"):
+    assert list(REFINERS) == ["eiv", "least_squares", "none"] and RefineConfig().method == "auto"
+    with pytest.raises(InputError, match="'eiv', 'least_squares', 'none', 'auto'"):
         RefineConfig(method="replay")
     with pytest.raises(InputError, match="refine.method = 'tangent' is unknown"):
         config_from_dict(IdentifyConfig, {"refine": {"method": "tangent"}})

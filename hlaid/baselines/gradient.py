@@ -210,7 +210,7 @@ class OutputErrorProblem:
 
 
 def levenberg_marquardt(problem: OutputErrorProblem, theta0: torch.Tensor, k0_ref, dy_ref, *, iterations: int,
-                        tol: float = 1e-3, tb: TBLogger | None = None):
+                        tol: float = 1e-3, tb: TBLogger | None = None, bar: _progress.Stage | None = None):
     """Levenberg-Marquardt (Marquardt's diagonal scaling) on every start of ``theta0``
     ``(start, 5, story)`` at once, one Jacobian pass per iteration.
 
@@ -219,7 +219,8 @@ def levenberg_marquardt(problem: OutputErrorProblem, theta0: torch.Tensor, k0_re
     is done when the Gauss-Newton step predicts a relative loss decrease below ``tol``, when
     two accepted steps in a row lowered it by less than ``tol``, or when its damping
     saturates; done starts leave the batch and the run stops once the best start is done.
-    Returns the coordinates, the ``(iteration, start)`` loss history and the number of passes.
+    Returns the coordinates, the ``(iteration, start)`` loss history and the number of passes
+    (``bar``: a progress stage counting the iterations).
     """
     theta = theta0.detach().clone()
     B, F, n = theta.shape
@@ -259,6 +260,8 @@ def levenberg_marquardt(problem: OutputErrorProblem, theta0: torch.Tensor, k0_re
         theta[k], r[k], J[k], loss[k] = trial[keep], r2[keep], J2[keep], loss2[keep]
         lam[a] = torch.where(better, lam[a] / 3.0, torch.where(refresh, lam[a], lam[a] * 4.0)).clamp(1e-9, 1e9)
         hist.append(loss.numpy().copy())
+        if bar is not None:
+            bar.update(1, note=f"best loss {float(loss.min()):.4g}, {int((~done).sum())} start(s) still descending")
         if tb is not None and torch.isfinite(loss).any():
             tb.scalar("gradient/best_loss", float(loss.min()), it + 1)
         _progress.debug(f"[gradient] iteration {it + 1}: losses {np.array2string(loss.numpy(), precision=4)}, "
@@ -353,7 +356,8 @@ class GradientIdentifier(BaseIdentifier):
             cand = self._candidates(meas, known, np.random.default_rng(self.random_state))
             window = arias_window(measured_ground(meas, cap_corner(self.band_hz[1], meas.dt)).acc, meas.dt, self.arias)
             prob = OutputErrorProblem(meas, known, self.band_hz, window, self.segment_s, self.substeps)
-            screened = prob.screen(cand)
+            with _progress.stage(f"[gradient] screening {self.n_candidates} candidates"):
+                screened = prob.screen(cand)
             if not np.isfinite(screened).any():
                 raise NotIdentifiableError("every candidate diverged; the record or the ranges do not suit the "
                                            "gradient identifier", source=meas.source or None)
@@ -363,8 +367,11 @@ class GradientIdentifier(BaseIdentifier):
             _progress.info(f"[gradient] {self.n_candidates} candidates screened; {len(order)} starts, window "
                            f"{window[0] * meas.dt:.1f}-{window[1] * meas.dt:.1f} s, {prob.n_segments} segments")
             tb = TBLogger(self.tensorboard)
-            theta, hist, passes = levenberg_marquardt(prob, theta0, k0_ref, dy_ref,
-                                                      iterations=int(self.max_iterations), tol=self.tol, tb=tb)
+            with _progress.stage(f"[gradient] Levenberg-Marquardt from {len(order)} starts", int(self.max_iterations),
+                                 unit="iterations") as bar:
+                theta, hist, passes = levenberg_marquardt(prob, theta0, k0_ref, dy_ref, tol=self.tol, tb=tb, bar=bar,
+                                                          iterations=int(self.max_iterations))
+                bar.done(f"best loss {float(np.nanmin(hist[-1])):.4g}")
             tb.close()
         final = hist[-1]
         best = int(np.argmin(np.where(np.isfinite(final), final, np.inf)))

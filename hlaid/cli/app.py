@@ -52,6 +52,115 @@ def add_common(p: argparse.ArgumentParser) -> None:
                    help="print details (and tracebacks of internal errors)")
 
 
+class _Deprecated(argparse.Action):
+    """An old spelling of an option: works, says which one replaces it (hidden from ``--help``)."""
+
+    def __init__(self, option_strings, dest, *, advice: str, **kw):
+        self.advice = advice
+        super().__init__(option_strings, dest, help=argparse.SUPPRESS, **kw)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        _progress.warn(f"{option_string} is deprecated and will be removed: {self.advice}")
+        setattr(namespace, self.dest, True if self.nargs == 0 else values)
+
+
+def deprecated(p: argparse.ArgumentParser, old: str, dest: str, advice: str, **kw) -> None:
+    """Keep the old spelling ``old`` of an option working (into ``dest``), with a warning that gives
+    ``advice`` (``"use --ensemble"``)."""
+    p.add_argument(old, dest=dest, action=_Deprecated, advice=advice, **kw)
+
+
+# --------------------------------------------------------------------- options shared by commands
+# Every command that takes the same thing takes it through one of these (tests/test_cli_vocabulary.py
+# checks that an option's flags and default are the same in every command).
+def add_plots(p: argparse.ArgumentParser) -> None:
+    """``--no-plots``: figures are written unless this is given."""
+    p.add_argument("--no-plots", action="store_true", help="write no figures (PNG)")
+
+
+def add_read(p: argparse.ArgumentParser) -> None:
+    """``--read KEY=VALUE``: an option of the measurement file's reader (``hlaid.read(path, KEY=VALUE)``)."""
+    p.add_argument("--read", action="append", metavar="KEY=VALUE", default=None,
+                   help="an option of the measurement's reader, as hlaid.read(path, KEY=VALUE) takes it, e.g. "
+                        "event=13 (the hotel's .mat), ground=3 and floors=7 or floors=5,7 (a CSMIP record); "
+                        "repeat for several (docs/data.md)")
+
+
+def add_ensemble(p: argparse.ArgumentParser, what: str) -> None:
+    """``--ensemble N``: clones drawn from the clone's identification uncertainty."""
+    from ..uncertainty.config import N_ENSEMBLE
+    what = f" {what}" if what else ""
+    p.add_argument("--ensemble", type=int, default=None, metavar="N",
+                   help=f"clones drawn from the clone's identification uncertainty{what} (default {N_ENSEMBLE} "
+                        "when the clone has it, else 0; 0: the identified clone alone)")
+
+
+def add_seed(p: argparse.ArgumentParser, what: str, default: str = "0") -> None:
+    """``--seed N``."""
+    p.add_argument("--seed", type=int, default=None, metavar="N", help=f"seed of {what} (default {default})")
+
+
+def add_building(p: argparse.ArgumentParser, *, pdelta_default: str = "when story heights are known") -> None:
+    """The building data a clone file may lack: ``--heights``, ``--gravity-kN``, ``--pdelta/--no-pdelta``."""
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--pdelta", dest="pdelta", action="store_true", default=None,
+                   help=f"include P-Delta (default: {pdelta_default})")
+    g.add_argument("--no-pdelta", dest="pdelta", action="store_false", help="leave P-Delta out")
+    p.add_argument("--heights", metavar="MM", help="story heights [mm], bottom to top, e.g. 3000,3000,3000 "
+                                                  "(default: the clone's)")
+    p.add_argument("--gravity-kN", metavar="KN", help="floor gravity loads [kN] for P-Delta, bottom to top "
+                                                     "(default: the floor weights)")
+
+
+def reader_options(args) -> dict:
+    """``--read KEY=VALUE`` options as keyword arguments of :func:`hlaid.read`: a value is an
+    integer, a number, true/false, a comma-separated list of those, else a string."""
+    out: dict = {}
+    for item in getattr(args, "read", None) or []:
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or not key.isidentifier():
+            raise InputError(f"--read {item!r}; expected KEY=VALUE, e.g. --read event=13")
+        if key in ("path", "kind"):
+            raise InputError(f"--read {key}=...: {key} is not a reader option")
+        if key in out:
+            raise InputError(f"--read {key} given twice")
+        text = value.strip().removeprefix("[").removesuffix("]")
+        parts = [_scalar(v.strip()) for v in text.split(",")] if "," in text or value.strip().startswith("[") \
+            else None
+        out[key] = parts if parts is not None else _scalar(text)
+    return out
+
+
+def _scalar(text: str):
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return {"true": True, "false": False, "null": None}.get(text.lower(), text)
+
+
+PYTHON_HINTS = {
+    "IDAConfig(heights_mm=[...])": "--heights MM,MM,...",
+    "IDAConfig(gravity_kN=[...])": "--gravity-kN KN,KN,...",
+    "IDAConfig(pdelta=False)": "--no-pdelta",
+    "read(path, event=N)": "--read event=N",
+    "read(path, ground=N, floors=[N, ...])": "--read ground=N --read floors=N,N,...",
+    "records=[...]": "--records DIR|builtin-suite|FILE",
+}
+"""Library messages name Python arguments (``IDAConfig(heights_mm=[...])``); on the command line
+each is shown as the flag that sets it (a test checks that every flag exists and every phrase is
+still used by the library)."""
+
+
+def cli_message(text: str) -> str:
+    """A library message with its Python arguments replaced by the command line's flags."""
+    for py, flag in PYTHON_HINTS.items():
+        text = text.replace(py, flag)
+    return text
+
+
 def subcommand(sub, name: str, *, help: str, example: str, description: str | None = None) -> argparse.ArgumentParser:
     """Create a subcommand parser whose help ends with an example."""
     p = sub.add_parser(name, help=help, description=description or help,
@@ -85,6 +194,7 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str] | None) -> int:
     prog, verbose = "hlaid", False
     try:  # Ctrl-C while the subcommands are imported is an interruption too
+        _progress.set_verbosity(1)  # warnings while the arguments are parsed (a deprecated option)
         parser = build_parser()
         args = parser.parse_args(argv)
         verbose, quiet = getattr(args, "verbose", False), getattr(args, "quiet", False)
@@ -95,12 +205,13 @@ def _main(argv: list[str] | None) -> int:
         prog = f"hlaid {args.command}"
         for name in check_environment():  # a bad HLAID_MAX_* is exit 2 before any work
             _progress.warn(f"environment variable {name} is no limit of hlaid (a typo?); it is ignored")
-        from .. import _fileio
+        from .. import _fileio, _inputs
         _fileio.command = prog  # named in the marker of every output folder
-        return int(args.func(args) or 0)
+        with _inputs.recording():  # every file the command reads is an input it must not replace
+            return int(args.func(args) or 0)
     except InputError as err:
         _progress.end_line()
-        print(f"{prog}: error: {err}", file=sys.stderr)
+        print(f"{prog}: error: {cli_message(str(err))}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into e.g. `head`
         sys.stderr.close()

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from .. import _progress
 from ..uncertainty.config import N_ENSEMBLE
-from .app import subcommand
+from .app import add_ensemble, add_plots, add_read, add_seed, reader_options, subcommand
 
 
 def register(sub) -> None:
@@ -18,6 +19,7 @@ def register(sub) -> None:
     p.add_argument("-o", "--out", required=True, help="the updated clone JSON to write")
     p.add_argument("--config", help="identification config YAML (its refine section and system; "
                    "default: configs/identify.yaml's, with the clone's own system)")
+    add_read(p)
     p.add_argument("--widen", type=float, default=1.0,
                    help="multiply the clone's posterior standard deviations by this before the update (default 1)")
     p.add_argument("--force", action="store_true", help="overwrite an existing clone file")
@@ -31,14 +33,13 @@ def register(sub) -> None:
     q.add_argument("-o", "--out", required=True, help="output folder: prediction.json, prediction.npz, prediction.png")
     q.add_argument("--band", nargs=2, type=float, metavar=("LO", "HI"),
                    help="band of the compared displacements [Hz] (default: HLA's band of the event)")
-    q.add_argument("--start", choices=["auto", "carried", "undamaged"], default="auto",
+    add_read(q)
+    q.add_argument("--start", choices=["auto", "carried", "undamaged"], default=None,
                    help="carried: from the state the clone's last event left it in; undamaged: at rest; auto "
                         "(default): carried, unless an update found the last event better explained undamaged")
-    q.add_argument("--ensemble", type=int, default=N_ENSEMBLE, metavar="N",
-                   help=f"clones drawn from the clone's uncertainty for the predictive band (default {N_ENSEMBLE}; "
-                        "0: none)")
-    q.add_argument("--seed", type=int, default=0, help="seed of the draws")
-    q.add_argument("--no-plots", action="store_true", help="write no figure")
+    add_ensemble(q, "for the predictive band")
+    add_seed(q, "the ensemble's draws")
+    add_plots(q)
     q.add_argument("--force", action="store_true", help="replace an existing output folder written by hlaid")
     q.set_defaults(func=run_predict)
 
@@ -50,17 +51,28 @@ def run_update(args) -> int:
     from ..errors import InputError
     from ..identify.config import IdentifyConfig  # light: no torch, numba or scipy
 
-    out = check_output_file(args.out, force=args.force, inputs=[args.clone, args.measurement, args.config])
+    inputs = [args.clone, args.measurement, args.config]
+    out = check_output_file(args.out, force=args.force, inputs=inputs)
     if not 0 < args.widen < 100:
         raise InputError(f"--widen {args.widen}; expected a factor in (0, 100), 1 for none")
     cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
     check_input(args.clone)
     check_input(args.measurement)
+    from .._inputs import file_sha256
     from ..clone import Clone
     from ..io import read
+    from ..measurement import check_not_learnt, check_of_building
 
     clone = Clone.load(args.clone)
-    meas = read(args.measurement, "measurement")
+    if Path(args.measurement).is_file():  # the clone's own file again: refused from its bytes
+        check_not_learnt(clone.events, sha256=file_sha256(args.measurement), source=args.measurement)
+    meas = read(args.measurement, "measurement", **reader_options(args))
+    check_output_file(args.out, force=args.force, inputs=inputs)  # and the files it named
+    check_of_building(meas, clone.building, mass_normalised=clone.mass_normalised)
+    check_not_learnt(clone.events, meas)
+    from .identify import check_identify_bands
+
+    check_identify_bands(meas, cfg, args.config)
     from ..events.update import update_clone  # the heavy libraries, once the inputs are good
     from .identify import print_summary
 
@@ -79,28 +91,35 @@ def run_predict(args) -> int:
 
     inputs = [args.clone, args.measurement]
     check_output_folder(args.out, force=args.force, inputs=inputs)
-    if args.band is not None and not 0 <= args.band[0] < args.band[1]:
-        raise InputError(f"--band {args.band[0]:g} {args.band[1]:g}; expected LO HI with 0 <= LO < HI [Hz]")
-    if args.ensemble < 0:
+    if args.band is not None and not (0 <= args.band[0] < args.band[1] and math.isfinite(args.band[1])):
+        raise InputError(f"--band {args.band[0]:g} {args.band[1]:g}; expected LO HI with 0 <= LO < HI [Hz], finite")
+    if args.ensemble is not None and args.ensemble < 0:
         raise InputError(f"--ensemble {args.ensemble}; expected a number of clones >= 0")
-    check_count(args.ensemble, "BOOTSTRAP", "--ensemble")
+    if args.ensemble is not None:
+        check_count(args.ensemble, "BOOTSTRAP", "--ensemble")
     check_input(args.clone)
     check_input(args.measurement)
     from ..clone import Clone
     from ..io import read
-    from ..measurement import check_band
+    from ..measurement import check_band, check_of_building
 
     clone = Clone.load(args.clone)
-    meas = read(args.measurement, "measurement")
+    if args.start == "carried" and clone.state is None:
+        raise InputError("--start carried: the clone carries no state (identified by an older hlaid?); use "
+                         "--start undamaged", source=args.clone)
+    meas = read(args.measurement, "measurement", **reader_options(args))
+    check_output_folder(args.out, force=args.force, inputs=inputs)  # and the files it named
+    check_of_building(meas, clone.building, mass_normalised=clone.mass_normalised)
     if args.band is not None:
         check_band(meas, tuple(args.band), "--band")
-    n = args.ensemble if clone.uncertainty is not None else 0
+    n = (N_ENSEMBLE if args.ensemble is None else args.ensemble) if clone.uncertainty is not None else 0
     if args.ensemble and clone.uncertainty is None:
         _progress.warn("the clone has no uncertainty: no predictive band")
     from .._fileio import write_json, write_npz  # the heavy libraries, once the inputs are good
     from ..events.predict import predict_event
 
-    p = predict_event(clone, meas, band_hz=args.band, start=args.start, n_ensemble=n, seed=args.seed)
+    p = predict_event(clone, meas, band_hz=args.band, start=args.start or "auto", n_ensemble=n,
+                      seed=args.seed or 0)
     with atomic_directory(args.out, force=args.force, inputs=inputs) as tmp:
         write_json(Path(tmp) / "prediction.json", {**p.to_dict(), "clone": str(args.clone)})
         write_npz(Path(tmp) / "prediction.npz", p.arrays())

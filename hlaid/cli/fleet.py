@@ -30,10 +30,11 @@ def register(sub) -> None:
 
 
 def run_fleet_cli(args) -> int:
-    from ..fleet.address import parse_address
+    from ..fleet.address import parse_address, probe
 
     if args.scheduler:
-        parse_address(args.scheduler)  # before the config is read; probed before dask connects
+        parse_address(args.scheduler)  # at once, before the config is read
+        probe(args.scheduler)  # nothing listening, no scheduler, no TLS settings: before anything heavy loads
     from ..fleet.config import load_fleet_config
     from ..fleet.output import check_output
 
@@ -53,4 +54,14 @@ def run_fleet_cli(args) -> int:
                         force=args.force, cache_dir=args.cache)
     if summary.failed and not (summary.computed or summary.skipped):
         raise InputError(f"all {len(summary.failed)} unit(s) failed; the reasons are in {summary.out / 'results.csv'}")
+    from .. import _progress
+
+    ok = [r for r in summary.rows if r.get("status") == "ok"]
+    _progress.info(f"highest risk first ({len(ok)} of {len(summary.rows)} units ok; all in "
+                   f"{summary.out / 'results.csv'}):")
+    for r in ok[:5]:
+        p = r.get("p_collapse")
+        _progress.info(f"  {r.get('rank')}. {r['building']}@{r['event']}: "
+                       + (f"P(collapse) {p:.1%}, " if isinstance(p, (int, float)) else "")
+                       + f"indicator {r.get('indicator', '-')}")
     return 0

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import shlex
 from pathlib import Path
 
 from .. import _progress
 from ..errors import InputError
 from ..limits import check_count
-from .app import subcommand
+from .app import add_building, add_plots, add_seed, subcommand
 
 
 def _numbers(text: str, what: str) -> list[float]:
@@ -42,24 +43,19 @@ def register(sub) -> None:
     p.add_argument("--n-levels", type=int, help="number of automatic levels (default 20)")
     p.add_argument("--drift-limit", type=float, help="collapse drift ratio (default 0.10)")
     p.add_argument("--no-refine", action="store_true", help="skip the hunt-and-fill refinement of collapse")
-    pd = p.add_mutually_exclusive_group()
-    pd.add_argument("--pdelta", dest="pdelta", action="store_true", default=None,
-                    help="include P-Delta (default: when story heights are known)")
-    pd.add_argument("--no-pdelta", dest="pdelta", action="store_false", help="leave P-Delta out")
-    p.add_argument("--heights", metavar="MM", help="story heights [mm], bottom to top, e.g. 3000,3000,3000")
-    p.add_argument("--gravity-kN", metavar="KN", help="floor gravity loads [kN] for P-Delta, bottom to top")
+    add_building(p)
     p.add_argument("--units", help="acceleration units of text records: g, m/s^2, cm/s^2, mm/s^2")
     p.add_argument("--period", type=float, help="period [s] of Sa instead of the clone's T1")
     p.add_argument("--collapse", metavar="MODEL",
                    help="strength loss of the stories beyond a capping drift: none, steel-mrf, rc-frame, "
                         "rc-frame-nonductile (docs/collapse.md); default: the clone's collapse block, else the law of "
                         "its structural system, else none (collapse only at the drift limit)")
-    p.add_argument("--start", choices=["undamaged", "carried", "auto"],
+    p.add_argument("--start", choices=["auto", "carried", "undamaged"], default=None,
                    help="undamaged (default): every run from rest; carried: from the state the clone's last event "
                         "left it in (the fragility after that event); auto: as the clone says")
     p.add_argument("--bootstrap", type=int, help="bootstrap resamples of the fragility interval (default 1000)")
-    p.add_argument("--seed", type=int, help="bootstrap seed (default 0)")
-    p.add_argument("--no-plots", action="store_true", help="write no PNG figures")
+    add_seed(p, "the bootstrap")
+    add_plots(p)
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
     p.set_defaults(func=run_ida)
 
@@ -67,12 +63,7 @@ def register(sub) -> None:
                    example="hlaid export-opensees clone.json -o model.py && python model.py record.AT2")
     e.add_argument("clone", help="clone file (hlaid-clone JSON)")
     e.add_argument("-o", "--out", required=True, help="output script (.py)")
-    ep = e.add_mutually_exclusive_group()
-    ep.add_argument("--pdelta", dest="pdelta", action="store_true", default=None,
-                    help="include P-Delta (default: when story heights are known, as hlaid ida does)")
-    ep.add_argument("--no-pdelta", dest="pdelta", action="store_false", help="leave P-Delta out")
-    e.add_argument("--heights", metavar="MM", help="story heights [mm], bottom to top")
-    e.add_argument("--gravity-kN", metavar="KN", help="floor gravity loads [kN], bottom to top")
+    add_building(e, pdelta_default="when story heights are known, as hlaid ida does")
     e.add_argument("--force", action="store_true", help="overwrite an existing file")
     e.set_defaults(func=run_export)
 
@@ -136,6 +127,6 @@ def run_export(args) -> int:
                             if args.gravity_kN else None)
     path = export_opensees(b, args.out, force=args.force)
     _progress.info(f"wrote {path} ({b.n_stories} stories, P-Delta {'on' if b.pdelta_active else 'off'}); "
-                   f"run it with: python {path} RECORD.AT2 [--pga-g 0.5] [--out peaks.json]")
+                   f"run it with: python {shlex.quote(str(path))} RECORD.AT2 [--pga-g 0.5] [--out peaks.json]")
     return 0
 

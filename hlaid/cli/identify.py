@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .. import _progress
-from .app import subcommand
+from .app import add_read, reader_options, subcommand
 
 if TYPE_CHECKING:
     from ..identify import IdentifyConfig
@@ -36,6 +36,7 @@ def register(sub) -> None:
     p.add_argument("--system", metavar="NAME",
                    help="structural system (steel-moment-frame, rc-frame, generic): its prior holds what the data "
                         "say little about, its collapse law is the IDA's (default: the config's, else none)")
+    add_read(p)
     p.add_argument("--tensorboard", metavar="DIR", help="write TensorBoard logs here")
     p.add_argument("--cache", metavar="DIR", help="classifier cache folder (default ~/.cache/hlaid/svm)")
     p.add_argument("--no-cache", action="store_true", help="train every classifier afresh and cache nothing")
@@ -44,7 +45,7 @@ def register(sub) -> None:
 
 
 def run_identify(args) -> int:
-    from .._fileio import check_output_file
+    from .._fileio import check_name, check_output_file
     from .._inputs import check_input
     from ..config import load_config
     from ..errors import InputError
@@ -55,8 +56,10 @@ def run_identify(args) -> int:
     if len(args.measurement) > 1 and args.method != "hlasvm":
         raise InputError(f"--method {args.method} identifies from one measurement; several need --method hlasvm")
     tb = Path(args.tensorboard) if args.tensorboard else None
-    if tb is not None and tb.exists() and not tb.is_dir():
-        raise InputError("exists and is not a folder; --tensorboard writes a folder of logs", source=str(tb))
+    if tb is not None:
+        check_name(tb)
+        if tb.exists() and not tb.is_dir():
+            raise InputError("exists and is not a folder; --tensorboard writes a folder of logs", source=str(tb))
     from ..identify.config import IdentifyConfig  # light: no torch, numba or scipy
 
     cfg = load_config(args.config, IdentifyConfig) if args.config else IdentifyConfig()
@@ -68,20 +71,17 @@ def run_identify(args) -> int:
         cfg = dataclasses.replace(cfg, system=args.system)  # an unknown name is refused, listing the known ones
     for path in args.measurement:
         check_input(path)
+    check_distinct(args.measurement)
     from ..io import read
-    from ..measurement import check_band
-    records = [read(path, "measurement") for path in args.measurement]
+    from ..measurement import check_band, check_series
+    options = reader_options(args)
+    records = [read(path, "measurement", **options) for path in args.measurement]
+    check_output_file(args.out, force=args.force, inputs=[*args.measurement, args.config])  # and the files they named
+    if len(records) > 1:
+        check_series(records)
     if args.method == "hlasvm":
         for m in records:
             check_identify_bands(m, cfg, args.config)
-        if len(records) > 1:
-            from ..events.identify import check_series
-
-            check_series(records)
-    if args.method != "hlasvm" and len(records) > 1:
-        from ..errors import InputError
-        raise InputError(f"--method {args.method} identifies from one measurement; several events need the "
-                         "default method (hlasvm)")
     meas = records[0] if len(records) == 1 else records
     from ..baselines.registry import get_identifier  # the heavy libraries, once the inputs are good
     from ..estimators import HLASVMIdentifier
@@ -102,18 +102,62 @@ def run_identify(args) -> int:
     if args.method == "hlasvm":
         print_summary(est.result_.clone, est.result_.timings.get("total"))
     else:
-        print_parameters(est)
+        print_parameters(est, records[0])
     _progress.info(f"wrote {out}")
     return 0
 
 
 def check_identify_bands(meas, cfg: IdentifyConfig, config: str | None) -> None:
-    """The band-pass corners of an identification config must suit the measurement's sample rate."""
+    """The band-pass corners of an identification config must suit the measurement's sample rate
+    (the default corners are capped at 0.9 x its Nyquist frequency, given ones refused above it)."""
+    from ..identify.config import RefineConfig
     from ..measurement import check_band
 
     where = f" (in {config})" if config else " (default)"
     check_band(meas, cfg.hla.preprocess.band_hz, "hla.preprocess.band_hz" + where)
-    check_band(meas, cfg.refine.band_hz, "refine.band_hz" + where)
+    check_band(meas, cfg.refine.band_hz, "refine.band_hz" + where, default=RefineConfig().band_hz)
+
+
+def check_distinct(paths) -> None:
+    """Refuse one measurement file given twice (the same file, or the same bytes under two names),
+    from their raw bytes, before any is parsed: each event once."""
+    from .._inputs import file_sha256
+    from ..errors import InputError
+
+    if len(paths) < 2:
+        return
+    seen: dict[str, str] = {}
+    for path in paths:
+        key = file_sha256(path) if Path(path).is_file() else None
+        if key is not None and key in seen:
+            raise InputError(f"the same file as {seen[key]}: each event once", source=str(path))
+        if key is not None:
+            seen[key] = str(path)
+
+
+def parameter_lines(b, mass_normalised: bool) -> list[str]:
+    """The story parameters as a table with units (k0 per tonne of relative mass for a
+    mass-normalised clone)."""
+    k0 = "N/mm/t" if mass_normalised else "N/mm"
+    head = f"story {'k0 [' + k0 + ']':>13} {'alpha':>6} {'p':>5} {'dy [mm]':>8} {'delta_eta [s2/m2]':>18}"
+    return [head] + [f"{i + 1:5d} {b.k0[i]:13.5g} {b.alpha[i]:6.3f} {b.p[i]:5.2f} {b.dy[i]:8.3f} "
+                     f"{b.delta_eta[i]:18.3f}" for i in range(b.n_stories)]
+
+
+def modal_line(b, k0_hla=None) -> str:
+    """The clone's elastic modes (periods and Rayleigh damping ratio of each) and, with ``k0_hla``,
+    the first-mode period HLA's stiffnesses alone give (the same masses)."""
+    import numpy as np
+
+    T = np.asarray(b.periods())
+    w = 2 * np.pi / T
+    a0, a1 = b.rayleigh()
+    xi = a0 / (2 * w) + a1 * w / 2
+    line = ("elastic modes: T " + " / ".join(f"{v:.3f}" for v in T) + " s, damping "
+            + " / ".join(f"{100 * v:.1f}" for v in xi) + " %")
+    if k0_hla is not None and len(k0_hla) == b.n_stories and all(v and v > 0 for v in k0_hla):
+        line += f"; HLA's k0 alone: T1 {float(b.replace(k0=np.asarray(k0_hla, float)).periods()[0]):.3f} s"
+    return line
 
 
 def print_summary(clone, seconds: float | None = None) -> None:
@@ -124,7 +168,8 @@ def print_summary(clone, seconds: float | None = None) -> None:
     b = clone.building
     d = clone.diagnostics or {}
     flags = {(f["name"], f["story"]): f for f in d.get("parameters", [])}
-    lines = ["story      k0    alpha      p      dy  delta_eta"]
+    table = parameter_lines(b, bool(clone.mass_normalised))
+    lines = table[:1]
     for i in range(b.n_stories):
         mark = ""
         for source in ("prior", "earlier events"):
@@ -137,8 +182,9 @@ def print_summary(clone, seconds: float | None = None) -> None:
             mark += f"  (at a limit: {', '.join(limit)})"
         if "stories" in d and not d["stories"][i]["identifiable"]:
             mark += "  (not identifiable: see diagnostics)"
-        lines.append(f"{i + 1:5d} {b.k0[i]:8.5g} {b.alpha[i]:8.3f} {b.p[i]:6.2f} {b.dy[i]:7.3f} {b.delta_eta[i]:10.3f}"
-                     f"{mark}")
+        lines.append(table[i + 1] + mark)
+    stories = d.get("stories") or []
+    lines.append(modal_line(b, [s.get("k0_hla") for s in stories] if len(stories) == b.n_stories else None))
     events = (d.get("joint") or {}).get("events") or []
     for e in events:
         lines.append(f"replay of {e.get('name') or 'event'}: R {np.round(e['r_measured'], 3).tolist()}")
@@ -154,14 +200,24 @@ def print_summary(clone, seconds: float | None = None) -> None:
     lines += [f"flag: {f}" for f in identification_flags(clone)]
     if seconds is not None:
         lines.append(f"wall time {seconds:.1f} s")
-    _progress.info("\n".join(lines))
+    for line in lines:
+        _progress.info(line)
 
 
-def print_parameters(est) -> None:
-    """The clone's story parameters and the fit time of an identifier other than HLA+SVM."""
+def print_parameters(est, meas) -> None:
+    """The clone's story parameters, its modes, its replay of the record (R of the floor
+    displacements, as for HLA+SVM) and the fit time of an identifier other than HLA+SVM."""
+    import numpy as np
+
+    from ..hla import run_hla
+    from ..identify.replaycheck import replay_check
+
     b = est.clone_.building
-    lines = ["story      k0    alpha      p      dy  delta_eta"]
-    lines += [f"{i + 1:5d} {b.k0[i]:8.5g} {b.alpha[i]:8.3f} {b.p[i]:6.2f} {b.dy[i]:7.3f} {b.delta_eta[i]:10.3f}"
-              for i in range(b.n_stories)]
+    lines = parameter_lines(b, bool(est.clone_.mass_normalised))
+    hla = run_hla(meas)
+    lines.append(modal_line(b, list(hla.k0)))
+    r = np.round(replay_check(b, meas, hla).r_measured, 3).tolist()
+    lines.append(f"replay of {meas.name or 'the record'}: R {r}")
     lines.append(f"{type(est).__name__}, wall time {est.fit_seconds_:.1f} s")
-    _progress.info("\n".join(lines))
+    for line in lines:
+        _progress.info(line)

@@ -7,14 +7,14 @@ from pathlib import Path
 from .. import _progress
 from ..errors import InputError
 from ..uncertainty.config import N_ENSEMBLE
-from .app import subcommand
+from .app import add_building, add_ensemble, add_read, add_seed, deprecated, reader_options, subcommand
 from .ida import _numbers
 
 
 def register(sub) -> None:
     d = subcommand(sub, "demands", help="peak drifts, floor accelerations and residual drifts of a clone in pelicun's "
                                         "demand format",
-                   example="hlaid demands clone.json --motion measurement.npz --n-ensemble 20 -o demands.csv")
+                   example="hlaid demands clone.json --motion measurement.npz --ensemble 20 -o demands.csv")
     d.add_argument("clone", help="clone file (hlaid-clone JSON)")
     src = d.add_mutually_exclusive_group(required=True)
     src.add_argument("--motion", metavar="FILE",
@@ -22,10 +22,11 @@ def register(sub) -> None:
     src.add_argument("--records", nargs="+", metavar="DIR|builtin-suite|FILE",
                      help="records scaled to --level (an IDA stripe)")
     d.add_argument("--level", type=float, metavar="G", help="intensity of the stripe [g] (with --records)")
-    d.add_argument("--n-ensemble", type=int, default=None,
-                   help=f"clones drawn from the identification uncertainty (default {N_ENSEMBLE} when the clone "
-                        "has it, else 0: the identified clone)")
-    d.add_argument("--seed", type=int, default=0, help="seed of the ensemble (default 0)")
+    add_read(d)
+    add_ensemble(d, "")
+    deprecated(d, "--n-ensemble", "ensemble", "use --ensemble", type=int)
+    add_seed(d, "the ensemble's draws")
+    add_building(d)
     d.add_argument("--config", help="IDA settings (YAML, configs/ida.yaml): intensity measure, drift limit, step, "
                                     "P-Delta, collapse model")
     d.add_argument("-o", "--out", required=True, help="demand CSV to write (pelicun's format)")
@@ -45,7 +46,7 @@ def register(sub) -> None:
                                                       "CSV) instead of the system's")
     p.add_argument("--floor-area", metavar="M2", help="floor area per story [m2]: one value or one per story")
     p.add_argument("--realizations", type=int, help="pelicun's sample size (default 1000)")
-    p.add_argument("--seed", type=int, help="pelicun's seed (default 0)")
+    add_seed(p, "pelicun's sampling")
     p.add_argument("--levels", nargs="+", metavar="G", help="IM levels [g] of the loss curve (default: the IDA's)")
     p.add_argument("--no-curve", action="store_true", help="only the recorded event, no loss curve")
     p.add_argument("--records", nargs="+", metavar="DIR|builtin-suite|FILE",
@@ -55,13 +56,13 @@ def register(sub) -> None:
     p.add_argument("--irreparable-beta", type=float, help="its dispersion (default 0.3)")
     p.add_argument("--collapse-median", type=float, metavar="G", help="collapse fragility median [g] (demand CSV)")
     p.add_argument("--collapse-beta", type=float, help="collapse fragility dispersion (demand CSV)")
-    p.add_argument("--drift-limit", type=float, default=0.10,
-                   help="PID above which a realisation of a demand CSV is a collapse (default 0.10)")
+    p.add_argument("--drift-limit", type=float,
+                   help="peak drift ratio above which a realization of a demand CSV is a collapse (default 0.10)")
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
     p.set_defaults(func=run_loss)
 
 
-def _own_motion(path: str):
+def _own_motion(path: str, options: dict):
     """The ground motion of a record file, or the ground channel of a measurement file."""
     import numpy as np
 
@@ -69,7 +70,7 @@ def _own_motion(path: str):
     from ..measurement import Measurement
     from ..motions import GroundMotion
 
-    obj = read(path)
+    obj = read(path, **options)
     if isinstance(obj, Measurement):
         return GroundMotion(dt=obj.dt, acc=np.asarray(obj.ground_acc), name=Path(path).stem, source=path)
     if isinstance(obj, GroundMotion):
@@ -83,19 +84,26 @@ def run_demands(args) -> int:
     from ..ida import IDAConfig, load_ida_config
     from ..loss import clone_demands
 
-    check_output_file(args.out, force=args.force, inputs=[args.clone, args.motion, args.config, *(args.records or [])])
+    inputs = [args.clone, args.motion, args.config, *(args.records or [])]
+    check_output_file(args.out, force=args.force, inputs=inputs)
     if args.records and args.level is None:
         raise InputError("--records needs --level G (the stripe's intensity); for the recorded event use --motion")
     if args.motion and args.level is not None:
         raise InputError("--level scales --records; the recorded event (--motion) is taken as recorded")
     clone = Clone.load(args.clone)
-    n_ens = args.n_ensemble if args.n_ensemble is not None else (N_ENSEMBLE if clone.uncertainty is not None else 0)
+    n_ens = args.ensemble if args.ensemble is not None else (N_ENSEMBLE if clone.uncertainty is not None else 0)
     cfg = load_ida_config(args.config) if args.config else IDAConfig()
-    records = _own_motion(args.motion) if args.motion else args.records
-    d = clone_demands(clone, records, level=args.level, n_ensemble=n_ens, seed=args.seed, ida_config=cfg)
+    cfg = cfg.replace(pdelta=args.pdelta, heights_mm=_numbers(args.heights, "--heights") if args.heights else None,
+                      gravity_kN=_numbers(args.gravity_kN, "--gravity-kN") if args.gravity_kN else None)
+    options = reader_options(args)
+    if options and not args.motion:
+        raise InputError("--read is for the measurement (--motion); records are read as they are")
+    records = _own_motion(args.motion, options) if args.motion else args.records
+    check_output_file(args.out, force=args.force, inputs=inputs)  # and the files they named (a columns YAML's table)
+    d = clone_demands(clone, records, level=args.level, n_ensemble=n_ens, seed=args.seed or 0, ida_config=cfg)
     d.write_csv(args.out, force=args.force)
     s = d.summary()
-    _progress.info(f"wrote {args.out}: {d.n_realisations} realisations ({s['n_collapsed']} collapsed), "
+    _progress.info(f"wrote {args.out}: {d.n_realizations} realizations ({s['n_collapsed']} collapsed), "
                    f"median peak drift ratio {max(s['pid_median'] or [0]):.2%}, median residual "
                    f"{max(s['rid_median'] or [0]):.2%}, {d.im_label} {float(d.im.max()):.3g} g")
     for flag in d.flags:
@@ -121,14 +129,17 @@ def run_loss(args) -> int:
         if not args.out:
             raise InputError("a demand CSV needs an output folder: -o DIR")
         cfg = LossConfig().replace(**over)
-        s = loss_of_demand_file(src, cfg, args.out, collapse=collapse, drift_limit=args.drift_limit, force=args.force)
+        s = loss_of_demand_file(src, cfg, args.out, collapse=collapse,
+                                drift_limit=0.10 if args.drift_limit is None else args.drift_limit, force=args.force)
         _report(s, args.out)
         return 0
     if collapse is not None:
         raise InputError("--collapse-median/--collapse-beta are for a demand CSV; a run folder has its own fragility")
+    from .._inputs import rewrites
     from ..run.loss import loss_of_run
 
-    block = loss_of_run(src, changes=over, records=args.records, out=args.out, force=args.force)
+    with rewrites(src / "summary.json", src / "report.html"):  # without -o the run folder gets the losses
+        block = loss_of_run(src, changes=over, records=args.records, out=args.out, force=args.force)
     folder = Path(args.out) if args.out else src / "loss"
     if block["recorded"]:
         _report(block["recorded"], folder)

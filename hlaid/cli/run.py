@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .app import subcommand
+from .app import add_plots, subcommand
 
 
 def register(sub) -> None:
@@ -11,6 +11,7 @@ def register(sub) -> None:
     p.add_argument("config", help="run config YAML (measurement, identify, ida)")
     p.add_argument("-o", "--out", required=True, help="output folder")
     p.add_argument("--cache", metavar="DIR", help="classifier cache folder (default ~/.cache/hlaid/svm)")
+    add_plots(p)
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
     p.set_defaults(func=run_run)
 
@@ -33,8 +34,43 @@ def run_run(args) -> int:
     inputs += input_paths(cfg, base)
     check_output_folder(args.out, force=args.force, inputs=inputs)
     from ..run.runner import run_pipeline  # the heavy libraries, once the inputs are known to be good
-    run_pipeline(cfg, args.out, base_dir=base, force=args.force, cache_dir=args.cache, inputs=inputs)
+    summary = run_pipeline(cfg, args.out, base_dir=base, force=args.force, cache_dir=args.cache, inputs=inputs,
+                           plots=not args.no_plots)
+    print_run_summary(summary, args.out)
     return 0
+
+
+def print_run_summary(s, out) -> None:
+    """The run's key figures on one screen: the clone's replay, its parameters against the truth
+    when known, the collapse fragility before and after the event, the ensemble's indicator and
+    the losses at the recorded event."""
+    from .. import _progress
+
+    r = s.replay
+    lines = [f"summary of {s.name}:",
+             f"  replay of the record: R {', '.join(f'{v:.3f}' for v in r.r_measured)} (floors bottom to top)"]
+    errs = [row.error for row in s.parameters if row.error is not None and row.parameter != "k0"]
+    if errs:
+        lines.append(f"  parameters against the truth: {100 * sum(errs) / len(errs):.1f} % mean, "
+                     f"{100 * max(errs):.1f} % worst (alpha, p, dy, delta_eta)")
+    for label, ida in (("undamaged", s.ida), ("after the event", s.ida_after)):
+        cf = ida.collapse_fit if ida is not None else None
+        if ida is not None and cf is not None and cf.median_g is not None:
+            im = ida.intensity_measure.label or "IM"
+            lines.append(f"  collapse fragility, {label}: median {im} {cf.median_g:.3g} g, beta {cf.beta:.2f}")
+    a = s.assessment
+    if a is not None and a.own_im is not None and a.p_collapse is not None:
+        band = (f" ({a.ci:.0%} band {a.p_collapse_band[0]:.1%}-{a.p_collapse_band[1]:.1%})"
+                if a.p_collapse_band is not None else "")
+        lines.append(f"  at the record's own intensity ({a.own_im:.3g} g): P(collapse) {a.p_collapse:.1%}{band}, "
+                     f"indicator {a.indicator or '-'}")
+    loss = s.loss.recorded if s.loss is not None else None
+    if loss is not None:
+        lines.append(f"  losses at the record: repair cost {loss.repair_cost_ratio_median:.1%} of replacement "
+                     f"(median), repair time {loss.repair_time_parallel_median:.1f} worker-days")
+    lines.append(f"  report: {out}/report.html")
+    for line in lines:
+        _progress.info(line)
 
 
 def run_report(args) -> int:

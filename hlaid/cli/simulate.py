@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import _progress
-from .app import subcommand
+from .app import add_seed, subcommand
 
 
 def register(sub) -> None:
@@ -13,7 +13,7 @@ def register(sub) -> None:
                    example="hlaid simulate configs/poc_3story.yaml -o meas.npz --seed 1")
     p.add_argument("config", help="YAML config: building, motion, measurement, seed")
     p.add_argument("-o", "--out", required=True, help="output measurement file (.npz or .csv)")
-    p.add_argument("--seed", type=int, default=None, help="noise seed (overrides the config's)")
+    add_seed(p, "the noise", default="the config's")
     p.add_argument("--force", action="store_true", help="overwrite an existing output file")
     p.set_defaults(func=run_simulate)
 

@@ -13,6 +13,7 @@ among searches from several starts and :func:`flags` says where each parameter c
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -21,8 +22,10 @@ import numpy as np
 
 from .. import _progress
 from ..errors import InputError
+from ..hla.config import fixed
 from ..identify.config import IdentifyConfig
 from ..identify.refine import RefineResult, fit_residuals
+from ..identify.refiners import fit_or_fall_back
 from ..measurement import Measurement
 from ..model import Building
 from ..model.uncertainty import ParameterUncertainty
@@ -182,12 +185,13 @@ def joint_fit(start: Building, measurements: Sequence[Measurement], prior, cfg: 
     """:func:`map_refine` with the settings of ``cfg.refine`` (errors in
     variables per event for ``method: eiv``, least squares otherwise)."""
     rc = cfg.refine
+    damping = fixed(rc.damping, "refine.damping")
     if isinstance(prior, StructuralPrior):
-        prior = SystemPrior(prior, PriorVector(start, damping=rc.damping), start.k0 if k0_ref is None else k0_ref)
-    return map_refine(start, measurements, prior,
-                      band_hz=rc.band_hz, ground_noise="tangent" if rc.method == "eiv" else "ignore",
-                      damping=rc.damping, y0=y0, names=names, max_iterations=rc.max_iterations,
-                      tangent_max_mb=rc.tangent_max_mb)
+        prior = SystemPrior(prior, PriorVector(start, damping=damping), start.k0 if k0_ref is None else k0_ref)
+    fit = functools.partial(map_refine, start, measurements, prior, band_hz=fixed(rc.band_hz, "refine.band_hz"),
+                            damping=damping, y0=y0, names=names, max_iterations=rc.max_iterations,
+                            tangent_max_mb=rc.tangent_max_mb)
+    return fit_or_fall_back(fit, "tangent" if fixed(rc.method, "refine.method") == "eiv" else "ignore")
 
 
 def best_fit(fits: Sequence[JointFit]) -> JointFit:

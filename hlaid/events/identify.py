@@ -19,22 +19,24 @@ prior, its state the start, the new event the data (sequential updating).
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import time
 from collections.abc import Sequence
 
 import numpy as np
 
+from .. import _progress
 from ..clone import Clone
 from ..errors import InputError
 from ..hla import HLAResult
+from ..hla.config import fixed
+from ..identify.auto import Resolution, damping_ran_away, held_damping, resolve_settings
 from ..identify.config import IdentifyConfig
 from ..identify.pipeline import identify_event, open_cache
 from ..identify.replaycheck import replay_check
 from ..identify.result import IdentificationResult, file_digest, provenance
 from ..identify.stages import Event, analyse
 from ..identify.tb import TBLogger
-from ..measurement import Measurement
+from ..measurement import Measurement, building_name, check_series, ground_digest
 from ..model import Building, Damping
 from ..units import G_MM_S2
 from .evidence import measured_peak_drift
@@ -76,7 +78,9 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     if not meas:
         raise InputError("identify_clone: no measurement given")
     check_series(meas)
-    cfg = config or IdentifyConfig()
+    settings = resolve_settings(meas, config or IdentifyConfig())
+    announce(settings)
+    cfg = settings.config
     cache = open_cache(cfg, cache_dir)
     tb = TBLogger(tensorboard)
     timings: dict[str, float] = {}
@@ -94,19 +98,40 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     if len(meas) == 1 and single is not None and cfg.system is None:  # no system named: the paper's method
         timings["total"] = time.perf_counter() - t_all
         tb.close()
-        return dataclasses.replace(single, clone=dataclasses.replace(single.clone, system=cfg.system))
+        return with_choices(dataclasses.replace(single, clone=dataclasses.replace(single.clone, system=cfg.system)),
+                            settings)
     system = get_prior(cfg.system or "generic")
     starts = plausible_starts(single, events[0], meas[0], system, cfg)
     names = [m.name or f"event {k + 1}" for k, m in enumerate(meas)]
     t = time.perf_counter()
     fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=events[0].hla.k0) for b in starts]
     fit = best_fit(fits)
+    if damping_ran_away(cfg, fit.building):  # the damping took up model error: held, the fit again
+        settings = held_damping(settings, fit.building.damping.ratio, starts[fits.index(fit)].damping.ratio)
+        _progress.warn(settings.choices[-1].line())
+        cfg = settings.config
+        fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=events[0].hla.k0) for b in starts]
+        fit = best_fit(fits)
     start = starts[fits.index(fit)]
     timings["joint"] = time.perf_counter() - t
     result = result_of_joint(events, meas, fit, cfg, system=system, start=start, single=single, timings=timings)
     timings["total"] = time.perf_counter() - t_all
     tb.close()
-    return result
+    return with_choices(result, settings)
+
+
+def announce(settings: Resolution) -> None:
+    """Say which settings were chosen from the data, one line each."""
+    if settings.choices:
+        _progress.info("[identify] settings chosen from the data (a config value overrides any):\n"
+                       + "\n".join(f"  {line}" for line in settings.lines()))
+
+
+def with_choices(result: IdentificationResult, settings: Resolution) -> IdentificationResult:
+    """``result`` whose clone keeps the settings chosen from the data (``provenance["choices"]``)."""
+    clone = result.clone
+    prov = {**(clone.provenance or {}), "choices": settings.to_list()}
+    return dataclasses.replace(result, clone=dataclasses.replace(clone, provenance=prov))
 
 
 def event_record(meas: Measurement, start: str | None = None, hla: HLAResult | None = None) -> dict:
@@ -115,41 +140,11 @@ def event_record(meas: Measurement, start: str | None = None, hla: HLAResult | N
     drifts measured, with ``hla`` HLA's, :func:`~hlaid.events.evidence.measured_peak_drift`)."""
     peak = measured_peak_drift(meas, hla)
     return {"name": meas.name, "source": meas.source or None,
-            "sha256": file_digest(meas.source) if meas.source else None,
+            "sha256": file_digest(meas.source) if meas.source else None, "ground_sha256": ground_digest(meas),
             "pga_g": float(np.max(np.abs(meas.ground_acc)) / G_MM_S2), "duration_s": float(meas.n_samples * meas.dt),
             "dt": float(meas.dt), "n_floors": int(meas.n_floors),
             **({"recorded": meas.recorded} if meas.recorded else {}), **({"start": start} if start else {}),
             **({"peak_drift": peak} if peak is not None else {})}
-
-
-def check_series(measurements: Sequence[Measurement]) -> None:
-    """One line (InputError naming the file) where the measurements cannot be events of one
-    building in time order: another number of floors, other masses or story heights, one record
-    given twice, or start times (where the files give them) out of order."""
-    first = measurements[0]
-    for m in measurements[1:]:
-        where = m.source or m.name or None
-        if m.n_floors != first.n_floors:
-            raise InputError(f"{m.n_floors} floor channels, but {first.source or first.name or 'the first event'} "
-                             f"has {first.n_floors}: the events must be records of one building", source=where)
-        for field in ("mass", "height"):
-            a, b = getattr(first, field), getattr(m, field)
-            if (a is None) != (b is None) or (a is not None and not np.allclose(a, b, rtol=1e-6)):
-                raise InputError(f"its floor {field}es differ from the first event's: the events must be records "
-                                 "of one building", source=where)
-    times = [m.recorded for m in measurements]
-    if all(t is not None for t in times):
-        for a, b in zip(measurements[:-1], measurements[1:]):
-            if str(b.recorded) <= str(a.recorded):
-                raise InputError(f"recorded {b.recorded}, not after the previous event ({a.recorded}): give the events "
-                                 "in time order", source=b.source or b.name or None)
-    seen: dict[str, Measurement] = {}
-    for m in measurements:
-        key = hashlib.sha256(np.ascontiguousarray(m.ground_acc, dtype=float).tobytes()).hexdigest()
-        if key in seen:
-            raise InputError(f"the same ground motion as {seen[key].source or seen[key].name or 'an earlier event'}: "
-                             "each event once", source=m.source or m.name or None)
-        seen[key] = m
 
 
 def most_informative(events) -> int | None:
@@ -165,7 +160,7 @@ def prior_start(hla: HLAResult, meas: Measurement, prior: StructuralPrior, dampi
     b = Building(mass=hla.mass, k0=hla.k0, alpha=np.full(n, prior.alpha.median), p=np.full(n, prior.p.median),
                  dy=np.ones(n), delta_eta=np.full(n, prior.delta_eta.median), height=meas.height,
                  damping=Damping(ratio=prior.damping.median if damping_ratio is None else damping_ratio),
-                 pdelta=meas.pdelta_active if meas.height is not None else None, name=meas.name)
+                 pdelta=meas.pdelta_active if meas.height is not None else None, name=building_name(meas))
     dy = prior.cy.median * elf_profile(b) * weight_above(b) / np.asarray(hla.k0)
     return b.replace(dy=dy)
 
@@ -185,7 +180,7 @@ def plausible_starts(single: IdentificationResult | None, event: Event, meas: Me
     if single is None:
         return [median]
     b = single.clone.building
-    prior = SystemPrior(system, PriorVector(b, damping=cfg.refine.damping), event.hla.k0)
+    prior = SystemPrior(system, PriorVector(b, damping=fixed(cfg.refine.damping, "refine.damping")), event.hla.k0)
     if np.max(np.abs(prior.residuals(prior.vector.x0))) <= PLAUSIBLE_SD:
         return [b]
     return [median, b]

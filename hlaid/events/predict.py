@@ -177,8 +177,9 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
     ----------
     clone : the clone (its stories must match the measurement's floors)
     meas : the event
-    band_hz : band of the comparison [Hz] (None: HLA's band of ``meas`` under ``hla_config``,
-        the default HLA settings when None)
+    band_hz : band of the comparison [Hz] (None: HLA's band of ``meas`` under ``hla_config``:
+        the band the clone was identified in where it was one band, a first-mode band say, else
+        the record's own from its spectrum)
     start : ``"carried"``, ``"undamaged"`` or ``"auto"`` (:func:`~hlaid.events.start.resolve_start`)
     n_ensemble : clones drawn from ``clone.uncertainty`` for the predictive band (0: none), those
         that collapse under the clone's own events rejected (:func:`hlaid.events.evidence.survivors`). The
@@ -186,13 +187,15 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
         side by the same quantile of a Gaussian error of ``misfit`` times each floor's predicted RMS:
         the parameters' uncertainty and the model's own misfit (as the clone replayed its events)
     seed : of the draws
-    hla_config : HLA settings of the measured displacements (its preprocessing; default HLA's)
+    hla_config : HLA settings of the measured displacements (its preprocessing; default: those the
+        clone was identified with, :func:`clone_hla_config`, else HLA's defaults). Its ``"auto"``
+        settings are the clone's, or chosen from ``meas`` (:func:`hlaid.hla.resolve_hla`)
     misfit : the model's error as a fraction of a floor's RMS, one number or ``(floor,)`` (None:
         :func:`identification_misfit`, what the clone missed its own events by)
     input_lowpass_hz : low-pass of the ground motion (None: the band's upper corner)
     check_hla : also compare the clone's elastic stiffness with HLA of the event (:class:`HLACheck`)
     """
-    from ..hla import HLAConfig
+    from ..hla import HLAConfig, resolve_hla
     from ..hla.analysis import resolved_band
     from ..simulate import simulate_response
 
@@ -201,7 +204,9 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
     if meas.n_floors != b.n_stories:
         raise InputError(f"{meas.n_floors} floor channels, but the clone has {b.n_stories} stories: the measurement "
                          "is not of this building", source=src)
-    cfg = hla_config or HLAConfig()
+    cfg = hla_config or clone_hla_config(clone) or HLAConfig()
+    if cfg.unresolved():  # "auto" settings: as the clone was identified, else from this record
+        cfg = clone_hla_config(clone) or resolve_hla(meas, cfg).config
     if band_hz is None:
         band_hz = resolved_band(meas, cfg)
     lo, hi = float(band_hz[0]), sg.cap_corner(float(band_hz[1]), meas.dt)
@@ -242,6 +247,23 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
                       peak_drift_predicted=pk, peak_drift_error=pk / pm - 1.0, r_true=r_true,
                       status=int(sim.status[0]), time=meas.time, disp_measured=measured, disp_predicted=predicted[0],
                       band=pband, hla_check=check)
+
+
+def clone_hla_config(clone: Clone) -> HLAConfig | None:
+    """The HLA settings ``clone`` was identified with (its ``provenance["config"]["hla"]``, as
+    chosen from its records), None where it does not keep them or they are not a valid config."""
+    from ..config import config_from_dict
+    from ..errors import ConfigError
+    from ..hla import HLAConfig
+
+    d = ((clone.provenance or {}).get("config") or {}).get("hla")
+    if not isinstance(d, dict):
+        return None
+    try:
+        cfg = config_from_dict(HLAConfig, d, source="the clone's HLA settings")
+    except (ConfigError, InputError):
+        return None
+    return None if cfg.unresolved() else cfg
 
 
 def _with_band(cfg: HLAConfig, band) -> HLAConfig:

@@ -14,12 +14,14 @@ import dataclasses
 from .. import _progress
 from ..clone import Clone
 from ..errors import InputError
+from ..hla.config import fixed
+from ..identify.auto import resolve_like
 from ..identify.config import IdentifyConfig
 from ..identify.result import IdentificationResult
 from ..identify.stages import analyse
-from ..measurement import Measurement
+from ..measurement import Measurement, check_not_learnt
 from .fit import best_fit, joint_fit
-from .identify import result_of_joint
+from .identify import announce, result_of_joint, with_choices
 from .priors import get_prior
 from .vector import PriorVector, prior_of_clone
 
@@ -46,12 +48,15 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
     -------
     IdentificationResult whose ``clone`` has learnt from the clone's events and this one
     """
-    cfg = config or IdentifyConfig()
+    settings = resolve_like(clone.provenance, measurement, config or IdentifyConfig())
+    announce(settings)
+    cfg = settings.config
     b = clone.building
     src = measurement.source or None
     if measurement.n_floors != b.n_stories:
         raise InputError(f"{measurement.n_floors} floor channels, but the clone has {b.n_stories} stories: the "
                          "measurement is not of this building", source=src)
+    check_not_learnt(clone.events, measurement)
     last = clone.events[-1].get("recorded") if clone.events else None
     if last is not None and measurement.recorded is not None and str(measurement.recorded) <= str(last):
         raise InputError(f"recorded {measurement.recorded}, not after the clone's last event ({last})", source=src)
@@ -59,7 +64,7 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
         raise InputError(f"widen = {widen}; expected a factor in (0, 100), 1 for none")
     b = b.replace(collapse=None)
     system = get_prior(cfg.system or clone.system or "generic")
-    vector = PriorVector(b, damping=cfg.refine.damping)
+    vector = PriorVector(b, damping=fixed(cfg.refine.damping, "refine.damping"))
     prior = prior_of_clone(clone.uncertainty, b, vector, system, widen)
     y0 = None if clone.state is None else clone.state.vector()
     earlier = [e.get("name") or f"event {k + 1}" for k, e in enumerate(clone.events)]
@@ -77,5 +82,6 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
                        "this clone start undamaged (start 'auto')")
     fit = dataclasses.replace(fit, states=[dataclasses.replace(s, events=tuple(earlier) + (name,))
                                            for s in fit.states])
-    return result_of_joint([event], [measurement], fit, cfg, system=system, start=b, history=clone.events,
-                           y0=y0 if carried else None, last_start="carried" if carried else "undamaged")
+    return with_choices(result_of_joint([event], [measurement], fit, cfg, system=system, start=b,
+                                        history=clone.events, y0=y0 if carried else None,
+                                        last_start="carried" if carried else "undamaged"), settings)

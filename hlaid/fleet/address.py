@@ -66,21 +66,19 @@ def parse_address(address: str) -> tuple[str, str, int]:
 def probe(address: str, timeout: float | None = None) -> None:
     """Connect to the scheduler at ``address`` and read its first 8 bytes, within ``timeout``; an
     :class:`InputError` (one line) when nothing listens there, nothing answers, or what answers is
-    not a dask scheduler. Other transports (``tls://``, whose TLS handshake comes first; the
+    not a dask scheduler. A ``tls://`` scheduler (whose TLS handshake comes first) is only
+    connected to, and needs dask's TLS settings (:func:`check_tls`). Other transports (the
     ``inproc://`` address of a cluster in this process) are left to dask."""
     scheme = address.strip().partition("://")[0] if "://" in address else "tcp"
-    if scheme != "tcp":
+    if scheme not in SCHEMES:
         return
     _, host, port = parse_address(address)
     timeout = CONNECT_TIMEOUT_S if timeout is None else timeout
-    try:
-        sock = socket.create_connection((host, port), timeout=timeout)
-    except socket.gaierror:
-        raise InputError(f"--scheduler {address}: host {host!r} is not known") from None
-    except TimeoutError:
-        raise InputError(f"--scheduler {address}: no answer within {timeout:g} s") from None
-    except OSError as err:
-        raise InputError(f"--scheduler {address}: cannot connect ({err.strerror or type(err).__name__})") from None
+    sock = _connect(address, host, port, timeout)
+    if scheme == "tls":
+        sock.close()
+        check_tls(address)
+        return
     with sock:
         head = b""
         try:
@@ -103,4 +101,33 @@ def probe(address: str, timeout: float | None = None) -> None:
                          "no dask greeting); is this the scheduler's address and port?")
 
 
-__all__ = ["parse_address", "probe", "SCHEMES", "CONNECT_TIMEOUT_S"]
+TLS_SETTINGS = ("distributed.comm.tls.ca-file", "distributed.comm.tls.client.cert")
+"""dask settings a ``tls://`` connection needs (the certificate authority and the client's
+certificate; ``distributed.comm.tls.client.key`` too where the key is a file of its own)."""
+
+
+def check_tls(address: str) -> None:
+    """Refuse a ``tls://`` scheduler when dask's configuration (its YAML files or
+    ``DASK_DISTRIBUTED__COMM__TLS__*`` variables) gives no TLS certificates to connect with."""
+    import dask.config  # light: dask's configuration only
+
+    missing = [k for k in TLS_SETTINGS if not dask.config.get(k, None)]
+    if missing:
+        raise InputError(f"--scheduler {address}: a tls:// scheduler needs dask's TLS settings, and "
+                         f"{' and '.join(missing)} {'is' if len(missing) == 1 else 'are'} not set (dask's config "
+                         "files or DASK_DISTRIBUTED__COMM__TLS__CA_FILE, ..._CLIENT__CERT, ..._CLIENT__KEY); or use "
+                         "tcp://")
+
+
+def _connect(address: str, host: str, port: int, timeout: float) -> socket.socket:
+    try:
+        return socket.create_connection((host, port), timeout=timeout)
+    except socket.gaierror:
+        raise InputError(f"--scheduler {address}: host {host!r} is not known") from None
+    except TimeoutError:
+        raise InputError(f"--scheduler {address}: no answer within {timeout:g} s") from None
+    except OSError as err:
+        raise InputError(f"--scheduler {address}: cannot connect ({err.strerror or type(err).__name__})") from None
+
+
+__all__ = ["parse_address", "probe", "check_tls", "SCHEMES", "CONNECT_TIMEOUT_S", "TLS_SETTINGS"]

@@ -151,6 +151,12 @@ def point_assess(clone, records, *, n_ensemble: int = 0, ida_config: IDAConfig |
             except ValueError:  # too few exceedances to fit: the fraction of records
                 p = res.exceedance([d], [own])[0, 0]
             p_exc.append(_num(p))
+        # exceeding a larger drift implies exceeding a smaller one; fragilities fitted one limit at a
+        # time can cross in their tails (a coarse grid), so each is at least those of larger drifts
+        for j in range(len(p_exc) - 2, -1, -1):
+            here, above = p_exc[j], p_exc[j + 1]
+            if here is not None and above is not None:
+                p_exc[j] = max(here, above)
     indicator = None if p_col is None else "red" if p_col >= 0.10 else "yellow" if p_col >= 0.02 else "green"
     return PointAssessment(
         n_records=res.n_records, ci=cfg.ci, im=res.im, period=_num(res.period),

@@ -26,9 +26,10 @@ from pathlib import Path
 
 from .. import _progress
 from .._fileio import MARKER as OUTPUT_MARKER
-from .._fileio import marker as output_marker
 from .._fileio import write_json
-from .._inputs import read_json
+from .._inputs import own_files, read_json
+from .._outdir import marker as output_marker
+from .._outdir import written_here
 from .._version import __version__
 from ..errors import InputError
 from ..io import read
@@ -109,14 +110,25 @@ def open_client(cluster: ClusterConfig, scheduler: str | None = None) -> Iterato
 
 
 # ---------------------------------------------------------------------------- output folder
-def prepare_output(out: Path, *, force: bool) -> Path:
-    """Create (or reopen) the output folder (see :func:`check_output`)."""
+def prepare_output(out: Path, *, force: bool, jobs: list[UnitJob] | tuple = ()) -> Path:
+    """Create (or reopen) the output folder (see :func:`check_output`) and mark it as hlaid's."""
     out = check_output(out, force=force)
     out.mkdir(exist_ok=True)
     (out / "buildings").mkdir(exist_ok=True)
-    if not os.path.lexists(out / OUTPUT_MARKER):
-        write_json(out / OUTPUT_MARKER, output_marker("hlaid fleet"))
+    mark_output(out, jobs)
     return out
+
+
+FLEET_FILES = (MARKER, "buildings", "results.csv", "results.parquet", "report.html")
+"""What a fleet writes in its folder, besides ``buildings/UNIT.json`` per unit."""
+
+
+def mark_output(out: Path, jobs: list[UnitJob] | tuple = ()) -> None:
+    """Write the folder's :data:`hlaid._fileio.MARKER` listing what the fleet writes there (also
+    for earlier configs, where the marker is this folder's own), so that another command's
+    ``--force`` may replace the folder when it holds nothing else."""
+    files = set(FLEET_FILES) | {f"buildings/{j.unit}.json" for j in jobs} | (written_here(out) or set())
+    write_json(out / OUTPUT_MARKER, output_marker("hlaid fleet", sorted(files), out))
 
 
 def result_path(out: Path, job: UnitJob) -> Path:
@@ -129,7 +141,8 @@ def stored_result(out: Path, job: UnitJob) -> dict | None:
     if not os.path.lexists(p):
         return None
     try:
-        d = read_json(p)
+        with own_files():  # the fleet's own file, rewritten when the unit is recomputed
+            d = read_json(p)
     except InputError as err:
         _progress.warn(f"unreadable result ({err}); {job.unit} is recomputed")
         return None
@@ -193,17 +206,18 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
         engine = engine_label(assess)
     jobs = make_jobs(cfg, base, records_digest(records), engine, cache_dir=cache_dir)
     todo, kept = plan(out, jobs, force=force)
-    prepare_output(out, force=force)  # only now, when nothing refused the run
-    _progress.info(f"fleet {cfg.name!r}: {len(jobs)} unit(s) (building@event), {len(kept)} done before, "
-                   f"{len(todo)} to run; {len(records)} IDA records, ensemble {cfg.n_ensemble}, assessment: {engine}")
-    write_json(out / MARKER, {"format": "hlaid-fleet", "version": 1, "name": cfg.name, "hlaid_version": __version__,
-                              "state": "running", "units": [j.unit for j in jobs]})
     computed: list[str] = []
     failed: list[str] = []
     results = {d["unit"]: d for d in kept}
-    if todo:
-        ctx = contextlib.nullcontext(client) if client is not None else open_client(cfg.cluster, scheduler)
-        with ctx as cl:
+    ctx = contextlib.nullcontext(client) if client is not None or not todo else open_client(cfg.cluster, scheduler)
+    with ctx as cl:
+        prepare_output(out, force=force, jobs=jobs)  # only now, when nothing refused the run and the cluster is up
+        _progress.info(f"fleet {cfg.name!r}: {len(jobs)} unit(s) (building@event), {len(kept)} done before, "
+                       f"{len(todo)} to run; {len(records)} IDA records, ensemble {cfg.n_ensemble}, assessment: "
+                       f"{engine}")
+        write_json(out / MARKER, {"format": "hlaid-fleet", "version": 1, "name": cfg.name,
+                                  "hlaid_version": __version__, "state": "running", "units": [j.unit for j in jobs]})
+        if todo:
             computed, failed = _run_on(cl, todo, records, assess, out, results)
     ordered = [results[j.unit] for j in jobs if j.unit in results]
     rows = table_rows(ordered)
@@ -217,6 +231,7 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
                               "skipped": [d["unit"] for d in kept], "failed": failed, "engine": engine,
                               "n_records": len(records), "wall_s": wall,
                               "tables": [p.name for p in written]})
+    mark_output(out, jobs)
     _progress.info(f"wrote {out}/ (report.html, {', '.join(p.name for p in written)}, buildings/): "
                    f"{len(rows) - len(failed)} ok, {len(failed)} failed, {wall:.1f} s")
     return FleetSummary(out=out, computed=tuple(computed), skipped=tuple(d["unit"] for d in kept),
@@ -239,21 +254,26 @@ def _run_on(client, todo: list[UnitJob], records, assess, out: Path, results: di
     computed: list[str] = []
     failed: list[str] = []
     try:
-        for i, fut in enumerate(distributed.as_completed(futures), 1):
-            job = futures[fut]
-            try:
-                res = fut.result()
-            except Exception as err:  # noqa: BLE001 - a lost worker, an unpicklable result ...
-                res = {"format": RESULT_FORMAT, "version": 1, "unit": job.unit, "building": job.building,
-                       "event": job.event, "digest": job.digest, "status": "failed", "stage": "worker",
-                       "reason": f"worker: {type(err).__name__}: {' '.join(str(err).split())[:300]}", "timings": {}}
-            write_json(result_path(out, job), res)
-            results[job.unit] = res
-            (computed if res["status"] == "ok" else failed).append(job.unit)
-            t = res.get("timings", {}).get("total_s")
-            what = (_risk_text(res["row"]) if res["status"] == "ok" else res["reason"])
-            _progress.info(f"[{i}/{len(todo)}] {job.unit}: {res['status']}"
-                           + (f" in {t:.1f} s" if t is not None else "") + f" ({what})")
+        with _progress.stage("fleet", len(todo), unit="units") as bar:
+            for i, fut in enumerate(distributed.as_completed(futures), 1):
+                job = futures[fut]
+                try:
+                    res = fut.result()
+                except Exception as err:  # noqa: BLE001 - a lost worker, an unpicklable result ...
+                    res = {"format": RESULT_FORMAT, "version": 1, "unit": job.unit, "building": job.building,
+                           "event": job.event, "digest": job.digest, "status": "failed", "stage": "worker",
+                           "reason": f"worker: {type(err).__name__}: {' '.join(str(err).split())[:300]}",
+                           "timings": {}}
+                write_json(result_path(out, job), res)
+                results[job.unit] = res
+                (computed if res["status"] == "ok" else failed).append(job.unit)
+                t = res.get("timings", {}).get("total_s")
+                what = (_risk_text(res["row"]) if res["status"] == "ok" else res["reason"])
+                line = f"{job.unit}: {res['status']}" + (f" in {t:.1f} s" if t is not None else "") + f" ({what})"
+                quiet = res["status"] == "ok" and _progress.drawing()  # on a terminal the bar shows it
+                (_progress.debug if quiet else _progress.info)(f"[{i}/{len(todo)}] {line}")
+                bar.update(1, note=f"last {line}"[:80])
+            bar.done(f"{len(computed)} ok, {len(failed)} failed")
     except BaseException:  # Ctrl-C: stop the remaining tasks before the cluster closes
         _quiet()
         client.cancel(list(futures), force=True)
@@ -281,4 +301,4 @@ def run_fleet_from_file(path: str | Path, out: str | Path, **kw) -> FleetSummary
 
 
 __all__ = ["run_fleet", "run_fleet_from_file", "open_client", "FleetSummary", "plan", "check_output",
-           "prepare_output", "MARKER"]
+           "prepare_output", "mark_output", "MARKER"]

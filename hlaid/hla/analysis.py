@@ -24,7 +24,7 @@ from ..model import structure
 from ..signal import bandpass, integrate_twice
 from ..units import G_MM_S2
 from . import preprocess as pp
-from .config import HLAConfig
+from .config import AUTO, HLAConfig
 from .halfcycles import half_cycle_bounds
 from .result import HalfCycleTable, HLAResult, StoryHLA
 from .stiffness import degradation_trend, elastic_window, isotonic_decreasing, sliding_slope, slope_with_drift_check
@@ -92,6 +92,9 @@ def floor_motion(meas: Measurement, cfg: HLAConfig):
 def resolved_band(meas: Measurement, cfg: HLAConfig) -> tuple[float, float]:
     """The band-pass corners used for ``meas``: the config's, or chosen from the record."""
     p = cfg.preprocess
+    if p.band_hz == AUTO:
+        raise InputError("preprocess.band_hz is 'auto': the record decides it through hlaid.hla.auto.resolve_hla "
+                         "(hlaid.hla.run_hla and the identification resolve it)", source=meas.source or None)
     if p.band_hz is not None:
         return cast("tuple[float, float]", tuple(p.band_hz))
     return pp.auto_band(np.asarray(meas.ground_acc), np.asarray(meas.floor_acc)[:, -1], meas.dt, p.highpass_ratio)
@@ -189,6 +192,9 @@ def run_hla(measurement: Measurement, config: HLAConfig | None = None) -> HLARes
     """
     cfg = config or HLAConfig()
     meas = measurement
+    if cfg.unresolved():
+        raise InputError(f"{', '.join(cfg.unresolved())} 'auto': the record decides through "
+                         "hlaid.hla.auto.resolve_hla (hlaid.hla.run_hla resolves it)", source=meas.source or None)
     m, normalised = floor_masses(meas, cfg)
     band = resolved_band(meas, cfg)
     acc, acc_full, vel, disp = floor_motion(meas, cfg)

@@ -8,10 +8,24 @@ and checked on the real shake-table data (``docs/hla.md``), where each choice is
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Final, Literal, TypeVar
 
 from ..bounds import bounded, check_bounds
 from ..errors import InputError
+
+AUTO: Final = "auto"
+"""The value of a setting that the record decides (:mod:`hlaid.hla.auto`)."""
+
+T = TypeVar("T")
+
+
+def fixed(value: T | Literal["auto"], name: str) -> T:
+    """``value`` of the setting ``name`` where it is not ``"auto"`` (one left ``"auto"`` where a
+    value is needed: the settings were not chosen from the data first, InputError)."""
+    if isinstance(value, str) and value == AUTO:
+        raise InputError(f"{name} is 'auto': it is chosen from the record(s) first (hlaid.identify.auto."
+                         "resolve_settings, hlaid.hla.resolve_hla)")
+    return value  # type: ignore[return-value]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -26,21 +40,23 @@ class PreprocessConfig:
         dominant frequency of the roof response (well below the lowest, damaged mode, high
         enough to keep doubly-integrated sensor noise out of the drift), the high corner at
         ``max(20 Hz, 4 x dominant)`` (above the modes of interest, cutting most broadband
-        noise), below 0.45 of the sampling rate.
+        noise), below 0.45 of the sampling rate. ``"auto"`` (the identification's default):
+        the same where the record's modes are a shear building's, a first-mode band where its
+        second mode is not (:func:`hlaid.hla.auto.resolve_hla`).
     highpass_ratio : see ``band_hz``.
     order : Butterworth order (applied forward and backward: effective order doubles).
     displacement : ``"integrate"`` accelerations, use ``"measured"`` floor displacements
         when the data hold them, or ``"auto"`` (measured when present).
     """
 
-    band_hz: tuple[float, float] | None = bounded(None, lo=0.0, hi=50_000.0, unit="Hz")
+    band_hz: tuple[float, float] | Literal["auto"] | None = bounded(None, lo=0.0, hi=50_000.0, unit="Hz")
     highpass_ratio: float = bounded(0.25, lo=1e-3, hi=1.0, hi_open=True)
     order: int = bounded(4, lo=1, hi=10)
     displacement: Literal["auto", "integrate", "measured"] = "auto"
 
     def __post_init__(self):
         check_bounds(self)
-        if self.band_hz is not None:
+        if self.band_hz is not None and self.band_hz != AUTO:
             lo, hi = self.band_hz
             if not 0 <= lo < hi:
                 raise InputError(f"band_hz = {list(self.band_hz)}; expected [low, high] with 0 <= low < high")
@@ -55,7 +71,10 @@ class ForceConfig:
     damping : ``"none"`` keeps the viscous share in ``f``; ``"rayleigh"`` subtracts an
         assumed Rayleigh damping force (``damping_ratio`` on ``damping_modes`` of the
         identified initial stiffness); ``"regression"`` fits a velocity term per half cycle
-        (``f = k x + c dx + f0``) as the published HLA does.
+        (``f = k x + c dx + f0``) as the published HLA does; ``"auto"`` (the identification's
+        default): ``rayleigh`` unless the record says it over-corrects (more half cycles that
+        dissipate negative energy than a passive story can have), then ``regression``
+        (:func:`hlaid.hla.auto.resolve_hla`).
     damping_ratio, damping_modes : the assumed Rayleigh damping.
     mass_ratios : relative floor masses when absolute masses are unknown (default: equal).
     max_iterations : passes of the ``rayleigh`` correction (its damping matrix depends on
@@ -64,7 +83,7 @@ class ForceConfig:
         force: ``"auto"`` when the measurement says so (or heights are known).
     """
 
-    damping: Literal["none", "rayleigh", "regression"] = "rayleigh"
+    damping: Literal["none", "rayleigh", "regression", "auto"] = "rayleigh"
     damping_ratio: float = bounded(0.05, lo=0.0, hi=1.0, hi_open=True)
     damping_modes: tuple[int, int] = bounded((1, 2), lo=1, hi="STORIES")
     mass_ratios: list[float] | None = bounded(None, lo=1e-6, hi=1e6)
@@ -108,6 +127,9 @@ class StiffnessConfig:
     yield_ratio : a story has yielded when, of its five largest half cycles, at least two end
         with a tangent stiffness below this fraction of their ke (elastic stories stay above
         ~0.75 at 10 % noise; a yielding story with strong hardening, alpha ~0.35, reaches ~0.5).
+        ``"auto"`` (the identification's default): 0.6, or 0.8 where the band's high corner is
+        below 3 x the first mode (the low-pass smooths the tangent at the end of a yielding half
+        cycle; :func:`hlaid.hla.auto.resolve_hla`).
     ke_smoothing : how single-half-cycle slopes (noisy: several % at 10 % noise) are pooled:
         ``"energy"`` fits ke against the energy dissipated so far
         (``k_inf + (k0 - k_inf)/(1 + c E)``, the form of eq 7-11); ``"monotone"`` a
@@ -123,7 +145,7 @@ class StiffnessConfig:
     ke_min_samples: int = bounded(6, lo=3, hi=100_000)
     k_window: int = bounded(15, lo=3, hi=100_000)
     k0_min_amplitude: float = bounded(0.08, lo=0.0, hi=1.0, hi_open=True)
-    yield_ratio: float = bounded(0.6, lo=1e-3, hi=1.0)
+    yield_ratio: float | Literal["auto"] = bounded(0.6, lo=1e-3, hi=1.0)
     ke_smoothing: Literal["energy", "monotone", "none"] = "energy"
     ke_trend_z: float = bounded(0.0, lo=0.0, hi=1000.0)
 
@@ -139,3 +161,22 @@ class HLAConfig:
     force: ForceConfig = field(default_factory=ForceConfig)
     half_cycles: HalfCycleConfig = field(default_factory=HalfCycleConfig)
     stiffness: StiffnessConfig = field(default_factory=StiffnessConfig)
+
+    def unresolved(self) -> list[str]:
+        """The settings still ``"auto"`` that the record decides (``preprocess.displacement``'s
+        ``auto`` is resolved by the analysis itself and not listed)."""
+        out = []
+        if self.preprocess.band_hz == AUTO:
+            out.append("preprocess.band_hz")
+        if self.force.damping == AUTO:
+            out.append("force.damping")
+        if self.stiffness.yield_ratio == AUTO:
+            out.append("stiffness.yield_ratio")
+        return out
+
+
+def auto_hla_config() -> HLAConfig:
+    """HLA settings with every record-dependent choice ``"auto"`` (the identification's default,
+    :class:`hlaid.identify.IdentifyConfig`); :class:`HLAConfig` itself keeps fixed defaults."""
+    return HLAConfig(preprocess=PreprocessConfig(band_hz=AUTO), force=ForceConfig(damping=AUTO),
+                     stiffness=StiffnessConfig(yield_ratio=AUTO))

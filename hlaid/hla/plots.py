@@ -6,7 +6,7 @@ import numpy as np
 from matplotlib import cm
 from matplotlib.collections import LineCollection
 
-from ..measurement import Truth
+from ..measurement import Measurement, Truth
 from ..plots import story_axes
 from .result import HLAResult
 
@@ -15,10 +15,45 @@ def _force_unit(result: HLAResult) -> tuple[float, str]:
     return (1.0, "force / total mass [N/t]") if result.mass_normalised else (1e-3, "story force [kN]")
 
 
-def plot_loops(result: HLAResult, *, max_cycles: int | None = None):
-    """Force-drift loops of every story, each half cycle in its own colour (time: dark to light)."""
+WIDE_HZ = 20.0
+"""Upper corner of the wide band a narrow-band analysis's loops are shown beside."""
+
+
+def wide_band(meas: Measurement, result: HLAResult) -> HLAResult | None:
+    """The same analysis with the upper band corner at :data:`WIDE_HZ` (capped below Nyquist),
+    when the analysis band ends well below it (a first-mode band smooths loops into ellipses; the
+    wide band shows the yielding, residual drift and higher modes the records hold); else None."""
+    import dataclasses
+
+    from ..signal import cap_corner
+    from .analysis import run_hla
+
+    lo, hi = result.band_hz
+    top = cap_corner(WIDE_HZ, meas.dt)
+    if hi >= 0.5 * top:
+        return None
+    cfg = result.config
+    return run_hla(meas, dataclasses.replace(cfg, preprocess=dataclasses.replace(cfg.preprocess, band_hz=(lo, top))))
+
+
+def plot_loops(result: HLAResult, *, max_cycles: int | None = None, wide: HLAResult | None = None):
+    """Force-drift loops of every story, each half cycle in its own colour (time: dark to light);
+    with ``wide`` (:func:`wide_band`) a second row: the same story's loop in that wider band."""
     scale, label = _force_unit(result)
-    fig, axes = story_axes(result.n_stories, layout="constrained")
+    n_st = result.n_stories
+    if wide is None:
+        fig, axes = story_axes(n_st, layout="constrained")
+    else:
+        from ..plots import plt
+        fig, grid = plt.subplots(2, n_st, figsize=(4.2 * n_st, 6.8), squeeze=False, layout="constrained")
+        axes = grid[0].tolist()
+        for s, w, ax in zip(result.stories, wide.stories, grid[1]):
+            ax.plot(w.drift, w.force * scale, color="0.35", lw=0.5)
+            ax.set_title(f"story {s.story}: wide band {wide.band_hz[0]:.2g}-{wide.band_hz[1]:.3g} Hz",
+                         fontsize=9)
+            ax.set_xlabel("inter-story drift [mm]")
+            ax.set_ylabel(label)
+            ax.grid(alpha=0.3)
     for s, ax in zip(result.stories, axes):
         hc = s.half_cycles
         n = len(hc) if max_cycles is None else min(len(hc), max_cycles)
@@ -27,7 +62,9 @@ def plot_loops(result: HLAResult, *, max_cycles: int | None = None):
         lc.set_array(np.arange(n))
         ax.add_collection(lc)
         ax.autoscale()
-        ax.set_title(f"story {s.story}: {len(hc)} half cycles" + ("" if s.yielded else " (elastic)"))
+        band = f", band {result.band_hz[0]:.2g}-{result.band_hz[1]:.3g} Hz" if wide is not None else ""
+        ax.set_title(f"story {s.story}: {len(hc)} half cycles" + ("" if s.yielded else " (elastic)") + band,
+                     fontsize=9 if wide is not None else None)
         ax.set_xlabel("inter-story drift [mm]")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
@@ -60,7 +97,13 @@ def plot_stiffness(result: HLAResult, truth: Truth | None = None, *, clone_ke: n
         if clone_ke is not None:
             ax.plot(t[: clone_ke.shape[0]], clone_ke[:, i] * sc, color="C3", lw=1, ls="--", label="ke(t) clone")
         lo = np.nanmin(hc.ke_raw) if len(hc) else s.k0
-        ax.set_ylim(max(0.0, 0.5 * min(lo, s.k0) * sc), 1.25 * s.k0 * sc)
+        hi = s.k0
+        for line in ([ke_true] if truth is not None else []) + ([clone_ke[:, i]] if clone_ke is not None else []):
+            v = np.asarray(line, float)
+            v = v[np.isfinite(v)]
+            if v.size:  # the truth's and the clone's lines stay inside the panel
+                lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
+        ax.set_ylim(max(0.0, 0.5 * min(lo, s.k0) * sc), 1.25 * hi * sc)
         ax.set_ylabel(f"story {s.story}\n{unit}")
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7, ncol=3, loc="lower left")

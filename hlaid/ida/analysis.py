@@ -182,13 +182,22 @@ def scan_collapse(im: np.ndarray, edp: np.ndarray, failed: np.ndarray, elastic_s
     return None, "none"
 
 
-def _auto_levels(elastic_slope: np.ndarray, drift_limit: float, n: int) -> list[float]:
-    """``n`` equal steps up to the median equal-displacement IM at the drift limit, rounded to
-    3 significant digits, more where ``n`` steps need them to stay distinct (n >= 100)."""
+def _auto_levels(elastic_slope: np.ndarray, drift_limit: float, n: int, smallest_limit: float | None = None
+                 ) -> list[float]:
+    """``n`` levels in geometric steps up to the median equal-displacement IM at the drift limit
+    (``top``), from half the equal-displacement IM at ``smallest_limit`` (the lowest drift whose
+    exceedance is reported; None: ``top / n``), never above ``top / n``: a fragility of a small
+    drift rises well below ``top``, and equal steps would put one stripe there. Rounded to 3
+    significant digits, more where ``n`` levels need them to stay distinct."""
     top = float(np.median(elastic_slope * drift_limit))
-    lv = [top * (i + 1) / n for i in range(n)]
-    digits = max(3, len(str(n)) + 1)
-    return [float(f"{v:.{digits}g}") for v in lv]
+    lo = top / n if smallest_limit is None else min(top / n, 0.5 * top * smallest_limit / drift_limit)
+    lv = [top] if n == 1 else list(np.geomspace(lo, top, n))
+    digits = 3
+    while True:
+        out = [float(f"{v:.{digits}g}") for v in lv]
+        if len(set(out)) == len(out) or digits >= 15:
+            return out
+        digits += 1
 
 
 # ---------------------------------------------------------------------------- the analysis
@@ -204,8 +213,9 @@ def run_ida(model: Clone | Building | str | os.PathLike,
         (see :func:`hlaid.io.read` with ``kind="records"``; unreadable files are skipped with a warning);
         ``config.records`` is not used (see :func:`ida_from_config`)
     config : the settings (:class:`IDAConfig`; None: its defaults). Of its fields, ``im``,
-        ``levels`` ((level,) strictly increasing IM levels [g]; None: ``n_levels`` equal steps up
-        to the median equal-displacement estimate of the IM at the drift limit), ``drift_limit``
+        ``levels`` ((level,) strictly increasing IM levels [g]; None: ``n_levels`` geometric steps up
+        to the median equal-displacement estimate of the IM at the drift limit, from half that at
+        the smallest of ``exceedance_limits``), ``drift_limit``
         (also where the simulator stops a run), ``slope_ratio``, ``exceedance_limits``, the
         refinement (``refine``, ``hunt_factor``, ``max_hunt``, ``tolerance``, ``max_fill``; see the
         module doc), ``max_step`` (largest RK4 step [s]; peaks and the drift stop are checked at
@@ -247,13 +257,14 @@ def run_ida(model: Clone | Building | str | os.PathLike,
     tolerance, max_fill = cfg.tolerance, cfg.max_fill
     R = len(motions)
     runner = _Runner(building, motions, im0, drift_limit, max_step, start.state)
-    _progress.info(f"IDA of {building.name or 'the clone'}: {R} records, IM {measure.label}"
+    log = _progress.debug if _progress.nested() else _progress.info  # inside an ensemble: details
+    log(f"IDA of {building.name or 'the clone'}: {R} records, IM {measure.label}"
                    + (f" at T1 = {T1:.3f} s" if measure.needs_period else "")
                    + f", collapse at {drift_limit:.0%} drift, P-Delta {'on' if building.pdelta else 'off'}"
                    + f", collapse model {building.collapse.name if building.collapse else 'none'}"
                    + f", from the {cfg.start} state")
 
-    slope_el, grid = _probe(runner, im0, levels, drift_limit, n_levels, notes)
+    slope_el, grid = _probe(runner, im0, levels, drift_limit, n_levels, notes, exceedance_limits)
     _grid(runner, grid, drift_limit)
     state = _refine(runner, slope_el, cfg) if refine else _scan_all(runner, slope_el, slope_ratio)
     a = runner.arrays()
@@ -265,8 +276,7 @@ def run_ida(model: Clone | Building | str | os.PathLike,
         notes.append(f"{int(wide.sum())} collapse bracket(s) wider than the tolerance {tolerance:g} "
                      + ("(refinement off)" if not refine else f"after {max_fill} bisections"))
     wall = time.perf_counter() - t0
-    _progress.info(f"IDA done: {runner.n_runs} runs in {wall:.1f} s; "
-                   f"{R - n_cens}/{R} records collapsed")
+    log(f"IDA done: {runner.n_runs} runs in {wall:.1f} s; {R - n_cens}/{R} records collapsed")
     collapse_im = np.where(state["first"] >= 0, 0.5 * (state["lo"] + state["hi"]), np.nan)
     return IDAResult(
         building=building, im=measure.name, im_label=measure.label, period=T1,
@@ -284,16 +294,16 @@ def run_ida(model: Clone | Building | str | os.PathLike,
 
 
 def _probe(runner: _Runner, im0: np.ndarray, levels, drift_limit: float, n_levels: int,
-           notes: list[str]) -> tuple[np.ndarray, np.ndarray]:
+           notes: list[str], exceedance_limits: Sequence[float] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Stage 1, the elastic probe: every record's elastic slope ``IM / EDP`` ``(record,)``, and
     the levels (the configured ones, else :func:`_auto_levels` from the slopes)."""
     runner.run(np.arange(im0.size), (im0 * PROBE_SCALE)[:, None], "probe")
     a = runner.arrays()
     slope_el = a["im"] / runner.edp(a)
     if levels is None:
-        levels = _auto_levels(slope_el, drift_limit, n_levels)
-        notes.append(f"levels: {n_levels} equal steps up to {levels[-1]:g} g, the median equal-displacement "
-                     "estimate of the IM at the drift limit")
+        levels = _auto_levels(slope_el, drift_limit, n_levels, min(exceedance_limits, default=None))
+        notes.append(f"levels: {n_levels} geometric steps from {levels[0]:g} g (half the equal-displacement estimate "
+                     f"of the IM at the smallest reported drift) to {levels[-1]:g} g (at the drift limit)")
     return slope_el, np.array(check_levels(levels))
 
 
@@ -304,36 +314,42 @@ def _grid(runner: _Runner, levels: np.ndarray, drift_limit: float) -> None:
     ar = np.arange(R)
     chunks = np.array_split(np.arange(levels.size), min(levels.size, 5))
     alive = np.ones(R, dtype=bool)
-    for ch in _progress.progress(chunks, desc="IDA grid"):
-        recs = np.flatnonzero(alive)
-        runner.run(recs, np.broadcast_to(levels[ch], (recs.size, ch.size)), "grid")
-        a = runner.arrays()
-        failed = (a["status"] != 0) | (runner.edp(a) > drift_limit)
-        alive &= ~np.isin(ar, a["record"][failed])
-        if not alive.any():
-            break
+    with _progress.stage(f"IDA grid of {R} records", levels.size, unit="levels") as bar:
+        for ch in chunks:
+            recs = np.flatnonzero(alive)
+            runner.run(recs, np.broadcast_to(levels[ch], (recs.size, ch.size)), "grid")
+            a = runner.arrays()
+            failed = (a["status"] != 0) | (runner.edp(a) > drift_limit)
+            alive &= ~np.isin(ar, a["record"][failed])
+            bar.update(ch.size, note=f"up to {levels[ch[-1]]:.3g} g, {R - int(alive.sum())} collapsed")
+            if not alive.any():
+                break
 
 
 def _refine(runner: _Runner, slope_el: np.ndarray, cfg: IDAConfig) -> dict:
     """Stages 3-4: records that have not collapsed are stepped up (hunt), then every collapse
     bracket is bisected (fill); returns the last :func:`_scan_all`."""
     state = _scan_all(runner, slope_el, cfg.slope_ratio)
-    for step in range(cfg.max_hunt):
-        need = np.flatnonzero(state["first"] < 0)
-        if need.size == 0:
-            break
-        nxt = state["max_im"][need] * cfg.hunt_factor
-        _progress.debug(f"hunt step {step + 1}: {need.size} record(s) not collapsed yet")
-        runner.run(need, nxt[:, None], "hunt")
-        state = _scan_all(runner, slope_el, cfg.slope_ratio)
-    for step in range(cfg.max_fill):
-        lo, hi = state["lo"], state["hi"]
-        need = np.flatnonzero((state["first"] >= 0) & (hi - lo > cfg.tolerance * hi))
-        if need.size == 0:
-            break
-        _progress.debug(f"fill step {step + 1}: bisecting {need.size} collapse bracket(s)")
-        runner.run(need, (0.5 * (lo[need] + hi[need]))[:, None], "fill")
-        state = _scan_all(runner, slope_el, cfg.slope_ratio)
+    with _progress.stage("IDA collapse search", unit="steps") as bar:
+        for step in range(cfg.max_hunt):
+            need = np.flatnonzero(state["first"] < 0)
+            if need.size == 0:
+                break
+            nxt = state["max_im"][need] * cfg.hunt_factor
+            _progress.debug(f"hunt step {step + 1}: {need.size} record(s) not collapsed yet")
+            bar.update(1, note=f"stepping up {need.size} record(s) not collapsed yet")
+            runner.run(need, nxt[:, None], "hunt")
+            state = _scan_all(runner, slope_el, cfg.slope_ratio)
+        for step in range(cfg.max_fill):
+            lo, hi = state["lo"], state["hi"]
+            need = np.flatnonzero((state["first"] >= 0) & (hi - lo > cfg.tolerance * hi))
+            if need.size == 0:
+                break
+            _progress.debug(f"fill step {step + 1}: bisecting {need.size} collapse bracket(s)")
+            bar.update(1, note=f"bisecting {need.size} collapse bracket(s)")
+            runner.run(need, (0.5 * (lo[need] + hi[need]))[:, None], "fill")
+            state = _scan_all(runner, slope_el, cfg.slope_ratio)
+        bar.done(f"{int((state['first'] >= 0).sum())}/{state['first'].size} records collapsed")
     return state
 
 
@@ -410,6 +426,7 @@ def ida_from_config(model, cfg: IDAConfig, records=None, *, base_dir: str | Path
     ``records`` are given."""
     recs = records if records is not None else cfg.record_specs(base_dir)
     if recs is None:
-        raise InputError("no records: give them in the config ('records:') or on the command line (--records)")
+        raise InputError("no records: give them in the config ('records:') or as the records argument "
+                         "(records=[...])")
     return run_ida(model, recs, cfg, event_motions=event_motions)
 

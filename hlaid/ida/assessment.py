@@ -310,7 +310,8 @@ def _ensemble_idas(clone, members, cfg, motions) -> list:
     """The IDA of every member of the ensemble."""
     from .analysis import ida_from_config
 
-    return [ida_from_config(clone.member(b), cfg, motions) for b in _progress.progress(members, desc="ensemble IDA")]
+    return [ida_from_config(clone.member(b), cfg, motions)
+            for b in _progress.progress(members, desc="ensemble IDA", unit="clones")]
 
 
 class _FragilityBand:

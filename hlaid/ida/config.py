@@ -13,7 +13,7 @@ from ..config import load_config
 from ..errors import InputError
 from ..limits import check_count
 from ..model.schema import STORY_BOUNDS, WEIGHT_KN
-from ..units import kn_to_n
+from ..units import check_units, kn_to_n
 
 DEFAULT_EXCEEDANCE = (0.005, 0.01, 0.02, 0.04)
 """Drift-ratio limits whose probability of exceedance is reported (0.5, 1, 2, 4 %)."""
@@ -29,8 +29,9 @@ class IDAConfig:
         paths are taken from the config file's folder); the command line's ``--records`` wins
     units : acceleration units of text records (AT2 files state theirs)
     im : intensity measure, ``sa_t1`` (Sa(T1, 5%)) or ``pga``
-    levels : IM levels [g], strictly increasing; None: ``n_levels`` levels up to the
-        equal-displacement estimate of the median IM at the drift limit
+    levels : IM levels [g], strictly increasing; None: ``n_levels`` levels in geometric steps up to
+        the equal-displacement estimate of the median IM at the drift limit, from half that at the
+        smallest exceedance limit (the small-drift fragilities rise at low intensities)
     drift_limit : collapse when a story's drift ratio exceeds it (0.10 is 10 %)
     slope_ratio : collapse when the IDA curve's slope drops below this fraction of the elastic slope
     exceedance_limits : drift ratios whose probability of exceedance is reported; None: 0.5, 1,
@@ -81,6 +82,7 @@ class IDAConfig:
 
     def __post_init__(self):
         check_bounds(self)
+        check_units(self.units, "units")
         if self.levels is not None:
             check_count(len(self.levels), "IDA_LEVELS", "number of levels")
             check_levels(self.levels)

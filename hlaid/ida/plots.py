@@ -47,7 +47,8 @@ class IDACurves(Protocol):
 
 
 def plot_ida_curves(res: IDACurves, *, title: str | None = None):
-    """IDA curves of every record (thin) with the 16/50/84 % fractiles (thick).
+    """IDA curves of every record (thin) with the 16/50/84 % fractiles of the records' peak drift
+    ratio at each intensity (thick).
 
     Drift ratio in % on x, IM in g on y; a record's collapse is drawn as a flatline at its
     collapse intensity. Returns the figure.
@@ -63,7 +64,8 @@ def plot_ida_curves(res: IDACurves, *, title: str | None = None):
     fr = res.fractiles(x)
     for i, (q, color) in enumerate(zip(FRACTILES, ("tab:blue", "tab:red", "tab:green"))):
         ok = np.isfinite(fr[i])
-        ax.plot(100 * fr[i][ok], x[ok], color=color, lw=2.2, label=f"{q}% fractile")
+        what = "median" if q == 50 else f"{q} % fractile"
+        ax.plot(100 * fr[i][ok], x[ok], color=color, lw=2.2, label=f"{what} of the records' peak drift at an IM")
     ax.axvline(100 * res.drift_limit, color="k", lw=0.8, ls=":", label=f"drift limit {res.drift_limit:.0%}")
     ax.set_xlim(0, xmax)
     ax.set_ylim(0, None)

@@ -53,20 +53,23 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     if gravity_load is not None:
         building = building.replace(gravity_load=gravity_load)
     if building.height is None and require_heights:
-        raise InputError("story heights are unknown; IDA reports drift ratios and needs them: give heights "
-                         "in mm (hlaid ida --heights 3000,3000,...)", source=source)
+        raise InputError("story heights are unknown; IDA reports drift ratios and needs them: give the heights "
+                         "in mm, bottom to top: IDAConfig(heights_mm=[...])", source=source)
     want = (building.height is not None) if pdelta is None else bool(pdelta)
     if want and building.height is None:
-        raise InputError("P-Delta needs story heights; give heights in mm (--heights 3000,3000,...)", source=source)
+        raise InputError("P-Delta needs story heights: give the heights in mm, bottom to top, "
+                         "IDAConfig(heights_mm=[...]), or leave P-Delta out, IDAConfig(pdelta=False)",
+                         source=source)
     if normalised and gravity_load is not None:
         raise InputError("the clone is mass-normalised (forces per unit of total mass): absolute gravity loads "
-                         "cannot be combined with it; leave --gravity-kN out (gravity is taken as relative mass "
-                         "x g, per unit mass like the clone)", source=source)
+                         "cannot be combined with it; leave IDAConfig(gravity_kN=[...]) out (gravity is taken as "
+                         "relative mass x g, per unit mass like the clone)", source=source)
     if want and normalised:
         notes.append("mass-normalised clone: P-Delta from relative mass x g, per unit of total mass")
     if want and pdelta is None and building.pdelta is False:
         notes.append("P-Delta on (story heights known) although the clone says pdelta: false "
-                     "(identification without P-Delta); pass pdelta=False to keep it off")
+                     "(identification without P-Delta); to keep it off set pdelta: false in the IDA settings (ida: "
+                     "{pdelta: false} in a run config, hlaid ida --no-pdelta, IDAConfig(pdelta=False))")
     elif not want:
         notes.append("P-Delta off" + (" (requested)" if pdelta is False else " (story heights unknown)"))
     building = building.replace(pdelta=want)

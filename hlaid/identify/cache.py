@@ -18,7 +18,7 @@ import numpy as np
 
 from .. import _progress
 from .._fileio import json_default, write_json
-from .._inputs import file_sha256, read_json
+from .._inputs import file_sha256, own_files, read_json
 from .._version import __version__
 from ..errors import InputError
 from ..svm import KernelSVC
@@ -94,7 +94,8 @@ class MachineCache:
         if not os.path.lexists(d / "meta.json"):
             return None
         try:
-            return self._verified(d, key)
+            with own_files():  # the cache's own files, rewritten by store(): no inputs of the run
+                return self._verified(d, key)
         except _Untrusted as why:
             _progress.warn(f"classifier cache entry {key} failed its integrity check ({why}); retraining")
             return None
@@ -146,7 +147,8 @@ class MachineCache:
                 if m is not None:
                     _clear(d / f"{name}.svm")
                     m.save(d / f"{name}.svm", force=True)  # replaces a stale entry's file
-                    files[name] = file_sha256(d / f"{name}.svm")
+                    with own_files():
+                        files[name] = file_sha256(d / f"{name}.svm")
             body = json.loads(json.dumps({**meta, "machines": list(machines)}, default=json_default))
             seal = {"key": key, "meta_sha256": _sha256_json(body), "files": files}
             write_json(d / "meta.json", {**body, "integrity": seal})

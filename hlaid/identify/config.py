@@ -6,19 +6,23 @@ config is refused before they load. Every numeric field declares its range (:mod
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Literal
 
 from ..bounds import SEED, bounded, check_bounds, with_bounds
 from ..errors import InputError
-from ..hla.config import HLAConfig
+from ..hla.config import AUTO, HLAConfig, auto_hla_config
 from ..systems import get_system
 from .refiners import REFINERS
 
 KERNEL_NAMES = ("linear", "poly", "rbf", "sigmoid")
 """The kernels of :data:`hlaid.svm.KERNELS`, kept here so that loading a config imports no torch
 (a test checks the two agree)."""
+
+PARAMETERS = ("k0", "alpha", "p", "dy", "delta_eta")
+"""The story parameters a refinement may fit."""
 
 MAX_CLASSES = 100
 """Most classes one classifier of a pass may have (bins of alpha or of p): a pairwise multiclass
@@ -173,7 +177,11 @@ class RefineConfig:
 
     Attributes
     ----------
-    method : ``"eiv"`` (default): errors in variables, maximum likelihood with the true ground as
+    Each of ``method``, ``parameters``, ``damping`` and ``band_hz`` may be ``"auto"`` (the
+    default): chosen from the record(s) by :func:`hlaid.identify.auto.resolve_settings`, which says
+    why (docs/identification.md, "Settings chosen from the data").
+
+    method : ``"eiv"``: errors in variables, maximum likelihood with the true ground as
         a nuisance: the residuals whitened against the ground noise carried to the floors by the
         time-varying tangent of the replay (every channel's noise a common fraction of its RMS),
         fitted from the regressions' building. Where that fit misses the data by more than
@@ -185,10 +193,16 @@ class RefineConfig:
         ``"least_squares"``: plain least squares of the normalised residuals (the fall-back and
         the comparison baseline, ``configs/identify_leastsquares.yaml``; the steel frame's
         clones, whose misfit is model error, not sensor noise). ``"none"``: keep the
-        regressions' and classifiers' estimate.
-    parameters : which story parameters are refined (without ``k0``: no k0 stage)
-    damping : also refine the Rayleigh damping ratio
-    band_hz : band of the compared accelerations [Hz]
+        regressions' and classifiers' estimate. ``"auto"``: ``least_squares`` where HLA chose a
+        first-mode band (a shear-building clone cannot follow the record above it: the misfit is
+        model error), else ``eiv``
+    parameters : which story parameters are refined (without ``k0``: no k0 stage). ``"auto"``:
+        all five, without ``k0`` where the floor masses are unknown and no mass ratios are given
+        (the replay fit of k0 is then ill-conditioned: docs/validation.md)
+    damping : also refine the Rayleigh damping ratio. ``"auto"``: where HLA found the assumed
+        damping over-corrects (``force.damping`` chosen ``regression``)
+    band_hz : band of the compared accelerations [Hz]. ``"auto"``: HLA's band where it is one for
+        every record (a first-mode band, or one given), else 0.1-20 Hz
     max_iterations : evaluations of the residuals per fit
     tangent_max_mb : the errors-in-variables weighting is used only where the tangent (and its
         step Jacobians) takes at most this many MiB; above it, least squares (said in the clone's
@@ -207,25 +221,31 @@ class RefineConfig:
         better (mean R 0.891 -> 0.955)
     """
 
-    method: str = "eiv"
-    parameters: tuple[str, ...] = ("k0", "alpha", "p", "dy", "delta_eta")
-    damping: bool = False
-    band_hz: tuple[float, float] = bounded((0.1, 20.0), lo=0.0, hi=50_000.0, unit="Hz")
+    method: str = AUTO
+    parameters: tuple[str, ...] | Literal["auto"] = AUTO
+    damping: bool | Literal["auto"] = AUTO
+    band_hz: tuple[float, float] | Literal["auto"] = bounded(AUTO, lo=0.0, hi=50_000.0, unit="Hz")
     max_iterations: int = bounded(40, lo=1, hi=10_000)
     tangent_max_mb: float = bounded(1024.0, lo=1.0, hi="TANGENT_MB", unit="MiB")
     restart_ratio: float | None = bounded(1.0, lo=1e-6, hi=1e6)
 
     def __post_init__(self):
         check_bounds(self, prefix="refine.")
-        if self.method not in REFINERS:
+        if self.method not in REFINERS and self.method != AUTO:
             raise InputError(f"refine.method = {self.method!r} is unknown; expected one of "
-                             f"{', '.join(repr(k) for k in REFINERS)}")
-        bad = set(self.parameters) - {"k0", "alpha", "p", "dy", "delta_eta"}
+                             f"{', '.join(repr(k) for k in (*REFINERS, AUTO))}")
+        bad = set() if self.parameters == AUTO else set(self.parameters) - set(PARAMETERS)
         if bad:
-            raise InputError(f"refine.parameters: unknown {sorted(bad)}; expected k0, alpha, p, dy, delta_eta")
-        lo, hi = self.band_hz
-        if not lo < hi:
-            raise InputError(f"refine.band_hz = {list(self.band_hz)}; expected [low, high] with 0 <= low < high")
+            raise InputError(f"refine.parameters: unknown {sorted(bad)}; expected k0, alpha, p, dy, delta_eta or auto")
+        if self.band_hz != AUTO:
+            lo, hi = self.band_hz
+            if not lo < hi:
+                raise InputError(f"refine.band_hz = {list(self.band_hz)}; expected [low, high] with 0 <= low < high")
+
+    def unresolved(self) -> list[str]:
+        """The settings still ``"auto"``."""
+        return [f.name for f in dataclasses.fields(self) if isinstance(getattr(self, f.name), str)
+                and getattr(self, f.name) == AUTO]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -234,7 +254,11 @@ class IdentifyConfig:
 
     Attributes
     ----------
-    hla, bins, training, svm, outer, refine : the sections above
+    hla, bins, training, svm, outer, refine : the sections above. The record-dependent settings are
+        ``"auto"`` by default (``hla``: the band, the damping handling and the yield ratio,
+        :func:`hlaid.hla.auto.resolve_hla`; ``refine``: method, parameters, damping and band):
+        :func:`hlaid.identify.auto.resolve_settings` chooses them from the record(s), and the
+        clone keeps the choices (``provenance["choices"]``). A value given overrides.
     aggregate : how the votes of a story's half cycles are combined: ``"mean"`` (vote-weighted
         mean of the bin centres) or ``"majority"`` (the paper's most voted bin)
     damping_ratio : Rayleigh damping of the clone (modes 1 and 2), as assumed by HLA
@@ -249,7 +273,7 @@ class IdentifyConfig:
         alone
     """
 
-    hla: HLAConfig = field(default_factory=HLAConfig)
+    hla: HLAConfig = field(default_factory=auto_hla_config)
     bins: BinsConfig = field(default_factory=BinsConfig)
     training: TrainingConfig = field(default_factory=TrainingConfig)
     svm: SVMConfig = field(default_factory=SVMConfig)
@@ -266,3 +290,7 @@ class IdentifyConfig:
         check_bounds(self)
         if self.system is not None:
             get_system(self.system, "system")
+
+    def unresolved(self) -> list[str]:
+        """The settings still ``"auto"`` (keys as in the config file)."""
+        return [f"hla.{k}" for k in self.hla.unresolved()] + [f"refine.{k}" for k in self.refine.unresolved()]

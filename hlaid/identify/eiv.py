@@ -132,7 +132,12 @@ class TangentWhitener:
         if not np.all(np.isfinite(ab)):  # finite but huge tangents overflow G^T D G
             raise UnstableTangentError("TangentWhitener: the tangent's Gram matrix overflows (a tangent that grows "
                                        "without bound along the replay)")
-        self._chol = scipy.linalg.cholesky_banded(ab, lower=False)
+        try:
+            self._chol = scipy.linalg.cholesky_banded(ab, lower=False)
+        except np.linalg.LinAlgError as err:  # rounding in a near-singular Gram matrix (a very soft story)
+            raise UnstableTangentError(f"TangentWhitener: the whitening matrix is not positive definite "
+                                       f"({' '.join(str(err).split())[:80]}): the tangent of this replay is too "
+                                       "ill-conditioned to weigh the ground's noise") from None
 
     def _apply(self, d: np.ndarray) -> np.ndarray:
         """``D^(1/2) G d``: ``(time, k)`` -> ``(time, floor, k)``."""

@@ -95,8 +95,7 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
             if "C" in st:
                 chosen_C.setdefault(name, (st["C"], st.get("gamma_factor", 1.0)))
         return TrainedPass(machines, meta["stats"], True, 0.0, None)
-    _progress.info(f"[identify] {stage} pass: path-driven training sets and {2 * int(np.sum(identifiable))} "
-                   "kernel machines")
+    n_ident = int(np.sum(identifiable))
     coarse = stage == "coarse"
     noise = noise() if callable(noise) else noise
     n_samples = min(tc.samples, COARSE_SAMPLES) if coarse else tc.samples
@@ -106,11 +105,14 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
     # the story law runs here (compiled, both cores); the machines of a story train on the worker
     # processes while the next story's samples are drawn: the two kinds of work overlap
     jobs = []
-    with worker_pool(cfg.n_jobs if int(np.sum(identifiable)) > 0 else 1) as pool:
-        for i, sp in _progress.progress(list(enumerate(paths)), desc=f"[identify] {stage} pass, stories"):
+    with worker_pool(cfg.n_jobs if n_ident > 0 else 1) as pool, \
+            _progress.stage(f"[identify] {stage} pass: {n_ident} training set(s), {2 * n_ident} kernel machines",
+                            3 * n_ident, unit="steps") as bar:
+        for i, sp in enumerate(paths):
             if not identifiable[i] or sp is None:
                 sets.append(None)
                 continue
+            bar.set_note(f"drawing story {i + 1}'s training set")
             t = time.perf_counter()
             S = path_training_set(sp, k0=float(estimate.k0[i]), dy=float(estimate.dy[i]),
                                   delta_eta=float(estimate.delta_eta[i]), alpha_range=bins[i][0].range,
@@ -119,6 +121,7 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
                                   wide=COARSE_FACTOR if coarse else None, noise=noise)
             t_sim += time.perf_counter() - t
             sets.append(S)
+            bar.update(1, note="training the kernel machines")
             for param, b in zip(PARAMS, bins[i]):
                 name = f"story{i + 1}_{param}"
                 svm = cfg.svm if name not in chosen_C else _chosen(cfg.svm, *chosen_C[name])
@@ -126,6 +129,7 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
                 args, kw = (S, param, b, svm, tc.test_fraction), {"seed": seed + 31 * i + len(param)}
                 job = pool.apply_async(fit_ensemble, args, kw) if pool else fit_ensemble(*args, **kw)
                 jobs.append((i, param, b, S, job))
+        accuracy = []
         for i, param, b, S, job in jobs:
             ms, st = result(job) if pool else job
             name = f"story{i + 1}_{param}"
@@ -136,6 +140,9 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
             stats[name] = _jsonable(st)
             _log_machine(tb, stage, i, param, st, S, b, step)
             _progress.debug(f"  story {i + 1} {param}: test accuracy {st['test_accuracy']:.3f} (C {st.get('C')})")
+            accuracy.append(float(st["test_accuracy"]))
+            bar.update(1, note=f"story {i + 1} {param}: test accuracy {st['test_accuracy']:.2f}")
+        bar.done(f"test accuracy {min(accuracy):.2f}-{max(accuracy):.2f}" if accuracy else "no identifiable story")
     if tb is not None:
         tb.scalar(f"{stage}/simulate_seconds", t_sim, step)
     cache.store(key, machines, {"stats": stats})

@@ -106,7 +106,8 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
                   stories=None, damping: bool = False, band_hz=(0.1, 20.0), max_iterations: int = 40,
                   substeps: int = 4, upper_factor: float | None = 10.0, ftol: float = 1e-10,
                   jac_substeps: int | None = None, ground_noise: str = "ignore",
-                  ground_memory_s: float | None = None, tangent_max_mb: float | None = None) -> RefineResult:
+                  ground_memory_s: float | None = None, tangent_max_mb: float | None = None,
+                  desc: str = "[identify] replay fit") -> RefineResult:
     """Refine ``building`` so that its replay matches ``measurement``'s floor accelerations.
 
     Parameters
@@ -137,6 +138,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         ground sample; None: :func:`~hlaid.identify.eiv.ground_memory` of ``building``
     tangent_max_mb : with ``"tangent"``, raise :class:`~hlaid.errors.TangentTooLargeError` where the
         tangent would take more than this many MiB (None: only the hard limit)
+    desc : the name of the search in the progress messages
     """
     t0 = time.perf_counter()
     residuals = ReplayResiduals(measurement, band_hz=band_hz, substeps=substeps, ground_noise=ground_noise,
@@ -145,7 +147,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
     vector = ParameterVector(building, parameters=parameters, stories=stories, damping=damping,
                              upper_factor=upper_factor)
     return fit_residuals(vector, residuals, max_iterations=max_iterations, ftol=ftol,
-                         jac_substeps=substeps if jac_substeps is None else jac_substeps, t0=t0)
+                         jac_substeps=substeps if jac_substeps is None else jac_substeps, t0=t0, desc=desc)
 
 
 class ParameterVector:
@@ -223,15 +225,21 @@ class Residuals(Protocol):
 
 
 def fit_residuals(vector: SearchVector, residuals: Residuals, *, max_iterations: int = 40,
-                  ftol: float = 1e-10, jac_substeps: int | None = None, t0: float | None = None) -> RefineResult:
+                  ftol: float = 1e-10, jac_substeps: int | None = None, t0: float | None = None,
+                  desc: str = "[identify] replay fit") -> RefineResult:
     """Least squares of ``residuals`` over ``vector``'s parameters from its start (scipy's
     trust-region reflective search within the bounds; forward-difference Jacobians, one batch of
-    replays with ``jac_substeps`` RK4 sub-steps, default the residuals' own)."""
+    replays with ``jac_substeps`` RK4 sub-steps, default the residuals' own). Its progress is one
+    :func:`hlaid._progress.stage` named ``desc``, counted in evaluations of the cost (at most
+    ``max_iterations``)."""
     t0 = time.perf_counter() if t0 is None else t0
     make, xs, hi_b = vector.building_at, vector.scale, vector.upper
     jac_substeps = residuals.substeps if jac_substeps is None else jac_substeps
     cache: dict = {}
     plain_of: dict = {}  # the unweighted cost of every point the search evaluated (a float each)
+
+    best, counting = [np.inf], [True]
+    bar = _progress.stage(f"{desc} ({vector.x0.size} parameters)", max_iterations, unit="evaluations")
 
     def fun(x):
         key = x.tobytes()
@@ -239,14 +247,13 @@ def fit_residuals(vector: SearchVector, residuals: Residuals, *, max_iterations:
             cache.clear()
             res, plain = residuals([make(x)])
             cache[key], plain_of[key] = res[0], float(plain[0])
+            best[0] = min(best[0], 0.5 * float(np.sum(res[0] ** 2)))
+            if counting[0]:
+                bar.update(1, note=f"cost {best[0]:.4g}")
         return cache[key]
 
-    n_jac = [0]
-
     def jac(x):
-        n_jac[0] += 1
-        _progress.info(f"[identify] refinement step {n_jac[0]} (at most {max_iterations} evaluations): "
-                       f"{x.size} parameters, cost {0.5 * float(np.sum(fun(x) ** 2)):.4g}")
+        _progress.debug(f"{desc}: Jacobian at cost {0.5 * float(np.sum(fun(x) ** 2)):.4g}")
         h = 1e-4 * xs
         xp = x + h
         over = xp > hi_b
@@ -262,11 +269,14 @@ def fit_residuals(vector: SearchVector, residuals: Residuals, *, max_iterations:
         return rp.T
 
     x0 = vector.x0
-    sol = least_squares(fun, x0, jac=jac, bounds=(vector.lower, hi_b), x_scale=xs, method="trf",
-                        max_nfev=max_iterations, xtol=1e-10, ftol=ftol, gtol=1e-10)
-    fun(sol.x)  # its plain cost (the last point evaluated may have been a rejected trial)
-    plain = plain_of[sol.x.tobytes()]
-    cost0 = 0.5 * float(np.sum(fun(x0) ** 2))
+    with bar:
+        sol = least_squares(fun, x0, jac=jac, bounds=(vector.lower, hi_b), x_scale=xs, method="trf",
+                            max_nfev=max_iterations, xtol=1e-10, ftol=ftol, gtol=1e-10)
+        counting[0], bar.n = False, int(sol.nfev)
+        fun(sol.x)  # its plain cost (the last point evaluated may have been a rejected trial)
+        plain = plain_of[sol.x.tobytes()]
+        cost0 = 0.5 * float(np.sum(fun(x0) ** 2))
+        bar.done(f"cost {cost0:.4g} -> {float(sol.cost):.4g}" + ("" if sol.status > 0 else " (not converged)"))
     return RefineResult(building=make(sol.x), cost_initial=cost0, cost_final=float(sol.cost), nfev=int(sol.nfev),
                         seconds=time.perf_counter() - t0, message=str(sol.message), slots=tuple(vector.slots),
                         x=np.array(sol.x), jacobian=np.array(sol.jac), residuals=np.array(sol.fun),

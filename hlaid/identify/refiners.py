@@ -19,6 +19,7 @@ This module imports no heavy library at import time (the configuration checks it
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -26,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .. import _progress
-from ..errors import InputError, TangentTooLargeError, UnstableTangentError
+from ..errors import InputError, NotIdentifiableError, TangentTooLargeError, UnstableTangentError
 
 if TYPE_CHECKING:
     from ..measurement import Measurement
@@ -136,7 +137,6 @@ class LeastSquares(Refiner):
     kept where its cost is at least 20 % lower."""
 
     def refine(self, problem: RefineProblem) -> Refinement:
-        _progress.info("[identify] replay refinement against the measured accelerations")
         info: dict[str, Any] = {}
         start = self._k0_stage(problem, info)
         rr = self._fit(start, problem, info)
@@ -159,7 +159,8 @@ class LeastSquares(Refiner):
         error), then the regressions again with it: the start of the full fit."""
         if "k0" not in self.parameters:
             return problem.start
-        s1 = self._replay(problem.start, problem, parameters=("k0",), damping=False)
+        s1 = self._replay(problem.start, problem, parameters=("k0",), damping=False,
+                          desc="[identify] replay fit, k0 alone")
         info["stage1_k0"] = {"cost_initial": s1.cost_initial, "cost_final": s1.cost_final, "nfev": s1.nfev}
         return problem.regress(s1.building.k0.copy())
 
@@ -174,7 +175,7 @@ class LeastSquares(Refiner):
         if self.restart_ratio is not None and ratio > self.restart_ratio:
             _progress.info(f"[identify] the refined replay misses the data by {ratio:.1f}x its noise level: "
                            "refining again from a neutral start")
-            alt = self._replay(problem.neutral_start(), problem)
+            alt = self._replay(problem.neutral_start(), problem, desc="[identify] replay fit from a neutral start")
             kept = alt.cost_final < 0.8 * rr.cost_final
             info["restart"] = {"noise_ratio": ratio, "cost_final": alt.cost_final, "nfev": alt.nfev, "kept": kept,
                                "stories": "all"}
@@ -224,11 +225,41 @@ class ErrorsInVariables(LeastSquares):
         None and the reason where the tangent is unstable or larger than ``tangent_max_mb``."""
         try:
             eiv = self._replay(building, problem, stories=problem.stories, ftol=EIV_FTOL, ground_noise="tangent",
-                               tangent_max_mb=self.tangent_max_mb)
-        except (UnstableTangentError, TangentTooLargeError) as err:
-            return None, {"why": str(err)}
+                               tangent_max_mb=self.tangent_max_mb,
+                               desc=f"[identify] errors-in-variables fit from the {start}")
+        except NUMERICAL_FAILURES as err:
+            return None, {"why": " ".join(str(err).split())[:200] or type(err).__name__}
         return eiv, {"start": start, "cost_initial": eiv.cost_initial, "cost_final": eiv.cost_final, "nfev": eiv.nfev,
                      "seconds": eiv.seconds}
+
+
+NUMERICAL_FAILURES = (UnstableTangentError, TangentTooLargeError, np.linalg.LinAlgError)
+"""What makes the errors-in-variables stage fall back to least squares (a tangent that grows, is
+too ill-conditioned to factor or too large)."""
+
+
+def fit_or_fall_back(fit: Callable[..., Any], ground_noise: str) -> Any:
+    """``fit(ground_noise=ground_noise)`` (a joint fit, :func:`hlaid.identify.joint.map_refine`
+    with its other arguments bound); where the errors-in-variables weighting (``"tangent"``)
+    fails numerically (:data:`NUMERICAL_FAILURES`), least squares instead, with a warning and a
+    note in each event's record of the fit (``errors_in_variables``, kept in the clone's
+    diagnostics). A least-squares fit that fails too is a :class:`~hlaid.errors.NotIdentifiableError`."""
+    why = None
+    if ground_noise == "tangent":
+        try:
+            return fit(ground_noise="tangent")
+        except NUMERICAL_FAILURES as err:
+            why = " ".join(str(err).split())[:200] or type(err).__name__
+        _progress.warn(f"errors-in-variables stage skipped ({why}); the events are fitted by least squares")
+    try:
+        res = fit(ground_noise="ignore")
+    except np.linalg.LinAlgError as err:
+        raise NotIdentifiableError(f"the joint fit failed numerically ({' '.join(str(err).split())[:80]}): the "
+                                   "records do not determine the parameters") from None
+    if why is None:
+        return res
+    note = {"errors_in_variables": {"skipped": why, "fitted_by": "least squares"}}
+    return dataclasses.replace(res, events=[{**e, **note} for e in res.events])
 
 
 REFINERS: dict[str, type[Refiner]] = {"eiv": ErrorsInVariables, "least_squares": LeastSquares, "none": NoRefinement}

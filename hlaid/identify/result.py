@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import datetime
-import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
+from .._inputs import file_sha256
 from .._version import __version__
 from ..clone import Clone
 from ..config import config_to_dict
+from ..errors import InputError
 from ..hla import HLAResult
 from ..model import Building
 from .replaycheck import ReplayCheck
@@ -46,11 +47,13 @@ class IdentificationResult:
 
 
 def file_digest(path: str) -> str | None:
-    """SHA-256 of the file at ``path`` (None where it is not a file)."""
-    p = Path(path)
-    if not p.is_file():
+    """SHA-256 of the file at ``path`` (None where it is not a regular file hlaid reads)."""
+    if not Path(path).is_file():
         return None
-    return hashlib.sha256(p.read_bytes()).hexdigest()
+    try:
+        return file_sha256(path)
+    except InputError:
+        return None
 
 
 def provenance(cfg, timings: dict, **sources) -> dict:

@@ -23,9 +23,10 @@ import numpy as np
 from .. import _progress
 from ..hla import HLAResult, run_hla
 from ..hla.analysis import reanalyse_story
+from ..hla.config import fixed
 from ..hla.features import HalfCycleFeatures, half_cycle_features
 from ..hla.result import StoryHLA
-from ..measurement import Measurement, measured_ground
+from ..measurement import Measurement, building_name, measured_ground
 from ..model import Building, Damping
 from ..motions import GroundMotion
 from .config import IdentifyConfig
@@ -93,7 +94,7 @@ class Estimate:
         meas = event.measurement
         return Building(mass=event.hla.mass, k0=self.k0, alpha=self.alpha, p=self.p, dy=self.dy,
                         delta_eta=self.delta_eta, height=meas.height, damping=Damping(ratio=damping_ratio),
-                        pdelta=meas.pdelta_active if meas.height is not None else None, name=meas.name)
+                        pdelta=meas.pdelta_active if meas.height is not None else None, name=building_name(meas))
 
     def replace(self, **changes) -> Estimate:
         return dataclasses.replace(self, **changes)
@@ -130,8 +131,9 @@ def analyse(meas: Measurement, cfg: IdentifyConfig) -> Event:
     yielded in 3 half cycles has none identifiable: the paper's method cannot run on it)."""
     _progress.info(f"[identify] hysteresis loop analysis{' of ' + meas.name if meas.name else ''}")
     res = run_hla(meas, cfg.hla)
-    features = tuple(half_cycle_features(s, cfg.training.n_segments, yield_ratio=cfg.hla.stiffness.yield_ratio,
-                                         with_ke=True) for s in res.stories)
+    yield_ratio = fixed(cfg.hla.stiffness.yield_ratio, "hla.stiffness.yield_ratio")
+    features = tuple(half_cycle_features(s, cfg.training.n_segments, yield_ratio=yield_ratio, with_ke=True)
+                     for s in res.stories)
     identifiable = np.array([s.yielded and len(F) >= 3 for s, F in zip(res.stories, features)])
     ke_min = np.array([np.nanmin(s.half_cycles.ke) / s.k0 if len(s.half_cycles) else 1.0 for s in res.stories])
     return Event(measurement=meas, hla=res, features=features, identifiable=identifiable,
@@ -187,7 +189,8 @@ def follow_paths(event: Event, est: Estimate, cfg: IdentifyConfig) -> Estimate:
     k0, stories, features = est.k0.copy(), [], []
     for i, s in enumerate(res.stories):
         story = reanalyse_story(s, paths[:, i], s.force, res.dt, cfg.hla, res.band_hz)
-        feats = half_cycle_features(story, cfg.training.n_segments, yield_ratio=cfg.hla.stiffness.yield_ratio)
+        feats = half_cycle_features(story, cfg.training.n_segments,
+                                    yield_ratio=fixed(cfg.hla.stiffness.yield_ratio, "hla.stiffness.yield_ratio"))
         if event.identifiable[i] and (len(feats) < 3 or not np.isfinite(story.k0) or story.k0 <= 0):
             story, feats = s, event.features[i]  # the path lost the yielding half cycles: keep HLA's
         elif event.identifiable[i]:

@@ -3,6 +3,7 @@
 Example (``station.yaml``, next to ``station.csv``)::
 
     file: station.csv              # relative to this YAML file
+    delimiter: csv                 # csv | tsv | whitespace; default: from the file name (.csv, .tsv, else whitespace)
     time: t                        # a time column [s] ... or `dt: 0.01` when there is none
     ground: {column: ch0, units: g}
     floors:                        # bottom to top; absolute accelerations
@@ -17,7 +18,9 @@ Example (``station.yaml``, next to ``station.csv``)::
     offset: pre-event              # none | mean | pre-event: remove each channel's static bias
     pre_event_s: 2.0
 
-Columns are named (header row) or 0-based indices (``header: false``). Units are any of
+``configs/columns_example.yaml`` is a complete example (with its table). ``format:`` is the older
+name of ``delimiter:`` (still read; any other value than a delimiter is refused). Columns are
+named (header row) or 0-based indices (``header: false``). Units are any of
 :data:`hlaid.units.ACCELERATION_UNITS` (accelerations) and :data:`hlaid.units.LENGTH_UNITS`
 (displacements). An irregular time column is put on a uniform grid
 (:func:`hlaid.io._common.uniform_time`).
@@ -35,7 +38,7 @@ import numpy as np
 from .._inputs import read_text
 from ..bounds import bounded, check_bounds, with_bounds
 from ..config import load_config
-from ..errors import InputError
+from ..errors import InputError, quotable
 from ..measurement import Measurement
 from ..model.schema import STORY_BOUNDS, WEIGHT_KN
 from ..units import acceleration_factor, length_factor, weight_kn_to_mass_t
@@ -69,7 +72,8 @@ class ColumnsConfig:
     floors: list[ChannelSpec]
     time: str | int | None = bounded(None, lo=0, hi=100_000)
     dt: float | None = bounded(None, lo=1e-6, hi=1.0, unit="s")
-    format: Literal["csv", "tsv", "whitespace"] | None = None
+    delimiter: Literal["csv", "tsv", "whitespace"] | None = None
+    format: str | None = None
     header: bool = True
     comment: str = "#"
     floor_disp: list[ChannelSpec] | None = None
@@ -83,6 +87,16 @@ class ColumnsConfig:
 
     def __post_init__(self):
         check_bounds(self)
+        if self.format is not None:  # the older name of delimiter
+            if self.format not in _DELIMITERS:
+                shown = repr(self.format) if quotable(self.format) else "its value"
+                raise InputError(f"format: {shown} is not a delimiter; this key (now delimiter:) names how the "
+                                 "table's columns are separated: csv, tsv or whitespace (the file is read as a "
+                                 "columns table already; leave the key out to tell the delimiter from the file name)")
+            if self.delimiter is not None:
+                raise InputError("give delimiter only (format is its older name)")
+            object.__setattr__(self, "delimiter", self.format)
+            object.__setattr__(self, "format", None)
         if (self.time is None) == (self.dt is None):
             raise InputError("give exactly one of time (a time column) or dt (the sample interval in s)")
         if self.dt is not None and not self.dt > 0:
@@ -124,8 +138,8 @@ def _factor(fn, spec: ChannelSpec) -> float:
 
 
 def _delimiter(cfg: ColumnsConfig, data_path: Path) -> str | None:
-    if cfg.format is not None:
-        return _DELIMITERS[cfg.format]
+    if cfg.delimiter is not None:
+        return _DELIMITERS[cfg.delimiter]
     name = data_path.name.lower().removesuffix(".gz")
     if name.endswith(".csv"):
         return ","

@@ -7,7 +7,7 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
-from .._inputs import check_readable_file, read_text
+from .._inputs import NotTextError, check_readable_file, read_text
 from ..errors import InputError
 from ..measurement import Measurement
 from .columns import read_columns
@@ -36,9 +36,10 @@ MEASUREMENT_READERS: dict[str, Callable[..., Measurement]] = {
 
 
 def _head(p: Path) -> str:
+    """The first 40 lines of ``p`` ("" for a binary file); a file that cannot be read is an error."""
     try:
         return "\n".join(read_text(p).splitlines()[:40])
-    except InputError:
+    except NotTextError:
         return ""
 
 
@@ -112,11 +113,12 @@ def read_by_format(path: str | os.PathLike, format: str | None = None, **kw) -> 
         raise InputError(f"unknown measurement format {fmt!r}; "
                          f"expected one of {', '.join(sorted(MEASUREMENT_READERS))}", source=src)
     if fmt == "hotel" and "event" not in kw:
-        raise InputError(f"holds one record per earthquake; give event= (one of {hotel_events(path)})", source=src)
+        raise InputError(f"holds one record per earthquake; choose one, read(path, event=N), N one of "
+                         f"{hotel_events(path)}", source=src)
     if fmt == "csmip" and ("ground" not in kw or "floors" not in kw):
         chans = "; ".join(c.describe() for c in read_csmip_channels(path))
-        raise InputError(f"a CSMIP record holds many channels; give ground= and floors= (channels: {chans})",
-                         source=src)
+        raise InputError("a CSMIP record holds many channels; choose them, read(path, ground=N, floors=[N, ...]) "
+                         f"(channels: {chans})", source=src)
     try:
         return MEASUREMENT_READERS[fmt](path, **kw)
     except TypeError as err:

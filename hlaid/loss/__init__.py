@@ -2,7 +2,7 @@
 
 :func:`clone_demands` runs the clone (and its ensemble) under records, as recorded or at an IDA
 stripe, and returns the demands (PID, PFA, RID from the replay itself, the intensity) per
-realisation, written in pelicun's demand format by :meth:`Demands.write_csv`;
+realization, written in pelicun's demand format by :meth:`Demands.write_csv`;
 :func:`assess_losses` runs pelicun's FEMA P-58 assessment of the recorded event and of the
 stripes with a default inventory per structural system (:data:`INVENTORIES`) or the user's
 (:func:`hlaid.run.loss_of_run` does it for a run folder, ``hlaid loss RUN_DIR``). Method, sources and a

@@ -9,6 +9,8 @@ cost distribution at the recorded event (:func:`hlaid.run.loss_of_run` does it f
 
 from __future__ import annotations
 
+import csv
+import io
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,7 +32,7 @@ class LossResult:
 
     name : ``recorded`` or ``stripe-K`` (the folder its pelicun files are in)
     demands : the hlaid demands
-    sample : pelicun's per-realisation results (:func:`hlaid.loss.fema_p58.run_pelicun`)
+    sample : pelicun's per-realization results (:func:`hlaid.loss.fema_p58.run_pelicun`)
     summary : :func:`hlaid.loss.fema_p58.summarise` of them, with the intensity and the demand counts
     """
 
@@ -73,9 +75,35 @@ def describe_building(n: int, masses, cfg: LossConfig, collapse: tuple[float, fl
     cost = cfg.replacement_cost_usd or system.replacement_cost_usd_m2 * total
     time = cfg.replacement_time_worker_days or system.replacement_time_wd_m2 * total
     med, beta = collapse if collapse is not None else (None, None)
-    return Asset(inventory_csv=inv, inventory_source=inv_src, floor_area_m2=area, area_source=area_src,
-                    replacement_cost=float(cost), replacement_time=float(time), collapse_median_g=med,
-                    collapse_beta=beta, collapse_source=collapse_source if collapse else "none")
+    asset = Asset(inventory_csv=inv, inventory_source=inv_src, floor_area_m2=area, area_source=area_src,
+                  replacement_cost=float(cost), replacement_time=float(time), collapse_median_g=med,
+                  collapse_beta=beta, collapse_source=collapse_source if collapse else "none")
+    for line in assumption_lines(asset, cfg, given_inventory=cfg.inventory is not None):
+        _progress.info(line)
+    return asset
+
+
+def assumption_lines(asset: Asset, cfg: LossConfig, *, given_inventory: bool) -> list[str]:
+    """What the losses assume of the building that the user did not give (also in ``loss.json``):
+    the floor areas, the component quantities, the replacement values."""
+    area = asset.floor_area_m2
+    same = len(set(round(a, 6) for a in area)) == 1
+    shown = f"{area[0]:.4g} m2 per story" if same else "[" + ", ".join(f"{a:.4g}" for a in area) + "] m2"
+    lines = [f"loss assumption: floor area {shown}, {asset.area_source}"]
+    if not given_inventory:
+        rows = list(csv.reader(io.StringIO(asset.inventory_csv)))[1:]
+        qty = [float(r[4]) for r in rows if len(r) > 4 and r[1] == "ea"]
+        frac = sum(1 for q in qty if abs(q - round(q)) > 1e-9)
+        lines.append(f"loss assumption: components of the {asset.inventory_source.split(':')[0]} inventory, "
+                     "quantities = typical density per m2 x floor area"
+                     + (f" ({frac} of {len(qty)} counted quantities fractional, e.g. {min(q for q in qty if q):.3g} "
+                        "of a unit: expected values, not whole pieces); yours instead: LossConfig(inventory=CSV), "
+                        "loss.inventory, hlaid loss --inventory CSV" if frac else ""))
+    lines.append(f"loss assumption: replacement cost {asset.replacement_cost:,.0f} USD_2011 and time "
+                 f"{asset.replacement_time:,.0f} worker-days"
+                 + ("" if cfg.replacement_cost_usd and cfg.replacement_time_worker_days else
+                    " (the system's typical values per m2 x total floor area)"))
+    return lines
 
 
 def assess_demands(demands: Demands, asset: Asset, cfg: LossConfig, folder: str | os.PathLike,
@@ -91,13 +119,13 @@ def assess_demands(demands: Demands, asset: Asset, cfg: LossConfig, folder: str 
                            irreparable_beta=cfg.irreparable_beta, realizations=cfg.realizations, seed=cfg.seed)
     write_inputs(folder, inputs)
     notes = []
-    if demands.collapsed.all():  # pelicun needs at least one non-collapse realisation
+    if demands.collapsed.all():  # pelicun needs at least one non-collapse realization
         r = cfg.realizations
         sample = {"repair_cost": np.full(r, asset.replacement_cost),
                   "repair_time_parallel": np.full(r, asset.replacement_time),
                   "repair_time_sequential": np.full(r, asset.replacement_time),
                   "collapse": np.ones(r), "irreparable": np.zeros(r)}
-        notes.append("every realisation collapsed in the replay: pelicun not run, the loss is the replacement")
+        notes.append("every realization collapsed in the replay: pelicun not run, the loss is the replacement")
     else:
         sample = run_pelicun(folder)
     s = summarise(sample, asset.replacement_cost, asset.replacement_time)
@@ -106,7 +134,7 @@ def assess_demands(demands: Demands, asset: Asset, cfg: LossConfig, folder: str 
         notes.append("collapse not assessed: no collapse fragility; the losses are those of the realisations that did "
                      "not collapse")
     s.update(name=name, level_g=demands.level, im=float(np.median(demands.im)), im_label=demands.im_label,
-             n_demand_realisations=demands.n_realisations, n_collapsed_in_replay=int(demands.collapsed.sum()),
+             n_demand_realizations=demands.n_realizations, n_collapsed_in_replay=int(demands.collapsed.sum()),
              notes=notes)
     return LossResult(name=name, demands=demands, sample=sample, summary=s)
 
@@ -114,7 +142,7 @@ def assess_demands(demands: Demands, asset: Asset, cfg: LossConfig, folder: str 
 def assess_losses(clone, own_motion, *, records=None, levels=(), collapse: tuple[float, float] | None,
                   cfg: LossConfig | None = None, ida_config=None, n_ensemble: int = 0, seed: int = 0,
                   folder: str | os.PathLike, collapse_source: str = "",
-                  base_dir: str | os.PathLike | None = None) -> dict:
+                  base_dir: str | os.PathLike | None = None, plots: bool = True) -> dict:
     """Losses at the recorded event and at the IDA stripes; writes everything under ``folder``.
 
     Parameters
@@ -127,7 +155,7 @@ def assess_losses(clone, own_motion, *, records=None, levels=(), collapse: tuple
     ida_config : the IDA settings the demands are run with (:func:`hlaid.loss.clone_demands`)
     n_ensemble, seed : the ensemble of clones (0: the identified clone alone)
     folder : output folder (``recorded/``, ``stripe-K/`` with pelicun's inputs, ``loss.json``,
-        ``loss_curve.csv``, ``loss_curve.png``, ``repair_cost.png``)
+        ``loss_curve.csv``, ``loss_curve.png``, ``repair_cost.png``; ``plots`` False: no PNG)
 
     Returns
     -------
@@ -145,8 +173,8 @@ def assess_losses(clone, own_motion, *, records=None, levels=(), collapse: tuple
         results.append(assess_demands(d, b, cfg, folder / "recorded", "recorded"))
     levels = list(levels or ())
     if levels and records is None:
-        raise InputError("the loss curve needs the IDA records (give --records or the run's ida.records)")
-    for k, lv in enumerate(_progress.progress(levels, desc="loss stripes")):
+        raise InputError("the loss curve needs the IDA records (records=[...], or the run's ida.records)")
+    for k, lv in enumerate(_progress.progress(levels, desc="loss stripes", unit="levels")):
         d = clone_demands(clone, records, level=lv, n_ensemble=n_ensemble, seed=seed, ida_config=ida_config,
                           event_motions=[own_motion] if own_motion is not None else ())
         results.append(assess_demands(d, b, cfg, folder / f"stripe-{k + 1}", f"stripe-{k + 1}"))
@@ -169,6 +197,8 @@ def assess_losses(clone, own_motion, *, records=None, levels=(), collapse: tuple
 
         text = _curve_csv(stripes)
         atomic_write(folder / "loss_curve.csv", lambda p: p.write_text(text))
+    if not plots:
+        return out
     from ..plots import save_figure
     from .plots import plot_loss_curve, plot_repair_cost
 
@@ -180,11 +210,11 @@ def assess_losses(clone, own_motion, *, records=None, levels=(), collapse: tuple
 
 
 ASSUMPTIONS = (
-    "demands from the clone's own replay (residual drift from a free-vibration tail), one realisation per ensemble "
+    "demands from the clone's own replay (residual drift from a free-vibration tail), one realization per ensemble "
     "member and record, resampled by pelicun (empirical)",
     "the clone is planar: peak drifts are taken for both horizontal directions (pelicun DemandCloning), floor "
     "accelerations and residual drifts in the identified direction",
-    "collapse from hlaid's lognormal collapse fragility at each realisation's intensity; realisations that reached "
+    "collapse from hlaid's lognormal collapse fragility at each realization's intensity; realizations that reached "
     "the drift limit in the replay are removed from the non-collapse demands (pelicun CollapseLimits)",
     "irreparable damage from FEMA P-58's residual drift fragility, evaluated by pelicun per story; collapse and "
     "irreparable damage cost the replacement",
@@ -205,13 +235,13 @@ def _engine() -> str:
 def _curve_csv(stripes: list[LossResult]) -> str:
     head = ["level_g", "repair_cost_ratio_mean", "repair_cost_ratio_median", "repair_cost_ratio_lo",
             "repair_cost_ratio_hi", "repair_time_parallel_median", "p_collapse", "p_irreparable",
-            "n_collapsed_in_replay", "n_demand_realisations"]
+            "n_collapsed_in_replay", "n_demand_realizations"]
     rows = [",".join(head)]
     for r in stripes:
         s = r.summary
         vals = [s["level_g"], s["repair_cost_ratio_mean"], s["repair_cost_ratio_median"], *s["repair_cost_ratio_band"],
                 s["repair_time_parallel_median"], s["p_collapse"], s["p_irreparable"], s["n_collapsed_in_replay"],
-                s["n_demand_realisations"]]
+                s["n_demand_realizations"]]
         rows.append(",".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in vals))
     return "\n".join(rows) + "\n"
 
@@ -246,7 +276,7 @@ def loss_of_demand_file(path: str | os.PathLike, cfg: LossConfig, out: str | os.
             s.update(p_collapse=None, p_replacement=None)
             s["notes"] = ["collapse not assessed: no collapse fragility given (--collapse-median, --collapse-beta); "
                           "the repair costs and times are those of the realisations that did not collapse"]
-        s.update(demand_file=str(path), inventory=asset.inventory_source, n_demand_realisations=df.n_realisations,
+        s.update(demand_file=str(path), inventory=asset.inventory_source, n_demand_realizations=df.n_realizations,
                  collapse_fragility={"median_g": asset.collapse_median_g, "beta": asset.collapse_beta},
                  engine=_engine(), assumptions=ASSUMPTIONS)
         write_json(tmp / "loss.json", s)

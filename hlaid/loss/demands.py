@@ -1,8 +1,8 @@
-"""Engineering demands of a clone in pelicun's format: PID, PFA and RID per realisation.
+"""Engineering demands of a clone in pelicun's format: PID, PFA and RID per realization.
 
 :func:`clone_demands` runs the clone (or an ensemble of clones drawn from its identification
 uncertainty, :func:`hlaid.uncertainty.clone_ensemble`) under records, as recorded or scaled to
-one intensity (an IDA stripe), and returns a :class:`Demands`: one realisation per
+one intensity (an IDA stripe), and returns a :class:`Demands`: one realization per
 member x record, with
 
 * ``PID`` per story: peak inter-story drift ratio;
@@ -16,12 +16,12 @@ member x record, with
   is the mean drift over it; the half range of the drift over that period (the oscillation
   left) is kept as ``rid_settling`` [drift ratio];
 * ``SA`` (Sa(T1) at the nominal clone's T1, or PGA with ``im: pga``): the intensity of each
-  realisation, the demand pelicun's collapse fragility is evaluated at.
+  realization, the demand pelicun's collapse fragility is evaluated at.
 
-A realisation that reached the drift limit or diverged is *collapsed* (its PID is the drift at
+A realization that reached the drift limit or diverged is *collapsed* (its PID is the drift at
 which the run stopped, above the limit, or inf): pelicun's ``CollapseLimits`` removes it from the
 non-collapse demand sample, and collapse is counted from the collapse fragility instead, as FEMA
-P-58 separates collapse from the non-collapse realisations. Units inside: drift ratios,
+P-58 separates collapse from the non-collapse realizations. Units inside: drift ratios,
 accelerations in mm/s^2, IM in g; :meth:`Demands.write_csv` writes g.
 """
 
@@ -53,7 +53,7 @@ MIN_TAIL_S = 5.0
 
 @dataclass(frozen=True, eq=False)
 class Demands:
-    """Demands of realisations (member x record), in hlaid's units.
+    """Demands of realizations (member x record), in hlaid's units.
 
     Attributes
     ----------
@@ -61,7 +61,7 @@ class Demands:
     pfa : (R, story + 1) peak absolute floor acceleration [mm/s^2], column 0 the ground
     rid : (R, story) residual inter-story drift ratio (absolute value, settled; see module doc)
     rid_settling : (R, story) half range of the drift ratio over the last period (oscillation left)
-    im : (R,) intensity of each realisation [g]
+    im : (R,) intensity of each realization [g]
     collapsed : (R,) the run reached the drift limit or diverged
     member, record : (R,) ensemble member (-1: the identified clone) and record index
     record_names : (record,) names
@@ -93,7 +93,7 @@ class Demands:
     survival: dict = field(default_factory=dict)
 
     @property
-    def n_realisations(self) -> int:
+    def n_realizations(self) -> int:
         return int(self.pid.shape[0])
 
     @property
@@ -119,7 +119,7 @@ class Demands:
         return cols, units, np.concatenate(vals, axis=1)
 
     def csv_text(self) -> str:
-        """pelicun's demand CSV: a header row, the ``Units`` row, one row per realisation."""
+        """pelicun's demand CSV: a header row, the ``Units`` row, one row per realization."""
         cols, units, vals = self.table()
         lines = ["," + ",".join(cols), "Units," + ",".join(units)]
         lines += [f"{i}," + ",".join(_num(v) for v in row) for i, row in enumerate(vals)]
@@ -133,12 +133,12 @@ class Demands:
         return atomic_write(path, lambda tmp: tmp.write_text(text), force=force)
 
     def summary(self) -> dict:
-        """Medians over the non-collapsed realisations (JSON-able), and the counts."""
+        """Medians over the non-collapsed realizations (JSON-able), and the counts."""
         ok = ~self.collapsed
 
         def med(a):
             return np.median(a[ok], axis=0).tolist() if ok.any() else None
-        return {"n_realisations": self.n_realisations, "n_collapsed": int(self.collapsed.sum()),
+        return {"n_realizations": self.n_realizations, "n_collapsed": int(self.collapsed.sum()),
                 "level_g": self.level, "im": self.im_name, "period_s": self.period,
                 "pid_median": med(self.pid), "pfa_median_g": None if not ok.any() else
                 (np.median(self.pfa[ok], axis=0) / G_MM_S2).tolist(),
@@ -210,7 +210,7 @@ def _replays(buildings, motions, scale: np.ndarray, cfg, tail: float, window: fl
     settle = np.full((nb, nm, n), np.nan)
     status = np.empty((nb, nm), dtype=np.int64)
     sub = np.maximum(1, np.ceil(np.array([m.dt for m in motions]) / cfg.max_step - 1e-9)).astype(np.int64)
-    for s in _progress.progress(np.unique(sub), desc="demands"):
+    for s in _progress.progress(np.unique(sub), desc=f"demands of {nb} clone(s) x {nm} record(s)", unit="batches"):
         idx = np.flatnonzero(sub == s)
         mot = [upsampled(motions[j], int(s)) for j in idx]
         r = simulate_response(buildings, mot, scale[idx][:, None], substeps=1, outputs="peaks", free_vibration=tail,
@@ -250,7 +250,7 @@ def clone_demands(clone: Clone | str | os.PathLike, records, *, level: float | N
     level : None: every record as recorded (scale 1); a number: every record scaled to this IM [g]
         (an IDA stripe)
     n_ensemble : clones drawn from the identification uncertainty (0: the identified clone only);
-        each realisation is one member under one record, the identified clone excluded
+        each realization is one member under one record, the identified clone excluded
     seed : seed of the ensemble
     ida_config : :class:`hlaid.ida.IDAConfig` (its ``im``, ``period``, ``drift_limit``, ``max_step``,
         ``pdelta``, ``heights_mm``, ``gravity_kN``, ``collapse`` and ``units`` are used); None: defaults
@@ -283,7 +283,7 @@ def clone_demands(clone: Clone | str | os.PathLike, records, *, level: float | N
     collapsed = (status != 0) | (np.max(pid, axis=-1) > cfg.drift_limit)
     pid = np.where((status == 2)[..., None], np.inf, pid)
     if collapsed.any():
-        notes.append(f"{int(collapsed.sum())} of {collapsed.size} realisation(s) reached the {cfg.drift_limit:.0%} "
+        notes.append(f"{int(collapsed.sum())} of {collapsed.size} realization(s) reached the {cfg.drift_limit:.0%} "
                      "drift limit or diverged (collapsed)")
     flags = list(extrapolation_flags(clone, pid[~collapsed], np.asarray(nominal.height, dtype=float)))
     if surv.nominal_survives is False:
@@ -347,7 +347,7 @@ class DemandFile:
     text: str
     n_stories: int
     im_type: str | None
-    n_realisations: int
+    n_realizations: int
 
 
 def read_demand_csv(path: str | os.PathLike) -> DemandFile:
@@ -355,7 +355,7 @@ def read_demand_csv(path: str | os.PathLike) -> DemandFile:
 
     The header names ``EVENT-TYPE-LOCATION-DIRECTION`` columns of PID, RID, PFA, PGA or SA_T; the
     second row is ``Units`` with rad (or unitless) for drifts and g, mps2, inps2 or ftps2 for
-    accelerations; every other row is one realisation of numbers (inf allowed: a diverged run).
+    accelerations; every other row is one realization of numbers (inf allowed: a diverged run).
     Errors name the file, line and column and exit with status 2 on the command line.
     """
     from .._inputs import read_text
@@ -365,7 +365,7 @@ def read_demand_csv(path: str | os.PathLike) -> DemandFile:
     text = read_text(path)
     rows = list(csv.reader(io.StringIO(text)))
     if len(rows) < 3:
-        raise InputError("expected a header, a Units row and at least one realisation (pelicun's demand file)",
+        raise InputError("expected a header, a Units row and at least one realization (pelicun's demand file)",
                          source=src)
     cols = [c.strip() for c in rows[0][1:]]
     kinds = []
@@ -400,7 +400,7 @@ def read_demand_csv(path: str | os.PathLike) -> DemandFile:
     if not pid:
         raise InputError("no PID (peak inter-story drift) columns; expected 1-PID-1-1 ...", source=src)
     im = next((k for k in kinds if k.startswith("SA_") or k == "PGA"), None)
-    return DemandFile(text=text, n_stories=max(pid), im_type=im, n_realisations=len(rows) - 2)
+    return DemandFile(text=text, n_stories=max(pid), im_type=im, n_realizations=len(rows) - 2)
 
 
 __all__ = ["DemandFile", "read_demand_csv", "Demands", "clone_demands", "residual_window", "SETTLE_DECAY", "MIN_TAIL_S"]

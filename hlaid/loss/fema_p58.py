@@ -6,14 +6,14 @@ component assignment) and ``config.json`` (pelicun's ``DL`` configuration). :fun
 runs the assessment on those files in this process, through pelicun's ``DLCalculationAssessment``
 with the same calls in the same order as its command line
 (``python -m pelicun.tools.DL_calculation -c config.json -d demands.csv``), so both give the same
-realisations for the same seed. The configuration:
+realizations for the same seed. The configuration:
 
-* demands: the realisations as written (``empirical``: resampled to ``realizations`` rows); the
-  collapsed realisations removed by ``CollapseLimits`` (PID above the drift limit); the drift
+* demands: the realizations as written (``empirical``: resampled to ``realizations`` rows); the
+  collapsed realizations removed by ``CollapseLimits`` (PID above the drift limit); the drift
   demands copied to direction 2 (``DemandCloning``: the clone is planar, the orthogonal direction
   is assumed to drift alike), floor accelerations and residual drifts in direction 1 only;
 * collapse: hlaid's lognormal collapse fragility in the intensity (``SA_T1`` or ``PGA``), sampled per
-  realisation against the realisation's intensity; a collapse costs the replacement;
+  realization against the realization's intensity; a collapse costs the replacement;
 * irreparable damage: FEMA P-58's residual drift fragility (``IrreparableDamage``, median 1 %,
   dispersion 0.3 by default), evaluated by pelicun per story; an irreparable building costs the
   replacement;
@@ -72,8 +72,8 @@ class PelicunInputs:
     n_stories : stories of the building
     im_type : pelicun's demand type of the intensity column (``SA_0.413`` or ``PGA``)
     collapse_median_g, collapse_beta : the lognormal collapse fragility in that intensity (None: no
-        collapse fragility; collapsed realisations are still removed from the demands)
-    drift_limit : PID above which a realisation is a collapse (``CollapseLimits``)
+        collapse fragility; collapsed realizations are still removed from the demands)
+    drift_limit : PID above which a realization is a collapse (``CollapseLimits``)
     replacement_cost, replacement_time : [USD_2011], [worker-days]
     irreparable_median, irreparable_beta : the residual drift fragility
     realizations, seed : pelicun's sample size and seed
@@ -139,12 +139,12 @@ def write_inputs(folder: str | os.PathLike, inputs: PelicunInputs) -> dict:
 SAMPLE_COLUMNS = {"repair_cost": "repair_cost-", "repair_time_parallel": "repair_time-parallel",
                   "repair_time_sequential": "repair_time-sequential", "collapse": "collapse",
                   "irreparable": "irreparable"}
-"""hlaid's names of pelicun's per-realisation results (``DL_summary.csv`` columns)."""
+"""hlaid's names of pelicun's per-realization results (``DL_summary.csv`` columns)."""
 
 
 def run_pelicun(folder: str | os.PathLike) -> dict[str, np.ndarray]:
     """Run the FEMA P-58 assessment on the inputs in ``folder`` (:func:`write_inputs`): the calls of
-    pelicun's ``DL_calculation`` with the same arguments. Returns the per-realisation results
+    pelicun's ``DL_calculation`` with the same arguments. Returns the per-realization results
     (``repair_cost`` [USD_2011], ``repair_time_parallel``/``_sequential`` [worker-days], ``collapse``
     and ``irreparable`` as 0/1), as pelicun's ``DL_summary.csv`` holds them; pelicun's log goes to
     ``folder/pelicun_log.txt``."""
@@ -205,7 +205,7 @@ def summarise(sample: dict[str, np.ndarray], replacement_cost: float, replacemen
               ci: float = 0.90) -> dict:
     """Repair cost (median, ``ci`` band, their ratios to the replacement cost), repair time (median
     and band, parallel and sequential repairs), P(collapse), P(irreparable) and P(replacement)
-    (either) over pelicun's realisations."""
+    (either) over pelicun's realizations."""
     q = (0.5 - ci / 2, 0.5, 0.5 + ci / 2)
     cost = sample["repair_cost"]
     lo, med, hi = (float(v) for v in np.quantile(cost, q))

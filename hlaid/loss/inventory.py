@@ -31,7 +31,9 @@ import os
 import re
 from dataclasses import dataclass
 
+from ..bounds import Bounds, show
 from ..errors import InputError, quotable
+from ..limits import limit
 from ..systems import SYSTEMS, unknown_system
 
 M2_PER_FT2 = 0.09290304
@@ -165,20 +167,30 @@ def _component_library() -> tuple[set[str], set[str], set[str]]:
     return complete, incomplete, cons
 
 
+QUANTITY = Bounds(0.0, 1e6, lo_open=True)
+"""Bounds of an inventory row's quantity ``Theta_0`` (per story and direction, in its unit)."""
+
+BLOCKS = Bounds(1, 10_000)
+"""Bounds of an inventory row's ``Blocks`` (where given)."""
+
+
 def check_inventory(text: str, n_stories: int, source: str) -> int:
     """Check an inventory CSV (pelicun's component assignment format); returns its number of rows.
 
     Every row must name a component of the FEMA P-58 library with a complete fragility and repair
     consequences, a length/area/count unit pelicun knows, stories within ``1..n_stories + 1``
-    (``roof`` is story ``n + 1``), directions 0, 1 or 2, and a positive quantity. Errors name the
-    file, line and column (component IDs are quoted only when they are plain labels).
+    (``roof`` is story ``n + 1``), directions 0, 1 or 2, a quantity within :data:`QUANTITY` and
+    ``Blocks`` within :data:`BLOCKS`; at most ``HLAID_MAX_INVENTORY`` rows. The rows are checked
+    before pelicun's library is read. Errors name the file, line and column (component IDs are
+    quoted only when they are plain labels).
     """
     from .fema_p58 import UNITS
 
-    rows = list(csv.reader(io.StringIO(text)))
-    if not rows:
+    reader = csv.reader(io.StringIO(text))
+    first = next(reader, None)
+    if first is None:
         raise InputError("inventory is empty; expected a header ID,Units,Location,Direction,Theta_0", source=source)
-    head = [h.strip() for h in rows[0]]
+    head = [h.strip() for h in first]
     head[0] = head[0] or "ID"
     need = ["ID", "Units", "Location", "Direction", "Theta_0"]
     missing = [c for c in need if c not in head]
@@ -187,22 +199,15 @@ def check_inventory(text: str, n_stories: int, source: str) -> int:
                          "ID,Units,Location,Direction,Theta_0[,Blocks,Comment] (pelicun's component assignment)",
                          source=source)
     col = {c: head.index(c) for c in need}
-    complete, incomplete, conseq = _component_library()
-    count = 0
-    for ln, row in enumerate(rows[1:], start=2):
-        if not any(c.strip() for c in row):
-            continue
-        if len(row) < len(head):
-            row = row + [""] * (len(head) - len(row))
-        cid, unit = row[col["ID"]].strip(), row[col["Units"]].strip()
-        name = f"component {cid!r}" if quotable(cid) else "the component"
-        if cid not in complete:
-            why = ("has an incomplete fragility in the FEMA P-58 library (pelicun would skip it)" if cid in incomplete
-                   else "is not in the FEMA P-58 component library shipped with pelicun (simcenter-dlml)")
-            raise InputError(f"line {ln}: {name} {why}; expected a FEMA P-58 ID such as B.10.35.021", source=source)
-        if cid not in conseq:
-            raise InputError(f"line {ln}: {name} has no repair consequences in the FEMA P-58 library", source=source)
-        if unit not in UNITS:
+    body, top_rows = [], limit("INVENTORY")
+    for ln, row in enumerate(reader, start=2):  # a huge file is refused at its first row over the limit
+        if any(c.strip() for c in row):
+            body.append((ln, row + [""] * (len(head) - len(row))))
+            if len(body) > top_rows:
+                raise InputError(f"more than {top_rows:.0f} component rows (line {ln}), over the limit of "
+                                 f"{top_rows:.0f} (set HLAID_MAX_INVENTORY to raise it)", source=source)
+    for ln, row in body:
+        if row[col["Units"]].strip() not in UNITS:
             raise InputError(f"line {ln}: column Units: unknown unit; expected one of ea, m, m2, ft, ft2, in, in2",
                              source=source)
         loc = row[col["Location"]].replace(" ", "")
@@ -216,16 +221,30 @@ def check_inventory(text: str, n_stories: int, source: str) -> int:
         if not _DIR.fullmatch(row[col["Direction"]].replace(" ", "")) or \
                 any(d not in "012" for d in row[col["Direction"]].replace(" ", "").split(",")):
             raise InputError(f"line {ln}: column Direction: expected 0 (non-directional), 1, 2 or 1,2", source=source)
-        try:
-            q = float(row[col["Theta_0"]])
-        except ValueError:
-            q = math.nan
-        if not (math.isfinite(q) and q > 0):
-            raise InputError(f"line {ln}: column Theta_0: expected a positive quantity", source=source)
-        count += 1
-    if count == 0:
+        for name, b in (("Theta_0", QUANTITY), ("Blocks", BLOCKS)):
+            cell = row[head.index(name)].strip() if name in head else ""
+            if name == "Blocks" and not cell:
+                continue
+            try:
+                q = float(cell)
+            except ValueError:
+                q = math.nan
+            if not b.contains(q) or (name == "Blocks" and not q.is_integer()):
+                raise InputError(f"line {ln}: column {name}: {show(q) if math.isfinite(q) else 'no number'}; expected "
+                                 f"{b.text(name)}" + (", a whole number" if name == "Blocks" else ""), source=source)
+    if not body:
         raise InputError("inventory has no component rows", source=source)
-    return count
+    complete, incomplete, conseq = _component_library()
+    for ln, row in body:
+        cid = row[col["ID"]].strip()
+        name = f"component {cid!r}" if quotable(cid) else "the component"
+        if cid not in complete:
+            why = ("has an incomplete fragility in the FEMA P-58 library (pelicun would skip it)" if cid in incomplete
+                   else "is not in the FEMA P-58 component library shipped with pelicun (simcenter-dlml)")
+            raise InputError(f"line {ln}: {name} {why}; expected a FEMA P-58 ID such as B.10.35.021", source=source)
+        if cid not in conseq:
+            raise InputError(f"line {ln}: {name} has no repair consequences in the FEMA P-58 library", source=source)
+    return len(body)
 
 
 def read_inventory(path: str | os.PathLike, n_stories: int) -> str:

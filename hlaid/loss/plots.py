@@ -6,7 +6,7 @@ import numpy as np
 
 
 def plot_loss_curve(stripes, own=None):
-    """Repair cost ratio against intensity (mean, median and 90 % band over pelicun's realisations)
+    """Repair cost ratio against intensity (mean, median and 90 % band over pelicun's realizations)
     and P(collapse), P(irreparable); the recorded event marked. ``stripes``/``own``: LossResults."""
     import matplotlib.pyplot as plt
 
@@ -28,13 +28,14 @@ def plot_loss_curve(stripes, own=None):
             a.axvline(o["im"], color="k", ls=":", lw=1)
         ax.plot([o["im"]], [o["repair_cost_ratio_median"]], "D", color="C2", ms=8, mec="k",
                 label=f"recorded event ({o['im']:.3g} g): median {o['repair_cost_ratio_median']:.1%}")
-    for a, yl in ((ax, "repair cost / replacement cost"), (ax2, "probability")):
+    right = max(float(x.max()), own.summary["im"] if own is not None else 0.0) * 1.05  # the event inside the axes
+    for a, yl, where in ((ax, "repair cost / replacement cost", "lower right"), (ax2, "probability", "center right")):
         a.set_xlabel(f"{label} [g]")
         a.set_ylabel(yl)
-        a.set_xlim(0, float(x.max()) * 1.05)
+        a.set_xlim(0, right)
         a.set_ylim(0, 1.02)
         a.grid(alpha=0.3)
-        a.legend(fontsize=8, loc="upper left")
+        a.legend(fontsize=8, loc=where)  # the curves rise on the left and stay at 1 on the top right
     ax.set_title("Repair cost against intensity (FEMA P-58, pelicun)", fontsize=10)
     ax2.set_title("Collapse and irreparable damage", fontsize=10)
     fig.tight_layout()
@@ -56,9 +57,9 @@ def plot_repair_cost(own, replacement_cost: float):
     ax.axvline(replacement_cost / 1e3, color="C3", ls="--", lw=1.5,
                label=f"replacement {replacement_cost / 1e3:.4g} k (P = {s['p_replacement']:.1%})")
     ax.set_xlabel(f"repair cost [thousand {s['cost_unit']}]")
-    ax.set_ylabel("realisations")
+    ax.set_ylabel("realizations")
     ax.set_title(f"Repair cost at the recorded event ({s['im_label']} = {s['im']:.3g} g, "
-                 f"{s['n_realizations']} realisations)", fontsize=10)
+                 f"{s['n_realizations']} realizations)", fontsize=10)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..bounds import Bounds, bounded, check_bounds
+from ..bounds import Bounds, bounded, check_bounds, show
 from ..errors import InputError
 
 STORY_BOUNDS: dict[str, Bounds] = {
@@ -40,6 +40,46 @@ STATE_BOUNDS: dict[str, Bounds] = {
 """Bounds of a carried state's per-story values (:class:`hlaid.events.state.BuildingState`):
 a drift beyond the largest story height, or a hysteretic work beyond the largest ``dy`` times
 that drift, is no state of a building."""
+
+Z_SLACK = 1.05
+"""A carried state's hysteretic displacement ``z`` stays within ``dy`` (eq 10 stops loading at
+``|z| = dy``); this much beyond it (numerical overshoot) is still read, more is refused."""
+
+EVENT_BOUNDS: dict[str, Bounds] = {
+    "pga_g": Bounds(0.0, 100.0, unit="g"),
+    "duration_s": Bounds(0.0, 1e7, lo_open=True, unit="s"),
+    "dt": Bounds(1e-5, 0.2, unit="s"),
+    "n_floors": Bounds(1, 10_000),
+}
+"""Bounds of the numbers a clone keeps of each event it learnt from (``events[]``)."""
+
+
+def check_event(e: dict, i: int) -> None:
+    """Refuse an ``events[i]`` entry of a clone whose numbers are no numbers or out of bounds, or
+    whose digests are not text."""
+    for key, b in EVENT_BOUNDS.items():
+        v = e.get(key)
+        if v is None:
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise InputError(f"field 'events[{i}].{key}' must be a number")
+        b.check(f"events[{i}].{key}", v)
+    for key in ("name", "source", "sha256", "ground_sha256", "recorded"):
+        if e.get(key) is not None and not isinstance(e[key], str):
+            raise InputError(f"field 'events[{i}].{key}' must be a string")
+
+
+def check_state(z, dy) -> None:
+    """Refuse a carried state whose hysteretic displacement ``z`` [mm] exceeds its story's ``dy``
+    (by more than :data:`Z_SLACK`): no replay of the clone's law leaves one there."""
+    import numpy as np
+
+    ratio = np.abs(np.asarray(z, dtype=float)) / np.asarray(dy, dtype=float)
+    k = int(np.argmax(ratio))
+    if ratio[k] > Z_SLACK:
+        raise InputError(f"state.z[{k}] = {show(float(np.asarray(z)[k]))} mm is beyond the story's dy = "
+                         f"{show(float(np.asarray(dy)[k]))} mm; the hysteretic displacement stays within +-dy")
+
 
 WEIGHT_KN = Bounds(1e-5, 1e9, unit="kN")
 """Bounds of a floor weight or gravity load given in kN (configs)."""

@@ -12,8 +12,9 @@ config imports no heavy library. No name here is also the name of a submodule.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_exports
 
 if TYPE_CHECKING:
     from .config import MeasurementSource, RunConfig, input_paths, load_run_config
@@ -35,16 +36,4 @@ _WHERE = {
 }
 """Public name -> the submodule that defines it (the names of ``__all__``)."""
 
-
-def __getattr__(name: str) -> Any:
-    """Import a public name on first use and keep it in the module's namespace."""
-    module = _WHERE.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(module, __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _WHERE)

@@ -90,7 +90,10 @@ class Figures:
 
 def required_figures(summary: RunSummary) -> list[str]:
     """Figures (relative paths) a run folder must hold: those of :data:`FIGURES` under ``figures/``,
-    those under ``ida/`` when the run made an IDA, and those of the sections it has."""
+    those under ``ida/`` when the run made an IDA, and those of the sections it has (none when the
+    run made no figures)."""
+    if not summary.figures:
+        return []
     out = [rel for rel, _ in FIGURES if rel.startswith("figures/") or summary.ida]
     out += loss_section.required_figures(summary.loss) if summary.loss else []
     out += [aftershock.FIGURE] if summary.ida and summary.ida_after else []
@@ -123,9 +126,9 @@ def render_report(s: RunSummary, figs: Figures) -> str:
     if s.ida:
         parts.append(ida.section(s.ida))
     if s.ida and s.ida_after:
-        parts.append(aftershock.section(s.ida, s.ida_after, figs.img(aftershock.FIGURE)))
+        parts.append(aftershock.section(s.ida, s.ida_after, figs.img_if_there(aftershock.FIGURE)))
     if s.assessment:
-        parts.append(assessment.section(s.assessment, figs.img(assessment.FIGURE)))
+        parts.append(assessment.section(s.assessment, figs.img_if_there(assessment.FIGURE)))
     if s.loss:
         parts.append(loss_section.section(s.loss, figs.img_if_there))
     parts.append("<h2>Run</h2><p>" + ", ".join(f"{e(k)} {v:.1f} s" for k, v in s.timings.items()) +

@@ -21,12 +21,13 @@ from typing import Any, cast
 import numpy as np
 
 from .. import _progress
-from .._fileio import atomic_directory, write_json
+from .._fileio import atomic_directory, check_output_folder, write_json
 from .._inputs import read_json
 from .._version import __version__
 from ..config import config_to_dict
 from ..errors import InputError
 from ..events.identify import identify_clone
+from ..identify.config import RefineConfig
 from ..identify.replaycheck import corrcoef
 from ..io import read
 from ..measurement import Measurement, check_band
@@ -90,11 +91,26 @@ def _csv(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
+class _Steps:
+    """The numbered steps of a run (``[3/7] figures``), counted from the config before the work."""
+
+    def __init__(self, cfg: RunConfig) -> None:
+        after = cfg.ida is not None and cfg.ida.start == "undamaged"
+        self.total = 3 + (cfg.ida is not None) + after + (cfg.assess is not None) + (cfg.loss is not None)
+        self.done = 0
+
+    def __call__(self, text: str) -> None:
+        self.done += 1
+        _progress.info(f"[{self.done}/{self.total}] {text}")
+
+
 def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None = None, force: bool = False,
-                 cache_dir: str | None = None, inputs: Sequence[str | Path | None] = ()) -> RunSummary:
+                 cache_dir: str | None = None, inputs: Sequence[str | Path | None] = (),
+                 plots: bool = True) -> RunSummary:
     """Run the pipeline and write everything under ``out``; returns the run summary. An existing
     ``out`` is replaced only with ``force``, when hlaid wrote it and it holds none of ``inputs``
-    (the run's own input files are added to them)."""
+    (the run's own input files are added to them). ``plots`` False: no figures (the report holds
+    the tables alone)."""
     from .report import build_report
     t_all = time.perf_counter()
     timings = {}
@@ -102,22 +118,24 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
         from ..loss.fema_p58 import require_pelicun
         require_pelicun()
     inputs = [*inputs, *input_paths(cfg, base_dir), cache_dir]
+    step = _Steps(cfg)
     with atomic_directory(out, force=force, inputs=inputs) as tmp:
         tmp = Path(tmp)
         (tmp / "figures").mkdir()
         t = time.perf_counter()
-        _progress.info("[1/4] measurement")
+        step("measurement")
         meas = load_measurement(cfg.measurement, Path(base_dir) if base_dir else None)
         check_band(meas, cfg.identify.hla.preprocess.band_hz, "identify.hla.preprocess.band_hz")
-        check_band(meas, cfg.identify.refine.band_hz, "identify.refine.band_hz")
+        check_band(meas, cfg.identify.refine.band_hz, "identify.refine.band_hz", default=RefineConfig().band_hz)
+        check_output_folder(out, force=force, inputs=inputs)  # and the files the measurement named: before the work
         meas.save(tmp / "measurement.npz")
         timings["measurement"] = time.perf_counter() - t
         t = time.perf_counter()
-        _progress.info("[2/4] hysteresis loop analysis and identification")
+        step("hysteresis loop analysis and identification")
         res = identify_clone(meas, cfg.identify, tensorboard=str(tmp / "tensorboard"), cache_dir=cache_dir)
         timings["identify"] = time.perf_counter() - t
-        table, paper = _identification_outputs(meas, res, tmp)
-        risk = _risk(res.clone, meas, cfg, tmp, base_dir, timings)
+        table, paper = _identification_outputs(meas, res, tmp, step, plots)
+        risk = _risk(res.clone, meas, cfg, tmp, base_dir, timings, step, plots)
         flags = run_flags(res.clone, stiffness_error=res.replay.stiffness_error.tolist(),
                           survival=risk.pop("survival_dict"), assessment=risk.pop("assessment_dict"),
                           heights_given=_heights_given(cfg), loss=risk.pop("loss_dict"),
@@ -135,7 +153,7 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
                           r_true=None if rc.r_true is None else tuple(rc.r_true.tolist()),
                           stiffness_error=tuple(rc.stiffness_error.tolist())),
             outer_iterations=res.iterations, identify_timings=dict(res.timings), timings=timings,
-            noise_rms=meas.noise_rms, flags=tuple(flags), **risk)
+            noise_rms=meas.noise_rms, flags=tuple(flags), figures=plots, **risk)
         write_json(tmp / "summary.json", summary.to_dict())
         build_report(tmp)
     _progress.info(f"wrote {out}/ (report.html, clone.json, hla/, ida/, figures/, tensorboard/) in "
@@ -143,10 +161,11 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
     return summary
 
 
-def _identification_outputs(meas: Measurement, res, tmp: Path) -> tuple[list[ParameterRow], list[ParameterRow]]:
+def _identification_outputs(meas: Measurement, res, tmp: Path, step: _Steps, plots: bool = True
+                            ) -> tuple[list[ParameterRow], list[ParameterRow]]:
     """The clone, HLA, parameter tables and identification figures of a run (into ``tmp``); returns
     the parameter tables of the clone and of the paper's method alone."""
-    from ..hla.plots import plot_loops, plot_stiffness
+    from ..hla.plots import plot_loops, plot_stiffness, wide_band
     res.clone.save(tmp / "clone.json")
     res.hla.save(tmp / "hla")
     truth = meas.truth.building if meas.truth is not None else None
@@ -156,9 +175,11 @@ def _identification_outputs(meas: Measurement, res, tmp: Path) -> tuple[list[Par
     write_json(tmp / "parameters.json", {"identified": rows, "paper_method": [r.to_dict() for r in paper]})
     (tmp / "parameters.csv").write_text(_csv(rows))
     write_json(tmp / "identification.json", res.clone.diagnostics)
-    _progress.info("[3/4] figures")
+    step("figures" if plots else "figures: none (--no-plots)")
+    if not plots:
+        return table, paper
     figs = tmp / "figures"
-    save_figure(plot_loops(res.hla), figs / "loops.png")
+    save_figure(plot_loops(res.hla, wide=wide_band(meas, res.hla)), figs / "loops.png")
     save_figure(plot_stiffness(res.hla, meas.truth, clone_ke=res.replay.ke), figs / "stiffness.png")
     save_figure(_replay_figure(meas, res), figs / "replay.png")
     return table, paper
@@ -181,7 +202,8 @@ def _own_motion(meas: Measurement):
                         source=meas.source or "")
 
 
-def _risk(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir, timings: dict) -> dict:
+def _risk(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir, timings: dict, step: _Steps,
+          plots: bool = True) -> dict:
     """The IDA (before and after the event), the ensemble assessment and the losses a run's config
     asks for (into ``tmp``, their times into ``timings``); returns the summary's blocks of them
     (and, for the flags, ``*_dict``: the survival, the assessment and the losses as mappings)."""
@@ -191,24 +213,30 @@ def _risk(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir, timings
     if cfg.ida is None:
         return out
     t = time.perf_counter()
-    _progress.info("[4/4] incremental dynamic analysis of the clone")
+    step("incremental dynamic analysis of the clone" + (" from the state the event left it in"
+                                                        if cfg.ida.start == "carried" else ""))
     from ..events.evidence import survivors
     from ..ida import ida_from_config
     own = _own_motion(meas)
     ir = ida_from_config(clone, cfg.ida, base_dir=base_dir, event_motions=[own])
-    ir.save(tmp / "ida", plots=True, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
+    ir.save(tmp / "ida", plots=plots, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
     out["ida"] = _ida_summary(tmp / "ida")
     timings["ida"] = time.perf_counter() - t
     surv = survivors(clone, 0, prepare=lambda _: ir.building, motions=[own], drift_limit=cfg.ida.drift_limit,
                      max_step=cfg.ida.max_step)
     out["survival_dict"] = surv.to_dict()
-    if clone.state is not None and cfg.ida.start == "undamaged":
+    if cfg.ida.start == "undamaged":
         t = time.perf_counter()
-        out["ida_after"] = _aftershock(clone, ir, cfg, tmp, base_dir, own)
-        timings["ida_after"] = time.perf_counter() - t
+        step("incremental dynamic analysis from the state the event left the clone in"
+             + ("" if clone.state is not None else ": skipped (the clone carries no state)"))
+        if clone.state is not None:
+            out["ida_after"] = _aftershock(clone, ir, cfg, tmp, base_dir, own, plots)
+            timings["ida_after"] = time.perf_counter() - t
     if cfg.assess is not None:
         t = time.perf_counter()
-        out["assessment"], out["assessment_dict"] = _assess(clone, meas, cfg, tmp, base_dir)
+        step(f"ensemble assessment: IDA of {cfg.assess.n_ensemble} clones drawn from the identification uncertainty, "
+             "those that collapse under the measured record rejected")
+        out["assessment"], out["assessment_dict"] = _assess(clone, meas, cfg, tmp, base_dir, plots)
         timings["assess"] = time.perf_counter() - t
         if out["assessment_dict"] is not None:
             out["survival_dict"] = {**out["survival_dict"], **out["assessment_dict"]["survival"],
@@ -219,7 +247,8 @@ def _risk(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir, timings
                           for e in event_risks(out["assessment_dict"], ir, surv.motions.available))
     if cfg.loss is not None:
         t = time.perf_counter()
-        out["loss"], out["loss_dict"] = _loss(clone, meas, cfg, tmp, out["ida"], out["assessment"], base_dir)
+        step("FEMA P-58 losses through pelicun: the measured record and the IDA stripes")
+        out["loss"], out["loss_dict"] = _loss(clone, meas, cfg, tmp, out["ida"], out["assessment"], base_dir, plots)
         timings["loss"] = time.perf_counter() - t
     return out
 
@@ -229,20 +258,21 @@ def _ida_summary(folder: Path) -> IDASummary:
     return IDASummary.from_dict(read_json(folder / "summary.json"), file=f"{folder.name}/summary.json")
 
 
-def _aftershock(clone, before, cfg: RunConfig, tmp: Path, base_dir, own) -> IDASummary:
+def _aftershock(clone, before, cfg: RunConfig, tmp: Path, base_dir, own, plots: bool = True) -> IDASummary:
     """The IDA of the clone from the state its event left it in (``ida-after/``) and the figure of
     the fragility before and after; returns the summary's ``ida_after`` block."""
     from ..ida import ida_from_config
     from ..ida.plots import plot_fragility_before_after
     assert cfg.ida is not None
-    _progress.info("[4/4] incremental dynamic analysis from the state the event left the clone in")
     after = ida_from_config(clone, cfg.ida.replace(start="carried"), base_dir=base_dir, event_motions=[own])
     after.save(tmp / "ida-after", plots=False, n_boot=cfg.ida.bootstrap, ci=cfg.ida.ci, seed=cfg.ida.seed)
-    save_figure(plot_fragility_before_after(before, after), tmp / "figures" / "aftershock.png")
+    if plots:
+        save_figure(plot_fragility_before_after(before, after), tmp / "figures" / "aftershock.png")
     return _ida_summary(tmp / "ida-after")
 
 
-def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> tuple[Assessment | None, dict | None]:
+def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir, plots: bool = True
+            ) -> tuple[Assessment | None, dict | None]:
     """Ensemble IDA and re-occupancy indicator at the measured record; writes ``assessment.json`` and
     ``figures/fragility_band.png``; returns the summary's ``assessment`` block and the assessment
     as a mapping (None: no uncertainty)."""
@@ -253,36 +283,34 @@ def _assess(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir) -> tu
     a, ida_cfg = cfg.assess, cfg.ida
     if a is None or ida_cfg is None:  # load_run_config allows an assess block only with an ida block
         return None, None
-    _progress.info(f"[4/4] ensemble assessment: IDA of {a.n_ensemble} clones drawn from the identification "
-                   "uncertainty, those that collapse under the measured record rejected")
     recs = ida_cfg.record_specs(base_dir)
     own = _own_motion(meas)
     res = assess(clone, recs, n_ensemble=a.n_ensemble, ida_config=ida_cfg, own_motion=own, seed=a.seed,
                  n_boot=a.n_boot, ci=a.ci)
     d = res.to_dict()
     write_json(tmp / "assessment.json", d)
-    save_figure(res.plot(), tmp / "figures" / "fragility_band.png")
+    if plots:
+        save_figure(res.plot(), tmp / "figures" / "fragility_band.png")
     medians = {"own_residual_drift_median": float(np.median(cast(np.ndarray, res.own_residual_drift))),
                "own_peak_drift_median": float(np.median(cast(np.ndarray, res.own_peak_drift)))}  # own_motion given
     return Assessment.from_dict({**d, **medians}, file="assessment.json"), d
 
 
 def _loss(clone, meas: Measurement, cfg: RunConfig, tmp: Path, ida_summary: IDASummary | None,
-          assessment: Assessment | None, base_dir) -> tuple[LossSummary, dict]:
+          assessment: Assessment | None, base_dir, plots: bool = True) -> tuple[LossSummary, dict]:
     """FEMA P-58 losses at the measured record and the IDA stripes (``loss/``); the summary's ``loss`` block."""
     from ..loss.assess import assess_losses
     from .loss import run_collapse
     a, ida_cfg, lc = cfg.assess, cfg.ida, cfg.loss
     if ida_cfg is None or lc is None:  # load_run_config allows a loss block only with an ida block
         raise InputError("the loss block needs an ida block")
-    _progress.info("[4/4] FEMA P-58 losses through pelicun: the measured record and the IDA stripes")
     collapse, src = run_collapse(assessment, ida_summary, source=str(tmp))
     n_ens = a.n_ensemble if a is not None and assessment is not None else 0
     levels = lc.levels if lc.levels is not None else list(ida_summary.levels_g if ida_summary is not None else ())
     own = _own_motion(meas)
     block = assess_losses(clone, own, records=ida_cfg.record_specs(base_dir), levels=levels, collapse=collapse,
                           cfg=lc, ida_config=ida_cfg, n_ensemble=n_ens, seed=a.seed if a is not None else 0,
-                          folder=tmp / "loss", collapse_source=src, base_dir=base_dir)
+                          folder=tmp / "loss", collapse_source=src, base_dir=base_dir, plots=plots)
     return LossSummary.of_losses(block), block
 
 
@@ -297,7 +325,7 @@ def _replay_figure(meas: Measurement, res):
         labels.insert(0, "true")
     r = corrcoef(rep, disp)
     notes = [f"R = {v:.3f}" for v in r]
-    return plot_time_histories(meas.time, series, labels, ylabel="disp. [mm]", annotate=notes,
+    return plot_time_histories(meas.time, series, labels, ylabel="disp. [mm]", annotate=notes, panel="floor",
                                title="Floor displacement relative to the ground: measured against replayed clone")
 
 

@@ -233,9 +233,15 @@ class RecordedLoss(Block):
     level_g: float | None = None
     im: float
     im_label: str
-    n_demand_realisations: int
+    n_demand_realizations: int
     n_collapsed_in_replay: int | None = None
     notes: tuple[str, ...] = ()
+
+    @classmethod
+    def _read_block(cls, d, where):
+        if "n_demand_realisations" in d and "n_demand_realizations" not in d:  # the spelling of older runs
+            d = {**d, "n_demand_realizations": d["n_demand_realisations"]}
+        return super()._read_block(d, where)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -339,6 +345,8 @@ class RunSummary(Block):
     events: tuple[EventRisk, ...] = ()
     survival: Survival | None = None
     flags: tuple[str, ...] = ()
+    figures: bool = True
+    """Whether the run made its figures (``hlaid run --no-plots``: the report holds the tables alone)."""
 
     @classmethod
     def from_dict(cls, d, *, file: str = FILE, source: str | None = None, path: str = "") -> RunSummary:

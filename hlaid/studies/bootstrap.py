@@ -11,6 +11,7 @@ import numpy as np
 from .. import _progress
 from ..events.identify import identify_clone
 from ..identify import IdentifyConfig
+from ..identify.auto import resolve_like
 from ..identify.stages import estimate_noise_rms
 from ..motions import GroundMotion
 from ..synthetic import simulate_measurement
@@ -47,7 +48,7 @@ def parametric_bootstrap(clone, measurement, n: int, *, config=None, cache_dir=N
     """
     check_uncertain_clone(clone)
     n = check_ensemble_size(n)
-    cfg = config or IdentifyConfig()
+    cfg = resolve_like(clone.provenance, measurement, config or IdentifyConfig()).config  # the clone's choices
     if noise_rms is None:
         noise_rms = clone.provenance.get("noise_rms_used") or estimate_noise_rms(measurement)
     gm = GroundMotion(dt=measurement.dt, acc=np.asarray(measurement.ground_acc), name="measured")

@@ -33,7 +33,7 @@ def aftershock_html(before: IDASummary, after: IDASummary) -> str:
             + (f"<ul>{law}</ul>" if law else ""))
 
 
-def section(before: IDASummary, after: IDASummary, image: str) -> str:
+def section(before: IDASummary, after: IDASummary, image: str | None) -> str:
     """The whole section: heading, table, notes and the figure (``image``: its ``<img>`` tag)."""
     return ("<h2>Aftershock: collapse fragility before and after the event</h2>" + aftershock_html(before, after)
             + figure(image, CAPTION))

@@ -22,7 +22,7 @@ NOTE = ("<p>Indicator (assumptions, docs/uncertainty.md): the worse of P(collaps
         "of the ensemble; placards after ATC-20. The clones are undamaged at the start of each IDA.</p>")
 
 
-def section(a: Assessment, image: str) -> str:
+def section(a: Assessment, image: str | None) -> str:
     """Heading, the ensemble's collapse fragility, the indicator and the figure (``image``: its ``<img>`` tag)."""
     return ("<h2>Collapse risk with identification uncertainty</h2>" + assessment_html(a) + "\n"
             + figure(image, CAPTION))

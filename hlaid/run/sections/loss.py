@@ -12,7 +12,7 @@ from .markup import figure, fmt
 
 FIGURES = [
     ("loss/repair_cost.png", "Repair cost at the measured record (FEMA P-58 through pelicun): distribution over the "
-                             "realisations, median, 90 % band and the replacement cost marked."),
+                             "realizations, median, 90 % band and the replacement cost marked."),
     ("loss/loss_curve.png", "Repair cost ratio against intensity (mean, median and 90 % band) and the probabilities "
                             "of collapse and irreparable damage at the IDA stripes; the measured record marked."),
 ]
@@ -37,7 +37,7 @@ def loss_html(loss: LossSummary) -> str:
     out = [f"<p>{e(loss.engine)}; inventory: {e(loss.inventory)}; floor area "
            f"{sum(loss.floor_area_m2):.4g} m<sup>2</sup> in total; replacement cost "
            f"{loss.replacement_cost:,.0f} USD<sub>2011</sub>, replacement time {loss.replacement_time:,.0f} "
-           f"worker-days; {loss.n_ensemble or 'no'} ensemble clones; {loss.realizations} realisations per "
+           f"worker-days; {loss.n_ensemble or 'no'} ensemble clones; {loss.realizations} realizations per "
            f"assessment.</p>"]
     r = loss.recorded
     if r:
@@ -51,8 +51,8 @@ def loss_html(loss: LossSummary) -> str:
                  f"{r.repair_time_parallel_median:,.0f} / {r.repair_time_sequential_median:,.0f} worker-days", ""),
                 ("P(collapse)", "not assessed" if r.p_collapse is None else fmt(r.p_collapse, ".1%"), ""),
                 ("P(irreparable: residual drift)", fmt(r.p_irreparable, ".1%"), "")]
-        out.append(f"<p>At the measured record ({e(r.im_label)} = {r.im:.3g} g; {r.n_demand_realisations} "
-                   f"demand realisations, {r.n_realizations} loss realisations):</p><table><tr><th class='l'>"
+        out.append(f"<p>At the measured record ({e(r.im_label)} = {r.im:.3g} g; {r.n_demand_realizations} "
+                   f"demand realizations, {r.n_realizations} loss realizations):</p><table><tr><th class='l'>"
                    "measure</th><th>value</th><th>90 % band</th></tr>"
                    + "".join(f"<tr><td class='l'>{a}</td><td>{b}</td><td>{c}</td></tr>" for a, b, c in rows)
                    + "</table>")

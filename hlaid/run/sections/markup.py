@@ -10,8 +10,11 @@ def fmt(v: float | None, spec: str = ".4g") -> str:
     return "&ndash;" if v is None else format(v, spec)
 
 
-def figure(image: str, caption: str) -> str:
-    """A ``<figure>`` of an ``<img>`` tag and its caption."""
+def figure(image: str | None, caption: str) -> str:
+    """A ``<figure>`` of an ``<img>`` tag and its caption (nothing without an image: a run made
+    without figures)."""
+    if not image:
+        return ""
     return f"<figure>{image}<figcaption>{html.escape(caption)}</figcaption></figure>"
 
 

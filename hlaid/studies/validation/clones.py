@@ -16,6 +16,7 @@ from ...errors import InputError, NotIdentifiableError
 from ...events.identify import identify_clone
 from ...hla import run_hla
 from ...identify import IdentifyConfig, refine_replay
+from ...identify.auto import resolve_settings
 from ...measurement import Measurement
 from ...model import Building, Damping
 from ...motions import GroundMotion
@@ -77,7 +78,10 @@ def linear_clone(meas: Measurement, cfg: IdentifyConfig, *, fit: str = "scale+da
     """A linear (``alpha = 1``) clone: HLA's k0 and the config's damping ratio, then fitted to
     the measured floor accelerations (``fit``): ``"scale+damping"`` one factor on every k0 and
     the damping ratio (HLA's stiffness distribution kept); ``"k0+damping"``, ``"k0"``,
-    ``"damping"`` by :func:`refine_replay`; ``"none"``: HLA's k0 as they are."""
+    ``"damping"`` by :func:`refine_replay`; ``"none"``: HLA's k0 as they are. The config's
+    ``"auto"`` settings are chosen from ``meas`` first (:func:`hlaid.identify.auto.resolve_settings`)."""
+    if cfg.unresolved():
+        cfg = resolve_settings(meas, cfg).config
     res = run_hla(meas, cfg.hla)
     n = res.n_stories
     peak = np.array([np.max(np.abs(s.drift)) for s in res.stories])

@@ -44,7 +44,7 @@ from ...measurement import Measurement
 from ...units import G_MM_S2
 
 PEER_METHODS = ("okid-era", "srim")
-"""mdof's input/output realisations the peer uses (OKID then ERA; SRIM)."""
+"""mdof's input/output realizations the peer uses (OKID then ERA; SRIM)."""
 
 TAPER_S = 2.0
 """Cosine taper [s] at both ends of each event when several are joined."""
@@ -151,7 +151,7 @@ class LinearPeer:
     ----------
     settings : the grid point (:class:`PeerSettings`)
     hla_config : how relative displacements are made when the file has none
-    stabilize : remove unstable discrete modes after the realisation (mdof's ``stabilize``)
+    stabilize : remove unstable discrete modes after the realization (mdof's ``stabilize``)
 
     Attributes
     ----------

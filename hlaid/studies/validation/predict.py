@@ -20,19 +20,17 @@ class StudyPrediction:
     Attributes
     ----------
     structure, identified_from, event, kind : which clone (``kind``: nonlinear or linear), which event
+        (the study's labels)
     self_replay : the event is the one the clone was identified from
     prediction : the prediction, with its :attr:`~hlaid.events.predict.Prediction.hla_check`
     """
 
     structure: str
     identified_from: str
+    event: str
     kind: str
     self_replay: bool
     prediction: Prediction
-
-    @property
-    def event(self) -> str:
-        return self.prediction.event
 
     @property
     def band_hz(self) -> tuple[float, float]:
@@ -67,7 +65,7 @@ class StudyPrediction:
     def summary(self) -> dict:
         p = self.prediction
         return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in
-                (("structure", self.structure), ("identified_from", self.identified_from), ("event", p.event),
+                (("structure", self.structure), ("identified_from", self.identified_from), ("event", self.event),
                  ("kind", self.kind), ("self_replay", self.self_replay), ("pga_g", p.pga_g),
                  ("band_hz", list(p.band_hz)), ("r", p.r), ("r_mean", float(np.mean(p.r))),
                  ("r_broadband", self.r_broadband),
@@ -83,11 +81,11 @@ def nanmean(x) -> float | None:
 
 
 def study_prediction(clone: Clone, meas: Measurement, hla_config: HLAConfig, *, compare_band_hz=None,
-                     input_lowpass_hz: float | None = None, labels: tuple[str, str, str] = ("", "", ""),
+                     input_lowpass_hz: float | None = None, labels: tuple[str, str, str, str] = ("", "", "", ""),
                      self_replay: bool = False) -> StudyPrediction:
     """:func:`hlaid.predict_event` of ``clone`` under ``meas`` from an undamaged start, checked
-    against HLA of the event; ``labels``: ``(structure, identified_from, kind)``."""
+    against HLA of the event; ``labels``: ``(structure, identified_from, event, kind)``."""
     p = predict_event(clone, meas, band_hz=compare_band_hz, start="undamaged", hla_config=hla_config,
                       input_lowpass_hz=input_lowpass_hz, check_hla=True)
-    return StudyPrediction(structure=labels[0], identified_from=labels[1], kind=labels[2], self_replay=self_replay,
-                           prediction=p)
+    return StudyPrediction(structure=labels[0], identified_from=labels[1], event=labels[2], kind=labels[3],
+                           self_replay=self_replay, prediction=p)

@@ -13,6 +13,7 @@ import numpy as np
 from ... import _progress
 from ...config import config_to_dict
 from ...errors import InputError
+from ...identify.auto import resolve_settings
 from .clones import IdentifiedClone, identify_event
 from .predict import StudyPrediction, nanmean, study_prediction
 from .schema import PaperTargets, ValidationConfig, identify_config_of, read_event
@@ -102,14 +103,15 @@ def run_validation(cfg: ValidationConfig, *, clone_dir: str | None = None, struc
 
             for src in spec.identify_from:
                 _progress.info(f"[validate] {spec.name}: identifying a clone from {src}")
-                ic = identify_event(spec, src, get(src), icfg, out, cache)
+                rcfg = resolve_settings(get(src), icfg).config  # the config's "auto" settings, from this record
+                ic = identify_event(spec, src, get(src), rcfg, out, cache)
                 if ic is None:
                     continue
                 clones.append(ic)
                 for ev in [src] + spec.targets_of(src):
-                    preds.append(study_prediction(ic.clone, get(ev), icfg.hla, compare_band_hz=spec.compare_band_hz,
+                    preds.append(study_prediction(ic.clone, get(ev), rcfg.hla, compare_band_hz=spec.compare_band_hz,
                                                   input_lowpass_hz=spec.input_lowpass_hz, self_replay=ev == src,
-                                                  labels=(spec.name, src, ic.kind)))
+                                                  labels=(spec.name, src, ev, ic.kind)))
                     p = preds[-1]
                     _progress.info(f"[validate] {spec.name}: {src} -> {ev}: R {np.round(p.r, 3)}, "
                                    f"stiffness error {_fmt_pct(nanmean(p.stiffness_error))}")

@@ -1,0 +1,185 @@
+"""The identification's settings chosen from the data: every ``"auto"`` of an
+:class:`~hlaid.identify.IdentifyConfig`, resolved in one place.
+
+:func:`resolve_settings` takes the record(s) of one building and the config and returns the
+concrete config and one :class:`~hlaid.hla.Choice` per setting it chose, with the evidence
+(printed by ``hlaid identify``, kept in the clone as ``provenance["choices"]``). A value given in
+the config is kept as it is. Several records get one set of choices (the evidence of all of them).
+
+- ``hla.*``: the band, the displacement source, the damping handling and the yield ratio
+  (:func:`hlaid.hla.auto.resolve_hla`);
+- ``refine.method``: ``least_squares`` where HLA chose a first-mode band: a shear-building clone
+  cannot follow the record above its first mode, so its misfit is model error, which the
+  errors-in-variables weighting (sensor noise only) does not model; else ``eiv`` (which still
+  falls back to least squares where its fit misses the data by more than the noise);
+- ``refine.band_hz``: HLA's band where it is one for every record (a first-mode band, or one
+  given), else 0.1-20 Hz (the replay of a shear building follows every mode);
+- ``refine.parameters``: all five, without ``k0`` where the floor masses are unknown and no mass
+  ratios are given (with assumed ratios the replay fit of k0 is ill-conditioned; k0 stays HLA's);
+- ``refine.damping``: fitted where HLA found the assumed damping over-corrects, else held.
+
+On a simulated shear building with known masses and its true Rayleigh damping (Table 1) this
+gives the settings the identification used before they were chosen from the data.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, cast
+
+from ..hla.auto import Choice, HLAResolution, resolve_hla
+from ..hla.config import AUTO
+from ..measurement import Measurement
+from .config import PARAMETERS, IdentifyConfig
+
+BROAD_BAND_HZ = (0.1, 20.0)
+"""``refine.band_hz`` where each record has its own HLA band (a shear building)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Resolution:
+    """The settings chosen: ``config`` (no ``"auto"`` left) and ``choices`` (one per setting that
+    was ``"auto"``, in the order of the config file)."""
+
+    config: IdentifyConfig
+    choices: tuple[Choice, ...]
+
+    def lines(self) -> list[str]:
+        return [c.line() for c in self.choices]
+
+    def to_list(self) -> list[dict]:
+        """The choices as the clone keeps them (``provenance["choices"]``)."""
+        return [c.to_dict() for c in self.choices]
+
+
+def resolve_settings(measurements: Measurement | Sequence[Measurement], cfg: IdentifyConfig) -> Resolution:
+    """Every ``"auto"`` of ``cfg`` chosen from ``measurements`` (records of one building, one set
+    of choices for all), with the evidence; values given in ``cfg`` are kept."""
+    meas = [measurements] if isinstance(measurements, Measurement) else list(measurements)
+    hla = resolve_hla(meas, cfg.hla, prefix="hla.")
+    cfg = dataclasses.replace(cfg, hla=hla.config)
+    choices = list(hla.choices)
+    rc, new = cfg.refine, cast("dict[str, Any]", {})
+    band = cfg.hla.preprocess.band_hz
+    if rc.method == AUTO:
+        if hla.first_mode_band:
+            new["method"] = "least_squares"
+            why = ("HLA's first-mode band: a shear-building clone cannot follow the record above it, so the misfit is "
+                   "model error, which the errors-in-variables weighting (sensor noise only) does not model")
+        else:
+            new["method"] = "eiv"
+            why = ("errors in variables: the records' modes are a shear building's (the fit falls back to least "
+                   "squares where it misses the data by more than their noise)")
+        choices.append(Choice("refine.method", new["method"], why))
+    if rc.band_hz == AUTO:
+        if band is None:
+            new["band_hz"] = BROAD_BAND_HZ
+            why = "each record has its own HLA band: the replay of a shear building is compared over every mode"
+        else:
+            new["band_hz"] = tuple(band)
+            why = "HLA's band" + (" (the first-mode band)" if hla.first_mode_band else " (given)")
+        choices.append(Choice("refine.band_hz", list(new["band_hz"]), why))
+    if rc.parameters == AUTO:
+        unknown = [m.name or f"record {k + 1}" for k, m in enumerate(meas) if m.mass is None]
+        if unknown and cfg.hla.force.mass_ratios is None:
+            new["parameters"] = tuple(p for p in PARAMETERS if p != "k0")
+            why = ("the floor masses are unknown (equal ratios assumed): the replay fit of k0 is ill-conditioned, "
+                   "k0 stays HLA's")
+        else:
+            new["parameters"] = PARAMETERS
+            why = ("the floor masses are known" if not unknown else "the mass ratios are given") + \
+                ": k0 is fitted to the replay with the others"
+        choices.append(Choice("refine.parameters", list(new["parameters"]), why))
+    if rc.damping == AUTO:
+        new["damping"] = cfg.hla.force.damping == "regression"
+        why = (f"HLA's damping is {cfg.hla.force.damping}: "
+               + ("the assumed ratio is not the building's, so the replay fits it" if new["damping"]
+                  else f"the assumed {100 * cfg.damping_ratio:g} % Rayleigh ratio is held"))
+        choices.append(Choice("refine.damping", new["damping"], why))
+    if new:
+        cfg = dataclasses.replace(cfg, refine=dataclasses.replace(rc, **new))
+    if cfg.system is None:
+        choices.append(Choice("system", None, "not in the data (the records cannot tell a steel frame from a concrete "
+                                              "one): the generic prior holds what they say little about (several "
+                                              "records, or one that stays nearly elastic); name it where known"))
+    return Resolution(config=cfg, choices=tuple(choices))
+
+
+DAMPING_RUNAWAY = 0.45
+"""A fitted damping ratio at or above this (the model's bound is 0.5) took up model error, not the
+building's damping (a mini shake-table model whose accelerations a heavily damped clone fits
+best, at R 0.3): it is held instead."""
+
+
+def damping_ran_away(cfg: IdentifyConfig, building) -> bool:
+    """Whether ``cfg`` fitted the damping and ``building``'s ratio ran to the model's bound."""
+    return cfg.refine.damping is True and building.damping.ratio >= DAMPING_RUNAWAY
+
+
+def held_damping(settings: Resolution, fitted: float, held: float) -> Resolution:
+    """``settings`` with the damping held at ``held`` after a fit ran it to ``fitted``: the
+    ``refine.damping`` choice says so (the config: ``refine.damping`` false)."""
+    cfg = settings.config
+    cfg = dataclasses.replace(cfg, refine=dataclasses.replace(cfg.refine, damping=False))
+    why = (f"fitted, the damping ratio ran to {fitted:.2f}, the model's bound: it took up model error, not the "
+           f"building's damping; held at {held:.3g} and fitted again")
+    choices = tuple(c for c in settings.choices if c.setting != "refine.damping")
+    return Resolution(config=cfg, choices=choices + (Choice("refine.damping", False, why),))
+
+
+def resolve_like(provenance: dict | None, measurements: Measurement | Sequence[Measurement],
+                 cfg: IdentifyConfig) -> Resolution:
+    """The ``"auto"`` settings of ``cfg`` as a clone was identified with them (its
+    ``provenance["config"]``), so that more records of the same building are analysed alike; a
+    clone that does not say (made before the settings were chosen from the data) has them chosen
+    from ``measurements``. Values given in ``cfg`` are kept."""
+    stored = (provenance or {}).get("config") or {}
+    known = {c["setting"]: c for c in (provenance or {}).get("choices") or []}
+    todo = cfg.unresolved()
+    fixed: dict[str, object] = {}
+    for key in todo:
+        value = _lookup(stored, key)
+        if value is not _MISSING and value != AUTO:
+            fixed[key] = value
+    if not fixed:
+        return resolve_settings(measurements, cfg)
+    cfg = _with(cfg, fixed)
+    rest = resolve_settings(measurements, cfg)
+    kept = [Choice(k, _plain(v), "as the clone was identified" + (f" ({known[k]['reason']})" if k in known else ""))
+            for k, v in fixed.items()]
+    return Resolution(config=rest.config, choices=tuple(kept) + rest.choices)
+
+
+_MISSING = object()
+
+
+def _lookup(d: dict, key: str):
+    for part in key.split("."):
+        if not isinstance(d, dict) or part not in d:
+            return _MISSING
+        d = d[part]
+    return d
+
+
+def _plain(v):
+    return list(v) if isinstance(v, tuple) else v
+
+
+def _with(cfg: IdentifyConfig, values: dict) -> IdentifyConfig:
+    """``cfg`` with dotted keys set (lists of the config file as tuples where the schema has them)."""
+    from ..config import config_from_dict, config_to_dict
+
+    d = config_to_dict(cfg)
+    for key, v in values.items():
+        node = d
+        *path, last = key.split(".")
+        for part in path:
+            node = node[part]
+        node[last] = v
+    return config_from_dict(IdentifyConfig, d, source="the clone's settings")
+
+
+__all__ = ["Resolution", "resolve_settings", "resolve_like", "damping_ran_away", "held_damping",
+           "HLAResolution", "Choice"]
