@@ -276,7 +276,7 @@ def check_band(meas: Measurement, band_hz, field: str, *, default=None) -> None:
     rule = f"{top:.4g} Hz (0.9 x the Nyquist frequency of this {1.0 / meas.dt:.4g} Hz measurement)"
     if not lo < top:
         raise InputError(f"{field}: low corner {lo:g} Hz is not below {rule}; lower it", source=src)
-    given = default is None or tuple(float(v) for v in default) != (lo, hi)
+    given = default is None or isinstance(default, str) or tuple(float(v) for v in default) != (lo, hi)
     if given and hi > top:
         raise InputError(f"{field}: high corner {hi:g} Hz is above {rule}, the highest corner hlaid uses; lower "
                          "it", source=src)

@@ -182,3 +182,14 @@ def test_windowed_measurement_of_real_record(table1, records):
     gm = window(records["kocaeli-1999-dzc180"], 5.0)
     m = simulate_measurement(table1, gm, rate_hz=None, noise_rms=0.05, seed=9)
     assert m.dt == gm.dt and m.n_samples == gm.npts and m.n_floors == 3
+
+
+def test_given_corners_checked_against_an_auto_default():
+    """A run config's ``refine.band_hz`` given as corners, the setting's default being ``auto``:
+    the corners are checked (the high one against 0.9 x Nyquist), not compared with the word."""
+    from hlaid.measurement import check_band
+
+    meas = Measurement(**_OK)
+    check_band(meas, [0.3, 2.5], "identify.refine.band_hz", default="auto")  # within 45 Hz: passes
+    with pytest.raises(InputError, match="high corner 48 Hz is above 45 Hz"):
+        check_band(meas, [0.3, 48.0], "identify.refine.band_hz", default="auto")
