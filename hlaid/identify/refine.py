@@ -19,11 +19,13 @@ from typing import ParamSpec, Protocol, TypeVar
 
 import numpy as np
 from scipy.optimize import least_squares
-from threadpoolctl import threadpool_limits
 
 from .. import _progress
+from .._threads import blas_threads
+from ..errors import InputError
 from ..measurement import Measurement
 from ..model import Building, Damping
+from ..simulate.sensitivity import linearised
 from .residuals import ReplayResiduals
 
 _BLAS_ONE_THREAD = 1e8
@@ -32,6 +34,9 @@ on one thread: Table 1's 7e6, a 20-story building's 2e9."""
 
 _P = ParamSpec("_P")
 _R = TypeVar("_R")
+
+JACOBIANS = ("tangent", "difference")
+"""How :func:`fit_residuals` takes its Jacobians: tangent-linear replays or full replays differenced."""
 
 _LIMITS = {"k0": (1e-6, np.inf), "alpha": (0.0, 0.95), "p": (1.0, 10.0), "dy": (1e-6, np.inf),
            "delta_eta": (0.0, np.inf)}
@@ -95,7 +100,7 @@ def _blas_threads(fn: Callable[_P, _R]) -> Callable[_P, _R]:
         a.apply_defaults()
         n_params = len(a.arguments["parameters"]) * a.arguments["building"].n_stories + bool(a.arguments["damping"])
         small = np.asarray(a.arguments["measurement"].floor_acc).size * n_params**2 < _BLAS_ONE_THREAD
-        with threadpool_limits(limits=1 if small else None, user_api="blas"):
+        with blas_threads(1 if small else None):
             return fn(*args, **kwargs)
 
     return wrapper
@@ -106,7 +111,8 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
                   stories=None, damping: bool = False, band_hz=(0.1, 20.0), max_iterations: int = 40,
                   substeps: int = 4, upper_factor: float | None = 10.0, ftol: float = 1e-10,
                   jac_substeps: int | None = None, ground_noise: str = "ignore",
-                  ground_memory_s: float | None = None, tangent_max_mb: float | None = None) -> RefineResult:
+                  ground_memory_s: float | None = None, tangent_max_mb: float | None = None,
+                  jacobian: str = "tangent") -> RefineResult:
     """Refine ``building`` so that its replay matches ``measurement``'s floor accelerations.
 
     Parameters
@@ -137,6 +143,8 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         ground sample; None: :func:`~hlaid.identify.eiv.ground_memory` of ``building``
     tangent_max_mb : with ``"tangent"``, raise :class:`~hlaid.errors.TangentTooLargeError` where the
         tangent would take more than this many MiB (None: only the hard limit)
+    jacobian : ``"tangent"`` (forward-mode sensitivities of the replay) or ``"difference"`` (full
+        replays differenced); see :func:`fit_residuals`
     """
     t0 = time.perf_counter()
     residuals = ReplayResiduals(measurement, band_hz=band_hz, substeps=substeps, ground_noise=ground_noise,
@@ -145,7 +153,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
     vector = ParameterVector(building, parameters=parameters, stories=stories, damping=damping,
                              upper_factor=upper_factor)
     return fit_residuals(vector, residuals, max_iterations=max_iterations, ftol=ftol,
-                         jac_substeps=substeps if jac_substeps is None else jac_substeps, t0=t0)
+                         jac_substeps=substeps if jac_substeps is None else jac_substeps, t0=t0, jacobian=jacobian)
 
 
 class ParameterVector:
@@ -223,22 +231,49 @@ class Residuals(Protocol):
 
 
 def fit_residuals(vector: SearchVector, residuals: Residuals, *, max_iterations: int = 40,
-                  ftol: float = 1e-10, jac_substeps: int | None = None, t0: float | None = None) -> RefineResult:
+                  ftol: float = 1e-10, jac_substeps: int | None = None, t0: float | None = None,
+                  jacobian: str = "tangent") -> RefineResult:
     """Least squares of ``residuals`` over ``vector``'s parameters from its start (scipy's
-    trust-region reflective search within the bounds; forward-difference Jacobians, one batch of
-    replays with ``jac_substeps`` RK4 sub-steps, default the residuals' own)."""
+    trust-region reflective search within the bounds).
+
+    Jacobians: one batch of replays with ``jac_substeps`` RK4 sub-steps (default the residuals'
+    own) of the buildings at ``x`` and at ``x + h e_j`` (``h`` 1e-4 of each entry's scale),
+    differenced. With ``jacobian="tangent"`` (default) the batch is run
+    :func:`~hlaid.simulate.sensitivity.linearised`: the replay at ``x`` and its tangent-linear
+    model in the direction of every other building (forward-mode sensitivities, a fraction of a
+    replay each, through any linear post-processing of the replays: band-pass, whitening, the
+    states carried from event to event), so the difference quotient is the derivative of the
+    discrete replay along ``vector``'s map; ``"difference"``: full replays of every building,
+    forward differences.
+
+    BLAS runs on one thread where residuals x parameters^2 is below :data:`_BLAS_ONE_THREAD`
+    (``residuals.n_residuals`` where it has one): the search's SVDs of a tall, narrow Jacobian
+    gain nothing from a second thread and lost up to 10x to it when the compiled replays or other
+    jobs held the cores (a joint fit's 48000 x 16 SVD: 47 ms on one thread, 0.63 s on two)."""
+    if jacobian not in JACOBIANS:
+        raise InputError(f"jacobian = {jacobian!r}; expected one of {', '.join(map(repr, JACOBIANS))}")
+    n_res = getattr(residuals, "n_residuals", None)
+    small = n_res is not None and int(n_res) * len(vector.x0) ** 2 < _BLAS_ONE_THREAD
+    with blas_threads(1 if small else None):
+        return _fit_residuals(vector, residuals, max_iterations=max_iterations, ftol=ftol, jac_substeps=jac_substeps,
+                              t0=t0, tangent=jacobian == "tangent")
+
+
+def _fit_residuals(vector: SearchVector, residuals: Residuals, *, max_iterations: int, ftol: float,
+                   jac_substeps: int | None, t0: float | None, tangent: bool) -> RefineResult:
     t0 = time.perf_counter() if t0 is None else t0
     make, xs, hi_b = vector.building_at, vector.scale, vector.upper
     jac_substeps = residuals.substeps if jac_substeps is None else jac_substeps
     cache: dict = {}
     plain_of: dict = {}  # the unweighted cost of every point the search evaluated (a float each)
+    cost_of: dict = {}  # and its cost
 
     def fun(x):
         key = x.tobytes()
         if key not in cache:
             cache.clear()
             res, plain = residuals([make(x)])
-            cache[key], plain_of[key] = res[0], float(plain[0])
+            cache[key], plain_of[key], cost_of[key] = res[0], float(plain[0]), 0.5 * float(np.sum(res[0] ** 2))
         return cache[key]
 
     n_jac = [0]
@@ -252,7 +287,11 @@ def fit_residuals(vector: SearchVector, residuals: Residuals, *, max_iterations:
         over = xp > hi_b
         xp[over] = x[over] - h[over]
         trial = [make(np.where(np.arange(x.size) == j, xp, x)) for j in range(x.size)]
-        if jac_substeps == residuals.substeps:
+        if tangent:
+            with linearised():
+                both = residuals([make(x)] + trial, jac_substeps)[0]
+            r0, rp = both[0], both[1:]
+        elif jac_substeps == residuals.substeps:
             rp, r0 = residuals(trial)[0], fun(x)
         else:
             both = residuals([make(x)] + trial, jac_substeps)[0]
@@ -266,7 +305,8 @@ def fit_residuals(vector: SearchVector, residuals: Residuals, *, max_iterations:
                         max_nfev=max_iterations, xtol=1e-10, ftol=ftol, gtol=1e-10)
     fun(sol.x)  # its plain cost (the last point evaluated may have been a rejected trial)
     plain = plain_of[sol.x.tobytes()]
-    cost0 = 0.5 * float(np.sum(fun(x0) ** 2))
+    cost0 = cost_of.get(np.asarray(x0, dtype=float).tobytes())  # its first evaluation (not replayed again)
+    cost0 = 0.5 * float(np.sum(fun(x0) ** 2)) if cost0 is None else cost0
     return RefineResult(building=make(sol.x), cost_initial=cost0, cost_final=float(sol.cost), nfev=int(sol.nfev),
                         seconds=time.perf_counter() - t0, message=str(sol.message), slots=tuple(vector.slots),
                         x=np.array(sol.x), jacobian=np.array(sol.jac), residuals=np.array(sol.fun),

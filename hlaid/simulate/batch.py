@@ -20,7 +20,7 @@ import torch
 from ..errors import InputError
 from ..model import BoucWenBuilding, Building, BuildingTensors
 from ..motions import GroundMotion
-from . import _kernel
+from . import _kernel, sensitivity
 
 OUTPUTS = ("full", "acc", "peaks")
 """What :func:`simulate_response` keeps: every history, the floor accelerations only, or the peaks."""
@@ -217,6 +217,10 @@ def simulate_response(buildings: Building | Sequence[Building], motions: GroundM
     y0 : (batch, 4*story) initial states (``6*story`` when a building has a collapse model);
         None starts at rest
 
+    Within :func:`hlaid.simulate.sensitivity.linearised`, a batch of ``outputs="acc"`` under one
+    motion is the first building's replay and every other element's first-order (tangent-linear)
+    response about it; see that module.
+
     Returns
     -------
     SimulationResult
@@ -250,8 +254,14 @@ def simulate_response(buildings: Building | Sequence[Building], motions: GroundM
             raise InputError(f"y0 of shape {np.shape(y0)}; expected (batch, {S // n}*story) = ({bi.size}, {S}) "
                              f"or ({S},)") from None
     stop = _stop_array(stop_drift, bi, n, len(buildings))
-    states, acc, peak_drift, peak_acc, final, n_done, status = BACKENDS[backend](
-        P, ag, dt, nt, mi.astype(np.int64), bi.astype(np.int64), sc, int(substeps), y0, stop, outputs)
+    if (outputs == "acc" and backend == "numba" and sensitivity.is_linearised()
+            and sensitivity.covers(P, len(motions), sc, bi, stop, S)):  # a replay and its tangent
+        acc, final, peak_drift, peak_acc, n_done, status = sensitivity.run_linearised(P, ag[0] * sc[0], dt[0],
+                                                                                     int(substeps), y0)
+        states = None
+    else:
+        states, acc, peak_drift, peak_acc, final, n_done, status = BACKENDS[backend](
+            P, ag, dt, nt, mi.astype(np.int64), bi.astype(np.int64), sc, int(substeps), y0, stop, outputs)
     params = _tensors(P, S).index(bi)
     res = result_from_states(params, states, dt=dt[mi], n_time=n_done, building_index=bi, motion_index=mi,
                              scale=sc, status=status, final_state=final, peak_drift=peak_drift,
