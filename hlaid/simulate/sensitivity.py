@@ -45,6 +45,10 @@ GROUP_DIRECTIONS = 12
 Measured on the Table 1 building, one thread: a replay 6 ms, with 4 / 8 / 16 / 32 tangent
 directions 13 / 15 / 19 / 28 ms."""
 
+STATUS_REFINED = 3
+"""Status of a linearised batch whose replay needed a refined sample (see :func:`run_linearised`)."""
+
+
 N_PAR = 6
 """Parameters with a tangent, per story: k0, alpha, p, dy, delta_eta and the P-Delta stiffness kg."""
 
@@ -182,7 +186,7 @@ def _acc_tangent(y, Y, n, D, m, k0, al, kg, C, bw, P, dC, F, dacc):
 
 
 @nb.njit(cache=True, parallel=True, fastmath=_FASTMATH, error_model="numpy")
-def integrate_tangent(g, dt, T, nsub, m, k0, al, p, dy, de, kg, C, bw, P, dC, y0, Y0, groups,
+def integrate_tangent(g, dt, T, nsub, m, k0, al, p, dy, de, kg, C, bw, P, dC, y0, Y0, groups, refine,
                       acc, final, peak_drift, peak_acc, n_done, status):  # pragma: no cover (compiled)
     """The replay of one building and its tangent in ``D`` directions; see the module's doc.
 
@@ -197,6 +201,9 @@ def integrate_tangent(g, dt, T, nsub, m, k0, al, p, dy, de, kg, C, bw, P, dC, y0
     groups : (G + 1,) direction bounds of the G groups that run in parallel, each with its own
         copy of the replay (the replay is sequential in time; its copies cost less than a second
         core left idle)
+    refine : a sample whose step lets |z| overshoot dy is redone with 2x ... 16x the sub-steps, its
+        tangent with it, as :func:`hlaid.simulate._kernel.integrate` does; False: the replay stops
+        there with status :data:`STATUS_REFINED` (see :func:`run_linearised`)
 
     Outputs (element 0 the replay, element ``1 + d`` the replay plus direction ``d``'s tangent):
     acc (1 + D, time, story) (NaN after a diverged replay's end), final (1 + D, 4*story),
@@ -286,6 +293,9 @@ def integrate_tangent(g, dt, T, nsub, m, k0, al, p, dy, de, kg, C, bw, P, dC, y0
                 for i in range(n):
                     if not (abs(y[2 * n + i]) <= dy[i] * (1.0 + 1e-5)):
                         bad = True
+                if bad and not refine:  # the sample needs finer sub-steps: the caller replays in full
+                    st = STATUS_REFINED
+                    break
                 if not bad or ns >= 16 * nsub:
                     break
                 for j in range(S):
@@ -293,6 +303,8 @@ def integrate_tangent(g, dt, T, nsub, m, k0, al, p, dy, de, kg, C, bw, P, dC, y0
                     for d in range(D):
                         Y[j, d] = Y_prev[j, d]
                 ns *= 2
+            if st == STATUS_REFINED:
+                break
             k += 1
             _absolute_acc(y, n, m, al, k0, kg, C, bw, f, a)
             _acc_tangent(y, Y, n, D, m, k0, al, kg, C, bw, Pg, dCg, F, da)
@@ -341,11 +353,20 @@ def integrate_tangent(g, dt, T, nsub, m, k0, al, p, dy, de, kg, C, bw, P, dC, y0
             status[1 + d0 + d] = st if ok[d] else STATUS_DIVERGED
 
 
-def run_linearised(P: dict, g: np.ndarray, dt: float, nsub: int, y0: np.ndarray, n_threads: int | None = None):
+def run_linearised(P: dict, g: np.ndarray, dt: float, nsub: int, y0: np.ndarray, n_threads: int | None = None,
+                   refine: bool = False):
     """The batch of parameter arrays ``P`` (:meth:`~hlaid.model.BuildingTensors.numpy`, element 0
     the base) under ground ``g`` ``(time,)`` from ``y0`` ``(batch, 4*story)``: the base's replay
     and every other element's first-order response. Returns ``acc, final, peak_drift, peak_acc,
-    n_done, status`` as :func:`integrate_tangent` writes them."""
+    n_done, status`` as :func:`integrate_tangent` writes them.
+
+    ``refine`` False (the default): where the replay needs a refined sample (``|z|`` overshooting
+    ``dy`` within a step: a yield displacement small against the drift increments of a sample),
+    it stops and every status is :data:`STATUS_REFINED`; the caller then replays the batch in
+    full. There the discrete replay jumps where a perturbed building refines other samples than
+    the base: the difference quotient of full replays holds those jumps and the tangent does not,
+    and a search steered by one or the other goes elsewhere (the steel frame's joint fit of three
+    events: to another mode of its posterior). Elsewhere the two agree to the quotient's O(h)."""
     B, n = P["mass"].shape
     D = B - 1
     S = 4 * n
@@ -367,7 +388,9 @@ def run_linearised(P: dict, g: np.ndarray, dt: float, nsub: int, y0: np.ndarray,
     integrate_tangent(np.ascontiguousarray(g, dtype=np.float64), float(dt), int(T), int(nsub), base["mass"],
                       base["k0"], base["alpha"], base["p"], base["dy"], base["delta_eta"], base["kg"],
                       np.ascontiguousarray(base["damping"]), bw, dirs, dC, np.ascontiguousarray(y0[0]), Y0, groups,
-                      acc, final, peak_drift, peak_acc, n_done, status)
+                      bool(refine), acc, final, peak_drift, peak_acc, n_done, status)
+    if np.any(status == STATUS_REFINED):
+        status[:] = STATUS_REFINED
     return acc, final, peak_drift, peak_acc, n_done, status
 
 
