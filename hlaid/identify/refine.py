@@ -5,7 +5,8 @@ there, a bounded trust-region search over the story parameters matches the clone
 floor accelerations to the measured ones (:class:`~hlaid.identify.residuals.ReplayResiduals`).
 :class:`ParameterVector` maps the adjusted parameters to buildings; :func:`fit_residuals` runs
 the search on any residual function of buildings; :func:`refine_replay` puts the two together
-for one measurement. Jacobians are finite differences computed as one batch of the simulator.
+for one measurement. Jacobians come from one batch of the simulator: the replay and its tangent-linear
+model (:mod:`hlaid.simulate.sensitivity`), or full replays differenced (see :func:`fit_residuals`).
 """
 
 from __future__ import annotations
@@ -53,8 +54,8 @@ class RefineResult:
     nfev : residual evaluations; seconds : wall time; message : the optimiser's
     slots : the adjusted parameters as ``(name, story)`` pairs (story -1: the damping ratio)
     x : their values at the solution, shape ``(n_params,)``
-    jacobian : d residuals / d x at the solution (the optimiser's last finite-difference
-        Jacobian), shape ``(n_time * n_floors, n_params)``, rows time-major
+    jacobian : d residuals / d x at the solution (the optimiser's last Jacobian), shape
+        ``(n_time * n_floors, n_params)``, rows time-major
     residuals : normalised residuals at the solution, shape ``(n_time * channels,)``
         (``reshape(n_time, channels)`` gives one column per channel); both feed
         :mod:`hlaid.uncertainty`
@@ -127,7 +128,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         (delta_eta's start taken as at least 0.5 s^2/m^2), so that a parameter the data
         hardly constrain cannot run away; None: open above
     ftol : stop when a step lowers the cost by less than this fraction of it
-    jac_substeps : RK4 sub-steps of the replays that build the finite-difference Jacobian
+    jac_substeps : RK4 sub-steps of the replays that build the Jacobian
         (default: ``substeps``). The Jacobian only steers the search; the residuals, and so the
         optimum, keep ``substeps``. Its base point is replayed with the same sub-steps as its
         columns, so the difference quotient carries no discretisation offset.
