@@ -166,6 +166,8 @@ def paired(baseline: str, rounds: dict, data: str | None = None) -> dict:
                     if not line:
                         raise RuntimeError(f"a --baseline worker failed on {case} (see its error above)")
                     times[k].append(float(line))
+                    print(f"  {case}, {k}: {times[k][-1]:.2f} s (load {os.getloadavg()[0]:.1f})", file=sys.stderr,
+                          flush=True)
             out[case] = [(k, np.array(v)) for k, v in times.items()]
     finally:
         for w in workers.values():
