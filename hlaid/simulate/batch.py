@@ -210,6 +210,26 @@ def _parameters(buildings: list[Building]) -> dict:
     return P
 
 
+def _ground(motions: list[GroundMotion]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The motions as the kernels take them: ``(motion, time)`` accelerations zero-padded to the
+    longest, ``(motion,)`` time steps and ``(motion,)`` lengths."""
+    ag = np.zeros((len(motions), max(m.npts for m in motions)))
+    for j, m in enumerate(motions):
+        ag[j, : m.npts] = m.acc
+    return ag, np.array([m.dt for m in motions]), np.array([m.npts for m in motions], dtype=np.int64)
+
+
+def _initial_states(y0, batch: int, S: int, n: int) -> np.ndarray:
+    """``(batch, S)`` initial states: at rest where ``y0`` is None, else ``y0`` broadcast."""
+    if y0 is None:
+        return np.zeros((batch, S))
+    try:  # a writable copy: a read-only view would make numba compile the kernel a second time
+        return np.broadcast_to(np.asarray(y0, dtype=np.float64), (batch, S)).copy()
+    except ValueError:
+        raise InputError(f"y0 of shape {np.shape(y0)}; expected (batch, {S // n}*story) = ({batch}, {S}) "
+                         f"or ({S},)") from None
+
+
 def simulate_response(buildings: Building | Sequence[Building], motions: GroundMotion | Sequence[GroundMotion],
                       scales: float | Sequence[float] | np.ndarray = 1.0, *, substeps: int = 4,
                       pairing: str = "product", outputs: str = "full", backend: str = "numba",
@@ -258,20 +278,8 @@ def simulate_response(buildings: Building | Sequence[Building], motions: GroundM
     n = P["mass"].shape[1]
     S = (6 if any(b.collapse is not None for b in buildings) else 4) * n
     bi, mi, sc = _layout(len(buildings), len(motions), scales, pairing)
-    T = max(m.npts for m in motions)
-    ag = np.zeros((len(motions), T))
-    for j, m in enumerate(motions):
-        ag[j, : m.npts] = m.acc
-    dt = np.array([m.dt for m in motions])
-    nt = np.array([m.npts for m in motions], dtype=np.int64)
-    if y0 is None:
-        y0 = np.zeros((bi.size, S))
-    else:
-        try:  # a writable copy: a read-only view would make numba compile the kernel a second time
-            y0 = np.broadcast_to(np.asarray(y0, dtype=np.float64), (bi.size, S)).copy()
-        except ValueError:
-            raise InputError(f"y0 of shape {np.shape(y0)}; expected (batch, {S // n}*story) = ({bi.size}, {S}) "
-                             f"or ({S},)") from None
+    ag, dt, nt = _ground(motions)
+    y0 = _initial_states(y0, bi.size, S, n)
     stop = _stop_array(stop_drift, bi, n, len(buildings))
     linear = (outputs == "acc" and backend == "numba" and sensitivity.is_linearised()
               and sensitivity.covers(P, len(motions), sc, bi, stop, S))

@@ -185,6 +185,116 @@ def _acc_tangent(y, Y, n, D, m, k0, al, kg, C, bw, P, dC, F, dacc):
             dacc[j, d] *= im
 
 
+@nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
+def _rk4_tangent(y, Y, hs, g0, gm, g1, n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC, haslog, work):
+    """One RK4 step ``hs`` of the replay ``y`` ``(4*story,)`` and its tangent ``Y`` ``(4*story, D)``,
+    in place, under ground ``g0`` / ``gm`` / ``g1`` at the step's start / middle / end."""
+    f, F, yt, Yt, k1, k2, k3, k4, K1, K2, K3, K4 = work
+    S = 4 * n
+    _rhs_tangent(y, Y, g0, n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC, haslog, f, F, k1, K1)
+    for j in range(S):
+        yt[j] = y[j] + 0.5 * hs * k1[j]
+        for d in range(D):
+            Yt[j, d] = Y[j, d] + 0.5 * hs * K1[j, d]
+    _rhs_tangent(yt, Yt, gm, n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC, haslog, f, F, k2, K2)
+    for j in range(S):
+        yt[j] = y[j] + 0.5 * hs * k2[j]
+        for d in range(D):
+            Yt[j, d] = Y[j, d] + 0.5 * hs * K2[j, d]
+    _rhs_tangent(yt, Yt, gm, n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC, haslog, f, F, k3, K3)
+    for j in range(S):
+        yt[j] = y[j] + hs * k3[j]
+        for d in range(D):
+            Yt[j, d] = Y[j, d] + hs * K3[j, d]
+    _rhs_tangent(yt, Yt, g1, n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC, haslog, f, F, k4, K4)
+    for j in range(S):
+        y[j] = y[j] + hs / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+        for d in range(D):
+            Y[j, d] = Y[j, d] + hs / 6.0 * (K1[j, d] + 2.0 * K2[j, d] + 2.0 * K3[j, d] + K4[j, d])
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
+def _sample_tangent(y, Y, y_prev, Y_prev, lo, dg, dt, nsub, refine, n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC,
+                    haslog, work):
+    """One record sample (ground ``lo`` to ``lo + dg``) of the replay and its tangent with ``nsub``
+    sub-steps, redone with 2x ... 16x as many where ``|z|`` overshoots ``dy`` (as
+    :func:`hlaid.simulate._kernel.integrate` does). Returns :data:`STATUS_OK`, or
+    :data:`STATUS_REFINED` where the sample needs refining and ``refine`` is False."""
+    S = 4 * n
+    for j in range(S):
+        y_prev[j] = y[j]
+        for d in range(D):
+            Y_prev[j, d] = Y[j, d]
+    ns = nsub
+    while True:
+        hs = dt / ns
+        for s in range(ns):
+            _rk4_tangent(y, Y, hs, lo + dg * (s / ns), lo + dg * ((s + 0.5) / ns), lo + dg * ((s + 1.0) / ns),
+                         n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC, haslog, work)
+        bad = False
+        for i in range(n):
+            if not (abs(y[2 * n + i]) <= dy[i] * (1.0 + 1e-5)):
+                bad = True
+        if bad and not refine:  # the sample needs finer sub-steps: the caller replays in full
+            return STATUS_REFINED
+        if not bad or ns >= 16 * nsub:
+            return STATUS_OK
+        for j in range(S):
+            y[j] = y_prev[j]
+            for d in range(D):
+                Y[j, d] = Y_prev[j, d]
+        ns *= 2
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
+def _record_tangent(k, y, Y, a, da, n, D, d0, base, ok, acc, peak_drift, peak_acc):
+    """Write sample ``k`` of the replay (where ``base``) and of its ``D`` directions from ``d0`` into
+    the outputs; the peaks start at sample 0. A non-finite acceleration marks its direction not ``ok``."""
+    for i in range(n):
+        xb = y[i] - (y[i - 1] if i > 0 else 0.0)
+        if base:
+            acc[0, k, i] = a[i]
+            if k == 0 or abs(xb) > peak_drift[0, i]:
+                peak_drift[0, i] = abs(xb)
+            if k == 0 or abs(a[i]) > peak_acc[0, i]:
+                peak_acc[0, i] = abs(a[i])
+        for d in range(D):
+            ad = a[i] + da[i, d]
+            acc[1 + d0 + d, k, i] = ad
+            x = xb + Y[i, d] - (Y[i - 1, d] if i > 0 else 0.0)
+            if k == 0 or abs(x) > peak_drift[1 + d0 + d, i]:
+                peak_drift[1 + d0 + d, i] = abs(x)
+            if k == 0 or abs(ad) > peak_acc[1 + d0 + d, i]:
+                peak_acc[1 + d0 + d, i] = abs(ad)
+            if k > 0 and not np.isfinite(ad):
+                ok[d] = False
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
+def _finish_tangent(k, T, st, y, Y, n, D, d0, base, ok, acc, final, n_done, status):
+    """After the last sample ``k`` done: NaN accelerations beyond it, the final states, samples
+    done and status of the replay (where ``base``) and of the ``D`` directions from ``d0``."""
+    S = 4 * n
+    for kk in range(k + 1, T):
+        for i in range(n):
+            if base:
+                acc[0, kk, i] = np.nan
+            for d in range(D):
+                acc[1 + d0 + d, kk, i] = np.nan
+    if base:
+        for j in range(S):
+            final[0, j] = y[j]
+        status[0] = st
+        n_done[0] = k + 1
+    for d in range(D):
+        n_done[1 + d0 + d] = k + 1
+        for j in range(S):
+            final[1 + d0 + d, j] = y[j] + Y[j, d]
+            if not np.isfinite(Y[j, d]):
+                ok[d] = False
+        status[1 + d0 + d] = st if ok[d] else STATUS_DIVERGED
+
+
 @nb.njit(cache=True, parallel=True, fastmath=_FASTMATH, error_model="numpy")
 def integrate_tangent(g, dt, T, nsub, m, k0, al, p, dy, de, kg, C, bw, P, dC, y0, Y0, groups, refine,
                       acc, final, peak_drift, peak_acc, n_done, status):  # pragma: no cover (compiled)
@@ -226,83 +336,20 @@ def integrate_tangent(g, dt, T, nsub, m, k0, al, p, dy, de, kg, C, bw, P, dC, y0
         Y = np.ascontiguousarray(Y0[:, d0:d0 + D])
         y_prev = np.empty(S)
         Y_prev = np.empty((S, D))
-        yt = np.empty(S)
-        Yt = np.empty((S, D))
-        k1 = np.empty(S)
-        k2 = np.empty(S)
-        k3 = np.empty(S)
-        k4 = np.empty(S)
-        K1 = np.empty((S, D))
-        K2 = np.empty((S, D))
-        K3 = np.empty((S, D))
-        K4 = np.empty((S, D))
-        f = np.empty(n)
-        F = np.empty((n, D))
+        work = (np.empty(n), np.empty((n, D)), np.empty(S), np.empty((S, D)), np.empty(S), np.empty(S),
+                np.empty(S), np.empty(S), np.empty((S, D)), np.empty((S, D)), np.empty((S, D)), np.empty((S, D)))
+        f, F = work[0], work[1]
         a = np.empty(n)
         da = np.empty((n, D))
         ok = np.ones(D, dtype=np.bool_)
         _absolute_acc(y, n, m, al, k0, kg, C, bw, f, a)
         _acc_tangent(y, Y, n, D, m, k0, al, kg, C, bw, Pg, dCg, F, da)
-        for i in range(n):
-            if gi == 0:
-                acc[0, 0, i] = a[i]
-                peak_acc[0, i] = abs(a[i])
-                peak_drift[0, i] = abs(y[i] - (y[i - 1] if i > 0 else 0.0))
-            for d in range(D):
-                acc[1 + d0 + d, 0, i] = a[i] + da[i, d]
-                peak_acc[1 + d0 + d, i] = abs(a[i] + da[i, d])
-                x = y[i] - (y[i - 1] if i > 0 else 0.0) + Y[i, d] - (Y[i - 1, d] if i > 0 else 0.0)
-                peak_drift[1 + d0 + d, i] = abs(x)
+        _record_tangent(0, y, Y, a, da, n, D, d0, gi == 0, ok, acc, peak_drift, peak_acc)
         st = STATUS_OK
         k = 0
         while k < T - 1:
-            lo = g[k]
-            dg = g[k + 1] - lo
-            for j in range(S):
-                y_prev[j] = y[j]
-                for d in range(D):
-                    Y_prev[j, d] = Y[j, d]
-            ns = nsub
-            while True:
-                hs = dt / ns
-                for s in range(ns):
-                    g0 = lo + dg * (s / ns)
-                    gm = lo + dg * ((s + 0.5) / ns)
-                    g1 = lo + dg * ((s + 1.0) / ns)
-                    _rhs_tangent(y, Y, g0, n, D, m, k0, al, p, dy, de, kg, C, bw, Pg, dCg, haslog, f, F, k1, K1)
-                    for j in range(S):
-                        yt[j] = y[j] + 0.5 * hs * k1[j]
-                        for d in range(D):
-                            Yt[j, d] = Y[j, d] + 0.5 * hs * K1[j, d]
-                    _rhs_tangent(yt, Yt, gm, n, D, m, k0, al, p, dy, de, kg, C, bw, Pg, dCg, haslog, f, F, k2, K2)
-                    for j in range(S):
-                        yt[j] = y[j] + 0.5 * hs * k2[j]
-                        for d in range(D):
-                            Yt[j, d] = Y[j, d] + 0.5 * hs * K2[j, d]
-                    _rhs_tangent(yt, Yt, gm, n, D, m, k0, al, p, dy, de, kg, C, bw, Pg, dCg, haslog, f, F, k3, K3)
-                    for j in range(S):
-                        yt[j] = y[j] + hs * k3[j]
-                        for d in range(D):
-                            Yt[j, d] = Y[j, d] + hs * K3[j, d]
-                    _rhs_tangent(yt, Yt, g1, n, D, m, k0, al, p, dy, de, kg, C, bw, Pg, dCg, haslog, f, F, k4, K4)
-                    for j in range(S):
-                        y[j] = y[j] + hs / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-                        for d in range(D):
-                            Y[j, d] = Y[j, d] + hs / 6.0 * (K1[j, d] + 2.0 * K2[j, d] + 2.0 * K3[j, d] + K4[j, d])
-                bad = False
-                for i in range(n):
-                    if not (abs(y[2 * n + i]) <= dy[i] * (1.0 + 1e-5)):
-                        bad = True
-                if bad and not refine:  # the sample needs finer sub-steps: the caller replays in full
-                    st = STATUS_REFINED
-                    break
-                if not bad or ns >= 16 * nsub:
-                    break
-                for j in range(S):
-                    y[j] = y_prev[j]
-                    for d in range(D):
-                        Y[j, d] = Y_prev[j, d]
-                ns *= 2
+            st = _sample_tangent(y, Y, y_prev, Y_prev, g[k], g[k + 1] - g[k], dt, nsub, refine, n, D, m, k0, al,
+                                 p, dy, de, kg, C, bw, Pg, dCg, haslog, work)
             if st == STATUS_REFINED:
                 break
             k += 1
@@ -315,42 +362,8 @@ def integrate_tangent(g, dt, T, nsub, m, k0, al, p, dy, de, kg, C, bw, P, dC, y0
             if not finite:
                 st = STATUS_DIVERGED
                 break
-            for i in range(n):
-                xb = y[i] - (y[i - 1] if i > 0 else 0.0)
-                if gi == 0:
-                    acc[0, k, i] = a[i]
-                    if abs(xb) > peak_drift[0, i]:
-                        peak_drift[0, i] = abs(xb)
-                    if abs(a[i]) > peak_acc[0, i]:
-                        peak_acc[0, i] = abs(a[i])
-                for d in range(D):
-                    ad = a[i] + da[i, d]
-                    acc[1 + d0 + d, k, i] = ad
-                    x = xb + Y[i, d] - (Y[i - 1, d] if i > 0 else 0.0)
-                    if abs(x) > peak_drift[1 + d0 + d, i]:
-                        peak_drift[1 + d0 + d, i] = abs(x)
-                    if abs(ad) > peak_acc[1 + d0 + d, i]:
-                        peak_acc[1 + d0 + d, i] = abs(ad)
-                    if not np.isfinite(ad):
-                        ok[d] = False
-        for kk in range(k + 1, T):
-            for i in range(n):
-                if gi == 0:
-                    acc[0, kk, i] = np.nan
-                for d in range(D):
-                    acc[1 + d0 + d, kk, i] = np.nan
-        if gi == 0:
-            for j in range(S):
-                final[0, j] = y[j]
-            status[0] = st
-            n_done[0] = k + 1
-        for d in range(D):
-            n_done[1 + d0 + d] = k + 1
-            for j in range(S):
-                final[1 + d0 + d, j] = y[j] + Y[j, d]
-                if not np.isfinite(Y[j, d]):
-                    ok[d] = False
-            status[1 + d0 + d] = st if ok[d] else STATUS_DIVERGED
+            _record_tangent(k, y, Y, a, da, n, D, d0, gi == 0, ok, acc, peak_drift, peak_acc)
+        _finish_tangent(k, T, st, y, Y, n, D, d0, gi == 0, ok, acc, final, n_done, status)
 
 
 def run_linearised(P: dict, g: np.ndarray, dt: float, nsub: int, y0: np.ndarray, n_threads: int | None = None,
