@@ -33,7 +33,7 @@ import numba as nb
 import numpy as np
 
 from ..model._equations import ENERGY_SCALE
-from ._kernel import _FASTMATH, STATUS_DIVERGED, STATUS_OK, _absolute_acc, damping_bandwidth
+from ._kernel import _FASTMATH, STATUS_DIVERGED, STATUS_OK, _absolute_acc, _all_finite, damping_bandwidth
 
 __all__ = ["linearised", "is_linearised", "integrate_tangent"]
 
@@ -355,11 +355,7 @@ def integrate_tangent(g, dt, T, nsub, m, k0, al, p, dy, de, kg, C, bw, P, dC, y0
             k += 1
             _absolute_acc(y, n, m, al, k0, kg, C, bw, f, a)
             _acc_tangent(y, Y, n, D, m, k0, al, kg, C, bw, Pg, dCg, F, da)
-            finite = True
-            for j in range(S):
-                if not np.isfinite(y[j]):
-                    finite = False
-            if not finite:
+            if not _all_finite(y):
                 st = STATUS_DIVERGED
                 break
             _record_tangent(k, y, Y, a, da, n, D, d0, gi == 0, ok, acc, peak_drift, peak_acc)
