@@ -229,7 +229,7 @@ def run_ida(model: Clone | Building | str | os.PathLike,
     """
     t0 = time.perf_counter()
     cfg = _checked_config(config)
-    drift_limit, max_step, exceedance_limits = cfg.drift_limit, cfg.max_step, cfg.exceedance_limits
+    drift_limit, max_step, exceedance_limits = cfg.drift_limit, cfg.max_step, list(cfg.exceedance_limits or ())
     if isinstance(model, (str, os.PathLike)):
         model = Clone.load(model)
     building, notes = prepare_building(model, pdelta=cfg.pdelta, heights=cfg.heights_mm,

@@ -21,7 +21,6 @@ import numba as nb
 import numpy as np
 
 from ..model import equations as eq
-from ..model._equations import ENERGY_SCALE
 from ..model.collapse import N_COLLAPSE
 from ._kernel import _FASTMATH, _degradation, _spring_force
 
@@ -98,7 +97,7 @@ def _stage(j0, j1, W, Wb, PAR, lo, m, c, zk, ek, out, rate):
         b = lo + j
         zs = W[_Z1, j] + c * W[zk, j]
         es = W[_E1, j] + c * W[ek, j]
-        W[_U, j] = 1.0 + PAR[_DE, b] * (ENERGY_SCALE * (1.0 - PAR[_AL, b]) * (PAR[_K0, b] / m) * es)
+        W[_U, j] = _degradation(es, PAR[_AL, b], PAR[_K0, b], m, PAR[_DE, b])
         d = W[rate, j]
         s = d * zs
         loading = 0.5 * ((s > 0.0) * 1.0 - (s < 0.0) * 1.0 + 1.0)

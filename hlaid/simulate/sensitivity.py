@@ -32,8 +32,10 @@ import contextvars
 import numba as nb
 import numpy as np
 
-from ..model._equations import ENERGY_SCALE
+from ..model import equations as eq
 from ._kernel import _FASTMATH, STATUS_DIVERGED, STATUS_OK, _absolute_acc, _all_finite, damping_bandwidth
+
+ENERGY_SCALE = eq.ENERGY_SCALE
 
 __all__ = ["linearised", "is_linearised", "integrate_tangent"]
 
