@@ -1,8 +1,13 @@
-"""One torch thread for long chains of tiny operations (SMO, the batched identifiers)."""
+"""One torch thread for long chains of tiny operations (SMO, the batched identifiers); BLAS
+limited to one thread where the compiled simulator or a thread pool already holds the cores."""
 
 from __future__ import annotations
 
+import contextlib
+
 import torch
+
+_CONTROLLER = None
 
 
 class one_thread:
@@ -31,3 +36,23 @@ class one_thread:
     def __exit__(self, *exc) -> None:
         if self.active and torch.get_num_threads() != self.saved:
             torch.set_num_threads(self.saved)
+
+
+def blas_threads(limit: int | None):
+    """Context manager: BLAS on at most ``limit`` threads (None: as it is), restored on exit.
+
+    One ``threadpoolctl.ThreadpoolController`` serves every call (10 us a call, against 1.5 ms for
+    ``threadpool_limits``, which inspects the loaded libraries each time): the refinement enters
+    it once per residual evaluation. OpenBLAS's threads spin while they wait, so with the
+    replays' threads or another job on the other core, a tall, narrow SVD or a whitening product
+    on two threads took 10-20x its one-thread time (docs/identification.md, "Speed").
+    """
+    global _CONTROLLER
+    if limit is None:
+        return contextlib.nullcontext()
+    if _CONTROLLER is None:
+        import scipy.linalg  # noqa: F401  (its BLAS loaded before the controller lists the libraries)
+        from threadpoolctl import ThreadpoolController
+
+        _CONTROLLER = ThreadpoolController()
+    return _CONTROLLER.limit(limits=limit, user_api="blas")

@@ -231,3 +231,87 @@ def test_tangent_refinement_stays_at_the_truth_without_noise(table1):
     assert rr.channels == 4 and rr.residuals.size == len(range(0, meas.floor_acc.shape[0], stride)) * 4
     for k in ("dy", "alpha", "p", "delta_eta", "k0"):
         np.testing.assert_allclose(getattr(rr.building, k), getattr(table1, k), rtol=2e-3)
+
+
+# ------------------------------------------------------------------ forward-mode sensitivities
+def _one_at_a_time(b, h_rel=1e-4):
+    """``b`` and one building per parameter with that parameter moved by ``h_rel`` (damping last)."""
+    trial, steps = [b], []
+    for i in range(b.n_stories):
+        for k in ("k0", "alpha", "p", "dy", "delta_eta"):
+            v = np.array(getattr(b, k), float)
+            h = h_rel * max(abs(v[i]), 1e-3)
+            v[i] += h
+            trial.append(b.replace(**{k: v}))
+            steps.append(h)
+    trial.append(b.replace(damping=Damping(kind=b.damping.kind, ratio=b.damping.ratio * (1 + h_rel),
+                                           modes=b.damping.modes)))
+    steps.append(b.damping.ratio * h_rel)
+    return trial, np.array(steps)
+
+
+@pytest.mark.parametrize("substeps", [1, 2])
+def test_linearised_batch_is_the_replays_derivative(table1, substeps):
+    """Within ``linearised``, a batch is the first building's replay plus every other's tangent-linear
+    response: its difference quotients are the forward differences of full replays to their O(h)
+    (parameters, the damping ratio through the damping matrix, an initial state), the first
+    element's replay that of the compiled simulator, and the final states likewise."""
+    from hlaid.simulate.sensitivity import linearised
+
+    gm = window(paper_record("elcentro-1940-ns"), 6.0, before_peak=2.0).scaled_to_pga(0.62)
+    trial, h = _one_at_a_time(table1)
+    y0 = np.zeros((len(trial), 12))
+    y0[:, 2] = 0.5  # a state carried from an earlier event ...
+    y0[1, 5] += 1e-3  # ... and one element moved in it as well
+    full = simulate_response(trial, gm, substeps=substeps, outputs="acc", y0=y0)
+    with linearised():
+        lin = simulate_response(trial, gm, substeps=substeps, outputs="acc", y0=y0)
+    assert np.all(full.status == 0) and np.all(lin.status == 0)
+    assert np.allclose(lin.acc[0], full.acc[0], rtol=0, atol=1e-9 * np.abs(full.acc[0]).max())
+    dfull = (full.acc[1:] - full.acc[:1]) / h[:, None, None]
+    dlin = (lin.acc[1:] - lin.acc[:1]) / h[:, None, None]
+    rel = np.linalg.norm((dfull - dlin).reshape(len(h), -1), axis=1) / np.linalg.norm(dfull.reshape(len(h), -1), axis=1)
+    assert rel.max() < 5e-3, rel
+    assert np.median(rel) < 5e-4, rel
+    fs = (full.final_state[1:] - full.final_state[:1]) / h[:, None]
+    fl = (lin.final_state[1:] - lin.final_state[:1]) / h[:, None]
+    assert np.all(np.linalg.norm(fs - fl, axis=1) <= 5e-3 * np.linalg.norm(fs, axis=1))
+    assert np.allclose(lin.peak_drift, full.peak_drift, rtol=1e-4)
+    # outside the context, or a batch it does not cover (two motions), the replays are full ones
+    plain = simulate_response(trial, gm, substeps=substeps, outputs="acc", y0=y0)
+    assert np.array_equal(plain.acc, full.acc)
+    with linearised():
+        two = simulate_response(trial[:3], [gm, gm], substeps=substeps, outputs="acc", pairing="product")
+    ref = simulate_response(trial[:3], [gm, gm], substeps=substeps, outputs="acc", pairing="product")
+    assert np.array_equal(two.acc, ref.acc)
+
+
+def test_linearised_batch_replays_in_full_where_a_sample_is_refined(table1):
+    """A yield displacement far below a sample's drift increment makes the replay refine its sub-steps:
+    the linearised batch is then the full replays, bit for bit."""
+    from hlaid.simulate.sensitivity import linearised
+
+    gm = window(paper_record("elcentro-1940-ns"), 4.0, before_peak=1.0).scaled_to_pga(0.62)
+    small = table1.replace(dy=np.full(3, 0.02))
+    trial = [small, small.replace(k0=small.k0 * 1.0001), small.replace(p=small.p * 1.0001)]
+    full = simulate_response(trial, gm, substeps=1, outputs="acc")
+    with linearised():
+        lin = simulate_response(trial, gm, substeps=1, outputs="acc")
+    assert np.array_equal(lin.acc, full.acc, equal_nan=True) and np.array_equal(lin.status, full.status)
+
+
+def test_refinement_jacobians_tangent_and_difference_reach_the_same_optimum(table1):
+    """The replay fit with the tangent's Jacobians and with forward differences of full replays: the same
+    optimum (the residuals define it; within 1e-3, the search's tolerance along the flattest direction),
+    the same cost, and Jacobians at the optimum within 1e-2."""
+    gm = window(paper_record("kobe-1995-nis000"), 8.0, before_peak=2.0)
+    meas = simulate_measurement(table1, gm.scaled_to_pga(0.5), noise_rms=0.05, seed=3)
+    start = table1.replace(k0=table1.k0 * 1.03, alpha=table1.alpha + 0.02, p=table1.p * 0.95, dy=table1.dy * 1.05,
+                           delta_eta=table1.delta_eta * 1.1)
+    a = refine_replay(start, meas, jac_substeps=2, jacobian="tangent")
+    b = refine_replay(start, meas, jac_substeps=2, jacobian="difference")
+    assert a.cost_final == pytest.approx(b.cost_final, rel=1e-6)
+    np.testing.assert_allclose(a.x, b.x, rtol=1e-3)
+    assert np.linalg.norm(a.jacobian - b.jacobian) <= 1e-2 * np.linalg.norm(b.jacobian)
+    with pytest.raises(InputError, match="jacobian = 'adjoint'"):
+        refine_replay(start, meas, jacobian="adjoint")

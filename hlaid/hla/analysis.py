@@ -178,6 +178,44 @@ class _StoryFit:
     k0: float
 
 
+def _rayleigh_damping(results: list, x, f, vel, dx, t, m, cfg: HLAConfig, band, source):
+    """Subtract Rayleigh damping forces from the story forces, its coefficients from the k0 of the
+    analysis, until k0 settles (``cfg.force.max_iterations``). Returns the analyses, the damped
+    forces and the damping forces, each ``(time, story)``."""
+    f0, n = f, x.shape[1]
+    mv = np.cumsum((vel * m[None, :])[:, ::-1], axis=1)[:, ::-1]
+    for _ in range(cfg.force.max_iterations):
+        k0 = np.array([r.k0 for r in results])
+        if not np.all(np.isfinite(k0) & (k0 > 0)):
+            bad = int(np.argmax(~(np.isfinite(k0) & (k0 > 0)))) + 1
+            raise InputError(f"story {bad}: no half cycle to estimate k0 from; the record is too short or too "
+                             "weak", source=source)
+        a0, a1 = structure.rayleigh_coefficients(torch.tensor(k0)[None], torch.tensor(m)[None], "rayleigh",
+                                                  cfg.force.damping_ratio, cfg.force.damping_modes)
+        damp = float(a0) * mv + float(a1) * k0[None, :] * dx
+        f = f0 - damp
+        results = [_analyse(x[:, i], f[:, i], dx[:, i], t, cfg, band, False) for i in range(n)]
+        k0_new = np.array([r.k0 for r in results])
+        if np.all(np.abs(k0_new / k0 - 1) < 1e-3):
+            break
+    return results, f, damp
+
+
+def _regression_damping(results: list, x, f, dx, t, share, cfg: HLAConfig, band):
+    """Subtract each story's regressed viscous damping (the median over its half cycles) and
+    analyse again. Returns the analyses, the forces and the share added to the inertia forces."""
+    cs = []
+    for i, r in enumerate(results):
+        c = np.nanmedian(r.table.damping_coefficient) if len(r.table) else 0.0
+        cs.append(c if np.isfinite(c) else 0.0)
+        f[:, i] = f[:, i] - cs[-1] * dx[:, i]
+        share[:, i] -= cs[-1] * dx[:, i]
+    results = [_analyse(x[:, i], f[:, i], dx[:, i], t, cfg, band, False) for i in range(x.shape[1])]
+    results = [dataclasses.replace(r, table=r.table.replace(damping_coefficient=np.full(len(r.table), cs[i])))
+               for i, r in enumerate(results)]
+    return results, f, share
+
+
 def run_hla(measurement: Measurement, config: HLAConfig | None = None) -> HLAResult:
     """Hysteresis loop analysis of every story.
 
@@ -218,33 +256,10 @@ def run_hla(measurement: Measurement, config: HLAConfig | None = None) -> HLARes
             raise InputError(f"story {i + 1}: no complete half cycle; the record is too short or too weak for HLA",
                              source=meas.source)
     if damping == "rayleigh":
-        f0 = f
-        mv = np.cumsum((vel * m[None, :])[:, ::-1], axis=1)[:, ::-1]
-        for _ in range(cfg.force.max_iterations):
-            k0 = np.array([r.k0 for r in results])
-            if not np.all(np.isfinite(k0) & (k0 > 0)):
-                bad = int(np.argmax(~(np.isfinite(k0) & (k0 > 0)))) + 1
-                raise InputError(f"story {bad}: no half cycle to estimate k0 from; the record is too short or too "
-                                 "weak", source=meas.source)
-            a0, a1 = structure.rayleigh_coefficients(torch.tensor(k0)[None], torch.tensor(m)[None], "rayleigh",
-                                                      cfg.force.damping_ratio, cfg.force.damping_modes)
-            damp = float(a0) * mv + float(a1) * k0[None, :] * dx
-            f = f0 - damp
-            results = [_analyse(x[:, i], f[:, i], dx[:, i], t, cfg, band, False) for i in range(n)]
-            k0_new = np.array([r.k0 for r in results])
-            if np.all(np.abs(k0_new / k0 - 1) < 1e-3):
-                break
+        results, f, damp = _rayleigh_damping(results, x, f, vel, dx, t, m, cfg, band, meas.source)
         share = share - damp
     elif regress:
-        cs = []
-        for i, r in enumerate(results):
-            c = np.nanmedian(r.table.damping_coefficient) if len(r.table) else 0.0
-            cs.append(c if np.isfinite(c) else 0.0)
-            f[:, i] = f[:, i] - cs[-1] * dx[:, i]
-            share[:, i] -= cs[-1] * dx[:, i]
-        results = [_analyse(x[:, i], f[:, i], dx[:, i], t, cfg, band, False) for i in range(n)]
-        results = [dataclasses.replace(r, table=r.table.replace(damping_coefficient=np.full(len(r.table), cs[i])))
-                   for i, r in enumerate(results)]
+        results, f, share = _regression_damping(results, x, f, dx, t, share, cfg, band)
     f_out = story_force(acc_full, m) + share
     stories = []
     for i, r in enumerate(results):

@@ -232,15 +232,8 @@ def run_ida(model: Clone | Building | str | os.PathLike,
     IDAResult
     """
     t0 = time.perf_counter()
-    cfg = IDAConfig() if config is None else config
-    if not isinstance(cfg, IDAConfig):
-        raise InputError(f"config: expected an IDAConfig, got {type(cfg).__name__}")
-    drift_limit, max_step = cfg.drift_limit, cfg.max_step
-    exceedance_limits = cfg.exceedance_limits
-    if exceedance_limits is None:
-        exceedance_limits = [d for d in DEFAULT_EXCEEDANCE if d < drift_limit]
-    cfg = dataclasses.replace(cfg, levels=None if cfg.levels is None else list(cfg.levels),
-                              exceedance_limits=list(exceedance_limits))
+    cfg = _checked_config(config)
+    drift_limit, max_step, exceedance_limits = cfg.drift_limit, cfg.max_step, list(cfg.exceedance_limits or ())
     if isinstance(model, (str, os.PathLike)):
         model = Clone.load(model)
     building, notes = prepare_building(model, pdelta=cfg.pdelta, heights=cfg.heights_mm,
@@ -254,7 +247,6 @@ def run_ida(model: Clone | Building | str | os.PathLike,
     motions = as_motions(records, units=cfg.units)
     measure, T1, im0 = record_intensities(motions, cfg.im, building, cfg.period)
     levels, n_levels, slope_ratio, refine = cfg.levels, cfg.n_levels, cfg.slope_ratio, cfg.refine
-    tolerance, max_fill = cfg.tolerance, cfg.max_fill
     R = len(motions)
     runner = _Runner(building, motions, im0, drift_limit, max_step, start.state)
     log = _progress.debug if _progress.nested() else _progress.info  # inside an ensemble: details
@@ -268,13 +260,7 @@ def run_ida(model: Clone | Building | str | os.PathLike,
     _grid(runner, grid, drift_limit)
     state = _refine(runner, slope_el, cfg) if refine else _scan_all(runner, slope_el, slope_ratio)
     a = runner.arrays()
-    n_cens = int((state["first"] < 0).sum())
-    if n_cens:
-        notes.append(f"{n_cens} record(s) did not collapse up to the highest IM run (right-censored)")
-    wide = (state["first"] >= 0) & (state["hi"] - state["lo"] > tolerance * state["hi"])
-    if wide.any():
-        notes.append(f"{int(wide.sum())} collapse bracket(s) wider than the tolerance {tolerance:g} "
-                     + ("(refinement off)" if not refine else f"after {max_fill} bisections"))
+    n_cens = _bracket_notes(state, cfg, notes)
     wall = time.perf_counter() - t0
     log(f"IDA done: {runner.n_runs} runs in {wall:.1f} s; {R - n_cens}/{R} records collapsed")
     collapse_im = np.where(state["first"] >= 0, 0.5 * (state["lo"] + state["hi"]), np.nan)
@@ -291,6 +277,31 @@ def run_ida(model: Clone | Building | str | os.PathLike,
         censored_im=np.where(state["first"] < 0, state["max_im"], np.nan),
         settings=_settings(cfg), notes=tuple(notes),
         timing={"wall_s": wall, "runs": runner.n_runs})
+
+
+def _checked_config(config: IDAConfig | None) -> IDAConfig:
+    """The settings with the exceedance limits filled in (the defaults below the drift limit)."""
+    cfg = IDAConfig() if config is None else config
+    if not isinstance(cfg, IDAConfig):
+        raise InputError(f"config: expected an IDAConfig, got {type(cfg).__name__}")
+    exceedance_limits = cfg.exceedance_limits
+    if exceedance_limits is None:
+        exceedance_limits = [d for d in DEFAULT_EXCEEDANCE if d < cfg.drift_limit]
+    return dataclasses.replace(cfg, levels=None if cfg.levels is None else list(cfg.levels),
+                               exceedance_limits=list(exceedance_limits))
+
+
+def _bracket_notes(state: dict, cfg: IDAConfig, notes: list[str]) -> int:
+    """Note the right-censored records and the brackets left wider than the tolerance; the
+    number of censored records."""
+    n_cens = int((state["first"] < 0).sum())
+    if n_cens:
+        notes.append(f"{n_cens} record(s) did not collapse up to the highest IM run (right-censored)")
+    wide = (state["first"] >= 0) & (state["hi"] - state["lo"] > cfg.tolerance * state["hi"])
+    if wide.any():
+        notes.append(f"{int(wide.sum())} collapse bracket(s) wider than the tolerance {cfg.tolerance:g} "
+                     + ("(refinement off)" if not cfg.refine else f"after {cfg.max_fill} bisections"))
+    return n_cens
 
 
 def _probe(runner: _Runner, im0: np.ndarray, levels, drift_limit: float, n_levels: int,

@@ -101,13 +101,15 @@ class TangentWhitener:
         # column blocks of W samples as dense (block, W + block rows, floor) arrays scaled by D^(1/2):
         # block b's rows start at sample c_b - lead; blocks b and b + 1 share W rows, b and b + 2 none
         self._blocks = []
+        lags = np.arange(W)[None, :]
         for c in range(0, T, W):
             k = min(W, T - c)
             Y = np.zeros((k, W + k, n))
-            for i in range(k):
-                tau = c + i  # only the lags that land inside the record count
-                j0, j1 = max(self.lead - tau, 0), min(W, T + self.lead - tau)
-                Y[i, i + j0:i + j1] = G[tau, j0:j1] * w
+            rows = np.arange(k)[:, None]
+            tau = c + rows  # only the lags that land inside the record count
+            keep = (lags >= self.lead - tau) & (lags < T + self.lead - tau)
+            i, j = np.nonzero(keep)
+            Y[i, i + j] = G[c + i, j] * w
             self._blocks.append((c, Y))
         u = W - 1
         ab = np.zeros((W, T))  # upper band: ab[u + i - j, j] = M[i, j]

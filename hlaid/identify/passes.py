@@ -61,6 +61,27 @@ class TrainedPass:
     sets: Sequence[TrainingSet | None] | None
 
 
+
+def _path_key(paths: list, estimate: Building, bins: list, identifiable: np.ndarray, *, cfg: IdentifyConfig,
+              stage: str, seed: int) -> str:
+    """The cache key of a path-driven pass: everything its training sets and machines depend on."""
+    return cache_key(stage=stage, seed=seed, estimate=estimate.to_dict(), mode="path",
+                     edges=[[bb[0].edges, bb[1].edges] for bb in bins], training=config_to_dict(cfg.training),
+                     svm=config_to_dict(cfg.svm), identifiable=np.asarray(identifiable, bool),
+                     paths=[None if sp is None else [array_digest(sp.drift[: sp.end]), array_digest(sp.force[: sp.end]),
+                                                     np.asarray(sp.bounds).tolist(), sp.k0, sp.noise_std, sp.dt,
+                                                     sp.cutoff_hz] for sp in paths])
+
+
+def _cached_pass(hit: tuple, stage: str, chosen_C: dict) -> TrainedPass:
+    """A pass loaded from the cache; its cross-validated C are kept for the later passes (as in a cold run)."""
+    machines, meta = hit
+    _progress.info(f"[identify] {stage} pass: classifiers from the cache")
+    for name, st in meta["stats"].items():
+        if "C" in st:
+            chosen_C.setdefault(name, (st["C"], st.get("gamma_factor", 1.0)))
+    return TrainedPass(machines, meta["stats"], True, 0.0, None)
+
 def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], identifiable: np.ndarray, *,
               cfg: IdentifyConfig, stage: str, seed: int, cache: MachineCache, tb: TBLogger | None = None,
               step: int = 0, chosen_C: dict | None = None,
@@ -81,20 +102,10 @@ def path_pass(paths: list, estimate: Building, bins: list[tuple[Bins, Bins]], id
     """
     tc = cfg.training
     chosen_C = {} if chosen_C is None else chosen_C
-    key = cache_key(stage=stage, seed=seed, estimate=estimate.to_dict(), mode="path",
-                    edges=[[bb[0].edges, bb[1].edges] for bb in bins], training=config_to_dict(tc),
-                    svm=config_to_dict(cfg.svm), identifiable=np.asarray(identifiable, bool),
-                    paths=[None if sp is None else [array_digest(sp.drift[: sp.end]), array_digest(sp.force[: sp.end]),
-                                                    np.asarray(sp.bounds).tolist(), sp.k0, sp.noise_std, sp.dt,
-                                                    sp.cutoff_hz] for sp in paths])
+    key = _path_key(paths, estimate, bins, identifiable, cfg=cfg, stage=stage, seed=seed)
     hit = cache.load(key)
     if hit is not None:
-        machines, meta = hit
-        _progress.info(f"[identify] {stage} pass: classifiers from the cache")
-        for name, st in meta["stats"].items():  # later passes reuse the same C as in a cold run
-            if "C" in st:
-                chosen_C.setdefault(name, (st["C"], st.get("gamma_factor", 1.0)))
-        return TrainedPass(machines, meta["stats"], True, 0.0, None)
+        return _cached_pass(hit, stage, chosen_C)
     n_ident = int(np.sum(identifiable))
     coarse = stage == "coarse"
     noise = noise() if callable(noise) else noise

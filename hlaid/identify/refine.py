@@ -5,7 +5,8 @@ there, a bounded trust-region search over the story parameters matches the clone
 floor accelerations to the measured ones (:class:`~hlaid.identify.residuals.ReplayResiduals`).
 :class:`ParameterVector` maps the adjusted parameters to buildings; :func:`fit_residuals` runs
 the search on any residual function of buildings; :func:`refine_replay` puts the two together
-for one measurement. Jacobians are finite differences computed as one batch of the simulator.
+for one measurement. Jacobians come from one batch of the simulator: the replay and its tangent-linear
+model (:mod:`hlaid.simulate.sensitivity`), or full replays differenced (see :func:`fit_residuals`).
 """
 
 from __future__ import annotations
@@ -19,11 +20,13 @@ from typing import ParamSpec, Protocol, TypeVar
 
 import numpy as np
 from scipy.optimize import least_squares
-from threadpoolctl import threadpool_limits
 
 from .. import _progress
+from .._threads import blas_threads
+from ..errors import InputError
 from ..measurement import Measurement
 from ..model import Building, Damping
+from ..simulate.sensitivity import linearised
 from .residuals import ReplayResiduals
 
 _BLAS_ONE_THREAD = 1e8
@@ -32,6 +35,9 @@ on one thread: Table 1's 7e6, a 20-story building's 2e9."""
 
 _P = ParamSpec("_P")
 _R = TypeVar("_R")
+
+JACOBIANS = ("tangent", "difference")
+"""How :func:`fit_residuals` takes its Jacobians: tangent-linear replays or full replays differenced."""
 
 _LIMITS = {"k0": (1e-6, np.inf), "alpha": (0.0, 0.95), "p": (1.0, 10.0), "dy": (1e-6, np.inf),
            "delta_eta": (0.0, np.inf)}
@@ -48,8 +54,8 @@ class RefineResult:
     nfev : residual evaluations; seconds : wall time; message : the optimiser's
     slots : the adjusted parameters as ``(name, story)`` pairs (story -1: the damping ratio)
     x : their values at the solution, shape ``(n_params,)``
-    jacobian : d residuals / d x at the solution (the optimiser's last finite-difference
-        Jacobian), shape ``(n_time * n_floors, n_params)``, rows time-major
+    jacobian : d residuals / d x at the solution (the optimiser's last Jacobian), shape
+        ``(n_time * n_floors, n_params)``, rows time-major
     residuals : normalised residuals at the solution, shape ``(n_time * channels,)``
         (``reshape(n_time, channels)`` gives one column per channel); both feed
         :mod:`hlaid.uncertainty`
@@ -95,7 +101,7 @@ def _blas_threads(fn: Callable[_P, _R]) -> Callable[_P, _R]:
         a.apply_defaults()
         n_params = len(a.arguments["parameters"]) * a.arguments["building"].n_stories + bool(a.arguments["damping"])
         small = np.asarray(a.arguments["measurement"].floor_acc).size * n_params**2 < _BLAS_ONE_THREAD
-        with threadpool_limits(limits=1 if small else None, user_api="blas"):
+        with blas_threads(1 if small else None):
             return fn(*args, **kwargs)
 
     return wrapper
@@ -107,7 +113,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
                   substeps: int = 4, upper_factor: float | None = 10.0, ftol: float = 1e-10,
                   jac_substeps: int | None = None, ground_noise: str = "ignore",
                   ground_memory_s: float | None = None, tangent_max_mb: float | None = None,
-                  desc: str = "[identify] replay fit") -> RefineResult:
+                  desc: str = "[identify] replay fit", jacobian: str = "tangent") -> RefineResult:
     """Refine ``building`` so that its replay matches ``measurement``'s floor accelerations.
 
     Parameters
@@ -122,7 +128,7 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
         (delta_eta's start taken as at least 0.5 s^2/m^2), so that a parameter the data
         hardly constrain cannot run away; None: open above
     ftol : stop when a step lowers the cost by less than this fraction of it
-    jac_substeps : RK4 sub-steps of the replays that build the finite-difference Jacobian
+    jac_substeps : RK4 sub-steps of the replays that build the Jacobian
         (default: ``substeps``). The Jacobian only steers the search; the residuals, and so the
         optimum, keep ``substeps``. Its base point is replayed with the same sub-steps as its
         columns, so the difference quotient carries no discretisation offset.
@@ -139,6 +145,8 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
     tangent_max_mb : with ``"tangent"``, raise :class:`~hlaid.errors.TangentTooLargeError` where the
         tangent would take more than this many MiB (None: only the hard limit)
     desc : the name of the search in the progress messages
+    jacobian : ``"tangent"`` (forward-mode sensitivities of the replay) or ``"difference"`` (full
+        replays differenced); see :func:`fit_residuals`
     """
     t0 = time.perf_counter()
     residuals = ReplayResiduals(measurement, band_hz=band_hz, substeps=substeps, ground_noise=ground_noise,
@@ -147,7 +155,8 @@ def refine_replay(building: Building, measurement: Measurement, *, parameters=("
     vector = ParameterVector(building, parameters=parameters, stories=stories, damping=damping,
                              upper_factor=upper_factor)
     return fit_residuals(vector, residuals, max_iterations=max_iterations, ftol=ftol,
-                         jac_substeps=substeps if jac_substeps is None else jac_substeps, t0=t0, desc=desc)
+                         jac_substeps=substeps if jac_substeps is None else jac_substeps, t0=t0, desc=desc,
+                         jacobian=jacobian)
 
 
 class ParameterVector:
@@ -226,17 +235,43 @@ class Residuals(Protocol):
 
 def fit_residuals(vector: SearchVector, residuals: Residuals, *, max_iterations: int = 40,
                   ftol: float = 1e-10, jac_substeps: int | None = None, t0: float | None = None,
-                  desc: str = "[identify] replay fit") -> RefineResult:
+                  desc: str = "[identify] replay fit", jacobian: str = "tangent") -> RefineResult:
     """Least squares of ``residuals`` over ``vector``'s parameters from its start (scipy's
-    trust-region reflective search within the bounds; forward-difference Jacobians, one batch of
-    replays with ``jac_substeps`` RK4 sub-steps, default the residuals' own). Its progress is one
+    trust-region reflective search within the bounds). Its progress is one
     :func:`hlaid._progress.stage` named ``desc``, counted in evaluations of the cost (at most
-    ``max_iterations``)."""
+    ``max_iterations``).
+
+    Jacobians: one batch of replays with ``jac_substeps`` RK4 sub-steps (default the residuals'
+    own) of the buildings at ``x`` and at ``x + h e_j`` (``h`` 1e-4 of each entry's scale),
+    differenced. With ``jacobian="tangent"`` (default) the batch is run
+    :func:`~hlaid.simulate.sensitivity.linearised`: the replay at ``x`` and its tangent-linear
+    model in the direction of every other building (forward-mode sensitivities, a fraction of a
+    replay each, through any linear post-processing of the replays: band-pass, whitening, the
+    states carried from event to event), so the difference quotient is the derivative of the
+    discrete replay along ``vector``'s map; ``"difference"``: full replays of every building,
+    forward differences.
+
+    BLAS runs on one thread where residuals x parameters^2 is below :data:`_BLAS_ONE_THREAD`
+    (``residuals.n_residuals`` where it has one): the search's SVDs of a tall, narrow Jacobian
+    gain nothing from a second thread and lost up to 10x to it when the compiled replays or other
+    jobs held the cores (a joint fit's 48000 x 16 SVD: 47 ms on one thread, 0.63 s on two)."""
+    if jacobian not in JACOBIANS:
+        raise InputError(f"jacobian = {jacobian!r}; expected one of {', '.join(map(repr, JACOBIANS))}")
+    n_res = getattr(residuals, "n_residuals", None)
+    small = n_res is not None and int(n_res) * len(vector.x0) ** 2 < _BLAS_ONE_THREAD
+    with blas_threads(1 if small else None):
+        return _fit_residuals(vector, residuals, max_iterations=max_iterations, ftol=ftol, jac_substeps=jac_substeps,
+                              t0=t0, tangent=jacobian == "tangent", desc=desc)
+
+
+def _fit_residuals(vector: SearchVector, residuals: Residuals, *, max_iterations: int, ftol: float,
+                   jac_substeps: int | None, t0: float | None, tangent: bool, desc: str) -> RefineResult:
     t0 = time.perf_counter() if t0 is None else t0
     make, xs, hi_b = vector.building_at, vector.scale, vector.upper
     jac_substeps = residuals.substeps if jac_substeps is None else jac_substeps
     cache: dict = {}
     plain_of: dict = {}  # the unweighted cost of every point the search evaluated (a float each)
+    cost_of: dict = {}  # and its cost
 
     best, counting = [np.inf], [True]
     bar = _progress.stage(f"{desc} ({vector.x0.size} parameters)", max_iterations, unit="evaluations")
@@ -246,8 +281,8 @@ def fit_residuals(vector: SearchVector, residuals: Residuals, *, max_iterations:
         if key not in cache:
             cache.clear()
             res, plain = residuals([make(x)])
-            cache[key], plain_of[key] = res[0], float(plain[0])
-            best[0] = min(best[0], 0.5 * float(np.sum(res[0] ** 2)))
+            cache[key], plain_of[key], cost_of[key] = res[0], float(plain[0]), 0.5 * float(np.sum(res[0] ** 2))
+            best[0] = min(best[0], cost_of[key])
             if counting[0]:
                 bar.update(1, note=f"cost {best[0]:.4g}")
         return cache[key]
@@ -259,7 +294,11 @@ def fit_residuals(vector: SearchVector, residuals: Residuals, *, max_iterations:
         over = xp > hi_b
         xp[over] = x[over] - h[over]
         trial = [make(np.where(np.arange(x.size) == j, xp, x)) for j in range(x.size)]
-        if jac_substeps == residuals.substeps:
+        if tangent:
+            with linearised():
+                both = residuals([make(x)] + trial, jac_substeps)[0]
+            r0, rp = both[0], both[1:]
+        elif jac_substeps == residuals.substeps:
             rp, r0 = residuals(trial)[0], fun(x)
         else:
             both = residuals([make(x)] + trial, jac_substeps)[0]
@@ -275,7 +314,8 @@ def fit_residuals(vector: SearchVector, residuals: Residuals, *, max_iterations:
         counting[0], bar.n = False, int(sol.nfev)
         fun(sol.x)  # its plain cost (the last point evaluated may have been a rejected trial)
         plain = plain_of[sol.x.tobytes()]
-        cost0 = 0.5 * float(np.sum(fun(x0) ** 2))
+        cost0 = cost_of.get(np.asarray(x0, dtype=float).tobytes())  # its first evaluation (not replayed again)
+        cost0 = 0.5 * float(np.sum(fun(x0) ** 2)) if cost0 is None else cost0
         bar.done(f"cost {cost0:.4g} -> {float(sol.cost):.4g}" + ("" if sol.status > 0 else " (not converged)"))
     return RefineResult(building=make(sol.x), cost_initial=cost0, cost_final=float(sol.cost), nfev=int(sol.nfev),
                         seconds=time.perf_counter() - t0, message=str(sol.message), slots=tuple(vector.slots),

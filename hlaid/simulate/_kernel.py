@@ -78,6 +78,15 @@ def _rhs(y, ag, n, m, k0, al, p, dy, de, kg, C, bw, f, out):
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
+def _all_finite(y):
+    """Whether every entry of the state ``y`` is finite (a replay that is not has diverged)."""
+    for j in range(y.shape[0]):
+        if not np.isfinite(y[j]):
+            return False
+    return True
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
 def _absolute_acc(y, n, m, al, k0, kg, C, bw, f, acc):
     """Absolute floor accelerations ``-(R + C v)/m`` at state ``y``."""
     u_below = 0.0
@@ -253,11 +262,7 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, bw, cpa
             if save_acc:
                 for i in range(n):
                     acc_hist[b, k, i] = acc[i]
-            finite = True
-            for j in range(S):
-                if not np.isfinite(y[j]):
-                    finite = False
-            if not finite:
+            if not _all_finite(y):
                 st = STATUS_DIVERGED
                 break
             for i in range(n):

@@ -10,6 +10,7 @@ numba and runs batch elements in parallel; the ``"torch"`` backend steps the
 from __future__ import annotations
 
 import dataclasses
+import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -20,7 +21,7 @@ import torch
 from ..errors import InputError
 from ..model import BoucWenBuilding, Building, BuildingTensors
 from ..motions import GroundMotion
-from . import _kernel
+from . import _kernel, sensitivity
 
 OUTPUTS = ("full", "acc", "peaks")
 """What :func:`simulate_response` keeps: every history, the floor accelerations only, or the peaks."""
@@ -191,6 +192,44 @@ BACKENDS: dict[str, Callable] = {"numba": _run_numba, "torch": _run_torch}
 """Integrators by name: ``"numba"`` (compiled, parallel) and ``"torch"`` (eager reference)."""
 
 
+_LAST_BATCH: list = []
+"""The buildings (weak references) and parameter arrays of the last batch: a fit over several
+events replays one batch of buildings under each event in turn, and their damping matrices (a
+modal analysis each) were 4-10 % of its time."""
+
+
+def _parameters(buildings: list[Building]) -> dict:
+    """``BuildingTensors.stack(buildings).numpy()``, reused when the same building objects (frozen)
+    come again in the same order."""
+    if _LAST_BATCH:
+        refs, P = _LAST_BATCH
+        if len(refs) == len(buildings) and all(r() is b for r, b in zip(refs, buildings)):
+            return P
+    P = BuildingTensors.stack(buildings).numpy()
+    _LAST_BATCH[:] = [[weakref.ref(b) for b in buildings], P]
+    return P
+
+
+def _ground(motions: list[GroundMotion]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The motions as the kernels take them: ``(motion, time)`` accelerations zero-padded to the
+    longest, ``(motion,)`` time steps and ``(motion,)`` lengths."""
+    ag = np.zeros((len(motions), max(m.npts for m in motions)))
+    for j, m in enumerate(motions):
+        ag[j, : m.npts] = m.acc
+    return ag, np.array([m.dt for m in motions]), np.array([m.npts for m in motions], dtype=np.int64)
+
+
+def _initial_states(y0, batch: int, S: int, n: int) -> np.ndarray:
+    """``(batch, S)`` initial states: at rest where ``y0`` is None, else ``y0`` broadcast."""
+    if y0 is None:
+        return np.zeros((batch, S))
+    try:  # a writable copy: a read-only view would make numba compile the kernel a second time
+        return np.broadcast_to(np.asarray(y0, dtype=np.float64), (batch, S)).copy()
+    except ValueError:
+        raise InputError(f"y0 of shape {np.shape(y0)}; expected (batch, {S // n}*story) = ({batch}, {S}) "
+                         f"or ({S},)") from None
+
+
 def simulate_response(buildings: Building | Sequence[Building], motions: GroundMotion | Sequence[GroundMotion],
                       scales: float | Sequence[float] | np.ndarray = 1.0, *, substeps: int = 4,
                       pairing: str = "product", outputs: str = "full", backend: str = "numba",
@@ -217,6 +256,10 @@ def simulate_response(buildings: Building | Sequence[Building], motions: GroundM
     y0 : (batch, 4*story) initial states (``6*story`` when a building has a collapse model);
         None starts at rest
 
+    Within :func:`hlaid.simulate.sensitivity.linearised`, a batch of ``outputs="acc"`` under one
+    motion is the first building's replay and every other element's first-order (tangent-linear)
+    response about it, unless that replay needs a refined sample; see that module.
+
     Returns
     -------
     SimulationResult
@@ -231,27 +274,23 @@ def simulate_response(buildings: Building | Sequence[Building], motions: GroundM
         raise InputError(f"substeps = {substeps}; expected an integer >= 1")
     if free_vibration > 0:
         motions = [m.padded(free_vibration) for m in motions]
-    P = BuildingTensors.stack(buildings).numpy()
+    P = _parameters(buildings)
     n = P["mass"].shape[1]
     S = (6 if any(b.collapse is not None for b in buildings) else 4) * n
     bi, mi, sc = _layout(len(buildings), len(motions), scales, pairing)
-    T = max(m.npts for m in motions)
-    ag = np.zeros((len(motions), T))
-    for j, m in enumerate(motions):
-        ag[j, : m.npts] = m.acc
-    dt = np.array([m.dt for m in motions])
-    nt = np.array([m.npts for m in motions], dtype=np.int64)
-    if y0 is None:
-        y0 = np.zeros((bi.size, S))
-    else:
-        try:  # a writable copy: a read-only view would make numba compile the kernel a second time
-            y0 = np.broadcast_to(np.asarray(y0, dtype=np.float64), (bi.size, S)).copy()
-        except ValueError:
-            raise InputError(f"y0 of shape {np.shape(y0)}; expected (batch, {S // n}*story) = ({bi.size}, {S}) "
-                             f"or ({S},)") from None
+    ag, dt, nt = _ground(motions)
+    y0 = _initial_states(y0, bi.size, S, n)
     stop = _stop_array(stop_drift, bi, n, len(buildings))
-    states, acc, peak_drift, peak_acc, final, n_done, status = BACKENDS[backend](
-        P, ag, dt, nt, mi.astype(np.int64), bi.astype(np.int64), sc, int(substeps), y0, stop, outputs)
+    linear = (outputs == "acc" and backend == "numba" and sensitivity.is_linearised()
+              and sensitivity.covers(P, len(motions), sc, bi, stop, S))
+    if linear:  # a replay and its tangent, unless the replay needs a refined sample
+        acc, final, peak_drift, peak_acc, n_done, status = sensitivity.run_linearised(P, ag[0] * sc[0], dt[0],
+                                                                                     int(substeps), y0)
+        states = None
+        linear = status[0] != sensitivity.STATUS_REFINED
+    if not linear:
+        states, acc, peak_drift, peak_acc, final, n_done, status = BACKENDS[backend](
+            P, ag, dt, nt, mi.astype(np.int64), bi.astype(np.int64), sc, int(substeps), y0, stop, outputs)
     params = _tensors(P, S).index(bi)
     res = result_from_states(params, states, dt=dt[mi], n_time=n_done, building_index=bi, motion_index=mi,
                              scale=sc, status=status, final_state=final, peak_drift=peak_drift,
