@@ -14,7 +14,8 @@ Layout::
      "diagnostics": {...}, "provenance": {...},
      "uncertainty": null | {...},                          (version 2 and later)
      "system": null | "steel-moment-frame" | ...,          (version 3)
-     "events": [{"name": ..., "source": ..., "sha256": ..., "pga_g": ..., "duration_s": ...}, ...],
+     "events": [{"name": ..., "source": ..., "sha256": ..., "pga_g": ..., "duration_s": ...,
+                 "prequential": {...} (optional: how the clone before it predicted it)}, ...],
      "state": null | {"drift": [...], "z": [...], "work": [...], "peak_positive": [...],
                       "peak_negative": [...], "events": [...]}}
 
@@ -215,6 +216,8 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dic
         _checked(check_event, e, i, source=source)
         if e.get("start") not in (None, "carried", "undamaged"):
             raise InputError(f"field 'events[{i}].start' must be 'carried' or 'undamaged'", source=source)
+        if e.get("prequential") is not None and not isinstance(e["prequential"], dict):
+            raise InputError(f"field 'events[{i}].prequential' must be a mapping", source=source)
     state = None
     if d.get("state") is not None:
         st = d["state"]
@@ -231,7 +234,7 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dic
 
 
 _EVENT_KEYS = ("name", "source", "sha256", "ground_sha256", "pga_g", "duration_s", "dt", "n_floors", "recorded",
-               "start")
+               "start", "prequential")
 
 
 def _checked(check, *args, source: str | None) -> None:
