@@ -10,8 +10,16 @@ import pytest
 from conftest import paper_record, window
 
 from hlaid.clone import Clone
-from hlaid.events.laws import (ELASTIC_CY, NO_DEGRADATION, candidates, choose_laws, default_laws, law_mask, laws_of,
-                               with_laws)
+from hlaid.events.laws import (
+    ELASTIC_CY,
+    NO_DEGRADATION,
+    candidates,
+    choose_laws,
+    default_laws,
+    law_mask,
+    laws_of,
+    with_laws,
+)
 from hlaid.events.prequential import MARGIN, start_rule
 from hlaid.events.priors import get_prior, weight_above
 from hlaid.events.start import resolve_start
