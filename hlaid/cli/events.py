@@ -36,7 +36,8 @@ def register(sub) -> None:
     add_read(q)
     q.add_argument("--start", choices=["auto", "carried", "undamaged"], default=None,
                    help="carried: from the state the clone's last event left it in; undamaged: at rest; auto "
-                        "(default): carried, unless an update found the last event better explained undamaged")
+                        "(default): the clone's start rule (carried only where it predicted the events already "
+                        "seen better than from rest)")
     add_ensemble(q, "for the predictive band")
     add_seed(q, "the ensemble's draws")
     add_plots(q)
