@@ -199,3 +199,34 @@ def test_the_simulated_response_is_what_the_tests_above_assume(table1):
     r = simulate_response(table1, gm, outputs="full")
     d = np.asarray(r.disp)[0]
     assert _corr(d[:, 0], d[:, 0]) == pytest.approx(1.0)
+
+
+def test_the_check_of_an_update_flags_one_that_forgot_the_earlier_events(table1):
+    """The earlier event's misfit change against the Gaussian's prediction: an update that moved
+    the parameters within the posterior is kept; one that moved a well-determined parameter far
+    (the earlier event's misfit grows by much more than a wide posterior predicts) is refitted."""
+    from hlaid.events.guard import EXCESS_MIN, check_update, load_earlier
+    from hlaid.events.vector import GaussianPrior
+
+    gm = window(paper_record("elcentro-1940-ns"), 6.0).scaled(0.5)
+    (m,), _ = simulate_events(table1, [gm], noise_rms=0.02, seed=5)
+    v = PriorVector(table1, damping=False)
+    band = (0.1, 20.0)
+    same = check_update(table1, table1, [m], GaussianPrior(v.x0, np.eye(v.x0.size)), v, band_hz=band)
+    assert same["misfit_change"] == pytest.approx(0.0, abs=1e-9) and same["gaussian"] == pytest.approx(0.0)
+    assert not same["refit"] and same["limit"] == EXCESS_MIN
+    x = v.x0.copy()
+    x[v.slots.index(("k0", 0))] += np.log(1.3)  # story 1 30 % stiffer: the record says otherwise
+    moved = v.building_at(x)
+    wide = check_update(table1, moved, [m], GaussianPrior(v.x0, 100.0 * np.eye(v.x0.size)), v, band_hz=band)
+    assert wide["gaussian"] < 0.01 and wide["misfit_change"] > EXCESS_MIN and wide["refit"]
+    # the same move, where the posterior said k0 was that uncertain: kept
+    cov = 1e-6 * np.eye(v.x0.size)
+    cov[v.slots.index(("k0", 0)), v.slots.index(("k0", 0))] = (np.log(1.3) / 100.0) ** 2
+    tight = check_update(table1, moved, [m], GaussianPrior(v.x0, cov), v, band_hz=band)
+    assert tight["gaussian"] == pytest.approx(0.5 * 100.0**2, rel=1e-6) and not tight["refit"]
+    events = [{"name": "e1", "source": None, "ground_sha256": "0" * 64}]
+    found, missing = load_earlier(events)
+    assert found == [] and "not there" in missing[0]
+    found, missing = load_earlier(events, [m])
+    assert found == [] and "SHA-256" in missing[0]
