@@ -15,6 +15,7 @@ Layout::
      "uncertainty": null | {...},                          (version 2 and later)
      "system": null | "steel-moment-frame" | ...,          (version 3)
      "events": [{"name": ..., "source": ..., "sha256": ..., "pga_g": ..., "duration_s": ...,
+                 "prequential": {...} (optional: how the clone before it predicted it),
                  "peak_drift": [...] (optional: the measured peak story drifts [mm])}, ...],
      "state": null | {"drift": [...], "z": [...], "work": [...], "peak_positive": [...],
                       "peak_negative": [...], "events": [...]}}
@@ -231,6 +232,8 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dic
         _checked(check_event, e, i, source=source)
         if e.get("start") not in (None, "carried", "undamaged"):
             raise InputError(f"field 'events[{i}].start' must be 'carried' or 'undamaged'", source=source)
+        if e.get("prequential") is not None and not isinstance(e["prequential"], dict):
+            raise InputError(f"field 'events[{i}].prequential' must be a mapping", source=source)
         pk = e.get("peak_drift")
         bound = STATE_BOUNDS["peak_positive"]
         if pk is not None and not (isinstance(pk, list) and len(pk) == n and all(bound.contains(v) for v in pk)):
@@ -252,7 +255,7 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dic
 
 
 _EVENT_KEYS = ("name", "source", "sha256", "ground_sha256", "pga_g", "duration_s", "dt", "n_floors", "recorded",
-               "start", "peak_drift")
+               "start", "prequential", "peak_drift")
 
 
 def _checked(check, *args, source: str | None) -> None:

@@ -76,10 +76,11 @@ def prediction_row(p, k: int, names: list[str], how: str, seconds: float, start:
     """One prediction; ``start`` as asked (``auto`` resolves to ``p.start``, kept as ``resolved``)."""
     d = p.to_dict()
     return {"how": how, "k": k, "identified_on": names[:k], "event": p.event, "start": start,
-            "resolved": p.start, "r": d["r"],
-            "r_mean": d["r_mean"], "peak_drift_error": d["peak_drift_error"], "coverage": d["coverage"],
-            "coverage_mean": d["coverage_mean"], "pga_g": d["pga_g"], "clone_seconds": seconds,
-            "status": d["status"]}
+            "resolved": p.start, "start_reason": p.start_reason, "r": d["r"], "r_mean": d["r_mean"],
+            "drift_r": d["drift_r"], "drift_r_mean": d["drift_r_mean"], "peak_drift_error": d["peak_drift_error"],
+            "peak_drift_error_mean_abs": d["peak_drift_error_mean_abs"], "roof_error": d["roof_error"],
+            "coverage": d["coverage"], "coverage_mean": d["coverage_mean"], "pga_g": d["pga_g"],
+            "clone_seconds": seconds, "status": d["status"]}
 
 
 def agreement(a, b) -> dict:
@@ -207,7 +208,8 @@ def simulated_case(truth, motions: list[GroundMotion], seed: int, cfg: IdentifyC
            "eta_error_pct": (100.0 * (eta_clone / eta_true - 1.0)).tolist(),
            "prediction": {"r": pred.r.tolist(), "r_mean": pred.r_mean,
                           "r_true": None if pred.r_true is None else pred.r_true.tolist(),
-                          "band_hz": list(pred.band_hz), "peak_drift_error": pred.peak_drift_error.tolist()},
+                          "band_hz": list(pred.band_hz), "peak_drift_error": pred.peak_drift_error.tolist(),
+                          "drift_r": pred.drift_r.tolist(), "start": pred.start, "start_reason": pred.start_reason},
            "truth_replay": {"r": ref.r.tolist(), "r_mean": ref.r_mean}}
     log(f"simulated {motions[0].name}.. seed {seed}: joint mean {row['joint']['mean_pct']:.1f} %, best single "
         f"{best['mean_pct'] if best else float('nan'):.1f} %, R {pred.r_mean:.3f} (truth {ref.r_mean:.3f})")
@@ -244,7 +246,9 @@ def peer_history(path: str | None) -> dict:
             if c["kind"] in ("history", "alone"):
                 key = (c["structure"], tuple(c["identified_on"]), c["event"])
                 if c["kind"] == "history" or len(c["identified_on"]) == 1:
-                    out[key] = {"r_mean": c["prediction"]["r_mean"], "chosen": c["chosen"],
+                    pde = c["prediction"].get("peak_drift_error")
+                    out[key] = {"r_mean": c["prediction"]["r_mean"], "chosen": c["chosen"], "peak_drift_error": pde,
+                                "drift_r": c["prediction"].get("drift_r"),
                                 "oracle_r_mean": c["oracle_prediction"]["r_mean"] if c["n_grid"] > 1 else None}
         return out
     except (OSError, ValueError, KeyError, TypeError) as err:
@@ -259,33 +263,59 @@ def _summary(rs: list[float]) -> str:
     return f"{np.mean(rs):.3f} | {np.min(rs):.3f}" if rs else "- | -"
 
 
+def _pde(e) -> str:
+    return "-" if not e else " / ".join(f"{100 * x:+.0f}" for x in e)
+
+
+def _mean(x) -> float | None:
+    return None if not x else float(np.mean(x))
+
+
+def _abs_pde(e) -> float:
+    return float(np.mean(np.abs(e))) if e else float("nan")
+
+
 def real_tables(res: dict, peer: dict, command: str) -> list[str]:
     name = res["structure"]
     out = [f"### {name}: clone of events 1..k predicting k+1", "", f"`{command}`", "",
            f"Band {res['band_hz'] or 'HLA'} Hz, system {res['identify']['system']}, refinement "
-           f"{res['identify']['refine']}; coverage: share of the measurement inside the "
-           f"{res['n_ensemble']}-clone 90 % band (carried start).", "",
-           "| clone | on | predicts | start | R per floor | R mean | peak-drift error [%] | coverage | clone [s] "
-           "| peer R (self-fit) | peer R (oracle) |", "|" + "---|" * 11]
+           f"{res['identify']['refine']}; R: floor displacement relative to the ground, drift R: story drift "
+           "(correlation of predicted and measured in the band); peak-drift error: predicted / measured - 1 of each "
+           "story's peak drift in the band; coverage: share of the measurement inside the "
+           f"{res['n_ensemble']}-clone 90 % band (carried start). The peer: the linear peer (self-fit) identified on "
+           "the same events.", "",
+           "| clone | on | predicts | start | R per floor | R mean | drift R mean | peak-drift error [%] "
+           "| mean abs [%] | coverage | clone [s] | peer R | peer peak-drift error [%] |", "|" + "---|" * 13]
     for p in res["predictions"]:
-        pr = peer.get((name, tuple(p["identified_on"]), p["event"])) if p["start"] == "carried" else None
+        pr = peer.get((name, tuple(p["identified_on"]), p["event"]))
         on = p["identified_on"]
         start = p["start"] if p["start"] != "auto" else f"auto: {p['resolved']}"
         out.append(f"| {p['how']} | {on[0] if len(on) == 1 else f'{on[0]}..{on[-1]}'} | {p['event']} | {start} | "
                    + " / ".join(f"{r:.3f}" for r in p["r"]) + f" | **{p['r_mean']:.3f}** | "
-                   + " / ".join(f"{100 * e:+.0f}" for e in p["peak_drift_error"])
-                   + f" | {_f(p['coverage_mean'], '{:.2f}')} | {p['clone_seconds']:.0f} | "
-                   f"{_f(pr and pr['r_mean'])} | {_f(pr and pr['oracle_r_mean'])} |")
-    out += ["", "| clone | start | n | mean R | worst R | mean coverage | peer mean R (self-fit) | peer worst R |",
-            "|---|---|---|---|---|---|---|---|"]
+                   f"{_f(p.get('drift_r_mean'))} | {_pde(p['peak_drift_error'])} | "
+                   f"{100 * _abs_pde(p['peak_drift_error']):.1f} | "
+                   f"{_f(p['coverage_mean'], '{:.2f}')} | {p['clone_seconds']:.0f} | "
+                   f"{_f(pr and pr['r_mean'])} | {_pde(pr and pr.get('peak_drift_error'))} |")
+    out += ["", "| clone | start | n | mean R | worst R | mean drift R | mean abs peak-drift error [%] | worst story "
+            "[%] | mean coverage | peer mean R | peer worst R | peer mean abs peak-drift error [%] | peer worst story "
+            "[%] |", "|" + "---|" * 13]
     for how in dict.fromkeys(p["how"] for p in res["predictions"]):
         for start in START_STATES:
             ps = [p for p in res["predictions"] if p["how"] == how and p["start"] == start]
+            if not ps:
+                continue
             cov = [p["coverage_mean"] for p in ps if p["coverage_mean"] is not None]
-            pr = [peer[k]["r_mean"] for p in ps if (k := (name, tuple(p["identified_on"]), p["event"])) in peer]
+            prs = [peer[k] for p in ps if (k := (name, tuple(p["identified_on"]), p["event"])) in peer]
+            pde = np.abs([e for p in ps for e in p["peak_drift_error"]])
+            ppde = np.abs([e for q in prs for e in (q.get("peak_drift_error") or [])])
+            full = len(prs) == len(ps)
+            peer_pde = f"{100 * np.mean(ppde):.1f} | {100 * np.max(ppde):.1f}" if full and ppde.size else "- | -"
+            dr = [p["drift_r_mean"] for p in ps if p.get("drift_r_mean") is not None]
             out.append(f"| {how} | {start} | {len(ps)} | {_summary([p['r_mean'] for p in ps])} | "
+                       f"{_f(np.mean(dr) if dr else None)} | {100 * np.mean(pde):.1f} | {100 * np.max(pde):.1f} | "
                        f"{_f(np.mean(cov) if cov else None, '{:.2f}')} | "
-                       f"{_summary(pr) if start == 'carried' and len(pr) == len(ps) else '- | -'} |")
+                       f"{_summary([q['r_mean'] for q in prs]) if full else '- | -'} | "
+                       f"{peer_pde} |")
     if res["agreement"]:
         out += ["", f"Sequential against joint clone of the same events: share of parameters with |difference| <= "
                 f"{AGREE_SD:g} combined sd (posterior, transformed units).", "",
@@ -303,14 +333,16 @@ def simulated_tables(res: dict, command: str) -> list[str]:
            f"{100 * res['noise_rms']:.0f} % RMS. Errors: |relative error| over the 5 parameters x 3 stories; best "
            "single: the single-event clone of lowest mean error (chosen on the truth).", "",
            "| records | seed | joint mean / worst [%] | best single mean / worst [%] (event) | eta error [%] per story "
-           "| R 4th (joint clone) | R 4th (true building) | R_true 4th | joint [s] |", "|" + "---|" * 9]
+           "| R 4th (joint clone) | drift R 4th | peak-drift error 4th [%] | R 4th (true building) | R_true 4th "
+           "| joint [s] |", "|" + "---|" * 11]
     for c in res["cases"]:
         b = next((s for s in c["singles"] if s["event"] == c["best_single"]), None)
         j = c["joint"]
         out.append(f"| {c['records'][0]}.. | {c['seed']} | {j['mean_pct']:.1f} / {j['worst_pct']:.1f} "
                    f"| {'-' if b is None else f'''{b['mean_pct']:.1f} / {b['worst_pct']:.1f} ({b['event']})'''} | "
                    + " / ".join(f"{e:+.1f}" for e in c["eta_error_pct"])
-                   + f" | {c['prediction']['r_mean']:.3f} | {c['truth_replay']['r_mean']:.3f} | "
+                   + f" | {c['prediction']['r_mean']:.3f} | {_f(_mean(c['prediction'].get('drift_r')))} | "
+                   f"{_pde(c['prediction']['peak_drift_error'])} | {c['truth_replay']['r_mean']:.3f} | "
                    f"{_f(c['prediction']['r_true'] and np.mean(c['prediction']['r_true']))} | "
                    f"{c['seconds']['joint']:.0f} |")
     cs = res["cases"]
@@ -325,6 +357,9 @@ def simulated_tables(res: dict, command: str) -> list[str]:
             f"{np.max([np.abs(c['eta_error_pct']) for c in cs]):.1f} |",
             f"| R of the 4th record, joint clone | {np.mean([c['prediction']['r_mean'] for c in cs]):.3f} | "
             f"{np.min([c['prediction']['r_mean'] for c in cs]):.3f} |",
+            f"| mean abs peak-drift error of the 4th record, joint clone [%] | "
+            f"{100 * np.mean([_abs_pde(c['prediction']['peak_drift_error']) for c in cs]):.1f} | "
+            f"{100 * np.max([np.max(np.abs(c['prediction']['peak_drift_error'])) for c in cs]):.1f} |",
             f"| R of the 4th record, true building | {np.mean([c['truth_replay']['r_mean'] for c in cs]):.3f} | "
             f"{np.min([c['truth_replay']['r_mean'] for c in cs]):.3f} |", ""]
     return out

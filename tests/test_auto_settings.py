@@ -36,7 +36,8 @@ from hlaid.synthetic import simulate_measurement
 REPO_CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 FIXED = {"hla.preprocess.band_hz": None, "hla.force.damping": "rayleigh", "hla.stiffness.yield_ratio": 0.6,
          "refine.method": "eiv", "refine.band_hz": [0.1, 20.0],
-         "refine.parameters": ["k0", "alpha", "p", "dy", "delta_eta"], "refine.damping": False}
+         "refine.parameters": ["k0", "alpha", "p", "dy", "delta_eta"], "refine.damping": False,
+         "refine.compare": "acc"}
 """The settings of the identification before they were chosen from the data."""
 
 
@@ -132,7 +133,7 @@ def test_table1_gets_the_fixed_settings(table1):
     r = resolve_settings(meas, IdentifyConfig())
     assert _chosen(r) == {**FIXED, "hla.preprocess.displacement": "integrate", "system": None}
     assert r.config.refine == RefineConfig(method="eiv", parameters=("k0", "alpha", "p", "dy", "delta_eta"),
-                                           damping=False, band_hz=(0.1, 20.0))
+                                           damping=False, band_hz=(0.1, 20.0), compare="acc")
 
 
 @pytest.mark.parametrize("zeta,expected", [(0.01, "regression"), (0.05, "rayleigh")])
@@ -188,9 +189,10 @@ def test_a_config_file_overrides_only_what_it_gives(tmp_path):
     cfg = load_config(p, IdentifyConfig)
     assert cfg.hla.force.mass_ratios == [1.0, 1.0, 0.5] and cfg.refine.max_iterations == 5
     assert set(cfg.unresolved()) == {"hla.preprocess.band_hz", "hla.force.damping", "hla.stiffness.yield_ratio",
-                                     "refine.method", "refine.parameters", "refine.damping", "refine.band_hz"}
+                                     "refine.method", "refine.parameters", "refine.damping", "refine.band_hz",
+                                     "refine.compare"}
     steel = load_config(REPO_CONFIGS / "identify_steel_frame.yaml", IdentifyConfig)
-    assert steel.unresolved() == [] and steel.hla.preprocess.band_hz == (0.3, 2.5)
+    assert steel.unresolved() == ["refine.compare"] and steel.hla.preprocess.band_hz == (0.3, 2.5)
     assert HLAConfig().unresolved() == []  # HLA on its own keeps fixed defaults
 
 
@@ -210,7 +212,7 @@ def test_more_records_of_a_clone_are_analysed_as_it_was(frame, shear):
     assert again.config.hla.preprocess.band_hz == chosen.config.hla.preprocess.band_hz
     assert again.config.refine == chosen.config.refine
     kept = [c for c in again.choices if c.setting not in ("hla.preprocess.displacement", "system")]  # not kept
-    assert len(kept) == 7 and all(c.reason.startswith("as the clone was identified") for c in kept)
+    assert len(kept) == 8 and all(c.reason.startswith("as the clone was identified") for c in kept)
     assert resolve_like({}, shear[0], IdentifyConfig()).config.hla.preprocess.band_hz is None
 
 

@@ -292,7 +292,9 @@ def test_cli_identify_predict_update(table1, pieces, tmp_path, capsys):
     assert main(["identify", *files[:2], "-o", str(c1), "--config", str(cfg), "--no-cache", "-q"]) == 0
     assert main(["predict", str(c1), files[2], "-o", str(pred), "--ensemble", "5", "-q"]) == 0
     p = json.loads((pred / "prediction.json").read_text())
-    assert p["start"] == "carried" and len(p["r"]) == 3 and min(p["r"]) > 0.9
+    rule = Clone.load(c1).diagnostics["start_rule"]  # how the clone of e1 predicted e2 chose the start
+    assert rule["n"] == 1 and p["start"] == ("carried" if rule["choice"] == "carried" else "undamaged")
+    assert len(p["r"]) == 3 and min(p["r"]) > 0.9
     assert 0.0 <= p["coverage_mean"] <= 1.0 and (pred / "prediction.png").is_file()
     assert main(["update", str(c1), files[2], "-o", str(c2), "--config", str(cfg), "-q"]) == 0
     c = Clone.load(c2)

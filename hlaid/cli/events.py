@@ -36,7 +36,8 @@ def register(sub) -> None:
     add_read(q)
     q.add_argument("--start", choices=["auto", "carried", "undamaged"], default=None,
                    help="carried: from the state the clone's last event left it in; undamaged: at rest; auto "
-                        "(default): carried, unless an update found the last event better explained undamaged")
+                        "(default): the clone's start rule (carried only where it predicted the events already "
+                        "seen better than from rest)")
     add_ensemble(q, "for the predictive band")
     add_seed(q, "the ensemble's draws")
     add_plots(q)
@@ -131,7 +132,10 @@ def run_predict(args) -> int:
     cov = "" if p.band is None else (
         f", {100 * float(p.band.coverage.mean()):.0f} % inside the {n}-clone band (its width "
         f"{float(p.band.width.mean()):.2f} x twice the measured RMS)")
-    _progress.info(f"{meas.name or args.measurement}: R {p.r.round(3).tolist()} (mean {p.r_mean:.3f}), peak drift "
-                   f"error {(100 * p.peak_drift_error).round(1).tolist()} %{cov}; from the {p.start} state")
+    pde = (100 * p.peak_drift_error).round(1).tolist()
+    _progress.info(f"{meas.name or args.measurement}: R {p.r.round(3).tolist()} (mean {p.r_mean:.3f}), story drift "
+                   f"R {p.drift_r.round(3).tolist()}, peak drift error {pde} % "
+                   f"(mean |error| {100 * p.peak_drift_error_mean_abs:.1f} %, roof {100 * p.roof_error:+.1f} %){cov}; "
+                   f"from the {p.start} state ({p.start_reason})")
     _progress.info(f"wrote {args.out}")
     return 0

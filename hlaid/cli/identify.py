@@ -195,6 +195,22 @@ def print_summary(clone, seconds: float | None = None) -> None:
         lines.append(f"state after {len(clone.events)} event(s): residual drift {drift} mm, eta {eta}")
     if clone.system:
         lines.append(f"structural system: {clone.system}")
+    laws = d.get("laws") or {}
+    if laws.get("chosen"):
+        lines.append(f"story laws: {' / '.join(laws['chosen'])} ({laws.get('kept') or laws.get('reason', '')})")
+    rule = d.get("start_rule") or {}
+    if rule.get("choice"):
+        where = "from the carried state" if rule["choice"] == "carried" else "from rest"
+        lines.append(f"next prediction starts {where} (start auto): {rule.get('reason', '')}")
+    check = d.get("update_check") or {}
+    if check.get("refit"):
+        lines.append("the update forgot the earlier events (their misfit grew by "
+                     f"{check.get('misfit_change') or float('nan'):.1f} where the posterior predicted "
+                     f"{check.get('gaussian', float('nan')):.1f}): fitted jointly again from their records")
+    elif check.get("note"):
+        lines.append(f"check of the update: {check['note']}")
+    for note in d.get("fallbacks") or []:
+        lines.append(f"fallback: {note.get('stage')} failed numerically ({note.get('error')}); {note.get('used')}")
     from ..run.decision import identification_flags
 
     lines += [f"flag: {f}" for f in identification_flags(clone)]

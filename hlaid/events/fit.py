@@ -29,8 +29,9 @@ from ..identify.refiners import fit_or_fall_back
 from ..measurement import Measurement
 from ..model import Building
 from ..model.uncertainty import ParameterUncertainty
+from .laws import with_laws
 from .priors import StructuralPrior
-from .series import at_replay_rate, event_series
+from .series import EventSeries, at_replay_rate, event_series
 from .state import BuildingState
 from .vector import GaussianPrior, PosteriorResiduals, PriorVector, SystemPrior
 
@@ -56,6 +57,9 @@ class JointFit:
     seconds : wall time
     squares : ``(event,)`` each event's sum of squared (unweighted) residuals at the optimum
     prior_cost : half the prior's squared residuals at the optimum
+    log_det_hessian : ``log det`` of the Gauss-Newton matrix of the posterior at the optimum
+    log_det_prior : ``log det`` of the prior's precision over the free entries
+    compare : what the events' residuals compared (:data:`hlaid.events.compare.COMPARES`)
     """
 
     building: Building
@@ -69,12 +73,33 @@ class JointFit:
     seconds: float
     squares: np.ndarray
     prior_cost: float
+    log_det_hessian: float = float("nan")
+    log_det_prior: float = float("nan")
+    compare: str = "acc"
+
+    @property
+    def laws(self) -> tuple[str, ...] | None:
+        """The stories' laws (None: every entry free)."""
+        return self.vector.laws
+
+    @property
+    def n_eff(self) -> np.ndarray:
+        """``(event,)`` each event's effective number of samples at the optimum."""
+        return np.array([e["n_eff"] for e in self.events], dtype=float)
 
     def score(self, n_eff: np.ndarray) -> float:
         """The negative log posterior with each event's misfit variance at its maximum
         (profiled): ``sum_e n_eff_e / 2 log(squares_e) + prior_cost``; ``n_eff`` ``(event,)``
         common to the fits compared."""
         return float(np.sum(0.5 * np.asarray(n_eff) * np.log(np.maximum(self.squares, 1e-300))) + self.prior_cost)
+
+    def log_evidence(self, n_eff: np.ndarray | None = None) -> float:
+        """Laplace log marginal likelihood of the records under this fit's model (its free
+        entries and prior): ``-score + 1/2 log det P_prior - 1/2 log det H``, ``n_eff`` common to
+        the fits compared (default its own). Only differences between fits of the same events
+        mean anything."""
+        n_eff = self.n_eff if n_eff is None else n_eff
+        return float(-self.score(n_eff) + 0.5 * self.log_det_prior - 0.5 * self.log_det_hessian)
 
     def informed(self) -> np.ndarray:
         """``(P,)`` how much the data narrowed each entry: 1 - posterior sd / prior sd (0: the
@@ -87,46 +112,56 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
                *, system: StructuralPrior | None = None, band_hz=(0.1, 20.0), ground_noise: str = "ignore",
                damping: bool = True, y0: np.ndarray | None = None, names: Sequence[str] = (),
                max_iterations: int = 40, ftol: float = 1e-8, substeps: int = 4, jac_substeps: int = 2,
-               tangent_max_mb: float | None = None) -> JointFit:
+               tangent_max_mb: float | None = None, compare: str = "acc", laws: Sequence[str] | None = None,
+               rounds: int = WEIGHT_ROUNDS, series: EventSeries | None = None) -> JointFit:
     """Maximum a posteriori parameters of one building from its events in time order.
 
     Parameters
     ----------
     start : the search's start (the paper's estimate of the most informative event, an earlier
-        clone, or the prior's median building)
+        clone, or the prior's median building; with ``laws``, its fixed entries set by
+        :func:`hlaid.events.laws.with_laws`)
     measurements : the events, oldest first
     prior : the prior over the prior-unit vector (None: ``system``'s, with k0 around ``start``'s)
     system : the structural system (with ``prior`` None)
-    band_hz : band of the compared floor accelerations [Hz]
+    band_hz : band of the compared channels [Hz]
     ground_noise : ``"ignore"`` (least squares of each event's residuals) or ``"tangent"``
         (each event's residuals whitened against its ground sensor's noise, errors in variables,
-        the tangent taken once, along the start's replay from the state it carries into that event)
+        the tangent taken once, along the start's replay from the state it carries into that
+        event; accelerations only)
     damping : the damping ratio is fitted (else held at ``start``'s)
     y0 : the state before the first event (``(4*story,)``; None: at rest)
     names : the events' labels (for the states)
+    compare : what the residuals compare (:data:`hlaid.events.compare.COMPARES`)
+    laws : each story's law (:data:`hlaid.events.laws.LAWS`; None: every entry free)
+    rounds : at most this many searches, each with the weights of the last one's optimum
+    series : the events' residuals already built (for fits of the same events under other laws:
+        one tangent for all); None: built here
     """
     t0 = time.perf_counter()
     if prior is None and system is None:
         raise InputError("map_refine needs a prior or a structural system")
-    vector = PriorVector(start, damping=damping)
+    vector = PriorVector(start, damping=damping, laws=laws)
     if prior is None:
         assert system is not None
         prior = SystemPrior(system, vector, start.k0)
     hi = float(band_hz[1])
-    events = [at_replay_rate(m, hi) for m in measurements]
     info: list[dict] = []
     current = start
     rr: RefineResult | None = None
     weights: np.ndarray | None = None
     fits = 0
-    series = event_series(start, events, band_hz, ground_noise, substeps, jac_substeps, y0, tangent_max_mb)
-    for _ in range(WEIGHT_ROUNDS):
+    if series is None:
+        events = [at_replay_rate(m, hi) for m in measurements]
+        series = event_series(start, events, band_hz, ground_noise, substeps, jac_substeps, y0, tangent_max_mb,
+                              compare=compare)
+    for _ in range(max(int(rounds), 1)):
         info = series.reweigh(current)
         if weights is not None and bool(np.all(np.abs(np.log(series.weights / weights)) < np.log(1.2))):
             break
         weights = series.weights.copy()
         fits += 1
-        _progress.info(f"[identify] joint fit over {len(events)} event(s), round {fits}: effective samples "
+        _progress.info(f"[identify] joint fit over {len(series.events)} event(s), round {fits}: effective samples "
                        + ", ".join(f"{d['n_eff']:.0f}" for d in info))
         rr = fit_residuals(vector, PosteriorResiduals(series, vector, prior), max_iterations=max_iterations,
                            ftol=ftol, jac_substeps=jac_substeps)
@@ -135,16 +170,35 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
     for d, w in zip(info, series.weights):
         d["weight"] = float(w)
     J = np.asarray(rr.jacobian)
-    cov = np.linalg.pinv(J.T @ J)
+    H = J.T @ J
+    cov = _pinv(H)
     Jp = _prior_jacobian(prior, vector, np.asarray(rr.x))
-    prior_sd = np.sqrt(np.clip(np.diag(np.linalg.pinv(Jp.T @ Jp)), 0.0, None))
+    P = Jp.T @ Jp
+    prior_sd = np.sqrt(np.clip(np.diag(_pinv(P)), 0.0, None))
     states = series.states(current, names)
     parts, _, _ = series.run([current])
     squares = np.array([float(np.sum(r[0] ** 2)) for r in parts])
     prior_cost = 0.5 * float(np.sum(prior.residuals(np.asarray(rr.x)) ** 2))
     return JointFit(building=current, result=rr, vector=vector, covariance=cov, prior_sd=prior_sd, states=states,
                     events=info, rounds=fits, seconds=time.perf_counter() - t0, squares=squares,
-                    prior_cost=prior_cost)
+                    prior_cost=prior_cost, log_det_hessian=_logdet(H), log_det_prior=_logdet(P), compare=compare)
+
+
+def _pinv(A: np.ndarray) -> np.ndarray:
+    """The pseudo-inverse of ``A`` (NaN where it has no finite one: an SVD that did not converge)."""
+    try:
+        return np.linalg.pinv(A)
+    except (np.linalg.LinAlgError, ValueError):
+        return np.full_like(A, np.nan)
+
+
+def _logdet(A: np.ndarray) -> float:
+    """``log det A`` of a symmetric positive semi-definite matrix (NaN where it is singular)."""
+    try:
+        sign, value = np.linalg.slogdet(A)
+    except (np.linalg.LinAlgError, ValueError):
+        return float("nan")
+    return float(value) if sign > 0 else float("nan")
 
 
 def _prior_jacobian(prior, vector: PriorVector, x: np.ndarray, h: float = 1e-5) -> np.ndarray:
@@ -181,17 +235,27 @@ def flags(fit: JointFit, prior: str = "prior") -> list[dict]:
 
 
 def joint_fit(start: Building, measurements: Sequence[Measurement], prior, cfg: IdentifyConfig, *, y0=None,
-              names: Sequence[str] = (), k0_ref: np.ndarray | None = None) -> JointFit:
-    """:func:`map_refine` with the settings of ``cfg.refine`` (errors in
-    variables per event for ``method: eiv``, least squares otherwise)."""
+              names: Sequence[str] = (), k0_ref: np.ndarray | None = None, laws: Sequence[str] | None = None,
+              rounds: int = WEIGHT_ROUNDS, max_iterations: int | None = None) -> JointFit:
+    """:func:`map_refine` with the settings of ``cfg.refine`` (errors in variables per event for
+    ``method: eiv`` where the accelerations alone are compared, least squares otherwise), the
+    stories following ``laws`` (None: every entry free; with a structural system's prior the
+    start's fixed entries are set by the laws). A numerical failure of the errors-in-variables
+    weighting falls back to least squares, with a note
+    (:func:`hlaid.identify.refiners.fit_or_fall_back`)."""
     rc = cfg.refine
     damping = fixed(rc.damping, "refine.damping")
+    compare = fixed(rc.compare, "refine.compare")
+    if laws is not None and isinstance(prior, StructuralPrior):
+        start = with_laws(start, laws, prior)
     if isinstance(prior, StructuralPrior):
-        prior = SystemPrior(prior, PriorVector(start, damping=damping), start.k0 if k0_ref is None else k0_ref)
+        prior = SystemPrior(prior, PriorVector(start, damping=damping, laws=laws),
+                            start.k0 if k0_ref is None else k0_ref)
     fit = functools.partial(map_refine, start, measurements, prior, band_hz=fixed(rc.band_hz, "refine.band_hz"),
-                            damping=damping, y0=y0, names=names, max_iterations=rc.max_iterations,
-                            tangent_max_mb=rc.tangent_max_mb)
-    return fit_or_fall_back(fit, "tangent" if fixed(rc.method, "refine.method") == "eiv" else "ignore")
+                            damping=damping, y0=y0, names=names, max_iterations=max_iterations or rc.max_iterations,
+                            tangent_max_mb=rc.tangent_max_mb, compare=compare, laws=laws, rounds=rounds)
+    eiv = fixed(rc.method, "refine.method") == "eiv" and compare == "acc"
+    return fit_or_fall_back(fit, "tangent" if eiv else "ignore")
 
 
 def best_fit(fits: Sequence[JointFit]) -> JointFit:

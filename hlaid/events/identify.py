@@ -19,6 +19,7 @@ prior, its state the start, the new event the data (sequential updating).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from collections.abc import Sequence
 
@@ -26,7 +27,7 @@ import numpy as np
 
 from .. import _progress
 from ..clone import Clone
-from ..errors import InputError
+from ..errors import InputError, NotIdentifiableError
 from ..hla import HLAResult
 from ..hla.config import fixed
 from ..identify.auto import Resolution, damping_ran_away, held_damping, resolve_settings
@@ -40,7 +41,10 @@ from ..measurement import Measurement, building_name, check_series, ground_diges
 from ..model import Building, Damping
 from ..units import G_MM_S2
 from .evidence import measured_peak_drift
+from .fallback import run_stage
 from .fit import JointFit, best_fit, flags, joint_fit, posterior_uncertainty
+from .laws import NO_DEGRADATION, TIE_LOG_UNITS, candidates, choose_laws, default_laws, with_laws
+from .prequential import HISTORY, predicted, with_history
 from .priors import StructuralPrior, elf_profile, get_prior, weight_above
 from .series import state_after
 from .vector import PriorVector, SystemPrior
@@ -98,26 +102,151 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     if len(meas) == 1 and single is not None and cfg.system is None:  # no system named: the paper's method
         timings["total"] = time.perf_counter() - t_all
         tb.close()
-        return with_choices(dataclasses.replace(single, clone=dataclasses.replace(single.clone, system=cfg.system)),
-                            settings)
+        return with_choices(with_history(dataclasses.replace(
+            single, clone=dataclasses.replace(single.clone, system=cfg.system)), {}), settings)
     system = get_prior(cfg.system or "generic")
     starts = plausible_starts(single, events[0], meas[0], system, cfg)
     names = [m.name or f"event {k + 1}" for k, m in enumerate(meas)]
+    k0_ref = events[0].hla.k0
+    default = default_laws(system, len(k0_ref))
+    notes: list[dict] = []
     t = time.perf_counter()
-    fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=events[0].hla.k0) for b in starts]
+    fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=k0_ref, laws=default) for b in starts]
     fit = best_fit(fits)
     if damping_ran_away(cfg, fit.building):  # the damping took up model error: held, the fit again
         settings = held_damping(settings, fit.building.damping.ratio, starts[fits.index(fit)].damping.ratio)
         _progress.warn(settings.choices[-1].line())
         cfg = settings.config
-        fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=events[0].hla.k0) for b in starts]
+        fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=k0_ref, laws=default) for b in starts]
         fit = best_fit(fits)
     start = starts[fits.index(fit)]
     timings["joint"] = time.perf_counter() - t
+    t = time.perf_counter()
+    fit, laws = select_laws(fit, meas, system, cfg, names=names, k0_ref=k0_ref,
+                            isolation=isolation_start(events, meas[0], system, fit.building), notes=notes)
+    timings["laws"] = time.perf_counter() - t
+    t = time.perf_counter()
+    history = prefix_history(fit, meas, system, cfg, names=names, k0_ref=k0_ref, notes=notes,
+                             mass_normalised=events[-1].hla.mass_normalised)
+    timings["prequential"] = time.perf_counter() - t
     result = result_of_joint(events, meas, fit, cfg, system=system, start=start, single=single, timings=timings)
     timings["total"] = time.perf_counter() - t_all
     tb.close()
-    return with_choices(result, settings)
+    return with_choices(with_history(result, history, diagnostics={"laws": laws, "fallbacks": notes}), settings)
+
+
+CANDIDATE_ITERATIONS = 20
+"""At most this many evaluations of the residuals per candidate law's fit (one weighting round,
+warm-started): enough to rank their evidence; the chosen one, where it is not the main fit's,
+is fitted again in full."""
+
+
+def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPrior, cfg: IdentifyConfig, *,
+                names: Sequence[str], k0_ref: np.ndarray, isolation: Building | None = None,
+                notes: list[dict] | None = None, y0: np.ndarray | None = None) -> tuple[JointFit, dict]:
+    """The laws the stories follow (:mod:`hlaid.events.laws`), chosen by the Laplace evidence of
+    the joint fit of ``meas`` under each candidate (:func:`~hlaid.events.laws.candidates`,
+    warm-started from ``fit``, the fit under the system's laws; the candidates whose first story
+    differs from the others also from ``isolation``, an isolation-layer start, where there is
+    one), ties to the system's law; the fit under the laws chosen and what was compared."""
+    n = fit.building.n_stories
+    default = fit.laws or default_laws(system, n)
+    tried: dict[tuple[str, ...], JointFit] = {default: fit}
+    seconds: dict[tuple[str, ...], float] = {default: fit.seconds}
+    iterations = min(cfg.refine.max_iterations, CANDIDATE_ITERATIONS)
+    for laws in candidates(n):
+        if laws == default:
+            continue
+        starts = [fit.building] + ([isolation] if isolation is not None and len(set(laws)) > 1 else [])
+        found = []
+        for b in starts:
+            f = run_stage(f"the fit under the laws {'/'.join(laws)}",
+                          functools.partial(joint_fit, with_laws(b, laws, system), meas, system, cfg, names=names,
+                                            k0_ref=k0_ref, laws=laws, rounds=1, max_iterations=iterations, y0=y0),
+                          None, notes, used="the candidate is left out", extra=(NotIdentifiableError,))
+            if f is not None:
+                found.append(f)
+        if found:
+            tried[laws] = best_fit(found)
+            seconds[laws] = float(sum(f.seconds for f in found))
+    n_eff = np.mean([f.n_eff for f in tried.values()], axis=0)
+    evidence = [(laws, f.log_evidence(n_eff)) for laws, f in tried.items()]
+    chosen, reason = choose_laws(evidence, default)
+    _progress.info(f"[identify] story laws: {reason}")
+    best = tried[chosen]
+    if chosen != default:  # the candidate's short fit, in full
+        best = run_stage(f"the fit under the laws {'/'.join(chosen)}",
+                         lambda: joint_fit(best.building, meas, system, cfg, names=names, k0_ref=k0_ref, laws=chosen,
+                                           y0=y0), best, notes, used="the candidate's fit",
+                         extra=(NotIdentifiableError,))
+    info = {"chosen": list(chosen), "default": list(default), "reason": reason, "tie_log_units": TIE_LOG_UNITS,
+            "candidates": [{"laws": list(laws), "log_evidence": z if np.isfinite(z) else None,
+                            "seconds": seconds[laws]} for laws, z in evidence]}
+    return best, info
+
+
+ISOLATION_RATIO = 3.0
+"""Story 1 is an isolation-layer candidate where its peak drift (HLA of the records) is at least
+this many times every other story's."""
+
+ISOLATION = {"cy": 0.06, "alpha": 0.05, "p": 1.5, "damping": 0.02}
+"""The isolation-layer start's first story: the medians of lead-rubber and friction-pendulum
+design ranges (characteristic strength Qd/W 0.03-0.10, post-yield stiffness ratio 0.01-0.15,
+Bouc-Wen exponent 1-2, no degradation, damping 2-5 %)."""
+
+
+def isolation_start(events: Sequence[Event], meas: Measurement, system: StructuralPrior,
+                    building: Building) -> Building | None:
+    """``building`` with its first story as an isolation layer (:data:`ISOLATION`; k0 so that it
+    yields at a tenth of its peak drift) where the records show one: story 1's peak drift at
+    least :data:`ISOLATION_RATIO` times every other story's in each record; None otherwise."""
+    if building.n_stories < 2:
+        return None
+    peaks = []
+    for ev in events:
+        d = np.array([float(np.max(np.abs(s.drift))) for s in ev.hla.stories])
+        if not np.all(np.isfinite(d)) or d[0] < ISOLATION_RATIO * float(np.max(d[1:])):
+            return None
+        peaks.append(d[0])
+    w = weight_above(building)[0]
+    dy = 0.1 * float(np.median(peaks))
+    k0 = np.array(building.k0, dtype=float)
+    k0[0] = ISOLATION["cy"] * w / ((1.0 - ISOLATION["alpha"]) * dy)
+    b = building.replace(k0=k0)
+    alpha, p, dys, de = (np.array(getattr(b, k), dtype=float) for k in ("alpha", "p", "dy", "delta_eta"))
+    alpha[0], p[0], dys[0], de[0] = ISOLATION["alpha"], ISOLATION["p"], dy, NO_DEGRADATION
+    return b.replace(alpha=alpha, p=p, dy=dys, delta_eta=de,
+                     damping=Damping(kind=b.damping.kind, ratio=ISOLATION["damping"], modes=b.damping.modes))
+
+
+def prefix_history(fit: JointFit, meas: Sequence[Measurement], system: StructuralPrior, cfg: IdentifyConfig, *,
+                   names: Sequence[str], k0_ref: np.ndarray, notes: list[dict] | None = None,
+                   mass_normalised: bool = False) -> dict[int, dict]:
+    """How the clones of the prefixes of ``meas`` (the last :data:`~hlaid.events.prequential.HISTORY`,
+    each fitted from ``fit``'s building under its laws) predict the record after them, from their
+    carried state and from rest: per record index its prequential record."""
+    out: dict[int, dict] = {}
+    k = len(meas)
+    for j in range(max(1, k - HISTORY), k):
+        f = run_stage(f"the prefix fit of {', '.join(names[:j])}",
+                      functools.partial(joint_fit, fit.building, meas[:j], system, cfg, names=names[:j],
+                                        k0_ref=k0_ref, laws=fit.laws),
+                      None, notes, used=f"{names[j]} is not in the start rule's history",
+                      extra=(NotIdentifiableError,))
+        if f is None:
+            continue
+        clone = Clone(building=f.building, state=f.states[-1], mass_normalised=mass_normalised)
+        out[j] = run_stage(f"the prediction of {names[j]} by the clone of {', '.join(names[:j])}",
+                           functools.partial(predicted, clone, meas[j], cfg.hla, names[:j]), None, notes,
+                           used=f"{names[j]} is not in the start rule's history")
+        if out[j] is None:
+            del out[j]
+        else:
+            c, r = out[j].get("carried", {}).get("r"), out[j].get("rest", {}).get("r")
+            _progress.info(f"[identify] the clone of {', '.join(names[:j])} predicts {names[j]}: R {c:.3f} carried, "
+                           f"{r:.3f} from rest" if c is not None and r is not None else
+                           f"[identify] the clone of {', '.join(names[:j])} predicts {names[j]}")
+    return out
 
 
 def announce(settings: Resolution) -> None:

@@ -129,15 +129,39 @@ class Prediction:
     def r_mean(self) -> float:
         return float(np.mean(self.r))
 
+    @property
+    def drift_r_mean(self) -> float:
+        """The story-drift correlation, mean over the stories."""
+        return float(np.mean(self.drift_r))
+
+    @property
+    def peak_drift_error_mean_abs(self) -> float:
+        """``|peak_drift_error|``, mean over the stories."""
+        return float(np.mean(np.abs(self.peak_drift_error)))
+
+    @property
+    def peak_drift_error_worst(self) -> float:
+        """The story's ``peak_drift_error`` of largest magnitude (signed)."""
+        return float(self.peak_drift_error[int(np.argmax(np.abs(self.peak_drift_error)))])
+
+    @property
+    def roof_error(self) -> float:
+        """``predicted / measured - 1`` of the peak roof displacement relative to the ground in
+        the band: the amplitude part of every story's peak-drift error."""
+        m = float(np.max(np.abs(self.disp_measured[:, -1])))
+        return float(np.max(np.abs(self.disp_predicted[:, -1])) / m - 1.0) if m > 0 else float("nan")
+
     def to_dict(self) -> dict:
         """``prediction.json``'s content (the arrays over time go to ``prediction.npz``)."""
         b = self.band
         return {"format": "hlaid-prediction", "version": 1, "event": self.event, "source": self.source or None,
                 "start": self.start, "start_reason": self.start_reason, "band_hz": list(self.band_hz),
                 "pga_g": self.pga_g, "r": self.r.tolist(), "r_mean": self.r_mean, "drift_r": self.drift_r.tolist(),
-                "peak_drift_measured": self.peak_drift_measured.tolist(),
+                "drift_r_mean": self.drift_r_mean, "peak_drift_measured": self.peak_drift_measured.tolist(),
                 "peak_drift_predicted": self.peak_drift_predicted.tolist(),
                 "peak_drift_error": self.peak_drift_error.tolist(),
+                "peak_drift_error_mean_abs": self.peak_drift_error_mean_abs,
+                "peak_drift_error_worst": self.peak_drift_error_worst, "roof_error": _finite(self.roof_error),
                 "r_true": None if self.r_true is None else self.r_true.tolist(),
                 "n_ensemble": 0 if b is None else b.n_ensemble, "band_level": None if b is None else b.level,
                 "coverage": None if b is None else b.coverage.tolist(),
@@ -151,6 +175,10 @@ class Prediction:
         if self.band is not None:
             out.update(band_lower=self.band.lower, band_upper=self.band.upper)
         return out
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
 
 
 def identification_misfit(clone: Clone) -> np.ndarray | float:

@@ -138,20 +138,26 @@ def elf_profile(building) -> np.ndarray:
 
 
 def system_residuals(prior: StructuralPrior, u: np.ndarray, log_zeta: float | None, k0_ref: np.ndarray,
-                     elf: np.ndarray) -> np.ndarray:
+                     elf: np.ndarray, free: np.ndarray | None = None) -> np.ndarray:
     """Residuals of the system prior (each a standard normal under it) for ``u`` ``(story, 5)``:
     per shape parameter the stories around the building's value (``story_spread``) and the
     building's value around the system's median (``beta``); k0 around ``k0_ref``; the damping
     ratio around its median (when ``log_zeta`` is not None). ``elf``: the story shear profile of
-    :func:`elf_profile` (``Cy`` is compared after dividing by it)."""
+    :func:`elf_profile` (``Cy`` is compared after dividing by it). ``free``: ``(story, 5)`` which
+    entries the stories' laws leave free (None: all); a shape parameter is held over the stories
+    where it is free only, and left out where no story has it free."""
     med = (np.log(prior.alpha.median / ALPHA_MAX / (1 - prior.alpha.median / ALPHA_MAX)),
            np.log(prior.p.median - 1.0), np.log(prior.cy.median), np.log(prior.delta_eta.median))
     betas = (prior.alpha.beta, prior.p.beta, prior.cy.beta, prior.delta_eta.beta)
     out = [(u[:, 0] - np.log(k0_ref)) / prior.k0_beta]
     for col, mu, beta in zip((1, 2, 3, 4), med, betas):
-        v = u[:, col] - (np.log(elf) if col == 3 else 0.0)
+        f = np.ones(u.shape[0], dtype=bool) if free is None else np.asarray(free, dtype=bool)[:, col]
+        if not f.any():
+            continue
+        v = u[f, col] - (np.log(elf[f]) if col == 3 else 0.0)
         centre = float(np.mean(v))
-        out.append((v - centre) / prior.story_spread)
+        if free is None or f.sum() > 1:
+            out.append((v - centre) / prior.story_spread)
         out.append(np.atleast_1d((centre - mu) / beta))
     if log_zeta is not None:
         out.append(np.atleast_1d((log_zeta - np.log(prior.damping.median)) / prior.damping.beta))

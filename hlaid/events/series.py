@@ -30,14 +30,16 @@ and decimated first (:func:`at_replay_rate`), a sixth of the work with the same 
 
 def at_replay_rate(meas: Measurement, hi_hz: float) -> Measurement:
     """``meas`` low-passed at ``hi_hz`` and decimated to at least :data:`REPLAY_RATE_RATIO`
-    samples per period of ``hi_hz`` (``meas`` itself where it is not sampled above that)."""
+    samples per period of ``hi_hz`` (``meas`` itself where it is not sampled above that); its
+    floor displacements, where it has them, alike."""
     factor = int(1.0 / (REPLAY_RATE_RATIO * hi_hz * meas.dt))
     if factor < 2:
         return meas
     ground = lowpass(np.asarray(meas.ground_acc), meas.dt, hi_hz)[::factor]
     floor = lowpass(np.asarray(meas.floor_acc), meas.dt, hi_hz)[::factor]
+    disp = None if meas.floor_disp is None else lowpass(np.asarray(meas.floor_disp), meas.dt, hi_hz)[::factor].copy()
     return dataclasses.replace(meas, dt=meas.dt * factor, ground_acc=ground.copy(), floor_acc=floor.copy(),
-                               floor_disp=None, truth=None)
+                               floor_disp=disp, truth=None)
 
 
 def effective_samples(r: np.ndarray) -> float:
@@ -155,13 +157,19 @@ def _peak_drifts(series: EventSeries, building: Building) -> list[tuple[np.ndarr
 
 
 def event_series(at: Building, events: Sequence[Measurement], band_hz, ground_noise: str, substeps: int,
-            jac_substeps: int, y0, max_mb) -> EventSeries:
+                 jac_substeps: int, y0, max_mb, compare: str = "acc") -> EventSeries:
     """The event series with each event's residuals (for ``"tangent"`` whitened along ``at``'s
-    replay from the state carried into that event)."""
-    units: list[ReplayResiduals] = []
+    replay from the state carried into that event); ``compare``: what each event's residuals
+    compare (:data:`hlaid.events.compare.COMPARES`; other than ``"acc"``, least squares)."""
+    from .compare import StoryResiduals
+
+    units: list = []
     y = y0
     tail = settle_time(at)
     for m in events:
+        if compare != "acc":
+            units.append(StoryResiduals(m, compare=compare, band_hz=band_hz, substeps=substeps))
+            continue
         unit = ReplayResiduals(m, band_hz=band_hz, substeps=substeps, ground_noise=ground_noise, at=at,
                                tangent_substeps=jac_substeps, max_mb=max_mb, at_state=y)
         units.append(unit)

@@ -2,9 +2,10 @@
 
 A clone carries the state its last event left the building in (:class:`~hlaid.events.state.BuildingState`).
 A prediction, an IDA or a demand replay starts from it (``"carried"``), at rest (``"undamaged"``),
-or as the clone itself says (``"auto"``): the carried state, unless the clone carries none, or
-its last event was explained better from an undamaged start (an update chose it: the softening
-of the earlier events recovered before it).
+or as the clone itself says (``"auto"``): its prequential start rule's choice
+(:mod:`hlaid.events.prequential`: carried only where the carried state predicted the events
+already seen better than from rest, else from rest); a clone made before the rule: the carried
+state, unless it carries none or its last event was explained better from an undamaged start.
 """
 
 from __future__ import annotations
@@ -60,6 +61,10 @@ def resolve_start(clone: Clone | object, start: str = "auto") -> Start:
         return Start("carried", state, "asked for: the state the clone's events left")
     if state is None:
         return Start("undamaged", None, "the clone carries no state")
+    rule = (getattr(clone, "diagnostics", None) or {}).get("start_rule")
+    if isinstance(rule, dict) and rule.get("choice") in ("carried", "rest"):
+        reason = f"the clone's start rule ({rule.get('rule', 'prequential')}): {rule.get('reason', '')}".rstrip(": ")
+        return Start("carried", state, reason) if rule["choice"] == "carried" else Start("undamaged", None, reason)
     events = getattr(clone, "events", ())
     if events and events[-1].get("start") == "undamaged":
         return Start("undamaged", None, "its last event was explained better from an undamaged start: the building "

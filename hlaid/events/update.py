@@ -1,33 +1,42 @@
 """Sequential updating: one more event added to a clone.
 
-The clone's posterior is the prior (:func:`~hlaid.events.vector.prior_of_clone`), the state
-its last event left the building in is where the new event's replay starts, and the new
-event's record is the data. On the same events this agrees with the joint fit of
-:func:`hlaid.identify_clone` within the clone's intervals (the joint fit sees every
-record at once; the update only what the earlier clone kept of them, its posterior and state).
+The clone's posterior is the prior (:func:`~hlaid.events.vector.prior_of_clone`, over the
+entries its stories' laws leave free), the state its last event left the building in is where the
+new event's replay starts, and the new event's record is the data; the earlier events' records
+check that the Gaussian posterior did not forget them (:mod:`hlaid.events.guard`). On the same
+events this agrees with the joint fit of :func:`hlaid.identify_clone` within the clone's
+intervals (the joint fit sees every record at once; the update only what the earlier clone kept
+of them, its posterior and state).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
+from collections.abc import Sequence
 
 from .. import _progress
 from ..clone import Clone
-from ..errors import InputError
+from ..errors import InputError, NotIdentifiableError
 from ..hla.config import fixed
 from ..identify.auto import resolve_like
 from ..identify.config import IdentifyConfig
 from ..identify.result import IdentificationResult
 from ..identify.stages import analyse
 from ..measurement import Measurement, check_not_learnt
-from .fit import best_fit, joint_fit
+from ..model import Building
+from .fallback import run_stage
+from .fit import JointFit, best_fit, joint_fit
+from .guard import check_update, load_earlier
 from .identify import announce, result_of_joint, with_choices
+from .laws import laws_of
+from .prequential import predicted, with_history
 from .priors import get_prior
-from .vector import PriorVector, prior_of_clone
+from .vector import GaussianPrior, PriorVector, prior_of_clone
 
 
 def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig | None = None, *,
-                 widen: float = 1.0) -> IdentificationResult:
+                 widen: float = 1.0, earlier: Sequence[Measurement] | None = None) -> IdentificationResult:
     """The clone after one more event.
 
     Parameters
@@ -38,11 +47,18 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
         default)
     widen : the clone's posterior standard deviations multiplied by this before the update (1:
         the building changes through its events only, as the model says)
+    earlier : the clone's earlier events, in its order (for the check of the update); None: read
+        from the files its events name (a missing or changed file: the update is kept unchecked,
+        and the clone says so)
 
     The event is fitted from the clone's carried state and from an undamaged start; the start of
-    higher posterior is kept and recorded (``clone.events[-1]["start"]``): a building whose
-    softening during an event recovers before the next (most buildings in small events) is
-    predicted from an undamaged start by ``start="auto"``.
+    higher posterior is kept and recorded (``clone.events[-1]["start"]``). Before the fit, the
+    clone predicts the event from its carried state and from rest (recorded with the event,
+    ``"prequential"``): the start rule of the updated clone's next prediction
+    (:mod:`hlaid.events.prequential`). The stories keep the clone's laws. After the fit, the
+    earlier events are replayed by the clone before and after (:mod:`hlaid.events.guard`); where
+    their misfit grew by more than the posterior predicted, the update forgot them, and the events
+    are fitted jointly again from their records, warm-started at the update.
 
     Returns
     -------
@@ -62,26 +78,77 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
         raise InputError(f"recorded {measurement.recorded}, not after the clone's last event ({last})", source=src)
     if not 0 < widen < 100:
         raise InputError(f"widen = {widen}; expected a factor in (0, 100), 1 for none")
+    if earlier is not None and len(earlier) != len(clone.events):
+        raise InputError(f"earlier: {len(earlier)} records given for the clone's {len(clone.events)} events")
     b = b.replace(collapse=None)
     system = get_prior(cfg.system or clone.system or "generic")
-    vector = PriorVector(b, damping=fixed(cfg.refine.damping, "refine.damping"))
+    laws = laws_of(clone)
+    vector = PriorVector(b, damping=fixed(cfg.refine.damping, "refine.damping"), laws=laws)
     prior = prior_of_clone(clone.uncertainty, b, vector, system, widen)
     y0 = None if clone.state is None else clone.state.vector()
-    earlier = [e.get("name") or f"event {k + 1}" for k, e in enumerate(clone.events)]
-    name = measurement.name or f"event {len(earlier) + 1}"
+    earlier_names = [e.get("name") or f"event {k + 1}" for k, e in enumerate(clone.events)]
+    name = measurement.name or f"event {len(earlier_names) + 1}"
+    notes: list[dict] = []
     _progress.info(f"[update] {b.name or 'clone'}: adding {name}")
+    foretold = run_stage(f"the prediction of {name} by the clone", functools.partial(
+        predicted, clone, measurement, cfg.hla, earlier_names), None, notes,
+        used=f"{name} is not in the start rule's history")
     event = analyse(measurement, cfg)
-    fits = [joint_fit(b, [measurement], prior, cfg, y0=y0, names=[name])]
+    fits = [joint_fit(b, [measurement], prior, cfg, y0=y0, names=[name], laws=laws)]
     if y0 is not None:  # the carried state is a hypothesis: the event itself says whether it holds
-        fits.append(joint_fit(b, [measurement], prior, cfg, y0=None, names=[name]))
+        fits.append(joint_fit(b, [measurement], prior, cfg, y0=None, names=[name], laws=laws))
     fit = best_fit(fits)
     carried = y0 is not None and fit is fits[0]
     if y0 is not None and not carried:
         _progress.warn(f"{name} is explained better from an undamaged start than from the state the earlier events "
-                       "left: the building recovered between them (softening that is not damage); predictions from "
-                       "this clone start undamaged (start 'auto')")
-    fit = dataclasses.replace(fit, states=[dataclasses.replace(s, events=tuple(earlier) + (name,))
+                       "left: the building recovered between them (softening that is not damage)")
+    fit = dataclasses.replace(fit, states=[dataclasses.replace(s, events=tuple(earlier_names) + (name,))
                                            for s in fit.states])
-    return with_choices(result_of_joint([event], [measurement], fit, cfg, system=system, start=b,
-                                        history=clone.events, y0=y0 if carried else None,
-                                        last_start="carried" if carried else "undamaged"), settings)
+    check, stored = _check(clone, b, fit, prior, vector, cfg, earlier, notes)
+    history = {len(clone.events): foretold} if foretold is not None else {}
+    extra = {"laws": _kept_laws(clone, laws), "fallbacks": notes, "update_check": check}
+    if stored is not None:  # the update forgot the earlier events: all of them fitted jointly again
+        meas_all, names = [*stored, measurement], [*earlier_names, name]
+        evs = [analyse(m, cfg) for m in stored] + [event]
+        joint = run_stage("the joint refit of the stored events", functools.partial(
+            joint_fit, fit.building, meas_all, system, cfg, names=names, k0_ref=evs[0].hla.k0, laws=laws), None,
+            notes, used="the update is kept", extra=(NotIdentifiableError,))
+        if joint is not None:
+            check["refitted"] = True
+            result = result_of_joint(evs, meas_all, joint, cfg, system=system, start=fit.building)
+            events = (*clone.events, result.clone.events[-1])
+            result = dataclasses.replace(result, clone=dataclasses.replace(result.clone, events=events))
+            return with_choices(with_history(result, history, diagnostics=extra), settings)
+    result = result_of_joint([event], [measurement], fit, cfg, system=system, start=b, history=clone.events,
+                             y0=y0 if carried else None, last_start="carried" if carried else "undamaged")
+    return with_choices(with_history(result, history, diagnostics=extra), settings)
+
+
+def _kept_laws(clone: Clone, laws: tuple[str, ...] | None) -> dict:
+    """The clone's laws record, said to be kept by the update."""
+    old = dict((clone.diagnostics or {}).get("laws") or {})
+    if laws is None:
+        return {**old, "chosen": None, "reason": "the clone names no story laws: every entry free (degrading)"}
+    return {**old, "chosen": list(laws), "kept": "an update keeps the laws its clone was identified with"}
+
+
+def _check(clone: Clone, before: Building, fit: JointFit, prior, vector: PriorVector, cfg: IdentifyConfig,
+           earlier: Sequence[Measurement] | None, notes: list[dict]) -> tuple[dict, list[Measurement] | None]:
+    """The check of the update against the earlier events (:func:`hlaid.events.guard.check_update`)
+    and the earlier events' records where it calls for a joint refit (else None)."""
+    if not clone.events:
+        return {"events": 0, "note": "the clone has no earlier events"}, None
+    if not isinstance(prior, GaussianPrior):
+        return {"events": len(clone.events), "note": "the clone keeps no posterior: the update is a fit from the "
+                                                     "structural system's prior, nothing to forget"}, None
+    stored, missing = load_earlier(clone.events, earlier)
+    if missing:
+        _progress.warn("the update is not checked against the earlier events: " + "; ".join(missing[:3]))
+        return {"events": len(clone.events), "missing": missing,
+                "note": "the earlier events' records are not all at hand: the update is kept unchecked"}, None
+    check = run_stage("the check of the update against the earlier events", functools.partial(
+        check_update, before, fit.building, stored, prior, vector, band_hz=fixed(cfg.refine.band_hz, "refine.band_hz"),
+        compare=fixed(cfg.refine.compare, "refine.compare")), None, notes, used="the update is kept unchecked")
+    if check is None:
+        return {"events": len(clone.events), "note": "the check failed numerically: the update is kept"}, None
+    return check, (stored if check["refit"] else None)

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..model import Building, Damping
+from ..model.schema import STORY_BOUNDS
 from ..model.uncertainty import ParameterUncertainty
 from .priors import ALPHA_MAX, StructuralPrior, elf_profile, system_residuals, weight_above
 from .series import EventSeries
@@ -35,15 +36,25 @@ def to_units(building) -> tuple[np.ndarray, float]:
 
 def from_units(base, u: np.ndarray, log_zeta: float | None = None):
     """The building ``base`` with the parameters of ``u`` ``(story, 5)`` (and ``log_zeta``; None:
-    ``base``'s damping ratio): the inverse of :func:`to_units`."""
-    k0 = np.exp(u[:, 0])
-    alpha = ALPHA_MAX / (1.0 + np.exp(-u[:, 1]))
-    p = 1.0 + np.exp(u[:, 2])
-    dy = np.exp(u[:, 3]) * weight_above(base) / k0
+    ``base``'s damping ratio): the inverse of :func:`to_units`, every parameter clipped to the
+    model's bounds (:data:`~hlaid.model.schema.STORY_BOUNDS`; a search that holds ``Cy`` while it
+    moves ``k0`` moves ``dy`` with it, and a long step can leave them)."""
+    with np.errstate(over="ignore"):
+        e = np.exp(np.clip(np.asarray(u, dtype=float), -700.0, 700.0))
+        k0 = _clip("k0", e[:, 0])
+        alpha = ALPHA_MAX / (1.0 + 1.0 / e[:, 1])
+        p = _clip("p", 1.0 + e[:, 2])
+        dy = _clip("dy", e[:, 3] * weight_above(base) / k0)
+        delta_eta = _clip("delta_eta", e[:, 4])
     d = base.damping
-    ratio = d.ratio if log_zeta is None else float(min(np.exp(log_zeta), 0.5))
-    return base.replace(k0=k0, alpha=alpha, p=np.minimum(p, 50.0), dy=dy, delta_eta=np.exp(u[:, 4]),
-                        damping=Damping(kind=d.kind, ratio=ratio, modes=d.modes))
+    ratio = d.ratio if log_zeta is None else float(min(np.exp(min(log_zeta, 0.0)), 0.5))
+    return base.replace(k0=k0, alpha=alpha, p=p, dy=dy, delta_eta=delta_eta,
+                        damping=Damping(kind=d.kind, ratio=max(ratio, 1e-6), modes=d.modes))
+
+
+def _clip(name: str, v: np.ndarray) -> np.ndarray:
+    b = STORY_BOUNDS[name]
+    return np.clip(v, max(b.lo, 1e-300), b.upper())
 
 
 class PriorVector:
@@ -52,31 +63,52 @@ class PriorVector:
 
     Parameters
     ----------
-    building : the start (its other properties are kept)
+    building : the start (its other properties are kept; with ``laws``, its entries that the
+        laws hold fixed are kept too: :func:`hlaid.events.laws.with_laws` sets them)
     damping : the damping ratio moves too
+    laws : each story's law (:data:`hlaid.events.laws.LAWS`; None: every entry free, the
+        degrading law): only the entries a story's law leaves free are in the vector
 
     Attributes
     ----------
     slots : ``(name, story)`` per entry (``("cy", i)`` the yield shear coefficient that sets dy;
         ``("damping", -1)``)
+    free : ``(5 * story (+ 1),)`` which entries of the full layout are in the vector
     x0, lower, upper, scale : the start, open bounds and unit scale (for ``fit_residuals``)
     """
 
     NAMES = ("k0", "alpha", "p", "cy", "delta_eta")
 
-    def __init__(self, building: Building, *, damping: bool = True):
+    def __init__(self, building: Building, *, damping: bool = True, laws: Sequence[str] | None = None):
+        from .laws import check_laws, law_mask
+
         self.building = building
         self.damping = damping
-        u, lz = to_units(building)
         self.n = building.n_stories
-        self.slots = [(name, i) for i in range(self.n) for name in self.NAMES] + ([("damping", -1)] if damping else [])
-        self.x0 = np.append(u.ravel(), lz) if damping else u.ravel().copy()
+        self.laws = None if laws is None else check_laws(laws, self.n)
+        u, lz = to_units(building)
+        self.base = np.append(u.ravel(), lz) if damping else u.ravel().copy()
+        mask = np.ones((self.n, 5), dtype=bool) if self.laws is None else law_mask(self.laws)
+        self.mask = mask
+        self.free = np.append(mask.ravel(), True) if damping else mask.ravel()
+        every = [(name, i) for i in range(self.n) for name in self.NAMES] + ([("damping", -1)] if damping else [])
+        self.slots = [s for s, f in zip(every, self.free) if f]
+        self.x0 = self.base[self.free].copy()
         self.lower = np.full(self.x0.size, -np.inf)
         self.upper = np.full(self.x0.size, np.inf)
         self.scale = np.ones(self.x0.size)
 
+    def expand(self, x: np.ndarray) -> np.ndarray:
+        """The full layout (every story's five entries, and ``log zeta``) of ``x``, the fixed
+        entries at the start's values."""
+        full = self.base.copy()
+        full[self.free] = np.asarray(x, dtype=float)
+        return full
+
     def split(self, x: np.ndarray) -> tuple[np.ndarray, float | None]:
-        return x[: 5 * self.n].reshape(self.n, 5), (float(x[-1]) if self.damping else None)
+        """``x`` as ``(story, 5)`` prior units (fixed entries included) and ``log zeta``."""
+        full = self.expand(x)
+        return full[: 5 * self.n].reshape(self.n, 5), (float(full[-1]) if self.damping else None)
 
     def building_at(self, x: np.ndarray) -> Building:
         u, lz = self.split(np.asarray(x, dtype=float))
@@ -85,7 +117,8 @@ class PriorVector:
     def of(self, building: Building) -> np.ndarray:
         """The vector of ``building`` (the inverse of :meth:`building_at`)."""
         u, lz = to_units(building)
-        return np.append(u.ravel(), lz) if self.damping else u.ravel()
+        full = np.append(u.ravel(), lz) if self.damping else u.ravel()
+        return full[self.free]
 
     CLONE_TRANSFORMS = {"k0": "log", "alpha": "logit", "p": "log1", "cy": "log", "delta_eta": "log", "damping": "log"}
     """Per entry the transform of the clone's own parameter (:class:`ParameterUncertainty`)."""
@@ -99,8 +132,9 @@ class PriorVector:
         A, offset = np.eye(len(self.slots)), np.zeros(len(self.slots))
         log_w = np.log(weight_above(building))
         for i in range(self.n):
-            A[where["cy", i], where["k0", i]] = -1.0
-            offset[where["cy", i]] = log_w[i]
+            if ("cy", i) in where:
+                A[where["cy", i], where["k0", i]] = -1.0
+                offset[where["cy", i]] = log_w[i]
         return A, offset
 
     def clone_slots(self) -> tuple[tuple[tuple[str, int], ...], tuple[str, ...]]:
@@ -111,7 +145,9 @@ class PriorVector:
 
 class SystemPrior:
     """The prior of a structural system over a :class:`PriorVector`'s entries (k0 around
-    ``k0_ref``)."""
+    ``k0_ref``); with story laws, each shape parameter is held near the building's value over the
+    stories whose law leaves it free (a story of another law, an isolation layer, is not pulled
+    towards the others)."""
 
     def __init__(self, prior: StructuralPrior, vector: PriorVector, k0_ref: np.ndarray):
         self.prior, self.vector = prior, vector
@@ -121,7 +157,8 @@ class SystemPrior:
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         u, lz = self.vector.split(x)
-        return system_residuals(self.prior, u, lz, self.k0_ref, self.elf)
+        return system_residuals(self.prior, u, lz, self.k0_ref, self.elf,
+                                free=None if self.vector.laws is None else self.vector.mask)
 
     def to_dict(self) -> dict:
         return {"kind": "system", **self.prior.to_dict(), "k0_ref": self.k0_ref.tolist()}
@@ -171,7 +208,7 @@ def prior_of_clone(unc: ParameterUncertainty | None, building: Building, vector:
     a building that changed move)."""
     if unc is None or len(unc.slots) < len(vector.slots):
         return SystemPrior(fallback, vector, building.k0)
-    if unc.method == "laplace-posterior" and len(unc.slots) == len(vector.slots):
+    if unc.method == "laplace-posterior" and tuple(unc.slots) == vector.clone_slots()[0]:
         A, offset = vector.clone_units(building)
         Ai = np.linalg.inv(A)
         return GaussianPrior(Ai @ (np.asarray(unc.centre, dtype=float) - offset), widen**2 * Ai @ unc.covariance @ Ai.T)

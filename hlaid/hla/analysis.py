@@ -97,7 +97,9 @@ def resolved_band(meas: Measurement, cfg: HLAConfig) -> tuple[float, float]:
                          "(hlaid.hla.run_hla and the identification resolve it)", source=meas.source or None)
     if p.band_hz is not None:
         return cast("tuple[float, float]", tuple(p.band_hz))
-    return pp.auto_band(np.asarray(meas.ground_acc), np.asarray(meas.floor_acc)[:, -1], meas.dt, p.highpass_ratio)
+    roof_disp = None if meas.floor_disp is None else np.asarray(meas.floor_disp)[:, -1]
+    return pp.auto_band(np.asarray(meas.ground_acc), np.asarray(meas.floor_acc)[:, -1], meas.dt, p.highpass_ratio,
+                        roof_disp)
 
 
 def _story_stiffness(x, f, dx, t, bounds, cfg: HLAConfig, band, regress_damping: bool) -> HalfCycleTable:

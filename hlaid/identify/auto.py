@@ -16,7 +16,9 @@ the config is kept as it is. Several records get one set of choices (the evidenc
   given), else 0.1-20 Hz (the replay of a shear building follows every mode);
 - ``refine.parameters``: all five, without ``k0`` where the floor masses are unknown and no mass
   ratios are given (with assumed ratios the replay fit of k0 is ill-conditioned; k0 stays HLA's);
-- ``refine.damping``: fitted where HLA found the assumed damping over-corrects, else held.
+- ``refine.damping``: fitted where HLA found the assumed damping over-corrects, else held;
+- ``refine.compare``: ``acc+drift`` where the records' floor displacements resolve every story's
+  drift (HLA's ``preprocess.displacement`` chosen ``measured``), else ``acc``.
 
 On a simulated shear building with known masses and its true Rayleigh damping (Table 1) this
 gives the settings the identification used before they were chosen from the data.
@@ -98,6 +100,18 @@ def resolve_settings(measurements: Measurement | Sequence[Measurement], cfg: Ide
                + ("the assumed ratio is not the building's, so the replay fits it" if new["damping"]
                   else f"the assumed {100 * cfg.damping_ratio:g} % Rayleigh ratio is held"))
         choices.append(Choice("refine.damping", new["damping"], why))
+    if rc.compare == AUTO:
+        source = cfg.hla.preprocess.displacement
+        if source == "measured":
+            new["compare"] = "acc+drift"
+            why = ("the records' floor displacements resolve every story's drift: a joint fit compares the story "
+                   "drifts with the accelerations (least squares), so the drift is put in the right story")
+        else:
+            new["compare"] = "acc"
+            why = ("the records' floor displacements do not resolve every story's drift: a joint fit compares the "
+                   "accelerations" if source == "integrate" and all(m.floor_disp is not None for m in meas) else
+                   "no floor displacements in every record: a joint fit compares the accelerations")
+        choices.append(Choice("refine.compare", new["compare"], why))
     if new:
         cfg = dataclasses.replace(cfg, refine=dataclasses.replace(rc, **new))
     if cfg.system is None:

@@ -17,6 +17,9 @@ from ..hla.config import AUTO, HLAConfig, auto_hla_config
 from ..systems import get_system
 from .refiners import REFINERS
 
+COMPARES = ("acc", "acc+drift", "disp+drift")
+"""What a joint fit may compare (``refine.compare``; :mod:`hlaid.events.compare`)."""
+
 KERNEL_NAMES = ("linear", "poly", "rbf", "sigmoid")
 """The kernels of :data:`hlaid.svm.KERNELS`, kept here so that loading a config imports no torch
 (a test checks the two agree)."""
@@ -208,6 +211,14 @@ class RefineConfig:
         step Jacobians) takes at most this many MiB; above it, least squares (said in the clone's
         diagnostics). Its time grows alike: a 20-story building under El Centro (54 s) would need
         1.3 GiB and minutes of whitening; Table 1 (3 stories) 0.1 GiB
+    compare : what a joint fit of several records (or of one that stays elastic) compares
+        (:data:`hlaid.events.compare.COMPARES`): ``"acc"`` the floor accelerations, ``"acc+drift"``
+        also the story drifts of the measured floor displacements, ``"disp+drift"`` floor
+        displacements and story drifts (least squares: the errors-in-variables weighting models
+        accelerations only). ``"auto"``: ``acc+drift`` where the records' floor displacements
+        resolve every story's drift (HLA's ``preprocess.displacement`` chosen ``measured``), else
+        ``acc``. On the steel frame the drifts put the next event's peak drift in the right story
+        (worst story error 23 -> 16 %)
     restart_ratio : when the least-squares cost exceeds this multiple of ``0.5 N sigma^2`` (N
         residuals, sigma the measurement's noise level), the fit misses the data by more than its
         noise: it runs again, every story's parameters, from a neutral start (alpha 0.2, p 2,
@@ -228,9 +239,13 @@ class RefineConfig:
     max_iterations: int = bounded(40, lo=1, hi=10_000)
     tangent_max_mb: float = bounded(1024.0, lo=1.0, hi="TANGENT_MB", unit="MiB")
     restart_ratio: float | None = bounded(1.0, lo=1e-6, hi=1e6)
+    compare: str = AUTO
 
     def __post_init__(self):
         check_bounds(self, prefix="refine.")
+        if self.compare not in COMPARES and self.compare != AUTO:
+            raise InputError(f"refine.compare = {self.compare!r} is unknown; expected one of "
+                             f"{', '.join(repr(k) for k in (*COMPARES, AUTO))}")
         if self.method not in REFINERS and self.method != AUTO:
             raise InputError(f"refine.method = {self.method!r} is unknown; expected one of "
                              f"{', '.join(repr(k) for k in (*REFINERS, AUTO))}")

@@ -79,7 +79,7 @@ def refine(event: Event, est: Estimate, cfg: IdentifyConfig) -> Refinement:
     measured floor accelerations (after a k0 stage, the regressions again along ``est``'s
     paths)."""
     rc = cfg.refine
-    settings = {f.name: getattr(rc, f.name) for f in dataclasses.fields(rc) if f.name != "method"}
+    settings = {f.name: getattr(rc, f.name) for f in dataclasses.fields(rc) if f.name not in ("method", "compare")}
     refiner = get_refiner(rc.method, **settings)
 
     def with_k0(k0: np.ndarray) -> Building:
