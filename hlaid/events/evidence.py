@@ -295,21 +295,8 @@ def survivors(clone: Clone, n: int, *, seed: int = 0, prepare: Callable[[Clone],
     starts = [em.starts[k] for k in idx]
     corner = input_corner(clone)
     notes = list(em.missing)
-    nominal_ok: bool | None = None
-    where = None
-    nominal_peak = None
-    if avail:
-        nominal = prep(clone)
-        _check_drift_limit(clone, nominal, drift_limit)
-        rep = replay_events([nominal], [m for _, m in avail], drift_limit=drift_limit, max_step=max_step,
-                            starts=starts, lowpass_hz=corner)
-        nominal_ok = not bool(rep.collapsed[0])
-        nominal_peak = rep.peak[0]
-        if not nominal_ok:
-            where = avail[int(rep.first[0])][0]
-            notes.append(f"the clone collapses under {where}, an event it was identified from (the building "
-                         "survived it): its collapse risk is overstated; check the story heights and the collapse law")
-            _progress.warn(notes[-1])
+    nominal_ok, where, nominal_peak = (_nominal(clone, prep, avail, starts, corner, drift_limit, max_step, notes)
+                                       if avail else (None, None, None))
     if n == 0:
         return Survival(members=(), n_wanted=0, n_drawn=0, n_rejected=0, events=tuple(a for a, _ in avail),
                         unchecked=em.missing, nominal_survives=nominal_ok, nominal_collapsed_in=where,
@@ -349,6 +336,24 @@ def survivors(clone: Clone, n: int, *, seed: int = 0, prepare: Callable[[Clone],
     return Survival(members=tuple(members), n_wanted=n, n_drawn=drawn, n_rejected=bad,
                     events=tuple(a for a, _ in avail), unchecked=em.missing, nominal_survives=nominal_ok,
                     nominal_collapsed_in=where, nominal_peak=nominal_peak, motions=em, notes=tuple(notes))
+
+
+def _nominal(clone: Clone, prep, avail, starts, corner, drift_limit: float, max_step: float, notes: list[str]):
+    """Whether the nominal clone, prepared as the assessment runs it, survives the events at hand
+    ``avail`` (``(name, motion)``); the event it collapses in (or None) and its peak drifts
+    ``(story,)`` [mm]. A collapse is noted and warned of."""
+    nominal = prep(clone)
+    _check_drift_limit(clone, nominal, drift_limit)
+    rep = replay_events([nominal], [m for _, m in avail], drift_limit=drift_limit, max_step=max_step,
+                        starts=starts, lowpass_hz=corner)
+    ok = not bool(rep.collapsed[0])
+    where = None
+    if not ok:
+        where = avail[int(rep.first[0])][0]
+        notes.append(f"the clone collapses under {where}, an event it was identified from (the building "
+                     "survived it): its collapse risk is overstated; check the story heights and the collapse law")
+        _progress.warn(notes[-1])
+    return ok, where, rep.peak[0]
 
 
 def _check_drift_limit(clone: Clone, building: Building, drift_limit: float) -> None:

@@ -111,15 +111,8 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     default = default_laws(system, len(k0_ref))
     notes: list[dict] = []
     t = time.perf_counter()
-    fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=k0_ref, laws=default) for b in starts]
-    fit = best_fit(fits)
-    if damping_ran_away(cfg, fit.building):  # the damping took up model error: held, the fit again
-        settings = held_damping(settings, fit.building.damping.ratio, starts[fits.index(fit)].damping.ratio)
-        _progress.warn(settings.choices[-1].line())
-        cfg = settings.config
-        fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=k0_ref, laws=default) for b in starts]
-        fit = best_fit(fits)
-    start = starts[fits.index(fit)]
+    fit, start, settings = _main_fit(starts, meas, system, settings, names=names, k0_ref=k0_ref, laws=default)
+    cfg = settings.config
     timings["joint"] = time.perf_counter() - t
     t = time.perf_counter()
     fit, laws = select_laws(fit, meas, system, cfg, names=names, k0_ref=k0_ref,
@@ -133,6 +126,22 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     timings["total"] = time.perf_counter() - t_all
     tb.close()
     return with_choices(with_history(result, history, diagnostics={"laws": laws, "fallbacks": notes}), settings)
+
+
+def _main_fit(starts: Sequence[Building], meas: Sequence[Measurement], system: StructuralPrior, settings: Resolution, *,
+              names: Sequence[str], k0_ref: np.ndarray, laws) -> tuple[JointFit, Building, Resolution]:
+    """The joint fit under the system's ``laws`` from each start, the best kept; where its damping
+    ran to the model's bound (it took up model error) the damping is held and the fits run again.
+    Returns the fit, its start and the settings (with the held damping where it was)."""
+    cfg = settings.config
+    fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=k0_ref, laws=laws) for b in starts]
+    fit = best_fit(fits)
+    if damping_ran_away(cfg, fit.building):
+        settings = held_damping(settings, fit.building.damping.ratio, starts[fits.index(fit)].damping.ratio)
+        _progress.warn(settings.choices[-1].line())
+        fits = [joint_fit(b, meas, system, settings.config, names=names, k0_ref=k0_ref, laws=laws) for b in starts]
+        fit = best_fit(fits)
+    return fit, starts[fits.index(fit)], settings
 
 
 CANDIDATE_ITERATIONS = 20

@@ -67,20 +67,8 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
     settings = resolve_like(clone.provenance, measurement, config or IdentifyConfig())
     announce(settings)
     cfg = settings.config
-    b = clone.building
-    src = measurement.source or None
-    if measurement.n_floors != b.n_stories:
-        raise InputError(f"{measurement.n_floors} floor channels, but the clone has {b.n_stories} stories: the "
-                         "measurement is not of this building", source=src)
-    check_not_learnt(clone.events, measurement)
-    last = clone.events[-1].get("recorded") if clone.events else None
-    if last is not None and measurement.recorded is not None and str(measurement.recorded) <= str(last):
-        raise InputError(f"recorded {measurement.recorded}, not after the clone's last event ({last})", source=src)
-    if not 0 < widen < 100:
-        raise InputError(f"widen = {widen}; expected a factor in (0, 100), 1 for none")
-    if earlier is not None and len(earlier) != len(clone.events):
-        raise InputError(f"earlier: {len(earlier)} records given for the clone's {len(clone.events)} events")
-    b = b.replace(collapse=None)
+    _check_inputs(clone, measurement, widen, earlier)
+    b = clone.building.replace(collapse=None)
     system = get_prior(cfg.system or clone.system or "generic")
     laws = laws_of(clone)
     vector = PriorVector(b, damping=fixed(cfg.refine.damping, "refine.damping"), laws=laws)
@@ -123,6 +111,24 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
                              y0=y0 if carried else None, last_start="carried" if carried else "undamaged")
     return with_choices(with_history(result, history, diagnostics=extra), settings)
 
+
+
+def _check_inputs(clone: Clone, measurement: Measurement, widen: float, earlier) -> None:
+    """Refuse an update the clone cannot take: another building, an event it has learnt or one
+    recorded before its last, a ``widen`` out of range, ``earlier`` records that do not match."""
+    src = measurement.source or None
+    n = clone.building.n_stories
+    if measurement.n_floors != n:
+        raise InputError(f"{measurement.n_floors} floor channels, but the clone has {n} stories: the "
+                         "measurement is not of this building", source=src)
+    check_not_learnt(clone.events, measurement)
+    last = clone.events[-1].get("recorded") if clone.events else None
+    if last is not None and measurement.recorded is not None and str(measurement.recorded) <= str(last):
+        raise InputError(f"recorded {measurement.recorded}, not after the clone's last event ({last})", source=src)
+    if not 0 < widen < 100:
+        raise InputError(f"widen = {widen}; expected a factor in (0, 100), 1 for none")
+    if earlier is not None and len(earlier) != len(clone.events):
+        raise InputError(f"earlier: {len(earlier)} records given for the clone's {len(clone.events)} events")
 
 def _kept_laws(clone: Clone, laws: tuple[str, ...] | None) -> dict:
     """The clone's laws record, said to be kept by the update."""

@@ -73,6 +73,20 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     elif not want:
         notes.append("P-Delta off" + (" (requested)" if pdelta is False else " (story heights unknown)"))
     building = building.replace(pdelta=want)
+    building = building.replace(collapse=_collapse_law(model, building, law, collapse, system, notes))
+    if want:
+        kg = building.geometric_stiffness()
+        post = building.alpha * building.k0 - kg
+        notes.append("P-Delta on: P/h = " + ", ".join(f"{v:.4g}" for v in kg) + " N/mm per story")
+        if np.all(post > 0) and building.collapse is None:
+            notes.append("every story keeps a positive post-yield stiffness alpha*k0 - P/h: collapse can "
+                         "only come from the drift limit or the slope criterion")
+    return building, notes
+
+
+def _collapse_law(model, building: Building, law, collapse, system: str | None, notes: list[str]):
+    """The collapse law in force: ``collapse`` where given, else the clone's own, else its
+    structural system's; made consistent with the drifts the building survived; with notes."""
     if collapse is not None:
         law = get_collapse_model(collapse)
     elif law is None and system is not None:
@@ -84,20 +98,12 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
         survived = model.survived_drift() if isinstance(model, Clone) else None
         law, changed = accommodate(law, dy=building.dy, height=building.height, survived=survived)
         notes.extend(changed)
-    building = building.replace(collapse=law)
-    if building.collapse is None:
+    c = building.replace(collapse=law).collapse  # as the building holds it
+    if c is None:
         notes.append("collapse model 'none': the stories never lose strength, so collapse comes only from the "
                      "drift limit or the slope criterion (optimistic); choose one with collapse: steel-mrf, "
                      "rc-frame, rc-frame-nonductile or your own ratios (docs/collapse.md)")
     else:
-        c = building.collapse
         notes.append(f"collapse model {c.name!r}: cap at dy/h + {c.theta_p:g}, post-capping drift {c.theta_pc:g} "
                      f"to zero strength, residual {c.kappa:g} k0 dy, ultimate drift {c.theta_u:g}")
-    if want:
-        kg = building.geometric_stiffness()
-        post = building.alpha * building.k0 - kg
-        notes.append("P-Delta on: P/h = " + ", ".join(f"{v:.4g}" for v in kg) + " N/mm per story")
-        if np.all(post > 0) and building.collapse is None:
-            notes.append("every story keeps a positive post-yield stiffness alpha*k0 - P/h: collapse can "
-                         "only come from the drift limit or the slope criterion")
-    return building, notes
+    return law
