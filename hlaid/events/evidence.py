@@ -25,7 +25,7 @@ prepares a clone (:func:`hlaid.model.collapse.accommodate`, called by
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -100,31 +100,45 @@ def _matches(event: dict, motion: GroundMotion) -> bool:
     return abs(motion.dt / dt - 1.0) < 1e-9 and abs(motion.npts * motion.dt / dur - 1.0) < 1e-6 and same_peak
 
 
-def _read_event(event: dict, base: Path | None) -> tuple[GroundMotion | None, str | None]:
-    """The ground motion of ``event`` read again from its source, or None and why not."""
+def read_event(event: Mapping, base: Path | None = None) -> tuple[Measurement | None, str | None]:
+    """The measurement of a clone's ``event`` (its record in ``clone.events``) read again from its
+    ``source`` (a relative path also from ``base``), checked against the SHA-256 of the file and
+    of its ground record where the event keeps them; or None and why not."""
     from .._inputs import file_sha256
     from ..io import read
-    from ..measurement import Measurement
+    from ..measurement import Measurement, ground_digest
 
     name = event.get("name") or "an event"
     src = event.get("source")
     if not src:
-        return None, f"{name}: no source file recorded"
-    path = Path(src)
+        return None, f"{name}: its file (none recorded) is not there"
+    path = Path(str(src))
     if not path.exists() and base is not None and not path.is_absolute():
         path = base / path
-    if not path.exists():
+    if not path.is_file():
         return None, f"{name}: its file {src} is not found"
     sha = event.get("sha256")
     try:
-        if sha and path.is_file() and file_sha256(path) != sha:
+        if sha and file_sha256(path) != sha:
             return None, f"{name}: its file {src} changed since the clone was identified (SHA-256)"
-        meas = read(path, "measurement")
+        meas = read(str(path), "measurement")
     except InputError as err:
-        return None, f"{name}: its file could not be read again ({err})"
+        return None, f"{name}: its file could not be read again ({' '.join(str(err).split())[:120]})"
     if not isinstance(meas, Measurement):
         return None, f"{name}: its file {src} holds no measurement"
-    motion = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name=str(name), source=str(path))
+    if event.get("ground_sha256") is not None and ground_digest(meas) != event["ground_sha256"]:
+        return None, (f"{name}: {src} is not the event the clone learnt from (SHA-256 of its ground record "
+                      "differs)")
+    return meas, None
+
+
+def _read_event(event: dict, base: Path | None) -> tuple[GroundMotion | None, str | None]:
+    """The ground motion of ``event`` read again from its source (:func:`read_event`), or None and why not."""
+    meas, why = read_event(event, base)
+    if meas is None:
+        return None, why
+    name, src = event.get("name") or "an event", event.get("source")
+    motion = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name=str(name), source=str(meas.source or src))
     if not _matches(event, motion):
         return None, (f"{name}: its file {src} read with the default reader does not hold this event (a file of "
                       "several events, or reader options): pass the motion")

@@ -17,12 +17,10 @@ the update. Where a file is missing or changed, the update is kept and the clone
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 
 import numpy as np
 
 from .. import _progress
-from ..errors import InputError
 from ..measurement import Measurement, ground_digest
 from ..model import Building
 from .series import at_replay_rate, effective_samples, event_series
@@ -37,31 +35,27 @@ run-off update exceeded it by 16, its sound updates by 0.4-4.5."""
 def load_earlier(events: Sequence[Mapping], given: Sequence[Measurement] | None = None
                  ) -> tuple[list[Measurement], list[str]]:
     """The earlier events of a clone (its ``events`` records) as measurements: ``given`` (in the
-    same order) where passed, else read from each record's ``source``; each checked against the
-    SHA-256 of its ground record. Returns the events found (all or none: a history with a gap is
-    no history) and a note per one missing or changed."""
-    from ..io import read
+    same order) where passed, else read again from each record's ``source``
+    (:func:`hlaid.events.evidence.read_event`); each checked against the SHA-256 of its ground
+    record. Returns the events found (all or none: a history with a gap is no history) and a note
+    per one missing or changed."""
+    from .evidence import read_event
 
     found, missing = [], []
     for k, e in enumerate(events):
         name = e.get("name") or f"event {k + 1}"
-        m = None
         if given is not None and k < len(given):
-            m = given[k]
-        elif e.get("source") and Path(str(e["source"])).is_file():
-            try:
-                m = read(str(e["source"]), "measurement")
-            except InputError as err:
-                missing.append(f"{name}: {' '.join(str(err).split())[:120]}")
-                continue
+            m: Measurement | None = given[k]
+            why = None
+            if e.get("ground_sha256") is not None and ground_digest(given[k]) != e["ground_sha256"]:
+                m, why = None, (f"{name}: the record given is not the event the clone learnt from (SHA-256 of its "
+                                "ground record differs)")
         else:
-            missing.append(f"{name}: its file {e.get('source') or '(none recorded)'} is not there")
-            continue
-        if e.get("ground_sha256") is not None and ground_digest(m) != e["ground_sha256"]:
-            missing.append(f"{name}: {e.get('source') or 'the record given'} is not the event the clone learnt from "
-                           "(SHA-256 of its ground record differs)")
-            continue
-        found.append(m)
+            m, why = read_event({**e, "name": name})
+        if m is None:
+            missing.append(str(why))
+        else:
+            found.append(m)
     return (found, missing) if not missing else ([], missing)
 
 
