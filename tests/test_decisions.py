@@ -224,3 +224,15 @@ def test_the_steel_frame_clone_of_s4_is_consistent_with_what_the_frame_did(tmp_p
     assert p.band is not None and p.band.n_ensemble == 20
     d = clone_demands(c, own, n_ensemble=20, ida_config=IDAConfig(heights_mm=[1000.0] * 3))
     assert d.n_realisations == 20 and not d.collapsed.any()
+
+
+def test_an_event_file_read_again_is_named_on_one_line(tmp_path):
+    """A clone's event whose name and file carry a newline and a terminal escape: the note that
+    says why it was not read again shows them escaped, on one line."""
+    from hlaid.events.evidence import read_event
+
+    bad = tmp_path / "ev\n\x1b[31m.npz"
+    bad.write_bytes(b"x")
+    meas, why = read_event({"name": "e\n\x1b[2J", "source": str(bad), "sha256": "0" * 64})
+    assert meas is None and "\n" not in why and "\x1b" not in why
+    assert "\\x0a" in why and "changed since the clone was identified" in why

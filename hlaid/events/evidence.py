@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .. import _progress
-from ..errors import InputError
+from ..errors import InputError, escape_controls
 from ..model import Building
 from ..motions import GroundMotion
 from .state import at_rest, settle_time
@@ -108,11 +108,12 @@ def read_event(event: Mapping, base: Path | None = None) -> tuple[Measurement | 
     from ..io import read
     from ..measurement import Measurement, ground_digest
 
-    name = event.get("name") or "an event"
+    name = escape_controls(event.get("name") or "an event")
     src = event.get("source")
     if not src:
         return None, f"{name}: its file (none recorded) is not there"
     path = Path(str(src))
+    src = escape_controls(src)  # as the messages show it
     if not path.exists() and base is not None and not path.is_absolute():
         path = base / path
     if not path.is_file():
@@ -140,8 +141,8 @@ def _read_event(event: dict, base: Path | None) -> tuple[GroundMotion | None, st
     name, src = event.get("name") or "an event", event.get("source")
     motion = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name=str(name), source=str(meas.source or src))
     if not _matches(event, motion):
-        return None, (f"{name}: its file {src} read with the default reader does not hold this event (a file of "
-                      "several events, or reader options): pass the motion")
+        return None, (f"{escape_controls(name)}: its file {escape_controls(src)} read with the default reader does "
+                      "not hold this event (a file of several events, or reader options): pass the motion")
     return motion, None
 
 
