@@ -16,7 +16,9 @@ Layout::
      "system": null | "steel-moment-frame" | ...,          (version 3)
      "events": [{"name": ..., "source": ..., "sha256": ..., "pga_g": ..., "duration_s": ...,
                  "prequential": {...} (optional: how the clone before it predicted it),
-                 "peak_drift": [...] (optional: the measured peak story drifts [mm])}, ...],
+                 "peak_drift": [...] (optional: the measured peak story drifts [mm]),
+                 "replay": {"band_hz": [lo, hi], "peak_drift_error": [...], "drift_r": [...]}
+                           (optional: how the clone's full replay met this event)}, ...],
      "state": null | {"drift": [...], "z": [...], "work": [...], "peak_positive": [...],
                       "peak_negative": [...], "events": [...]}}
 
@@ -106,6 +108,22 @@ class Clone:
             return None
         out = np.max(peaks, axis=0)
         return out if np.all(np.isfinite(out)) and np.any(out > 0) else None
+
+    def own_replay_miss(self) -> tuple[float, int, str, tuple[float, float]] | None:
+        """The worst miss of the clone's full replay of its own events: ``(error, story, event,
+        band_hz)`` with ``error`` the signed peak-drift error of largest size (a fraction), from the
+        ``replay`` record kept with each event; None where no event holds one (not assessed)."""
+        worst = None
+        for k, e in enumerate(self.events):
+            r = e.get("replay")
+            if not isinstance(r, dict) or not r.get("peak_drift_error"):
+                continue
+            err = np.asarray(r["peak_drift_error"], dtype=float)
+            j = int(np.argmax(np.abs(err)))
+            if worst is None or abs(err[j]) > abs(worst[0]):
+                band = tuple(float(x) for x in r.get("band_hz") or (float("nan"), float("nan")))
+                worst = (float(err[j]), j, str(e.get("name") or f"event {k + 1}"), band)
+        return worst
 
     def with_state(self, state: BuildingState | None) -> Clone:
         """The same clone left in ``state``."""

@@ -67,6 +67,34 @@ def check_event(e: dict, i: int) -> None:
     for key in ("name", "source", "sha256", "ground_sha256", "recorded"):
         if e.get(key) is not None and not isinstance(e[key], str):
             raise InputError(f"field 'events[{i}].{key}' must be a string")
+    if e.get("replay") is not None:
+        check_replay(e["replay"], f"events[{i}].replay")
+
+
+REPLAY_KEYS = ("band_hz", "peak_drift_error", "drift_r")
+"""Fields of a clone's record of how its full replay of one of its own events met the records
+(``events[i].replay``): the band compared ``[lo, hi]`` [Hz], and per story the signed peak-drift
+error (a fraction: +0.1 is 10 % high) and the story-drift correlation R."""
+
+
+def check_replay(r, where: str) -> None:
+    """Refuse a replay record (see :data:`REPLAY_KEYS`) that is no mapping of finite number lists."""
+    import math
+
+    if not isinstance(r, dict):
+        raise InputError(f"field '{where}' must be a mapping with {', '.join(REPLAY_KEYS)}")
+    unknown = sorted(set(r) - set(REPLAY_KEYS))
+    if unknown:
+        raise InputError(f"field '{where}.{unknown[0]}' is unknown; expected {', '.join(REPLAY_KEYS)}")
+    for key in REPLAY_KEYS:
+        v = r.get(key)
+        if v is None:
+            continue
+        if (not isinstance(v, list) or len(v) > 10_000
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)):
+            raise InputError(f"field '{where}.{key}' must be a list of finite numbers")
+        if key == "band_hz" and (len(v) != 2 or not 0 <= v[0] < v[1]):
+            raise InputError(f"field '{where}.band_hz' must be [lo, hi] with 0 <= lo < hi (Hz)")
 
 
 def check_state(z, dy) -> None:
