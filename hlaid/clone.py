@@ -121,8 +121,8 @@ class Clone:
             err = np.asarray(r["peak_drift_error"], dtype=float)
             j = int(np.argmax(np.abs(err)))
             if worst is None or abs(err[j]) > abs(worst[0]):
-                band = tuple(float(x) for x in r.get("band_hz") or (float("nan"), float("nan")))
-                worst = (float(err[j]), j, str(e.get("name") or f"event {k + 1}"), band)
+                lo, hi = (float(x) for x in (r.get("band_hz") or (float("nan"), float("nan"))))
+                worst = (float(err[j]), j, str(e.get("name") or f"event {k + 1}"), (lo, hi))
         return worst
 
     def with_state(self, state: BuildingState | None) -> Clone:
