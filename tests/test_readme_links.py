@@ -1,5 +1,7 @@
-"""What the README and the docs point at is there.
+"""The README is a short product page, and what it and the docs point at is there.
 
+- README.md is at most :data:`README_MAX_LINES` lines (the results, the layout and the limits are
+  docs pages it links).
 - Every relative link of README.md and docs/*.md (``[text](path)``, ``[text](path#anchor)``)
   names a file or folder of the repository (anchors are not checked).
 - Every mention of the design notes, in the package, the scripts, the tests and the pages, names
@@ -18,6 +20,8 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 PACKAGE = REPO / "hlaid"
 PAGES = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+
+README_MAX_LINES = 150
 
 LINK = re.compile(r"\[[^\]\n]*\]\(([^)\s]+)\)")
 DESIGN = re.compile(r"[\w./-]*DESIGN\.md")
@@ -38,6 +42,13 @@ def relative_links(page: Path) -> list[str]:
 def test_every_relative_link_resolves(page):
     missing = [t for t in relative_links(page) if not (page.parent / t.split("#", 1)[0]).exists()]
     assert missing == [], f"{_rel(page)} links to what the repository does not hold: {missing}"
+
+
+def test_readme_is_a_short_product_page():
+    text = (REPO / "README.md").read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= README_MAX_LINES, "README.md: move the long sections to a docs page"
+    for page in ("docs/results.md", "docs/guarantees.md", "docs/architecture.md"):
+        assert f"]({page})" in text, f"README.md does not link {page}"
 
 
 def test_the_links_are_found():
