@@ -31,10 +31,17 @@ def escape_controls(text) -> str:
     return "".join(_escaped(ch) for ch in text)
 
 
-def one_line(text) -> str:
-    """``text`` as one line: runs of whitespace (newlines included) become one space, and control
-    characters are escaped (:func:`escape_controls`)."""
-    return escape_controls(" ".join(str(text).split()))
+def one_line(text, limit: int | None = None) -> str:
+    """``text`` as one line: runs of whitespace (newlines included) become one space, cut to its
+    first ``limit`` characters (None: whole), and control characters are escaped
+    (:func:`escape_controls`). The one way hlaid writes an error (or any text it did not write
+    itself) into a message."""
+    return escape_controls(" ".join(str(text).split())[:limit])
+
+
+def failure_text(err: BaseException) -> str:
+    """An error in one line of at most 200 characters (its type's name where it says nothing)."""
+    return one_line(err, 200) or type(err).__name__
 
 
 class InputError(ValueError):

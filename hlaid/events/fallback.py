@@ -17,7 +17,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from .. import _progress
-from ..errors import TangentTooLargeError, UnstableTangentError
+from ..errors import TangentTooLargeError, UnstableTangentError, failure_text
 
 T = TypeVar("T")
 
@@ -25,11 +25,6 @@ NUMERICAL_FAILURES: tuple[type[BaseException], ...] = (np.linalg.LinAlgError, Fl
                                                         OverflowError, UnstableTangentError, TangentTooLargeError)
 """What a numerical stage may fail with (a factorisation, an overflow, a tangent that cannot be
 formed); anything else is a bug and is raised."""
-
-
-def failure_text(err: BaseException) -> str:
-    """An error in one line of at most 200 characters."""
-    return " ".join(str(err).split())[:200] or type(err).__name__
 
 
 def run_stage(stage: str, fn: Callable[[], T], fallback: Callable[[], Any] | Any, notes: list[dict] | None, *,

@@ -27,7 +27,7 @@ from .. import _progress
 from .._inputs import file_sha256
 from .._version import __version__
 from ..config import config_to_dict
-from ..errors import InputError
+from ..errors import InputError, one_line
 from ..ida import IDAConfig
 from ..identify import IdentifyConfig
 from ..loss.config import LossConfig
@@ -148,7 +148,7 @@ def load_unit_measurement(job: UnitJob) -> Measurement:
 
 
 def _one_line(err: BaseException) -> str:
-    text = " ".join(str(err).split())
+    text = one_line(err)
     return text if isinstance(err, InputError) else f"{type(err).__name__}: {text}"
 
 
