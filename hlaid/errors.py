@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import re
 import unicodedata
+from typing import TYPE_CHECKING
 
 _BIDI = frozenset("\u061c\u200e\u200f\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
 
@@ -73,6 +74,24 @@ class UnstableTangentError(InputError):
 class TangentTooLargeError(InputError):
     """The replay's ground tangent would need more memory than the errors-in-variables weighting
     is allowed (``refine.tangent_max_mb``; its time grows alike): least squares is used instead."""
+
+
+if TYPE_CHECKING:
+    NUMERICAL_FAILURES: tuple[type[BaseException], ...]
+    """What a numerical stage may fail with, and fall back from with a note (a factorisation that
+    loses positive definiteness, an overflow, a division by zero, a replay tangent that grows
+    without bound or is too large to form); anything else is a bug and is raised. Made on first
+    use (it names numpy's ``LinAlgError``: importing this module imports no numpy)."""
+else:
+    def __getattr__(name: str):
+        if name == "NUMERICAL_FAILURES":
+            import numpy as np
+
+            value = (np.linalg.LinAlgError, FloatingPointError, ZeroDivisionError, OverflowError,
+                     UnstableTangentError, TangentTooLargeError)
+            globals()[name] = value
+            return value
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 class HlaidWarning(UserWarning):

@@ -1,12 +1,21 @@
-"""One way to put a foreign text into a message: :func:`hlaid.errors.one_line`."""
+"""One way to say each thing about errors: a foreign text goes into a message through
+:func:`hlaid.errors.one_line`, and what counts as a numerical failure (fallen back from, not raised)
+is :data:`hlaid.errors.NUMERICAL_FAILURES`, defined once."""
 
 from __future__ import annotations
 
+import ast
+import os
 import re
+import subprocess
+import sys
 from pathlib import Path
 
+import numpy as np
+import pytest
+
 import hlaid
-from hlaid.errors import InputError, failure_text, one_line
+from hlaid.errors import HlaidWarning, InputError, failure_text, one_line
 
 PACKAGE = Path(hlaid.__file__).parent
 
@@ -39,3 +48,52 @@ def test_the_pattern_sees_the_hand_written_forms():
     assert BY_HAND.search("""why = " ".join(str(err).split())[:200]""")
     assert BY_HAND.search("""f"({' '.join(str(err).split())[:80]})\"""")
     assert BY_HAND.search("""p = " ".join(str(getattr(err, "problem", None) or "x").split())""")
+
+
+# ----------------------------------------------------------------------------- numerical failures
+def _failure_definitions() -> list[str]:
+    """Where a module of hlaid binds a name ending in ``FAILURES`` (a set of errors to fall back from)."""
+    out = []
+    for p in sorted(PACKAGE.rglob("*.py")):
+        for node in ast.walk(ast.parse(p.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Assign):
+                targets = node.targets
+            elif isinstance(node, ast.AnnAssign):
+                targets = [node.target]
+            else:
+                continue
+            out += [f"{p.relative_to(PACKAGE.parent)}:{node.lineno}" for t in targets
+                    if isinstance(t, ast.Name) and t.id.endswith("FAILURES")]
+    return out
+
+
+def test_numerical_failures_are_defined_once():
+    found = _failure_definitions()
+    assert len(found) == 1 and found[0].startswith("hlaid/errors.py:"), found
+    from hlaid.errors import NUMERICAL_FAILURES, TangentTooLargeError, UnstableTangentError
+    from hlaid.events import fallback
+    from hlaid.identify import refiners
+
+    assert refiners.NUMERICAL_FAILURES is NUMERICAL_FAILURES is fallback.NUMERICAL_FAILURES
+    assert set(NUMERICAL_FAILURES) == {np.linalg.LinAlgError, FloatingPointError, ZeroDivisionError, OverflowError,
+                                       UnstableTangentError, TangentTooLargeError}
+
+
+def test_a_numerical_failure_falls_back_and_a_bug_is_raised():
+    from hlaid.events.fallback import run_stage
+
+    notes: list[dict] = []
+    with pytest.warns(HlaidWarning, match="a stage failed numerically"):
+        assert run_stage("a stage", lambda: 1 / 0, 7, notes, used="seven") == 7
+    assert notes == [{"stage": "a stage", "error": "division by zero", "used": "seven"}]
+    with pytest.raises(KeyError):
+        run_stage("a stage", lambda: {}["x"], 7, notes, used="seven")
+
+
+def test_the_errors_module_imports_no_numpy():
+    """The command line imports it to print any error; numpy comes with the first numerical failure."""
+    code = ("import sys, hlaid.errors as e; before = 'numpy' in sys.modules; f = e.NUMERICAL_FAILURES; "
+            "print(before, 'numpy' in sys.modules, f[0].__name__)")
+    env = {**os.environ, "PYTHONPATH": str(PACKAGE.parent)}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True).stdout
+    assert out.split() == ["False", "True", "LinAlgError"]

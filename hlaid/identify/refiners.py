@@ -27,14 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .. import _progress
-from ..errors import (
-    InputError,
-    NotIdentifiableError,
-    TangentTooLargeError,
-    UnstableTangentError,
-    failure_text,
-    one_line,
-)
+from ..errors import NUMERICAL_FAILURES, InputError, NotIdentifiableError, failure_text, one_line
 
 if TYPE_CHECKING:
     from ..measurement import Measurement
@@ -240,15 +233,10 @@ class ErrorsInVariables(LeastSquares):
                      "seconds": eiv.seconds}
 
 
-NUMERICAL_FAILURES = (UnstableTangentError, TangentTooLargeError, np.linalg.LinAlgError)
-"""What makes the errors-in-variables stage fall back to least squares (a tangent that grows, is
-too ill-conditioned to factor or too large)."""
-
-
 def fit_or_fall_back(fit: Callable[..., Any], ground_noise: str) -> Any:
     """``fit(ground_noise=ground_noise)`` (a joint fit, :func:`hlaid.events.fit.map_refine`
     with its other arguments bound); where the errors-in-variables weighting (``"tangent"``)
-    fails numerically (:data:`NUMERICAL_FAILURES`), least squares instead, with a warning and a
+    fails numerically (:data:`hlaid.errors.NUMERICAL_FAILURES`), least squares instead, with a warning and a
     note in each event's record of the fit (``errors_in_variables``, kept in the clone's
     diagnostics). A least-squares fit that fails too is a :class:`~hlaid.errors.NotIdentifiableError`."""
     why = None
