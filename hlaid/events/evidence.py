@@ -139,7 +139,7 @@ def _read_event(event: dict, base: Path | None) -> tuple[GroundMotion | None, st
     if meas is None:
         return None, why
     name, src = event.get("name") or "an event", event.get("source")
-    motion = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name=str(name), source=str(meas.source or src))
+    motion = meas.ground_motion(name=str(name), source=str(meas.source or src))
     if not _matches(event, motion):
         return None, (f"{escape_controls(name)}: its file {escape_controls(src)} read with the default reader does "
                       "not hold this event (a file of several events, or reader options): pass the motion")

@@ -215,7 +215,7 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
         clock("identify", t, c)
         stage = "assess"
         t, c = time.perf_counter(), cpu_time()
-        own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name=f"{job.unit}-own", source=meas.source)
+        own = meas.ground_motion(name=f"{job.unit}-own")
         a = assess_clone(res.clone, records, n_ensemble=job.n_ensemble, ida_config=job.ida, own_motion=own,
                          seed=job.seed, assess=assess, engine=job.engine or None)
         clock("assess", t, c)
