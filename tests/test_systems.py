@@ -62,3 +62,13 @@ def test_a_system_whose_parts_name_another_is_refused():
     timber = StructuralSystem(name="timber", title="timber frame", collapse="none",
                               prior=dataclasses.replace(prior, name="timber"))
     assert isinstance(timber.prior, StructuralPrior) and timber.inventory is None
+
+
+def test_a_clone_records_its_prior_with_its_system():
+    from hlaid.events.priors import prior_record
+
+    rec = prior_record(PRIORS["rc-frame"])
+    assert list(rec) == ["name", "title", "collapse", "story_spread", "k0_beta", "cy", "alpha", "p", "delta_eta",
+                         "damping"]
+    assert (rec["title"], rec["collapse"], rec["damping"]) == ("reinforced-concrete moment frame", "rc-frame",
+                                                               {"median": 0.05, "beta": 0.5})

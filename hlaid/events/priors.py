@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ..systems import SYSTEMS, StructuralPrior, unknown_system
+from ..systems import SYSTEMS, StructuralPrior, get_system, unknown_system
 from ..units import G_MM_S2
 
 ALPHA_MAX = 0.95
@@ -44,6 +44,15 @@ def get_prior(name: str) -> StructuralPrior:
     if isinstance(name, str) and name in PRIORS:
         return PRIORS[name]
     raise InputError(unknown_system(name, PRIORS))
+
+
+def prior_record(prior: StructuralPrior) -> dict:
+    """``prior`` as a clone records it: its system (name, title, collapse law) and its numbers."""
+    system = get_system(prior.name)
+    return {"name": prior.name, "title": system.title,
+            "collapse": system.collapse, "story_spread": prior.story_spread, "k0_beta": prior.k0_beta,
+            **{k: {"median": getattr(prior, k).median, "beta": getattr(prior, k).beta}
+               for k in ("cy", "alpha", "p", "delta_eta", "damping")}}
 
 
 def weight_above(building) -> np.ndarray:

@@ -22,7 +22,8 @@ class Median:
 
 @dataclass(frozen=True, kw_only=True)
 class StructuralPrior:
-    """Prior of one structural system (:mod:`hlaid.events.priors` says how it is used).
+    """Prior of one structural system (:mod:`hlaid.events.priors` says how it is used, and
+    :func:`hlaid.events.priors.prior_record` how a clone records it).
 
     Attributes
     ----------
@@ -47,15 +48,6 @@ class StructuralPrior:
     story_spread: float = 0.25
     k0_beta: float = 0.5
     sources: tuple[str, ...] = field(default_factory=tuple)
-
-    def to_dict(self) -> dict:
-        from . import get_system  # the registry holds the system this prior belongs to
-
-        system = get_system(self.name)
-        return {"name": self.name, "title": system.title,
-                "collapse": system.collapse, "story_spread": self.story_spread, "k0_beta": self.k0_beta,
-                **{k: {"median": getattr(self, k).median, "beta": getattr(self, k).beta}
-                   for k in ("cy", "alpha", "p", "delta_eta", "damping")}}
 
 
 # ----------------------------------------------------------------------------- the loss inventory
