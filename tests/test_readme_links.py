@@ -6,6 +6,8 @@
   names a file or folder of the repository (anchors are not checked).
 - Every mention of the design notes, in the package, the scripts, the tests and the pages, names
   the copy the repository holds (``docs/DESIGN.md``; ``DESIGN.md`` from a page in ``docs/``).
+- Every path of the repository a page names in backquotes (``hlaid/...``, ``scripts/...``,
+  ``tests/...``, ``configs/...``, ``docs/...``; ``*`` as a wildcard) is there.
 - Every dotted ``hlaid.x.y`` name in the package, the README and the docs names a module of the
   package, or a name that module holds (read as text: nothing is imported).
 """
@@ -25,6 +27,7 @@ README_MAX_LINES = 150
 
 LINK = re.compile(r"\[[^\]\n]*\]\(([^)\s]+)\)")
 DESIGN = re.compile(r"[\w./-]*DESIGN\.md")
+REPO_PATH = re.compile(r"`((?:hlaid|scripts|tests|configs|docs)/[\w./*-]*)")
 DOTTED = re.compile(r"(?<![\w./-])hlaid(?:\.[A-Za-z_]\w*)+")
 
 
@@ -55,6 +58,16 @@ def test_the_links_are_found():
     """The link reader sees the README's links to its docs pages (so an empty result above is real)."""
     links = relative_links(REPO / "README.md")
     assert "docs/guarantees.md" in links and "CONTRIBUTING.md" in links
+
+
+@pytest.mark.parametrize("page", [*PAGES, REPO / "CONTRIBUTING.md"], ids=lambda p: _rel(p))
+def test_every_path_a_page_names_exists(page):
+    missing = []
+    for m in REPO_PATH.finditer(page.read_text(encoding="utf-8")):
+        path = m.group(1).rstrip(".")
+        if not (any(REPO.glob(path)) if "*" in path else (REPO / path).exists()):
+            missing.append(path)
+    assert missing == [], f"{_rel(page)} names paths the repository does not hold: {missing}"
 
 
 def _sources() -> list[Path]:
