@@ -40,7 +40,7 @@ import zlib
 from collections.abc import Iterator
 from typing import IO, Any
 
-from .errors import InputError
+from .errors import InputError, one_line
 from .limits import file_limit_text, max_file_bytes
 
 MAX_JSON_DEPTH = 64
@@ -254,7 +254,7 @@ def gunzip(raw: bytes, source: str) -> bytes:
                                      f"{src.tell() / 2**10:.3g} KiB read so far): no data file compresses so well "
                                      "(a gzip bomb?)", source=source)
     except (OSError, EOFError, zlib.error) as err:
-        raise InputError(f"cannot read it as gzip ({' '.join(str(err).split())[:80]})", source=source) from None
+        raise InputError(f"cannot read it as gzip ({one_line(err, 80)})", source=source) from None
     return b"".join(parts)
 
 
@@ -359,7 +359,7 @@ def _npy_header(member: IO[bytes], name: str, size: int, source: str):
             raise ValueError(f"array format version {version}")
         header = member.tell()
     except (ValueError, OSError, EOFError, zipfile.BadZipFile) as err:
-        raise InputError(f"array {name!r} has no readable header ({' '.join(str(err).split())[:80]})",
+        raise InputError(f"array {name!r} has no readable header ({one_line(err, 80)})",
                          source=source) from None
     if dtype.hasobject or dtype.kind not in "biufcUS" or dtype.itemsize == 0:
         raise InputError(f"array {name!r} holds {dtype.kind!r} values; only numbers and text are read", source=source)
@@ -392,7 +392,7 @@ def load_npz(path: str | os.PathLike, *, not_npz: str = "not an NPZ file (a zip 
                         shape, fortran, dtype = _npy_header(member, name, info.file_size, source)
                         data = member.read()
                 except (zipfile.BadZipFile, OSError, EOFError, RuntimeError, NotImplementedError) as err:
-                    raise InputError(f"array {name!r} cannot be read ({' '.join(str(err).split())[:80]})",
+                    raise InputError(f"array {name!r} cannot be read ({one_line(err, 80)})",
                                      source=source) from None
                 a = np.frombuffer(data, dtype=dtype)
                 out[name] = a.reshape(shape, order="F" if fortran else "C").copy()

@@ -21,7 +21,7 @@ import yaml
 
 from ._inputs import read_text
 from .bounds import bounds_of, show
-from .errors import ConfigError, InputError, kind_of
+from .errors import ConfigError, InputError, kind_of, one_line
 from .limits import limit
 
 T = TypeVar("T")
@@ -120,7 +120,7 @@ def compose_yaml(text: str, source: str = "<string>") -> yaml.Node | None:
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         where = f"{source}:{mark.line + 1}" if mark else source
-        problem = " ".join(str(getattr(err, "problem", None) or "syntax error").split())
+        problem = one_line(getattr(err, "problem", None) or "syntax error")
         raise ConfigError(f"{where}: invalid YAML: {problem}") from None
     except RecursionError:  # nesting thousands of levels deep
         raise ConfigError(f"{source}: invalid YAML: nested too deeply") from None
@@ -140,7 +140,7 @@ def parse_yaml(text: str, source: str = "<string>") -> _Node:
     except yaml.YAMLError as err:  # e.g. a tag no safe constructor knows (!!python/object)
         mark = getattr(err, "problem_mark", None)
         where = f"{source}:{mark.line + 1}" if mark else source
-        problem = " ".join(str(getattr(err, "problem", None) or "cannot read a value").split())
+        problem = one_line(getattr(err, "problem", None) or "cannot read a value")
         raise ConfigError(f"{where}: invalid YAML: {problem}") from None
     except RecursionError:
         raise ConfigError(f"{source}: invalid YAML: nested too deeply") from None

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import re
 import unicodedata
+from typing import TYPE_CHECKING
 
 _BIDI = frozenset("\u061c\u200e\u200f\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
 
@@ -31,10 +32,17 @@ def escape_controls(text) -> str:
     return "".join(_escaped(ch) for ch in text)
 
 
-def one_line(text) -> str:
-    """``text`` as one line: runs of whitespace (newlines included) become one space, and control
-    characters are escaped (:func:`escape_controls`)."""
-    return escape_controls(" ".join(str(text).split()))
+def one_line(text, limit: int | None = None) -> str:
+    """``text`` as one line: runs of whitespace (newlines included) become one space, cut to its
+    first ``limit`` characters (None: whole), and control characters are escaped
+    (:func:`escape_controls`). The one way hlaid writes an error (or any text it did not write
+    itself) into a message."""
+    return escape_controls(" ".join(str(text).split())[:limit])
+
+
+def failure_text(err: BaseException) -> str:
+    """An error in one line of at most 200 characters (its type's name where it says nothing)."""
+    return one_line(err, 200) or type(err).__name__
 
 
 class InputError(ValueError):
@@ -66,6 +74,24 @@ class UnstableTangentError(InputError):
 class TangentTooLargeError(InputError):
     """The replay's ground tangent would need more memory than the errors-in-variables weighting
     is allowed (``refine.tangent_max_mb``; its time grows alike): least squares is used instead."""
+
+
+if TYPE_CHECKING:
+    NUMERICAL_FAILURES: tuple[type[BaseException], ...]
+    """What a numerical stage may fail with, and fall back from with a note (a factorisation that
+    loses positive definiteness, an overflow, a division by zero, a replay tangent that grows
+    without bound or is too large to form); anything else is a bug and is raised. Made on first
+    use (it names numpy's ``LinAlgError``: importing this module imports no numpy)."""
+else:
+    def __getattr__(name: str):
+        if name == "NUMERICAL_FAILURES":
+            import numpy as np
+
+            value = (np.linalg.LinAlgError, FloatingPointError, ZeroDivisionError, OverflowError,
+                     UnstableTangentError, TangentTooLargeError)
+            globals()[name] = value
+            return value
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 class HlaidWarning(UserWarning):

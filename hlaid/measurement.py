@@ -174,6 +174,13 @@ class Measurement:
     def pdelta_active(self) -> bool:
         return bool(self.height is not None if self.pdelta is None else self.pdelta)
 
+    def ground_motion(self, name: str | None = None, source: str | None = None) -> GroundMotion:
+        """The recorded ground acceleration as a :class:`~hlaid.motions.GroundMotion` (as recorded,
+        unfiltered), named ``name`` (None: the measurement's name, or ``"measured"``), from
+        ``source`` (None: the measurement's file)."""
+        return GroundMotion(dt=self.dt, acc=self.ground_acc, name=(self.name or "measured") if name is None else name,
+                            source=self.source if source is None else source)
+
     # ------------------------------------------------------------------ writing
     def _columns(self) -> dict[str, np.ndarray]:
         d = {"dt": np.float64(self.dt), "ground_acc": self.ground_acc, "floor_acc": self.floor_acc,

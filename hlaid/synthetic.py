@@ -1,4 +1,4 @@
-"""Simulated measurements (DESIGN.md section 4): the building's response at the measurement
+"""Simulated measurements (docs/DESIGN.md section 4): the building's response at the measurement
 rate, with white Gaussian noise of ``noise_rms`` x channel RMS added to every channel."""
 
 from __future__ import annotations

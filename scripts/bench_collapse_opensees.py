@@ -1,6 +1,6 @@
 """Collapse intensities of a clone with a collapse model: hlaid against OpenSeesPy (prints a table).
 
-Case: the Table 1 clone (DESIGN.md section 4) with 3 m stories, P-Delta on, collapse model
+Case: the Table 1 clone (docs/DESIGN.md section 4) with 3 m stories, P-Delta on, collapse model
 ``steel-mrf`` (or --collapse), the 10 built-in FEMA P695 far-field records. OpenSees runs the
 exported clone script (hlaid.opensees: BoucWen + ElasticPPGap gap springs + P-Delta, Newmark
 average acceleration at dt/10); hlaid the batch simulator with RK4 steps of at most 0.5 ms.

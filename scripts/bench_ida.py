@@ -1,6 +1,6 @@
 """Benchmark of hlaid's IDA against OpenSeesPy on the same runs (prints markdown tables).
 
-Case: the Table 1 clone (DESIGN.md section 4) with 3 m stories, P-Delta on (the IDA default),
+Case: the Table 1 clone (docs/DESIGN.md section 4) with 3 m stories, P-Delta on (the IDA default),
 the 44 FEMA P695 far-field components, IM = Sa(T1, 5%), 20 levels 0.4, 0.8, ..., 8.0 g
 (up to about the median collapse intensity): 880 record x level runs.
 

@@ -1,6 +1,6 @@
 """Benchmark of the batch simulator against OpenSeesPy, in one run (prints a markdown table).
 
-Case: the Table 1 structure (DESIGN.md section 4, 5 % Rayleigh, no P-Delta), far-field records
+Case: the Table 1 structure (docs/DESIGN.md section 4, 5 % Rayleigh, no P-Delta), far-field records
 resampled to 200 Hz and cut to 30 s (6001 samples), RK4 with 4 sub-steps.
 
 1. one record: wall time of ``simulate`` (full histories, and peaks only);

@@ -1,7 +1,7 @@
 """Reference structures of the benchmark and study scripts (imported as a sibling module: run the
 scripts as ``python scripts/NAME.py``, which puts ``scripts/`` on ``sys.path``).
 
-- :func:`table1_stories`: the paper's proof-of-concept structure (Table 1, DESIGN.md section 4).
+- :func:`table1_stories`: the paper's proof-of-concept structure (Table 1, docs/DESIGN.md section 4).
 - The SDOF of Vamvatsikos & Cornell (2002), Fig. 4a, and :func:`bilinear_peak`, an independent
   bilinear oscillator (Newmark average acceleration, Newton iterations, elastic-perfectly-plastic
   return map with kinematic hardening).

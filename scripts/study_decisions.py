@@ -122,7 +122,6 @@ def multi_case(spec, events: list[str], data_dir: str, folder: Path, args) -> di
     """A clone of several events, assessed from the library as ``hlaid run`` would."""
     from hlaid import identify_clone
     from hlaid.ida import assess, run_ida
-    from hlaid.motions import GroundMotion
     from hlaid.run.decision import event_risks, run_flags
 
     heights = HEIGHTS[spec.name]
@@ -131,7 +130,7 @@ def multi_case(spec, events: list[str], data_dir: str, folder: Path, args) -> di
     folder.mkdir(parents=True, exist_ok=True)
     clone.save(folder / "clone.json", force=True)
     meas[-1].save(folder / "measurement.npz", force=True)
-    motions = [GroundMotion(dt=m.dt, acc=np.asarray(m.ground_acc), name=m.name) for m in meas]
+    motions = [m.ground_motion(name=m.name) for m in meas]
     cfg = _ida_config(heights, args.n_levels)
     before = run_ida(clone, "builtin-suite", cfg, event_motions=motions)
     after = run_ida(clone, "builtin-suite", cfg.replace(start="carried"), event_motions=motions)

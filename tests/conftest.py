@@ -5,7 +5,7 @@
   fixture (or are marked ``requires_data``) and are skipped cleanly when it is absent.
 - Optional tools and data (:func:`requires`, :func:`skip_or_fail`): a test that needs one is
   skipped when it is missing, except under ``CI=true``, where it fails (CI installs them all).
-- The paper's proof-of-concept structure (Table 1), built from the numbers in DESIGN.md
+- The paper's proof-of-concept structure (Table 1), built from the numbers in docs/DESIGN.md
   (``tests/reference_systems.py``), not from the package's config file.
 - A few real records, scaled to PGA 0.62 g and resampled to 200 Hz (the paper's case). They are
   records shipped inside hlaid, so simulation tests run without ``../shared/data``.

@@ -1,7 +1,7 @@
 """Independent reference implementations for the verification tests.
 
 Nothing here imports hlaid: the shear building, its Rayleigh damping and the degrading
-Bouc-Wen story law are written again from DESIGN.md section 3 (units N, mm, t, s) so that the
+Bouc-Wen story law are written again from docs/DESIGN.md section 3 (units N, mm, t, s) so that the
 tests compare hlaid against a second, separately written model, integrated by scipy.
 
 State layout (same as hlaid, so histories can be compared directly)::
@@ -21,7 +21,7 @@ from scipy import integrate, linalg, signal
 
 G_MM_S2 = 9806.65
 
-# The proof-of-concept structure of the paper (Table 1 and section 3.1), from DESIGN.md section 4.
+# The proof-of-concept structure of the paper (Table 1 and section 3.1), from docs/DESIGN.md section 4.
 TABLE1 = {
     "weight_kN": (171.85, 171.85, 90.0),
     "k0": (1.94e4, 1.65e4, 1.37e4),
@@ -45,7 +45,7 @@ def table1_masses() -> np.ndarray:
 
 @dataclass
 class ShearBuildingRef:
-    """A shear building with one degrading Bouc-Wen spring per story (DESIGN.md section 3).
+    """A shear building with one degrading Bouc-Wen spring per story (docs/DESIGN.md section 3).
 
     Parameters are ``(story,)`` arrays, stories bottom to top; ``kg`` is the P-Delta
     stiffness P/h of each story [N/mm] (zeros: no P-Delta); ``ratio`` the Rayleigh damping

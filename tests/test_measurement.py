@@ -3,6 +3,9 @@ one-line errors for bad files."""
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 from conftest import window
@@ -193,3 +196,25 @@ def test_given_corners_checked_against_an_auto_default():
     check_band(meas, [0.3, 2.5], "identify.refine.band_hz", default="auto")  # within 45 Hz: passes
     with pytest.raises(InputError, match="high corner 48 Hz is above 45 Hz"):
         check_band(meas, [0.3, 48.0], "identify.refine.band_hz", default="auto")
+
+
+def test_ground_motion_is_the_recorded_ground():
+    acc = 1000.0 * np.sin(np.arange(200) * 0.1)  # mm/s^2
+    meas = Measurement(dt=0.01, ground_acc=acc, floor_acc=np.column_stack([acc, acc]), source="runs/a.npz", name="a")
+    gm = meas.ground_motion()
+    assert (gm.dt, gm.name, gm.source) == (0.01, "a", "runs/a.npz")
+    np.testing.assert_array_equal(gm.acc, meas.ground_acc)
+    other = meas.ground_motion(name="recorded", source="x.npz")
+    assert (other.name, other.source) == ("recorded", "x.npz")
+    unnamed = Measurement(dt=0.01, ground_acc=acc, floor_acc=acc[:, None])
+    assert unnamed.ground_motion().name == "measured"
+
+
+def test_ground_motions_are_not_built_by_hand_from_a_measurement():
+    """``Measurement.ground_motion`` is the one way (a filtered ground is built where it is filtered)."""
+    root = Path(__file__).resolve().parents[1]
+    by_hand = re.compile(r"GroundMotion\(dt=\w+\.dt, acc=np\.asarray\(\w+\.ground_acc\)")
+    files = sorted([*(root / "hlaid").rglob("*.py"), *(root / "scripts").glob("*.py")])
+    found = [f"{p.relative_to(root)}:{n}" for p in files
+             for n, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1) if by_hand.search(line)]
+    assert found == [], f"use Measurement.ground_motion: {found}"

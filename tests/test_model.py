@@ -25,7 +25,7 @@ def _ref(b: Building, ratio=0.05) -> ShearBuildingRef:
 # ---------------------------------------------------------------------- construction
 def test_table1_from_weights(table1):
     np.testing.assert_allclose(table1.mass, table1_masses(), rtol=1e-15)
-    assert table1.mass[0] == pytest.approx(17.524, abs=5e-4)  # DESIGN.md section 2: 171.85 kN -> 17.524 t
+    assert table1.mass[0] == pytest.approx(17.524, abs=5e-4)  # docs/DESIGN.md section 2: 171.85 kN -> 17.524 t
     for name in ("k0", "alpha", "p", "dy", "delta_eta"):
         np.testing.assert_array_equal(getattr(table1, name), TABLE1[name])
     assert table1.n_stories == 3 and not table1.pdelta_active
@@ -165,7 +165,7 @@ def _random_states(rng, b: Building, batch: int) -> np.ndarray:
 
 @pytest.mark.parametrize("n,pdelta", [(1, False), (3, True), (8, False), (20, True)])
 def test_rates_against_independent_numpy_model(n, pdelta):
-    """BoucWenBuilding.rates equals the model written again from DESIGN.md section 3."""
+    """BoucWenBuilding.rates equals the model written again from docs/DESIGN.md section 3."""
     rng = np.random.default_rng(10 + n)
     kw = {"height": np.full(n, 3000.0), "pdelta": True} if pdelta else {}
     bs = [random_building(rng, n, **kw) for _ in range(4)]

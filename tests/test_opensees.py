@@ -1,7 +1,7 @@
 """Cross-check against OpenSeesPy through the exported script (skipped without openseespy).
 
 The script written by ``export_opensees`` builds the clone from zeroLength elements with
-``uniaxialMaterial BoucWen`` (DESIGN.md section 3 mapping), Rayleigh damping with
+``uniaxialMaterial BoucWen`` (docs/DESIGN.md section 3 mapping), Rayleigh damping with
 ``-doRayleigh 1`` and P-Delta as a parallel negative Elastic spring; ``run_opensees`` executes
 that same text. OpenSees runs at dt/10 (Newmark average acceleration; implicit BoucWen),
 hlaid at its defaults; the peaks of hlaid are at the record samples, OpenSees' over every

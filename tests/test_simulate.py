@@ -5,7 +5,7 @@
   again in numpy (``reference_systems``);
 - RK4 convergence order, the compiled kernel against the torch module;
 - invariants: |z| <= dy, unloading slope = ke (eq 11), energy balance;
-- DESIGN.md's sanity figures (loose regression), batching, layouts and errors.
+- docs/DESIGN.md's sanity figures (loose regression), batching, layouts and errors.
 """
 
 from __future__ import annotations
@@ -192,7 +192,7 @@ def test_energy_balance(table1, records, pdelta):
                                    atol=1e-3 * E["hysteretic"][-1])
 
 
-# ---------------------------------------------------------------------- DESIGN.md sanity figures
+# ---------------------------------------------------------------------- docs/DESIGN.md sanity figures
 @pytest.mark.parametrize("record,drift,ke", [
     ("elcentro-1940-ns", (37, 31, 14), (0.60, 0.57, 0.56)),
     ("kocaeli-1999-dzc180", (33, 31, 14), (0.67, 0.66, 0.69)),

@@ -64,7 +64,6 @@ def register(sub) -> None:
 
 def _own_motion(path: str, options: dict):
     """The ground motion of a record file, or the ground channel of a measurement file."""
-    import numpy as np
 
     from ..io import read
     from ..measurement import Measurement
@@ -72,7 +71,7 @@ def _own_motion(path: str, options: dict):
 
     obj = read(path, **options)
     if isinstance(obj, Measurement):
-        return GroundMotion(dt=obj.dt, acc=np.asarray(obj.ground_acc), name=Path(path).stem, source=path)
+        return obj.ground_motion(name=Path(path).stem, source=path)
     if isinstance(obj, GroundMotion):
         return obj
     raise InputError("expected one ground motion (a record or a measurement file), not a record set", source=path)

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .. import _progress
-from ..errors import InputError, escape_controls
+from ..errors import InputError, escape_controls, one_line
 from ..model import Building
 from ..motions import GroundMotion
 from .state import at_rest, settle_time
@@ -124,7 +124,7 @@ def read_event(event: Mapping, base: Path | None = None) -> tuple[Measurement | 
             return None, f"{name}: its file {src} changed since the clone was identified (SHA-256)"
         meas = read(str(path), "measurement")
     except InputError as err:
-        return None, f"{name}: its file could not be read again ({' '.join(str(err).split())[:120]})"
+        return None, f"{name}: its file could not be read again ({one_line(err, 120)})"
     if not isinstance(meas, Measurement):
         return None, f"{name}: its file {src} holds no measurement"
     if event.get("ground_sha256") is not None and ground_digest(meas) != event["ground_sha256"]:
@@ -139,7 +139,7 @@ def _read_event(event: dict, base: Path | None) -> tuple[GroundMotion | None, st
     if meas is None:
         return None, why
     name, src = event.get("name") or "an event", event.get("source")
-    motion = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name=str(name), source=str(meas.source or src))
+    motion = meas.ground_motion(name=str(name), source=str(meas.source or src))
     if not _matches(event, motion):
         return None, (f"{escape_controls(name)}: its file {escape_controls(src)} read with the default reader does "
                       "not hold this event (a file of several events, or reader options): pass the motion")

@@ -14,27 +14,15 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any, TypeVar
 
-import numpy as np
-
 from .. import _progress
-from ..errors import TangentTooLargeError, UnstableTangentError
+from ..errors import NUMERICAL_FAILURES, failure_text
 
 T = TypeVar("T")
-
-NUMERICAL_FAILURES: tuple[type[BaseException], ...] = (np.linalg.LinAlgError, FloatingPointError, ZeroDivisionError,
-                                                        OverflowError, UnstableTangentError, TangentTooLargeError)
-"""What a numerical stage may fail with (a factorisation, an overflow, a tangent that cannot be
-formed); anything else is a bug and is raised."""
-
-
-def failure_text(err: BaseException) -> str:
-    """An error in one line of at most 200 characters."""
-    return " ".join(str(err).split())[:200] or type(err).__name__
 
 
 def run_stage(stage: str, fn: Callable[[], T], fallback: Callable[[], Any] | Any, notes: list[dict] | None, *,
               used: str, extra: tuple[type[BaseException], ...] = ()) -> T | Any:
-    """``fn()``; where it fails numerically (:data:`NUMERICAL_FAILURES`, and ``extra``), the
+    """``fn()``; where it fails numerically (:data:`hlaid.errors.NUMERICAL_FAILURES`, and ``extra``), the
     ``fallback`` (called where callable), with a warning and a note ``{"stage", "error", "used"}``
     appended to ``notes`` (None: no note)."""
     try:

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..model import Building
+from ..systems import SYSTEMS
 from .priors import StructuralPrior, weight_above
 
 LAWS = ("elastic", "nondegrading", "degrading")
@@ -36,8 +37,9 @@ ELASTIC_CY = 5.0
 NO_DEGRADATION = 1e-8
 """``delta_eta`` of a story that does not degrade [s^2/m^2] (the model's lower bound is 0)."""
 
-SYSTEM_LAWS = {"steel-moment-frame": "degrading", "rc-frame": "degrading", "generic": "degrading"}
-"""The law each structural system's stories follow unless the records say otherwise."""
+SYSTEM_LAWS = {name: system.law for name, system in SYSTEMS.items()}
+"""The law each structural system's stories follow unless the records say otherwise
+(:attr:`hlaid.systems.StructuralSystem.law`)."""
 
 TIE_LOG_UNITS = 2.0
 """Another law replaces the system's only where its log evidence is higher by more than this."""

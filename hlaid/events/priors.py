@@ -4,8 +4,8 @@ A record that stays nearly elastic says much about a building's stiffness and da
 about its yield strength, loop shape or degradation; a first-mode-dominated record constrains a
 few combinations of a story's five parameters. Where the data say little, the refinement falls
 back on the structural system (maximum a posteriori; :mod:`hlaid.events.fit`): a Gaussian in
-transformed parameters ("prior units", :mod:`hlaid.events.vector`), one entry of :data:`PRIORS` per
-structural system (:data:`hlaid.systems.SYSTEMS`).
+transformed parameters ("prior units", :mod:`hlaid.events.vector`), each structural system's own
+(:attr:`hlaid.systems.StructuralSystem.prior`; :data:`PRIORS` by name).
 
 Per story ``i`` the transformed parameters are ::
 
@@ -26,91 +26,16 @@ one too). The prior holds
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from ..errors import InputError
-from ..systems import get_system, unknown_system
+from ..systems import SYSTEMS, StructuralPrior, get_system, unknown_system
 from ..units import G_MM_S2
 
 ALPHA_MAX = 0.95
 """Upper limit of ``alpha`` (the refinement's and the uncertainty's bound)."""
 
-@dataclass(frozen=True, kw_only=True)
-class Median:
-    """A parameter's prior: median (natural units) and standard deviation in prior units."""
-
-    median: float
-    beta: float
-
-
-@dataclass(frozen=True, kw_only=True)
-class StructuralPrior:
-    """Prior of one structural system.
-
-    Attributes
-    ----------
-    name : the structural system (:data:`hlaid.systems.SYSTEMS`; ``identify.system`` in a config)
-    cy : base-story yield shear coefficient ``Cy = k0 dy / W`` (lognormal)
-    alpha : post-yield stiffness ratio (``beta`` in logit units of ``alpha / 0.95``)
-    p : loop smoothness (lognormal in ``p - 1``)
-    delta_eta : degradation [s^2/m^2] (lognormal)
-    damping : Rayleigh damping ratio (lognormal)
-    story_spread : standard deviation of a story's shape parameter around the building's, in
-        prior units
-    k0_beta : log standard deviation of k0 around its start
-    sources : where the values come from
-    """
-
-    name: str
-    cy: Median
-    alpha: Median
-    p: Median
-    delta_eta: Median
-    damping: Median
-    story_spread: float = 0.25
-    k0_beta: float = 0.5
-    sources: tuple[str, ...] = field(default_factory=tuple)
-
-    def to_dict(self) -> dict:
-        return {"name": self.name, "title": get_system(self.name).title,
-                "collapse": get_system(self.name).collapse, "story_spread": self.story_spread, "k0_beta": self.k0_beta,
-                **{k: {"median": getattr(self, k).median, "beta": getattr(self, k).beta}
-                   for k in ("cy", "alpha", "p", "delta_eta", "damping")}}
-
-
-PRIORS: dict[str, StructuralPrior] = {
-    "steel-moment-frame": StructuralPrior(
-        name="steel-moment-frame",
-        cy=Median(median=0.3, beta=0.6), alpha=Median(median=0.1, beta=0.7), p=Median(median=2.0, beta=0.7),
-        delta_eta=Median(median=0.1, beta=1.0), damping=Median(median=0.025, beta=0.5),
-        sources=("Cy: FEMA P695 (2009) / NIST GCR 10-917-8 (2010) steel SMF archetypes, static overstrength "
-                 "1.6-3.3 over Cs 0.044-0.125 (Vmax/W about 0.1-0.4); the E-Defense steel frame of Table 1 of "
-                 "the paper: 0.31 (base story)",
-                 "alpha: story hardening of steel frames 3-10 % of the elastic stiffness (FEMA P-440A 2009; "
-                 "Ibarra, Medina & Krawinkler 2005: 3 %), Table 1: 0.12-0.23",
-                 "p: Table 1: 1.5-2.5 (a near-bilinear loop, p > 3, is as likely as a round one, p < 1.5)",
-                 "delta_eta: steel members keep their unloading stiffness (Lignos & Krawinkler 2011, J. Struct. "
-                 "Eng. 137(11): unloading-stiffness deterioration of steel beams negligible)",
-                 "damping: 2-3 % for steel buildings (ATC-72-1 2010; PEER TBI 2017: 2.5 %)")),
-    "rc-frame": StructuralPrior(
-        name="rc-frame",
-        cy=Median(median=0.2, beta=0.6), alpha=Median(median=0.05, beta=0.7), p=Median(median=1.3, beta=0.7),
-        delta_eta=Median(median=1.0, beta=1.0), damping=Median(median=0.05, beta=0.5),
-        sources=("Cy: FEMA P695 (2009) RC SMF archetypes (Haselton & Deierlein 2007): Vmax/W about 0.1-0.35",
-                 "alpha: post-yield hardening of RC members 2-5 % (Haselton, Liel, Taylor Lange & Deierlein "
-                 "2016, ACI Struct. J. 113(6))",
-                 "p: round loops of RC members, n about 1-1.5 (Oh, Kim & Song 2023, IJNLM 148:104263)",
-                 "delta_eta: unloading stiffness of RC falls with ductility (Takeda, Sozen & Nielsen 1970: "
-                 "k_u = k_y (d_max/d_y)^-0.4)",
-                 "damping: 5 % (ASCE 7-22; ASCE 41-17 for concrete)")),
-    "generic": StructuralPrior(
-        name="generic",
-        cy=Median(median=0.3, beta=1.0), alpha=Median(median=0.1, beta=1.0), p=Median(median=2.0, beta=1.0),
-        delta_eta=Median(median=0.3, beta=1.5), damping=Median(median=0.04, beta=0.7),
-        sources=("the union of the steel and RC entries, widened",)),
-}
+PRIORS: dict[str, StructuralPrior] = {name: system.prior for name, system in SYSTEMS.items()}
 """Priors by structural system (``identify.system``; the wide ``generic`` one where none is named)."""
 
 
@@ -119,6 +44,15 @@ def get_prior(name: str) -> StructuralPrior:
     if isinstance(name, str) and name in PRIORS:
         return PRIORS[name]
     raise InputError(unknown_system(name, PRIORS))
+
+
+def prior_record(prior: StructuralPrior) -> dict:
+    """``prior`` as a clone records it: its system (name, title, collapse law) and its numbers."""
+    system = get_system(prior.name)
+    return {"name": prior.name, "title": system.title,
+            "collapse": system.collapse, "story_spread": prior.story_spread, "k0_beta": prior.k0_beta,
+            **{k: {"median": getattr(prior, k).median, "beta": getattr(prior, k).beta}
+               for k in ("cy", "alpha", "p", "delta_eta", "damping")}}
 
 
 def weight_above(building) -> np.ndarray:

@@ -17,7 +17,7 @@ import numpy as np
 from ..model import Building, Damping
 from ..model.schema import STORY_BOUNDS
 from ..model.uncertainty import ParameterUncertainty
-from .priors import ALPHA_MAX, StructuralPrior, elf_profile, system_residuals, weight_above
+from .priors import ALPHA_MAX, StructuralPrior, elf_profile, prior_record, system_residuals, weight_above
 from .series import EventSeries
 
 
@@ -161,7 +161,7 @@ class SystemPrior:
                                 free=None if self.vector.laws is None else self.vector.mask)
 
     def to_dict(self) -> dict:
-        return {"kind": "system", **self.prior.to_dict(), "k0_ref": self.k0_ref.tolist()}
+        return {"kind": "system", **prior_record(self.prior), "k0_ref": self.k0_ref.tolist()}
 
 
 class GaussianPrior:

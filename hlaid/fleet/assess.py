@@ -85,7 +85,7 @@ FALLBACK_RULE = ("point clone (record-to-record variability only): red if P(coll
 @dataclass(frozen=True, kw_only=True)
 class PointAssessment:
     """Risk of a point clone (no ensemble), the fallback of :func:`assess_clone`. Field names
-    are those of ``hlaid.uncertainty.Assessment`` so the fleet table has one layout.
+    are those of ``hlaid.ida.assessment.Assessment`` so the fleet table has one layout.
 
     Attributes
     ----------

@@ -31,7 +31,7 @@ from .._inputs import own_files, read_json
 from .._outdir import marker as output_marker
 from .._outdir import written_here
 from .._version import __version__
-from ..errors import InputError
+from ..errors import InputError, one_line
 from ..io import read
 from .address import probe
 from .assess import POINT, default_assess, engine_label, point_assess
@@ -89,7 +89,7 @@ def open_client(cluster: ClusterConfig, scheduler: str | None = None) -> Iterato
             client = distributed.Client(scheduler, timeout="20s")
         except Exception as err:  # noqa: BLE001 - whatever dask raises for a failed connection is one line
             raise InputError(f"--scheduler {scheduler}: cannot connect ({type(err).__name__}: "
-                             f"{' '.join(str(err).split())[:200]})") from None
+                             f"{one_line(err, 200)})") from None
         try:
             yield client
         finally:
@@ -262,7 +262,7 @@ def _run_on(client, todo: list[UnitJob], records, assess, out: Path, results: di
                 except Exception as err:  # noqa: BLE001 - a lost worker, an unpicklable result ...
                     res = {"format": RESULT_FORMAT, "version": 1, "unit": job.unit, "building": job.building,
                            "event": job.event, "digest": job.digest, "status": "failed", "stage": "worker",
-                           "reason": f"worker: {type(err).__name__}: {' '.join(str(err).split())[:300]}",
+                           "reason": f"worker: {type(err).__name__}: {one_line(err, 300)}",
                            "timings": {}}
                 write_json(result_path(out, job), res)
                 results[job.unit] = res

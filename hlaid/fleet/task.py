@@ -27,7 +27,7 @@ from .. import _progress
 from .._inputs import file_sha256
 from .._version import __version__
 from ..config import config_to_dict
-from ..errors import InputError
+from ..errors import InputError, one_line
 from ..ida import IDAConfig
 from ..identify import IdentifyConfig
 from ..loss.config import LossConfig
@@ -148,7 +148,7 @@ def load_unit_measurement(job: UnitJob) -> Measurement:
 
 
 def _one_line(err: BaseException) -> str:
-    text = " ".join(str(err).split())
+    text = one_line(err)
     return text if isinstance(err, InputError) else f"{type(err).__name__}: {text}"
 
 
@@ -215,7 +215,7 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
         clock("identify", t, c)
         stage = "assess"
         t, c = time.perf_counter(), cpu_time()
-        own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name=f"{job.unit}-own", source=meas.source)
+        own = meas.ground_motion(name=f"{job.unit}-own")
         a = assess_clone(res.clone, records, n_ensemble=job.n_ensemble, ida_config=job.ida, own_motion=own,
                          seed=job.seed, assess=assess, engine=job.engine or None)
         clock("assess", t, c)

@@ -1,6 +1,6 @@
 """Hysteresis loop analysis of a measurement: ``run_hla(measurement, config) -> HLAResult``.
 
-Steps (DESIGN.md section 5): band-pass and integrate the accelerations to floor motion
+Steps (docs/DESIGN.md section 5): band-pass and integrate the accelerations to floor motion
 relative to the ground; inter-story drift and drift velocity; story restoring force
 ``f_i = -sum_{j>=i} m_j a_j`` (eq 1-2) less its damping share and plus the P-Delta share;
 half cycles between drift reversals; per half cycle the elastic stiffness ``ke`` after the

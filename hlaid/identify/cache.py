@@ -20,7 +20,7 @@ from .. import _progress
 from .._fileio import json_default, write_json
 from .._inputs import file_sha256, own_files, read_json
 from .._version import __version__
-from ..errors import InputError
+from ..errors import InputError, one_line
 from ..svm import KernelSVC
 
 
@@ -131,7 +131,7 @@ class MachineCache:
             try:
                 machines[name] = KernelSVC.load(path)
             except (OSError, ValueError) as err:
-                raise _Untrusted(f"{path.name}: {' '.join(str(err).split())[:120]}") from None
+                raise _Untrusted(f"{path.name}: {one_line(err, 120)}") from None
         return machines, meta
 
     def store(self, key: str, machines: dict, meta: dict) -> None:

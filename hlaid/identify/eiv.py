@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from ..errors import InputError, UnstableTangentError
+from ..errors import InputError, UnstableTangentError, one_line
 from ..measurement import Measurement
 from ..model import Building
 from ..motions import GroundMotion
@@ -138,7 +138,7 @@ class TangentWhitener:
             self._chol = scipy.linalg.cholesky_banded(ab, lower=False)
         except np.linalg.LinAlgError as err:  # rounding in a near-singular Gram matrix (a very soft story)
             raise UnstableTangentError(f"TangentWhitener: the whitening matrix is not positive definite "
-                                       f"({' '.join(str(err).split())[:80]}): the tangent of this replay is too "
+                                       f"({one_line(err, 80)}): the tangent of this replay is too "
                                        "ill-conditioned to weigh the ground's noise") from None
 
     def _apply(self, d: np.ndarray) -> np.ndarray:

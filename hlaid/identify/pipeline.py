@@ -1,4 +1,4 @@
-"""Automated identification of a digital clone (paper section 2.2, DESIGN.md section 6).
+"""Automated identification of a digital clone (paper section 2.2, docs/DESIGN.md section 6).
 
 The paper's flow chart, stage by stage (:mod:`hlaid.identify.stages`, :mod:`.passes`,
 :mod:`.refiners`)::

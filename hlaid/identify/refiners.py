@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .. import _progress
-from ..errors import InputError, NotIdentifiableError, TangentTooLargeError, UnstableTangentError
+from ..errors import NUMERICAL_FAILURES, InputError, NotIdentifiableError, failure_text, one_line
 
 if TYPE_CHECKING:
     from ..measurement import Measurement
@@ -228,20 +228,15 @@ class ErrorsInVariables(LeastSquares):
                                tangent_max_mb=self.tangent_max_mb,
                                desc=f"[identify] errors-in-variables fit from the {start}")
         except NUMERICAL_FAILURES as err:
-            return None, {"why": " ".join(str(err).split())[:200] or type(err).__name__}
+            return None, {"why": failure_text(err)}
         return eiv, {"start": start, "cost_initial": eiv.cost_initial, "cost_final": eiv.cost_final, "nfev": eiv.nfev,
                      "seconds": eiv.seconds}
 
 
-NUMERICAL_FAILURES = (UnstableTangentError, TangentTooLargeError, np.linalg.LinAlgError)
-"""What makes the errors-in-variables stage fall back to least squares (a tangent that grows, is
-too ill-conditioned to factor or too large)."""
-
-
 def fit_or_fall_back(fit: Callable[..., Any], ground_noise: str) -> Any:
-    """``fit(ground_noise=ground_noise)`` (a joint fit, :func:`hlaid.identify.joint.map_refine`
+    """``fit(ground_noise=ground_noise)`` (a joint fit, :func:`hlaid.events.fit.map_refine`
     with its other arguments bound); where the errors-in-variables weighting (``"tangent"``)
-    fails numerically (:data:`NUMERICAL_FAILURES`), least squares instead, with a warning and a
+    fails numerically (:data:`hlaid.errors.NUMERICAL_FAILURES`), least squares instead, with a warning and a
     note in each event's record of the fit (``errors_in_variables``, kept in the clone's
     diagnostics). A least-squares fit that fails too is a :class:`~hlaid.errors.NotIdentifiableError`."""
     why = None
@@ -249,12 +244,12 @@ def fit_or_fall_back(fit: Callable[..., Any], ground_noise: str) -> Any:
         try:
             return fit(ground_noise="tangent")
         except NUMERICAL_FAILURES as err:
-            why = " ".join(str(err).split())[:200] or type(err).__name__
+            why = failure_text(err)
         _progress.warn(f"errors-in-variables stage skipped ({why}); the events are fitted by least squares")
     try:
         res = fit(ground_noise="ignore")
     except np.linalg.LinAlgError as err:
-        raise NotIdentifiableError(f"the joint fit failed numerically ({' '.join(str(err).split())[:80]}): the "
+        raise NotIdentifiableError(f"the joint fit failed numerically ({one_line(err, 80)}): the "
                                    "records do not determine the parameters") from None
     if why is None:
         return res

@@ -2,7 +2,7 @@
 (eq 15-17), written to be exact for the forward model of :mod:`hlaid.model`.
 
 From ``ke = alpha k0 + (1-alpha) k0 / eta`` (eq 11) and ``eta = 1 + delta_eta eps`` with
-``eps = (1-alpha) (k0/m) u`` (``u = integral(z dx)`` in m^2, DESIGN.md section 3):
+``eps = (1-alpha) (k0/m) u`` (``u = integral(z dx)`` in m^2, docs/DESIGN.md section 3):
 
     y = m (k0 - ke) / ((1-alpha) k0 (ke - alpha k0)) = delta_eta * u          (eq 12-13)
 

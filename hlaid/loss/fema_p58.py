@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from .._fileio import atomic_write
-from ..errors import InputError
+from ..errors import InputError, one_line
 from ..units import G_M_S2
 
 UNITS = ("ea", "EA", "m", "mm", "cm", "ft", "in", "inch", "m2", "mm2", "cm2", "ft2", "in2", "inch2", "SF", "LF")
@@ -51,7 +51,7 @@ def require_pelicun():
         import pelicun.file_io  # noqa: F401
     except ImportError as err:
         raise InputError("the loss assessment needs pelicun and its damage and loss library: pip install "
-                         f"'hlaid[loss]' ({type(err).__name__}: {' '.join(str(err).split())})") from None
+                         f"'hlaid[loss]' ({type(err).__name__}: {one_line(err)})") from None
     import pelicun
     return pelicun
 

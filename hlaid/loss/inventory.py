@@ -1,5 +1,8 @@
 """Component inventories for the FEMA P-58 assessment: defaults per structural system, or the user's.
 
+Each structural system's default is its :attr:`hlaid.systems.StructuralSystem.inventory`
+(:data:`INVENTORIES` by name; the components are :mod:`hlaid.systems.parts`).
+
 An inventory is pelicun's component assignment table (``ID, Units, Location, Direction, Theta_0``
 and optionally ``Blocks, Family, Theta_1, Comment``): every row puts ``Theta_0`` of a FEMA P-58
 component on each listed story and direction. :func:`default_inventory` builds one from a
@@ -29,92 +32,13 @@ import io
 import math
 import os
 import re
-from dataclasses import dataclass
 
 from ..bounds import Bounds, show
 from ..errors import InputError, quotable
 from ..limits import limit
-from ..systems import SYSTEMS, unknown_system
+from ..systems import SYSTEMS, Component, Inventory, unknown_system
 
-M2_PER_FT2 = 0.09290304
-EXAMPLE_FLOOR_M2 = 15000 * M2_PER_FT2
-"""Floor area of one story of pelicun's FEMA P-58 example building (15 000 ft2)."""
-
-EXAMPLE_TOTAL_M2 = 4 * EXAMPLE_FLOOR_M2
-
-
-@dataclass(frozen=True)
-class Component:
-    """A FEMA P-58 fragility group and its density.
-
-    id : FEMA P-58 component ID (pelicun's DLML, ``FEMA P-58 2nd Edition``)
-    units : pelicun's quantity unit of ``per_m2`` x m2 (``ea``, ``m``, ``m2``)
-    direction : ``"1,2"`` for directional components (the quantity is per direction), ``"0"`` otherwise
-    per_m2 : quantity per m2 of floor area on every story (per building when ``building`` is true)
-    building : one quantity for the whole building (on the first story), per m2 of total floor area
-    what : a short description
-    """
-
-    id: str
-    units: str
-    direction: str
-    per_m2: float
-    what: str
-    building: bool = False
-
-
-_NONSTRUCTURAL = (
-    Component("B.20.22.031", "m2", "1,2", 0.26, "curtain wall, midrise stick-built, annealed monolithic glass"),
-    Component("C.10.11.001a", "m", "1,2", 891 * 0.3048 / EXAMPLE_FLOOR_M2,
-              "gypsum partition with metal studs, full height, fixed below and above"),
-    Component("C.30.32.003b", "m2", "0", 1.0, "suspended ceiling, SDC D/E, 250-1000 ft2 rooms, vertical and lateral "
-                                              "support"),
-    Component("C.30.34.002", "ea", "0", 648 / EXAMPLE_FLOOR_M2, "independent pendant lighting, seismically rated"),
-    Component("D.20.21.023a", "m", "0", 1230 * 0.3048 / EXAMPLE_FLOOR_M2, "potable water piping > 2.5 in, SDC D/E/F"),
-    Component("D.30.41.021c", "m", "0", 1620 * 0.3048 / EXAMPLE_FLOOR_M2, "HVAC stainless steel ducting < 6 ft2"),
-    Component("D.40.11.023a", "m", "0", 4320 * 0.3048 / EXAMPLE_FLOOR_M2, "fire sprinkler mains and branches"),
-    Component("D.40.11.033a", "ea", "0", 194 / EXAMPLE_FLOOR_M2, "fire sprinkler drops into soft ceilings"),
-    Component("D.10.14.011", "ea", "0", 1 / EXAMPLE_TOTAL_M2, "traction elevator", building=True),
-)
-_ONE, _BOTH = 2 / EXAMPLE_FLOOR_M2, 3 / EXAMPLE_FLOOR_M2
-
-
-@dataclass(frozen=True)
-class Inventory:
-    """A structural system's default inventory and replacement values.
-
-    name, description : the structural system (:data:`hlaid.systems.SYSTEMS`) and what the
-        inventory stands for
-    components : structural then non-structural :class:`Component` densities
-    areal_mass_t_m2 : floor mass per m2 used to estimate floor areas from the clone's masses when
-        none are given (typical seismic weight of office floors; an assumption)
-    replacement_cost_usd_m2 : replacement cost per m2 of total floor area [USD_2011]
-    replacement_time_wd_m2 : replacement time per m2 of total floor area [worker-days]
-    """
-
-    name: str
-    description: str
-    components: tuple
-    areal_mass_t_m2: float
-    replacement_cost_usd_m2: float = 12.5e6 / EXAMPLE_TOTAL_M2
-    replacement_time_wd_m2: float = 15000 / EXAMPLE_TOTAL_M2
-
-
-INVENTORIES: dict[str, Inventory] = {
-    "steel-moment-frame": Inventory(
-        "steel-moment-frame", "steel special moment frame, office occupancy",
-        (Component("B.10.35.021", "ea", "1,2", _ONE, "post-Northridge WUF moment connection, beam one side, <= W27"),
-         Component("B.10.35.031", "ea", "1,2", _BOTH, "post-Northridge WUF moment connection, beams both sides, "
-                                                      "<= W27"))
-        + _NONSTRUCTURAL, areal_mass_t_m2=0.5),
-    "rc-frame": Inventory(
-        "rc-frame", "reinforced concrete special moment frame with post-tensioned slabs, office occupancy",
-        (Component("B.10.41.001a", "ea", "1,2", _ONE, "ACI 318 SMF joint, 24 x 24 in, beam one side"),
-         Component("B.10.41.001b", "ea", "1,2", _BOTH, "ACI 318 SMF joint, 24 x 24 in, beams both sides"),
-         Component("B.10.49.031", "ea", "0", 15 / EXAMPLE_FLOOR_M2, "post-tensioned slab-column connection with "
-                                                                    "shear reinforcement"))
-        + _NONSTRUCTURAL, areal_mass_t_m2=0.8),
-}
+INVENTORIES: dict[str, Inventory] = {name: s.inventory for name, s in SYSTEMS.items() if s.inventory is not None}
 """Default inventories by structural system (:data:`hlaid.systems.SYSTEMS`)."""
 
 

@@ -13,7 +13,7 @@ Per story, with drift ``x`` [mm], drift velocity ``dx`` [mm/s], hysteretic displ
     eta = 1 + delta_eta * eps,  eps = (1-alpha)*(k0/m)*e  in SI           (eq 7-8)
 
 ``k0/m`` in N/mm/t equals k0/m in s^-2, and ``e`` in mm^2 is 1e-6 m^2, hence the factor
-:data:`ENERGY_SCALE`; ``delta_eta`` is in s^2/m^2 (DESIGN.md section 3).
+:data:`ENERGY_SCALE`; ``delta_eta`` is in s^2/m^2 (docs/DESIGN.md section 3).
 """
 
 from __future__ import annotations

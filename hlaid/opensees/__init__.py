@@ -2,7 +2,7 @@
 
 :func:`export_opensees` writes a runnable Python file that builds the clone in OpenSees
 (``zeroLength`` elements with ``uniaxialMaterial BoucWen``, floor masses, Rayleigh damping
-applied with ``-doRayleigh 1``, the parameter mapping of DESIGN.md section 3) and, run as a
+applied with ``-doRayleigh 1``, the parameter mapping of docs/DESIGN.md section 3) and, run as a
 program, analyses a record given on the command line and writes the peak drifts. The file is
 :mod:`~hlaid.opensees.standalone` (the model-building and analysis code) followed by the clone's
 parameters as literals (:mod:`~hlaid.opensees.script`); :func:`run_opensees` calls the same

@@ -99,12 +99,10 @@ def loss_of_run(run_dir: str | os.PathLike, cfg: LossConfig | None = None, *, ch
 
 def _assess(d: Path, s: RunSummary, cfg: LossConfig, recs, folder: Path, base_dir) -> dict:
     """The losses of run folder ``d`` (summary ``s``) written into ``folder``; ``loss.json``'s content."""
-    import numpy as np
 
     from ..clone import Clone
     from ..io import read
     from ..loss.assess import assess_losses
-    from ..motions import GroundMotion
     from ..uncertainty.config import AssessConfig
 
     src = str(d)
@@ -112,7 +110,7 @@ def _assess(d: Path, s: RunSummary, cfg: LossConfig, recs, folder: Path, base_di
     assess_cfg = _config(AssessConfig, s.config.assess, f"{src}/summary.json: config.assess")
     clone = Clone.load(d / "clone.json")
     meas = read(d / "measurement.npz", "measurement")
-    own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name="recorded", source=str(d / "measurement.npz"))
+    own = meas.ground_motion(name="recorded", source=str(d / "measurement.npz"))
     n_ens = assess_cfg.n_ensemble if assess_cfg is not None and clone.uncertainty is not None else 0
     levels = cfg.levels if cfg.levels is not None else list(s.ida.levels_g if s.ida is not None else ())
     return assess_losses(clone, own, records=recs, levels=levels, collapse=collapse, cfg=cfg,

@@ -197,9 +197,7 @@ def _heights_given(cfg: RunConfig) -> list[float] | None:
 
 
 def _own_motion(meas: Measurement):
-    from ..motions import GroundMotion
-    return GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc), name=meas.name or "measured",
-                        source=meas.source or "")
+    return meas.ground_motion()
 
 
 def _risk(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir, timings: dict, step: _Steps,

@@ -13,7 +13,6 @@ from ..events.identify import identify_clone
 from ..identify import IdentifyConfig
 from ..identify.auto import resolve_like
 from ..identify.stages import estimate_noise_rms
-from ..motions import GroundMotion
 from ..synthetic import simulate_measurement
 from ..uncertainty.ensemble import check_ensemble_size, check_uncertain_clone
 
@@ -51,7 +50,7 @@ def parametric_bootstrap(clone, measurement, n: int, *, config=None, cache_dir=N
     cfg = resolve_like(clone.provenance, measurement, config or IdentifyConfig()).config  # the clone's choices
     if noise_rms is None:
         noise_rms = clone.provenance.get("noise_rms_used") or estimate_noise_rms(measurement)
-    gm = GroundMotion(dt=measurement.dt, acc=np.asarray(measurement.ground_acc), name="measured")
+    gm = measurement.ground_motion(name="measured")
     b = clone.building
     if measurement.height is not None and b.height is None:
         b = b.replace(height=measurement.height)

@@ -28,7 +28,7 @@ import numpy as np
 from .. import _progress
 from ..baselines.registry import IDENTIFIERS, get_identifier
 from ..config import load_config
-from ..errors import InputError
+from ..errors import InputError, one_line
 from ..estimators import BaseIdentifier
 from ..identify import IdentifyConfig
 from ..identify.replaycheck import corrcoef
@@ -297,7 +297,7 @@ def run_case(case: Case, names: list[str], settings: dict, unseen: GroundMotion,
             est.fit(meas)
             err = None
         except Exception as e:  # noqa: BLE001 - an identifier that raises is a result of the study
-            err = f"{type(e).__name__}: {' '.join(str(e).split())}"
+            err = f"{type(e).__name__}: {one_line(e)}"
         wall, cpu = time.perf_counter() - t0, _cpu() - c0
         times[name] = (wall, cpu)
         before = times.get("hlasvm", (0.0, 0.0)) if shared_cache and name == "hlasvm_replay" else (0.0, 0.0)
