@@ -13,7 +13,7 @@ from .ida import _numbers
 
 def register(sub) -> None:
     d = subcommand(sub, "demands", help="peak drifts, floor accelerations and residual drifts of a clone in pelicun's "
-                                        "demand format",
+                                        "demand format (and OUT.basis.json: what they rest on)",
                    example="hlaid demands clone.json --motion measurement.npz --ensemble 20 -o demands.csv")
     d.add_argument("clone", help="clone file (hlaid-clone JSON)")
     src = d.add_mutually_exclusive_group(required=True)
@@ -86,6 +86,8 @@ def run_demands(args) -> int:
 
     inputs = [args.clone, args.motion, args.config, *(args.records or [])]
     check_output_file(args.out, force=args.force, inputs=inputs)
+    basis_file = Path(str(args.out) + ".basis.json")  # what the demands rest on, beside them
+    check_output_file(basis_file, force=args.force, inputs=inputs)
     if args.records and args.level is None:
         raise InputError("--records needs --level G (the stripe's intensity); for the recorded event use --motion")
     if args.motion and args.level is not None:
@@ -101,15 +103,29 @@ def run_demands(args) -> int:
     records = _own_motion(args.motion, options) if args.motion else args.records
     check_output_file(args.out, force=args.force, inputs=inputs)  # and the files they named (a columns YAML's table)
     d = clone_demands(clone, records, level=args.level, n_ensemble=n_ens, seed=args.seed or 0, ida_config=cfg)
+    from ..ida.basis import decision_basis
+    from ..loss.demands import median_peak_ratio
+    from .ida import print_basis
+
+    basis = decision_basis(clone, heights=cfg.heights_mm, heights_assumed=cfg.heights_mm is not None,
+                           demand_ratio=median_peak_ratio(d.pid[~d.collapsed]), drift_limit=cfg.drift_limit,
+                           events_note="demands run no IDA; hlaid ida CLONE gives it")
     d.write_csv(args.out, force=args.force)
+    from .._fileio import write_json
+
+    write_json(basis_file, {**basis.to_dict(), "demands": str(args.out), "flags_of_demands": list(d.flags)},
+               force=args.force)
     s = d.summary()
     _progress.info(f"wrote {args.out}: {d.n_realizations} realizations ({s['n_collapsed']} collapsed), "
                    f"median peak drift ratio {max(s['pid_median'] or [0]):.2%}, median residual "
                    f"{max(s['rid_median'] or [0]):.2%}, {d.im_label} {float(d.im.max()):.3g} g")
-    for flag in d.flags:
-        _progress.warn(f"flag: {flag}")
     for note in d.notes:
         _progress.debug(f"note: {note}")
+    for flag in d.flags:
+        if not flag.startswith("demands extrapolated"):  # said once, by the basis
+            _progress.warn(f"flag: {flag}")
+    print_basis(basis)
+    _progress.info(f"wrote {basis_file} (what the demands rest on)")
     return 0
 
 
@@ -132,6 +148,13 @@ def run_loss(args) -> int:
         s = loss_of_demand_file(src, cfg, args.out, collapse=collapse,
                                 drift_limit=0.10 if args.drift_limit is None else args.drift_limit, force=args.force)
         _report(s, args.out)
+        side = Path(str(src) + ".basis.json")
+        _progress.info("what the decision rests on: " + (f"the demands' own, in {side} (hlaid demands wrote it)"
+                                                         if side.is_file() else
+                                                         "not assessed (a demand CSV carries no clone: P(collapse) "
+                                                         "at the events the building survived, the drift survived "
+                                                         "and the heights are unknown here; run hlaid loss on a run "
+                                                         "folder to have them)"))
         return 0
     if collapse is not None:
         raise InputError("--collapse-median/--collapse-beta are for a demand CSV; a run folder has its own fragility")
@@ -143,6 +166,11 @@ def run_loss(args) -> int:
     folder = Path(args.out) if args.out else src / "loss"
     if block["recorded"]:
         _report(block["recorded"], folder)
+    if block.get("basis"):
+        from ..ida.basis import DecisionBasis
+        from .ida import print_basis
+
+        print_basis(DecisionBasis.from_dict(block["basis"]))
     if block["stripes"]:
         _progress.info(f"loss curve at {len(block['stripes'])} intensities: {folder / 'loss_curve.csv'}")
     return 0
@@ -154,5 +182,6 @@ def _report(s: dict, out) -> None:
                    f"({s['repair_cost_ratio_median']:.1%} of replacement), 90 % band {lo:,.0f} - {hi:,.0f}; "
                    f"repair time median {s['repair_time_parallel_median']:.0f} worker-days (parallel); "
                    + ("P(collapse) not assessed (no collapse fragility)" if s['p_collapse'] is None
-                      else f"P(collapse) {s['p_collapse']:.1%}") + f", P(irreparable) {s['p_irreparable']:.1%}")
+                      else f"P(collapse) {s['p_collapse']:.1%} (pelicun's sample of the collapse fragility)")
+                   + f", P(irreparable) {s['p_irreparable']:.1%}")
     _progress.info(f"wrote {out}/ (loss.json, pelicun's inputs: demands.csv, inventory.csv, config.json)")

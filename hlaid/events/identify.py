@@ -258,11 +258,31 @@ def prefix_history(fit: JointFit, meas: Sequence[Measurement], system: Structura
     return out
 
 
+CHOICE_WIDTH = 100
+"""A chosen setting's line is cut to this many characters (its whole evidence with ``--verbose``
+and in the clone's ``provenance["choices"]``)."""
+
+
 def announce(settings: Resolution) -> None:
-    """Say which settings were chosen from the data, one line each."""
-    if settings.choices:
-        _progress.info("[identify] settings chosen from the data (a config value overrides any):\n"
-                       + "\n".join(f"  {line}" for line in settings.lines()))
+    """Say which settings were chosen from the data: a short block, one line each (each its own
+    message, so no line break is escaped), the evidence in full at ``--verbose``."""
+    if not settings.choices:
+        return
+    full = _progress.verbosity() >= 2
+    _progress.info("[identify] settings chosen from the data (a config value overrides any"
+                   + ("" if full else "; --verbose gives the evidence") + "):")
+    for c in settings.choices:
+        _progress.info(f"  {c.line()}" if full else f"  {choice_line(c)}")
+
+
+def choice_line(c) -> str:
+    """``setting = value: the reason's first clause``, at most :data:`CHOICE_WIDTH` characters."""
+    from ..hla.auto import show_value
+
+    head = f"{c.setting} = {show_value(c.value)}"
+    reason = str(c.reason).split(":")[0].split(";")[0].split(" (")[0].strip()
+    line = f"{head}: {reason}" if reason else head
+    return line if len(line) <= CHOICE_WIDTH else line[: CHOICE_WIDTH - 3].rstrip() + "..."
 
 
 def with_choices(result: IdentificationResult, settings: Resolution) -> IdentificationResult:

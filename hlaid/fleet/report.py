@@ -243,6 +243,11 @@ def build_fleet_report(out: Path, rows: list[dict], meta: dict) -> Path:
             else f"<td>{e(_short(r.get(c)))}</td>"
             for c in cols) + "</tr>")
     parts.append("</table>")
+    rests = [(r, [f for f in str(r.get("basis_flags") or "").split(" | ") if f]) for r in ok]
+    if any(f for _, f in rests):
+        parts.append("<h2>What each figure rests on</h2><ul>" + "".join(
+            f"<li>{e(str(r.get('building')))}@{e(str(r.get('event')))}: " + "; ".join(e(x) for x in f) + "</li>"
+            for r, f in rests if f) + "</ul>")
     if failed:
         parts.append("<h2>Failed</h2><table><tr><th>building</th><th>event</th><th>reason</th></tr>")
         parts += [f"<tr><td class='l'>{e(r['building'])}</td><td class='l'>{e(r['event'])}</td>"

@@ -374,8 +374,10 @@ def survival_notes(clone: Clone, building: Building, cfg: IDAConfig, motions: Se
     if surv.nominal_survives and surv.nominal_peak is not None:
         h = np.asarray(building.height, dtype=float)  # prepare_building requires the heights
         drifts = ", ".join(f"{100 * d / hi:.2f}" for d, hi in zip(surv.nominal_peak, h))
-        out.append(f"survival: the clone survives {', '.join(surv.events)} (events it was identified from) with its "
-                   f"collapse law, largest drift {drifts} %")
+        law = (f"with its collapse law {building.collapse.name!r}" if building.collapse is not None else
+               f"with no collapse law (collapse only beyond the {cfg.drift_limit:.0%} drift limit)")
+        out.append(f"survival: the clone survives {', '.join(surv.events)} (events it was identified from) {law}; "
+                   f"its largest drift in that replay {drifts} % of the story heights")
     return out
 
 

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..clone import Clone
+from ..ida.basis import EXTRAPOLATION_MARGIN, P_SURVIVED_FLAG, DecisionBasis, decision_basis
 from ..motions import GroundMotion
 
 WIDE_INTERVAL_FLAG = 100.0
@@ -25,12 +26,6 @@ STIFFNESS_ERROR_FLAG = 0.20
 """A story whose stiffness-evolution error (the clone's elastic stiffness against HLA's along the
 record) exceeds this is flagged: the clone does not follow the building's degradation there."""
 
-EXTRAPOLATION_MARGIN = 1.10
-"""Demands are flagged extrapolated where the clones' median peak drift ratio exceeds the largest
-survived one by more than this factor: a clone's replay of the very record the building survived
-misses its peak drifts by about 10 % (docs/events.md), which is not extrapolation."""
-
-
 def event_risks(assessment: dict | None, ida, motions: Sequence[tuple[str, GroundMotion]]) -> list[dict]:
     """P(collapse) at each event's intensity: the ensemble assessment's (``assessment``: its
     :meth:`~hlaid.ida.Assessment.to_dict`) where there is one, else the identified clone's IDA
@@ -39,18 +34,9 @@ def event_risks(assessment: dict | None, ida, motions: Sequence[tuple[str, Groun
         return [{**e, "source": f"ensemble of {assessment['n_ensemble']} clones"} for e in assessment["events"]]
     if ida is None or not motions:
         return []
-    from ..ida.measures import intensity
+    from ..ida.basis import ida_events
 
-    try:
-        frag = ida.collapse_fragility("capacities", n_boot=0)
-    except ValueError:
-        frag = None
-    out = []
-    for name, m in motions:
-        im = float(intensity(m, ida.im, building=ida.building, period=ida.period)[0])
-        p = None if frag is None else float(frag.probability(im))
-        out.append({"name": name, "im": im, "p_collapse": p, "source": "IDA of the identified clone"})
-    return out
+    return [e.to_dict() for e in ida_events(None, ida, motions)]
 
 
 def parameter_flags(clone: Clone) -> list[str]:
@@ -112,35 +98,32 @@ def identification_flags(clone: Clone, stiffness_error: Sequence[float] | None =
     return out
 
 
-P_SURVIVED_FLAG = 0.5
-"""P(collapse) at the intensity of an event the building survived from which on the run says the
-fragility contradicts the record more likely than not."""
+def run_basis(clone: Clone, *, assessment: dict | None = None, heights_given: Sequence[float] | None = None,
+              events: Sequence[dict] = (), drift_limit: float | None = None) -> DecisionBasis:
+    """What a run's decision rests on (:func:`hlaid.ida.basis.decision_basis`): P(collapse) at each
+    recorded event (``events``, :func:`event_risks`), the story heights the config gave (None: the
+    measurement's own), the ensemble's median peak drift ratio under the record (``assessment``)
+    against the drift survived, and the drift limit."""
+    own = None
+    if assessment and assessment.get("own_peak_drift") is not None:
+        own = float(np.median(np.asarray(assessment["own_peak_drift"], dtype=float)))
+    return decision_basis(clone, events=events, heights=heights_given, heights_assumed=heights_given is not None,
+                          demand_ratio=own, drift_limit=drift_limit)
 
 
 def run_flags(clone: Clone, *, stiffness_error: Sequence[float] | None = None, survival: dict | None = None,
               assessment: dict | None = None, heights_given: Sequence[float] | None = None,
-              loss: dict | None = None, events: Sequence[dict] = (), drift_limit: float | None = None) -> list[str]:
+              loss: dict | None = None, events: Sequence[dict] = (), drift_limit: float | None = None,
+              basis: DecisionBasis | None = None) -> list[str]:
     """The flags of a run (see the module doc): ``stiffness_error`` per story (None: the clone's
-    replay diagnostics), the ``survival``
-    block, the ``assessment`` (its members' own peak drift against what was observed), the story
-    heights the config gave (None: the measurement's own), the ``loss`` block (its demands'
-    flags) and P(collapse) at each recorded event (``events``, :func:`event_risks`; at or above
-    :data:`P_SURVIVED_FLAG` the drifts survived and the IDA's ``drift_limit`` are named)."""
+    replay diagnostics), the flags of what the decision rests on (``basis``; None: :func:`run_basis`
+    of ``assessment``, ``heights_given``, ``events`` and ``drift_limit``), the ``survival`` block and
+    the ``loss`` block (its demands' flags)."""
     out = identification_flags(clone, stiffness_error)
-    seen = clone.survived_drift()
-    h = clone.building.height if heights_given is None else np.asarray(heights_given, dtype=float)
-    for e in events:
-        if e.get("p_collapse") is not None and e["p_collapse"] >= P_SURVIVED_FLAG:
-            what = ""
-            if seen is not None and h is not None:
-                ratio = np.asarray(seen) / np.asarray(h, dtype=float)
-                what = (f": the building reached {float(ratio.max()):.1%} drift ("
-                        + ", ".join(f"{d:.0f}" for d in seen) + " mm at heights "
-                        + ", ".join(f"{v:g}" for v in np.asarray(h, dtype=float)) + " mm)"
-                        + (f", the collapse criterion is {drift_limit:.0%}" if drift_limit else ""))
-            out.append(f"P(collapse) {e['p_collapse']:.0%} at the intensity of {e['name']} ({e.get('im', 0):.3g} g), "
-                       f"which the building survived{what}; check the story heights, the collapse law and the drift "
-                       "limit before acting on the fragility")
+    if basis is None:
+        basis = run_basis(clone, assessment=assessment, heights_given=heights_given, events=events,
+                          drift_limit=drift_limit)
+    out += basis.flags()
     if survival and survival.get("nominal_survives") is False:
         out.append(f"the clone collapses under {survival.get('nominal_collapsed_in')}, an event it was identified "
                    "from and the building survived: its collapse risk is overstated (check the story heights and "
@@ -150,20 +133,11 @@ def run_flags(clone: Clone, *, stiffness_error: Sequence[float] | None = None, s
                    "events and were rejected (the posterior conditioned on survival)")
     if survival and survival.get("unchecked"):
         out.append("survival not checked for: " + "; ".join(survival["unchecked"]))
-    if assessment and seen is not None and h is not None and assessment.get("own_peak_drift") is not None:
-        own = float(np.median(np.asarray(assessment["own_peak_drift"], dtype=float)))
-        worst = float(np.max(np.asarray(seen) / np.asarray(h, dtype=float)))
-        if own > EXTRAPOLATION_MARGIN * worst:
-            out.append(f"demands extrapolated: the clones' median peak drift ratio under the record {own:.2%} lies "
-                       f"beyond the largest the building survived (measured, or the clone's replay of its events), "
-                       f"{worst:.2%}")
     for name, d in ((loss or {}).get("demands") or {}).items():
-        out += [f"losses ({name}): {f}" for f in d.get("flags", ())]
-    if heights_given is not None:
-        out.append("story heights " + ", ".join(f"{v:g}" for v in heights_given) + " mm given in the config, not "
-                   "measured: drift ratios, P-Delta and the collapse law rest on them")
+        out += [f"losses ({name}): {f}" for f in d.get("flags", ())
+                if not (name == "recorded" and f.startswith("demands extrapolated"))]  # the basis says it
     return out
 
 
 __all__ = ["EXTRAPOLATION_MARGIN", "P_SURVIVED_FLAG", "STIFFNESS_ERROR_FLAG", "WIDE_INTERVAL_FLAG", "event_risks",
-           "identification_flags", "parameter_flags", "run_flags"]
+           "identification_flags", "parameter_flags", "run_basis", "run_flags"]

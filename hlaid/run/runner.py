@@ -35,7 +35,7 @@ from ..model import Building
 from ..plots import plot_time_histories, save_figure
 from ..synthetic import measurement_from_config
 from .config import MeasurementSource, RunConfig, input_paths, load_run_config
-from .decision import event_risks, run_flags
+from .decision import event_risks, run_basis, run_flags
 from .summary import (
     Assessment,
     ConfigRecord,
@@ -136,11 +136,11 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
         timings["identify"] = time.perf_counter() - t
         table, paper = _identification_outputs(meas, res, tmp, step, plots)
         risk = _risk(res.clone, meas, cfg, tmp, base_dir, timings, step, plots)
-        flags = run_flags(res.clone, stiffness_error=res.replay.stiffness_error.tolist(),
-                          survival=risk.pop("survival_dict"), assessment=risk.pop("assessment_dict"),
-                          heights_given=_heights_given(cfg), loss=risk.pop("loss_dict"),
+        basis = run_basis(res.clone, assessment=risk.pop("assessment_dict"), heights_given=_heights_given(cfg),
                           events=[e.to_dict() for e in risk["events"]],
                           drift_limit=cfg.ida.drift_limit if cfg.ida is not None else None)
+        flags = run_flags(res.clone, stiffness_error=res.replay.stiffness_error.tolist(),
+                          survival=risk.pop("survival_dict"), loss=risk.pop("loss_dict"), basis=basis)
         for flag in flags:
             _progress.warn(f"flag: {flag}")
         timings["total"] = time.perf_counter() - t_all
@@ -153,7 +153,8 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
                           r_true=None if rc.r_true is None else tuple(rc.r_true.tolist()),
                           stiffness_error=tuple(rc.stiffness_error.tolist())),
             outer_iterations=res.iterations, identify_timings=dict(res.timings), timings=timings,
-            noise_rms=meas.noise_rms, flags=tuple(flags), figures=plots, **risk)
+            noise_rms=meas.noise_rms, flags=tuple(flags), figures=plots,
+            basis=basis.to_dict() if cfg.ida is not None else None, **risk)
         write_json(tmp / "summary.json", summary.to_dict())
         build_report(tmp)
     _progress.info(f"wrote {out}/ (report.html, clone.json, hla/, ida/, figures/, tensorboard/) in "
