@@ -79,7 +79,7 @@ def run_update(args) -> int:
 
     res = update_clone(clone, meas, cfg, widen=args.widen)
     res.clone.save(out, force=args.force)
-    print_summary(res.clone, res.timings.get("total"))
+    print_summary(res.clone, res.timings.get("total"), before=clone)
     _progress.info(f"wrote {out}")
     return 0
 

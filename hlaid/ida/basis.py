@@ -188,7 +188,8 @@ class DecisionBasis:
         if self.survived_mm is not None:
             s = ", ".join(f"{v:.1f}" for v in self.survived_mm)
             r = self.survived_ratio
-            out.append(f"  largest drift survived: {s} mm" + ("" if r is None else f" (up to {r:.2%} of the story height)")
+            out.append(f"  largest drift survived: {s} mm"
+                       + ("" if r is None else f" (up to {r:.2%} of the story height)")
                        + (f"; demand: median {self.demand_ratio:.2%}, "
                           + ("extrapolated" if self.extrapolated else f"within {EXTRAPOLATION_MARGIN:g} x")
                           if self.demand_ratio is not None and r is not None else "")

@@ -54,7 +54,8 @@ def parameter_flags(clone: Clone) -> list[str]:
     def label(r: dict) -> str:
         return f"{r['name']}[{r['story']}]" if r.get("story") else str(r["name"])
     at = [label(r) for r in rows if isinstance(r, dict) and r.get("at_limit")]
-    prior = [label(r) for r in rows if isinstance(r, dict) and r.get("source") not in (None, "data")]
+    prior = [label(r) for r in rows if isinstance(r, dict) and r.get("source") not in (None, "data", "earlier events")]
+    carried = [label(r) for r in rows if isinstance(r, dict) and r.get("source") == "earlier events"]
     out = []
     u = clone.uncertainty
     if u is not None:
@@ -73,8 +74,63 @@ def parameter_flags(clone: Clone) -> list[str]:
     if at:
         out.append(f"parameters at a limit of the model (the search could only approach them): {', '.join(at)}")
     if prior:
-        out.append("parameters the data hardly informed (their value and interval are the prior's): "
-                   + ", ".join(prior))
+        out.append("parameters the data hardly informed (their value and interval are the prior's; more events or a "
+                   "record that drives the stories further would inform them): " + ", ".join(prior))
+    if carried:
+        out.append("parameters the last event hardly informed (their interval is carried from the earlier events; "
+                   "their value may still have moved): " + ", ".join(carried))
+    return out
+
+
+YIELD_DRIFT_MIN = 0.001
+"""A story whose yield drift ``dy`` is below this fraction of its height is flagged implausible: frames
+yield at drift ratios of about 0.5-1 % (a building that stays linear gets a "yield" in its noise)."""
+
+PRIOR_SIGMAS = 2.0
+"""A story's ``alpha`` or ``p`` more than this many of the structural system's prior standard
+deviations (in prior units, :mod:`hlaid.events.priors`) from its median is flagged implausible."""
+
+
+def plausibility_flags(clone: Clone) -> list[str]:
+    """Story parameters outside what the clone's structural system (the ``generic`` one when none
+    is named) makes plausible, each with its evidence and what to do: a yield drift under
+    :data:`YIELD_DRIFT_MIN` of the story height, ``alpha`` or ``p`` beyond :data:`PRIOR_SIGMAS` of the
+    system's prior."""
+    from ..events.priors import ALPHA_MAX, PRIORS
+
+    b = clone.building
+    from ..systems import get_system
+
+    system = clone.system if clone.system in PRIORS else "generic"
+    prior = PRIORS[system]
+    title = get_system(system).title
+    out = []
+    if b.height is not None:
+        h = np.asarray(b.height, dtype=float)
+        low = [i for i in range(b.n_stories) if b.dy[i] < YIELD_DRIFT_MIN * h[i]]
+        if low:
+            out.append("implausible yield drift: " + ", ".join(
+                f"story {i + 1} dy {b.dy[i]:.3g} mm = {100 * b.dy[i] / h[i]:.3g} % of its {h[i]:g} mm height"
+                for i in low) + f" (frames yield at about 0.5-1 %; under {100 * YIELD_DRIFT_MIN:g} % the record "
+                "hardly left the linear range there): read that story as linear; its hysteresis parameters are "
+                "noise, not the building's")
+
+    def logit(a: float) -> float:
+        x = min(max(a / ALPHA_MAX, 1e-9), 1 - 1e-9)
+        return float(np.log(x / (1 - x)))
+    far = []
+    for i in range(b.n_stories):
+        za = (logit(float(b.alpha[i])) - logit(prior.alpha.median)) / prior.alpha.beta
+        zp = (np.log(max(float(b.p[i]) - 1.0, 1e-9)) - np.log(prior.p.median - 1.0)) / prior.p.beta
+        if abs(za) > PRIOR_SIGMAS:
+            far.append(f"story {i + 1} alpha {b.alpha[i]:.3g} ({za:+.1f} sd)")
+        if abs(zp) > PRIOR_SIGMAS:
+            far.append(f"story {i + 1} p {b.p[i]:.3g} ({zp:+.1f} sd)")
+    if far:
+        out.append(f"implausible for a {title} (its prior: alpha median {prior.alpha.median:g}, p median "
+                   f"{prior.p.median:g}; flagged beyond {PRIOR_SIGMAS:g} standard deviations): " + ", ".join(far)
+                   + ("; name the structural system (--system) so its prior bounds them" if not clone.system else
+                      "; check the records' band and the story heights, or identify from more events"))
     return out
 
 
@@ -92,6 +148,7 @@ def identification_flags(clone: Clone, stiffness_error: Sequence[float] | None =
         out.append(f"stiffness-evolution error above {STIFFNESS_ERROR_FLAG:.0%} ({', '.join(bad)}): the clone does not "
                    "follow the building's loss of stiffness there")
     out += parameter_flags(clone)
+    out += plausibility_flags(clone)
     if clone.mass_normalised:
         out.append("floor masses unknown: equal (or the given ratios) assumed, the clone is mass-normalised "
                    "(stiffness per unit mass; losses take floor areas from the config)")
@@ -140,4 +197,5 @@ def run_flags(clone: Clone, *, stiffness_error: Sequence[float] | None = None, s
 
 
 __all__ = ["EXTRAPOLATION_MARGIN", "P_SURVIVED_FLAG", "STIFFNESS_ERROR_FLAG", "WIDE_INTERVAL_FLAG", "event_risks",
-           "identification_flags", "parameter_flags", "run_basis", "run_flags"]
+           "identification_flags", "parameter_flags", "plausibility_flags", "run_basis", "run_flags",
+           "YIELD_DRIFT_MIN", "PRIOR_SIGMAS"]

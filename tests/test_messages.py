@@ -1,0 +1,88 @@
+"""What the commands say: one line per message (no escaped line break), short blocks, every
+alarming line with what to do, parameters labelled by where they come from, implausible clones
+flagged with their evidence."""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import types
+
+import numpy as np
+import pytest
+
+from hlaid import _progress
+from hlaid.clone import Clone
+from hlaid.hla.auto import Choice
+from hlaid.run.decision import identification_flags, parameter_flags, plausibility_flags
+
+
+@pytest.fixture()
+def said(caplog):
+    """The hlaid messages logged (progress and details), one string each."""
+    caplog.set_level(logging.DEBUG, logger="hlaid")
+    return lambda: [r.getMessage() for r in caplog.records if r.name.startswith("hlaid")]
+
+
+def test_the_chosen_settings_are_a_short_block_without_escaped_breaks(said, monkeypatch):
+    from hlaid.events import identify as ei
+
+    long = "first-mode band, 0.25 x f1 to sqrt(f1 f2): not a shear building above its first mode (" + "x" * 400 + ")"
+    res = types.SimpleNamespace(choices=(Choice("hla.preprocess.band_hz", [0.34, 2.62], long),
+                                         Choice("refine.method", "least_squares", "HLA's first-mode band: ...")))
+    monkeypatch.setattr(_progress, "verbosity", lambda: 1)
+    ei.announce(res)
+    lines = said()
+    assert len(lines) == 3 and all("\n" not in line and "\\x0a" not in line for line in lines)
+    assert lines[1] == "  hla.preprocess.band_hz = [0.34, 2.62]: first-mode band, 0.25 x f1 to sqrt(f1 f2)"
+    assert all(len(line) <= ei.CHOICE_WIDTH + 2 for line in lines)
+    assert "--verbose gives the evidence" in lines[0]
+
+
+def test_a_replay_that_misses_its_noise_says_what_to_do(said, table1):
+    from hlaid.identify.refiners import LeastSquares
+
+    class Fit(LeastSquares):
+        def _replay(self, building, problem, **kw):
+            return types.SimpleNamespace(cost_final=1.0, nfev=3, building=building)
+
+    problem = types.SimpleNamespace(noise_ratio=lambda rr: 229.0, neutral_start=lambda: table1, stories=None)
+    Fit(restart_ratio=1.0)._fit(table1, problem, {})
+    line = next(m for m in said() if "229.0x its noise level" in m)
+    assert "Judge the clone by its replay R" in line and "refine.band_hz" in line
+
+
+def _with_rows(clone: Clone, source: str) -> Clone:
+    rows = [{"name": n, "story": i + 1, "value": float(getattr(clone.building, n)[i]), "source": source,
+             "informed": 0.1, "at_limit": False} for n in ("alpha", "p", "dy", "delta_eta") for i in range(3)]
+    return dataclasses.replace(clone, diagnostics={"parameters": rows})
+
+
+def test_after_an_update_a_parameter_that_moved_is_not_labelled_carried(said, table1):
+    from hlaid.cli.identify import print_summary
+
+    p = table1.p.copy()
+    before = _with_rows(Clone(building=table1.replace(p=np.array([5.57, p[1], p[2]]))), "earlier events")
+    after = dataclasses.replace(before, building=table1.replace(p=np.array([2.10, p[1], p[2]])))
+    print_summary(after, before=before)
+    story1 = next(m for m in said() if m.lstrip().startswith("1 "))
+    assert "moved by this event: p 5.57 -> 2.1" in story1
+    assert "little from this one: alpha, dy, delta_eta)" in story1  # p is not among them
+    flags = parameter_flags(after)
+    assert not any("the prior's" in f for f in flags)
+    assert any("the last event hardly informed" in f for f in flags)
+
+
+def test_implausible_parameters_are_flagged_with_the_evidence(table1):
+    c = Clone(building=table1.replace(height=np.full(3, 3000.0)))
+    assert plausibility_flags(c) == []  # the paper's building: alpha 0.12-0.23, p 1.5-2.5
+    hotel = c.building.replace(alpha=np.array([0.12, 0.779, 0.2]), dy=np.array([20.0, 0.215, 15.0]))
+    flags = plausibility_flags(dataclasses.replace(c, building=hotel))
+    assert any("story 2 dy 0.215 mm = 0.00717 % of its 3000 mm height" in f and "read that story as linear" in f
+               for f in flags)
+    assert any("story 2 alpha 0.779" in f and "name the structural system (--system)" in f for f in flags)
+    steel = dataclasses.replace(c, building=c.building.replace(p=np.array([5.57, 2.0, 2.0])),
+                                system="steel-moment-frame")
+    f = plausibility_flags(steel)
+    assert len(f) == 1 and "story 1 p 5.57 (+2.2 sd)" in f[0] and "steel moment-resisting frame" in f[0]
+    assert f[0] in identification_flags(steel)  # printed by identify and in the run's summary and report
