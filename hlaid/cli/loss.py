@@ -56,6 +56,9 @@ def register(sub) -> None:
     p.add_argument("--irreparable-beta", type=float, help="its dispersion (default 0.3)")
     p.add_argument("--collapse-median", type=float, metavar="G", help="collapse fragility median [g] (demand CSV)")
     p.add_argument("--collapse-beta", type=float, help="collapse fragility dispersion (demand CSV)")
+    p.add_argument("--collapse-from", metavar="IDA_DIR",
+                   help="the collapse fragility of an hlaid ida output folder (the clone's own; demand CSV), instead "
+                        "of --collapse-median/--collapse-beta")
     p.add_argument("--drift-limit", type=float,
                    help="peak drift ratio above which a realization of a demand CSV is a collapse (default 0.10)")
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
@@ -141,6 +144,12 @@ def run_loss(args) -> int:
     if (args.collapse_median is None) != (args.collapse_beta is None):
         raise InputError("give both --collapse-median and --collapse-beta, or neither")
     collapse = None if args.collapse_median is None else (args.collapse_median, args.collapse_beta)
+    if args.collapse_from is not None:
+        if collapse is not None:
+            raise InputError("give --collapse-from or --collapse-median/--collapse-beta, not both")
+        if not src.is_file():
+            raise InputError("--collapse-from is for a demand CSV; a run folder has its own fragility")
+        collapse = ida_fragility(args.collapse_from, src)
     if src.is_file():
         if not args.out:
             raise InputError("a demand CSV needs an output folder: -o DIR")
@@ -174,6 +183,32 @@ def run_loss(args) -> int:
     if block["stripes"]:
         _progress.info(f"loss curve at {len(block['stripes'])} intensities: {folder / 'loss_curve.csv'}")
     return 0
+
+
+def ida_fragility(folder: str, demands: Path) -> tuple[float, float]:
+    """``(median [g], beta)`` of the collapse fragility in an ``hlaid ida`` output folder (its fit to the
+    records' collapse capacities), checked to be in the intensity of the demand file ``demands``."""
+    from .._inputs import read_json
+    from ..loss.demands import read_demand_csv
+
+    path = Path(folder) / "summary.json"
+    if not Path(folder).is_dir() or not path.is_file():
+        raise InputError("--collapse-from: expected an hlaid ida output folder (with summary.json)", source=folder)
+    s = read_json(path)
+    try:
+        f = s["collapse_fragility"]["capacities"]
+        median, beta = float(f["median_g"]), float(f["beta"])
+        im, period = s["intensity_measure"]["name"], s["intensity_measure"].get("period_s")
+    except (KeyError, TypeError, ValueError):
+        raise InputError("--collapse-from: no fitted collapse fragility in summary.json (collapse_fragility."
+                         "capacities.median_g, beta); raise the IDA's levels", source=str(path)) from None
+    df = read_demand_csv(demands)
+    want = "PGA" if im == "pga" else f"SA_{period:.3g}" if period else None
+    if df.im_type is None or want is None or df.im_type != want:
+        raise InputError(f"--collapse-from: the IDA's intensity ({want or im}) is not the demand file's "
+                         f"({df.im_type or 'none'}); run hlaid ida and hlaid demands on the same clone with the same "
+                         "settings", source=str(path))
+    return median, beta
 
 
 def _report(s: dict, out) -> None:
