@@ -18,6 +18,7 @@ prior, its state the start, the new event the data (sequential updating).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import time
@@ -89,12 +90,14 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     tb = TBLogger(tensorboard)
     timings: dict[str, float] = {}
     t_all = time.perf_counter()
-    events = [analyse(m, cfg) for m in meas]
+    events = [analyse(m, cfg) for m in _progress.progress(meas, desc="[identify] hysteresis loop analysis",
+                                                          unit="record(s)")]
     timings["hla"] = time.perf_counter() - t_all
     best = most_informative(events)
     single = None
     if best is not None:
-        single = identify_event(events[best], cfg, cache, tb, timings)
+        with _progress.stage(f"[identify] the paper's method on {events[best].measurement.name or 'the record'}"):
+            single = identify_event(events[best], cfg, cache, tb, timings)
         m = events[best].measurement
         state = state_after(single.clone.building, [m], cfg.refine.band_hz, [m.name or "event 1"])
         record = event_record(m, hla=events[best].hla)
@@ -111,16 +114,19 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     default = default_laws(system, len(k0_ref))
     notes: list[dict] = []
     t = time.perf_counter()
-    fit, start, settings = _main_fit(starts, meas, system, settings, names=names, k0_ref=k0_ref, laws=default)
+    with _progress.stage(f"[identify] joint fit of {len(meas)} record(s) from {len(starts)} start(s)"):
+        fit, start, settings = _main_fit(starts, meas, system, settings, names=names, k0_ref=k0_ref, laws=default)
     cfg = settings.config
     timings["joint"] = time.perf_counter() - t
     t = time.perf_counter()
-    fit, laws = select_laws(fit, meas, system, cfg, names=names, k0_ref=k0_ref,
-                            isolation=isolation_start(events, meas[0], system, fit.building), notes=notes)
+    with _progress.stage("[identify] fits under the candidate story laws"):
+        fit, laws = select_laws(fit, meas, system, cfg, names=names, k0_ref=k0_ref,
+                                isolation=isolation_start(events, meas[0], system, fit.building), notes=notes)
     timings["laws"] = time.perf_counter() - t
     t = time.perf_counter()
-    history = prefix_history(fit, meas, system, cfg, names=names, k0_ref=k0_ref, notes=notes,
-                             mass_normalised=events[-1].hla.mass_normalised)
+    with _progress.stage("[identify] prefix fits of the start rule") if len(meas) > 1 else contextlib.nullcontext():
+        history = prefix_history(fit, meas, system, cfg, names=names, k0_ref=k0_ref, notes=notes,
+                                 mass_normalised=events[-1].hla.mass_normalised)
     timings["prequential"] = time.perf_counter() - t
     result = result_of_joint(events, meas, fit, cfg, system=system, start=start, single=single, timings=timings)
     timings["total"] = time.perf_counter() - t_all
@@ -280,7 +286,11 @@ def choice_line(c) -> str:
     from ..hla.auto import show_value
 
     head = f"{c.setting} = {show_value(c.value)}"
-    reason = str(c.reason).split(":")[0].split(";")[0].split(" (")[0].strip()
+    text = str(c.reason)
+    reason = text.split(":")[0].split(";")[0].split(" (")[0].strip()
+    advice = text.rsplit("; ", 1)[1].strip() if "; " in text else ""
+    if advice and len(advice) <= 40 and "(" not in advice and ":" not in advice:  # what to do, kept
+        reason += f"; {advice}"
     line = f"{head}: {reason}" if reason else head
     return line if len(line) <= CHOICE_WIDTH else line[: CHOICE_WIDTH - 3].rstrip() + "..."
 
