@@ -107,14 +107,25 @@ def _basis_lines(err: str) -> list[str]:
     return lines[i:i + 5]
 
 
-def test_ida_prints_and_stores_p_collapse_at_the_recorded_event(event, tmp_path, capsys):
-    clone, meas, path = event
-    out = tmp_path / "ida"
-    rc = main(["ida", str(path), "--records", *RECS, "--levels", "1:6:1", "--drift-limit", "0.03",
-               "--no-refine", "--bootstrap", "0",
-               "--no-plots", "-o", str(out)])
+@pytest.fixture(scope="module")
+def ida_run(event, tmp_path_factory):
+    """``hlaid ida`` of the event's clone (3 % drift limit, 2 built-in records): its folder and stderr."""
+    import contextlib
+    import io
+
+    _, _, path = event
+    out = tmp_path_factory.mktemp("ida") / "ida"
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        rc = main(["ida", str(path), "--records", *RECS, "--levels", "1:6:1", "--drift-limit", "0.03",
+                   "--no-refine", "--bootstrap", "0", "--no-plots", "-o", str(out)])
     assert rc == 0
-    err = capsys.readouterr().err
+    return out, err.getvalue()
+
+
+def test_ida_prints_and_stores_p_collapse_at_the_recorded_event(event, ida_run):
+    clone, meas, _ = event
+    out, err = ida_run
     block = _basis_lines(err)
     assert f"P(collapse) at the events the building survived: {meas.name} at" in block[1]
     s = json.loads((out / "summary.json").read_text())["basis"]
@@ -142,3 +153,38 @@ def test_demands_store_what_they_rest_on_beside_the_csv(event, tmp_path, capsys)
     (tmp_path / "f.csv.basis.json").write_text("mine")
     assert main(["demands", str(path), "--motion", str(meas.source), "-o", str(tmp_path / "f.csv")]) == 2
     assert (tmp_path / "f.csv.basis.json").read_text() == "mine" and not (tmp_path / "f.csv").exists()
+
+
+def test_loss_of_a_run_says_when_its_figure_contradicts_the_survival(event):
+    """The run's P(collapse) at its events (here 57 % at the recorded one) travels into the losses'
+    basis, flagged as in the run."""
+    from hlaid.loss.assess import loss_basis
+
+    clone, meas, _ = event
+    b = loss_basis(clone, None, (1.0, 0.4), None, [{"name": meas.name, "im": 1.2, "p_collapse": 0.574,
+                                                    "source": "IDA of the identified clone"}], False, None)
+    assert any(f.startswith(f"P(collapse) 57% at {meas.name} (1.2 g), an event the building survived")
+               for f in b.flags())
+    assert b.to_dict()["survival_contradicted"] == [meas.name]
+
+
+def test_loss_takes_the_clones_own_collapse_fragility(event, ida_run, tmp_path, capsys):
+    clone, meas, path = event
+    ida, _ = ida_run
+    csv = tmp_path / "d.csv"
+    assert main(["demands", str(path), "--motion", str(meas.source), "-o", str(csv)]) == 0
+    f = json.loads((ida / "summary.json").read_text())["collapse_fragility"]["capacities"]
+    from hlaid.cli.loss import ida_fragility
+
+    assert ida_fragility(str(ida), csv) == (pytest.approx(f["median_g"]), pytest.approx(f["beta"]))
+    other = tmp_path / "other.csv"
+    text = csv.read_text()
+    sa = next(c for c in text.splitlines()[0].split(",") if "-SA_" in c)
+    other.write_text(text.replace(sa, "1-SA_9.99-0-1"))
+    capsys.readouterr()
+    assert main(["loss", str(other), "-o", str(tmp_path / "l"), "--floor-area", "100", "--collapse-from", str(ida)]) == 2
+    err = capsys.readouterr().err
+    assert "is not the demand file's (SA_9.99)" in err and not (tmp_path / "l").exists()
+    assert main(["loss", str(csv), "-o", str(tmp_path / "l"), "--floor-area", "100", "--collapse-from", str(ida),
+                 "--collapse-median", "1.2", "--collapse-beta", "0.4"]) == 2
+    assert "not both" in capsys.readouterr().err
