@@ -182,7 +182,8 @@ def test_loss_takes_the_clones_own_collapse_fragility(event, ida_run, tmp_path, 
     sa = next(c for c in text.splitlines()[0].split(",") if "-SA_" in c)
     other.write_text(text.replace(sa, "1-SA_9.99-0-1"))
     capsys.readouterr()
-    assert main(["loss", str(other), "-o", str(tmp_path / "l"), "--floor-area", "100", "--collapse-from", str(ida)]) == 2
+    out = str(tmp_path / "l")
+    assert main(["loss", str(other), "-o", out, "--floor-area", "100", "--collapse-from", str(ida)]) == 2
     err = capsys.readouterr().err
     assert "is not the demand file's (SA_9.99)" in err and not (tmp_path / "l").exists()
     assert main(["loss", str(csv), "-o", str(tmp_path / "l"), "--floor-area", "100", "--collapse-from", str(ida),
