@@ -121,7 +121,9 @@ def run_demands(args) -> int:
     s = d.summary()
     _progress.info(f"wrote {args.out}: {d.n_realizations} realizations ({s['n_collapsed']} collapsed), "
                    f"median peak drift ratio {max(s['pid_median'] or [0]):.2%}, median residual "
-                   f"{max(s['rid_median'] or [0]):.2%}, {d.im_label} {float(d.im.max()):.3g} g")
+                   f"{max(s['rid_median'] or [0]):.2%}, {d.im_label} {float(d.im.max()):.3g} g"
+                   + (" (the clones' full replay, unfiltered; hlaid predict compares drifts in a band, so its "
+                      "errors differ)" if args.motion else ""))
     for note in d.notes:
         _progress.debug(f"note: {note}")
     for flag in d.flags:
