@@ -178,10 +178,16 @@ def run_loss(args) -> int:
     if block["recorded"]:
         _report(block["recorded"], folder)
     if block.get("basis"):
-        from ..ida.basis import DecisionBasis
+        from ..ida.basis import P_SURVIVED_FLAG, DecisionBasis
         from .ida import print_basis
 
-        print_basis(DecisionBasis.from_dict(block["basis"]))
+        basis = DecisionBasis.from_dict(block["basis"])
+        print_basis(basis)
+        p = (block["recorded"] or {}).get("p_collapse")
+        if p is not None and p >= P_SURVIVED_FLAG and not basis.contradicted:
+            _progress.warn(f"flag: P(collapse) {p:.0%} in the losses at the recorded event, which the building "
+                           "survived: the figure contradicts the record; check the story heights, the collapse law "
+                           "and the drift limit before acting on it")
     if block["stripes"]:
         _progress.info(f"loss curve at {len(block['stripes'])} intensities: {folder / 'loss_curve.csv'}")
     return 0
