@@ -240,9 +240,9 @@ def run_ida(model: Clone | Building | str | os.PathLike,
                                        gravity_load=cfg.gravity_load_n(), collapse=cfg.collapse)
     if isinstance(model, Clone) and model.events:
         notes.extend(survival_notes(model, building, cfg, event_motions))
-    for note in notes:  # what the evidence changed or found: said, not only noted
+    for note in notes:  # what the evidence changed or found: said (a detail inside a run's step), not only noted
         if note.startswith(("collapse law ", "survival")):
-            _progress.info(note)
+            _progress.step(note)
     start = start_state(model, building, cfg.start, notes)
     motions = as_motions(records, units=cfg.units)
     measure, T1, im0 = record_intensities(motions, cfg.im, building, cfg.period)
