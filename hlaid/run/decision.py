@@ -72,7 +72,8 @@ def parameter_flags(clone: Clone) -> list[str]:
                        + ("; the structural system's prior is that wide" if clone.system else
                           "; name the structural system to bound them by its prior") + "): " + ", ".join(wide))
     if at:
-        out.append(f"parameters at a limit of the model (the search could only approach them): {', '.join(at)}")
+        out.append(f"parameters at a limit of the model (the search could only approach them; the records hardly "
+                   f"bound them: add events or name the structural system): {', '.join(at)}")
     if prior:
         out.append("parameters the data hardly informed (their value and interval are the prior's; more events or a "
                    "record that drives the stories further would inform them): " + ", ".join(prior))
@@ -146,12 +147,14 @@ def identification_flags(clone: Clone, stiffness_error: Sequence[float] | None =
     out = []
     if bad:
         out.append(f"stiffness-evolution error above {STIFFNESS_ERROR_FLAG:.0%} ({', '.join(bad)}): the clone does not "
-                   "follow the building's loss of stiffness there")
+                   "follow the building's loss of stiffness there; read that story's degradation from HLA's figure, "
+                   "and identify from more events or with the structural system (--system)")
     out += parameter_flags(clone)
     out += plausibility_flags(clone)
     if clone.mass_normalised:
         out.append("floor masses unknown: equal (or the given ratios) assumed, the clone is mass-normalised "
-                   "(stiffness per unit mass; losses take floor areas from the config)")
+                   "(stiffness per unit mass; losses take floor areas from the config); give the floor masses where "
+                   "known (measurement.mass_t in a run config)")
     return out
 
 
@@ -187,9 +190,11 @@ def run_flags(clone: Clone, *, stiffness_error: Sequence[float] | None = None, s
                    "the collapse law)")
     if survival and survival.get("n_rejected"):
         out.append(f"{survival['n_rejected']} of {survival['n_drawn']} ensemble draws collapsed under the clone's own "
-                   "events and were rejected (the posterior conditioned on survival)")
+                   "events and were rejected (the posterior conditioned on survival); many rejected means the clone "
+                   "and its collapse law sit near what the building survived: check the story heights and the law")
     if survival and survival.get("unchecked"):
-        out.append("survival not checked for: " + "; ".join(survival["unchecked"]))
+        out.append("survival not checked for: " + "; ".join(survival["unchecked"])
+                   + " (keep the events' files where the clone names them, unchanged)")
     for name, d in ((loss or {}).get("demands") or {}).items():
         out += [f"losses ({name}): {f}" for f in d.get("flags", ())
                 if not (name == "recorded" and f.startswith("demands extrapolated"))]  # the basis says it
