@@ -86,3 +86,37 @@ def test_implausible_parameters_are_flagged_with_the_evidence(table1):
     f = plausibility_flags(steel)
     assert len(f) == 1 and "story 1 p 5.57 (+2.2 sd)" in f[0] and "steel moment-resisting frame" in f[0]
     assert f[0] in identification_flags(steel)  # printed by identify and in the run's summary and report
+
+
+def test_the_ensembles_p_collapse_is_said_one_way():
+    """The demo's P(collapse) at the record: the ensemble's mean with its 5th-95th percentile band;
+    the indicator's figure named as the 90th percentile, not a second P(collapse)."""
+    from hlaid.cli.run import p_collapse_text
+    from hlaid.ida.assessment import ReoccupancyThresholds, _indicator
+
+    a = types.SimpleNamespace(p_collapse=0.044, p_collapse_band=(0.003, 0.104), ci=0.9)
+    assert p_collapse_text(a) == ("P(collapse) 4.4% (mean of the ensemble, 90% band 0.3%-10.4% (its 5th to 95th "
+                                  "percentile over members and record resamples))")
+    p = np.linspace(0.0, 0.0878, 100)
+    _, reasons = _indicator(p, np.full(5, 1e-4), ReoccupancyThresholds())
+    assert reasons[0].startswith("P(collapse) at the experienced intensity, its 90th percentile over the ensemble")
+    assert "the figure reported is their mean" in reasons[0] and "90 % of the ensemble" not in reasons[0]
+
+
+def test_a_run_says_one_line_per_step(caplog):
+    """Each step of a run is a stage: what its work says as steps is a detail (DEBUG), the step's
+    own closing line the progress (INFO)."""
+    from hlaid.run.runner import _Steps
+
+    caplog.set_level(logging.DEBUG, logger="hlaid")
+    step = _Steps(types.SimpleNamespace(ida=None, assess=None, loss=None))
+    step("measurement")
+    _progress.step("[identify] outer iteration 1: ...")
+    step("identification")
+    _progress.step("[identify] joint fit over 3 event(s), round 1: ...")
+    step.close()
+    _progress.step("after the steps: progress again")
+    got = [(r.levelno, r.getMessage().split(":")[0]) for r in caplog.records if r.name.startswith("hlaid")]
+    assert got == [(logging.DEBUG, "[identify] outer iteration 1"), (logging.INFO, "[1/3] measurement"),
+                   (logging.DEBUG, "[identify] joint fit over 3 event(s), round 1"),
+                   (logging.INFO, "[2/3] identification"), (logging.INFO, "after the steps")]
