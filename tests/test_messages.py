@@ -18,10 +18,22 @@ from hlaid.run.decision import identification_flags, parameter_flags, plausibili
 
 
 @pytest.fixture()
-def said(caplog):
+def logged(caplog):
+    """caplog's handler on the ``hlaid`` logger itself at DEBUG (a command run before may have
+    stopped its propagation to the root)."""
+    log = logging.getLogger("hlaid")
+    level = log.level
+    log.addHandler(caplog.handler)
+    log.setLevel(logging.DEBUG)
+    yield caplog
+    log.removeHandler(caplog.handler)
+    log.setLevel(level)
+
+
+@pytest.fixture()
+def said(logged):
     """The hlaid messages logged (progress and details), one string each."""
-    caplog.set_level(logging.DEBUG, logger="hlaid")
-    return lambda: [r.getMessage() for r in caplog.records if r.name.startswith("hlaid")]
+    return lambda: list(dict.fromkeys(r.getMessage() for r in logged.records if r.name.startswith("hlaid")))
 
 
 def test_the_chosen_settings_are_a_short_block_without_escaped_breaks(said, monkeypatch):
@@ -103,12 +115,12 @@ def test_the_ensembles_p_collapse_is_said_one_way():
     assert "the figure reported is their mean" in reasons[0] and "90 % of the ensemble" not in reasons[0]
 
 
-def test_a_run_says_one_line_per_step(caplog):
+def test_a_run_says_one_line_per_step(logged):
     """Each step of a run is a stage: what its work says as steps is a detail (DEBUG), the step's
     own closing line the progress (INFO)."""
     from hlaid.run.runner import _Steps
 
-    caplog.set_level(logging.DEBUG, logger="hlaid")
+    caplog = logged
     step = _Steps(types.SimpleNamespace(ida=None, assess=None, loss=None))
     step("measurement")
     _progress.step("[identify] outer iteration 1: ...")
@@ -116,7 +128,8 @@ def test_a_run_says_one_line_per_step(caplog):
     _progress.step("[identify] joint fit over 3 event(s), round 1: ...")
     step.close()
     _progress.step("after the steps: progress again")
-    got = [(r.levelno, r.getMessage().split(":")[0]) for r in caplog.records if r.name.startswith("hlaid")]
+    got = list(dict.fromkeys((r.levelno, r.getMessage().split(":")[0]) for r in caplog.records
+                             if r.name.startswith("hlaid")))
     assert got == [(logging.DEBUG, "[identify] outer iteration 1"), (logging.INFO, "[1/3] measurement"),
                    (logging.DEBUG, "[identify] joint fit over 3 event(s), round 1"),
                    (logging.INFO, "[2/3] identification"), (logging.INFO, "after the steps")]
