@@ -37,18 +37,34 @@ def said(logged):
 
 
 def test_the_chosen_settings_are_a_short_block_without_escaped_breaks(said, monkeypatch):
+    """The steel frame's ten choices (a 1.3-2.1k character line with escaped breaks before): a
+    header and one wrapped line per config section, no escaped break, the advice of a setting left
+    unchosen kept; the evidence in full at --verbose."""
     from hlaid.events import identify as ei
 
     long = "first-mode band, 0.25 x f1 to sqrt(f1 f2): not a shear building above its first mode (" + "x" * 400 + ")"
-    res = types.SimpleNamespace(choices=(Choice("hla.preprocess.band_hz", [0.34, 2.62], long),
-                                         Choice("refine.method", "least_squares", "HLA's first-mode band: ...")))
+    choices = (Choice("hla.preprocess.band_hz", [0.34, 2.62], long),
+               Choice("hla.preprocess.displacement", "measured", "the file has floor displacements: ..."),
+               Choice("hla.stiffness.yield_ratio", 0.8, "the band's high corner ..."),
+               Choice("hla.force.damping", "regression", "the assumed 5 % Rayleigh damping over-corrects: ..."),
+               Choice("refine.method", "least_squares", "HLA's first-mode band: ..."),
+               Choice("refine.band_hz", [0.34, 2.62], "HLA's band"),
+               Choice("refine.parameters", ["alpha", "p", "dy", "delta_eta"], "the floor masses are unknown: ..."),
+               Choice("refine.damping", True, "HLA's damping is regression: ..."),
+               Choice("refine.compare", "acc+drift", "the records' floor displacements resolve every story's drift"),
+               Choice("system", None, "not in the data (the records cannot tell a steel frame from a concrete one): "
+                                      "the generic prior holds what they say little about; name it where known"))
     monkeypatch.setattr(_progress, "verbosity", lambda: 1)
-    ei.announce(res)
+    ei.announce(types.SimpleNamespace(choices=choices))
     lines = said()
-    assert len(lines) == 3 and all("\n" not in line and "\\x0a" not in line for line in lines)
-    assert lines[1] == "  hla.preprocess.band_hz = [0.34, 2.62]: first-mode band, 0.25 x f1 to sqrt(f1 f2)"
-    assert all(len(line) <= ei.CHOICE_WIDTH + 2 for line in lines)
+    assert len(lines) <= 6 and all("\n" not in line and "\\x0a" not in line for line in lines)
+    assert all(len(line) <= ei.CHOICE_WIDTH for line in lines[1:])
+    assert lines[1] == "  hla: band_hz = [0.34, 2.62], displacement = measured, yield_ratio = 0.8, damping = regression"
+    assert lines[-1] == "  system = null (not in the data; name it where known)"
     assert "--verbose gives the evidence" in lines[0]
+    monkeypatch.setattr(_progress, "verbosity", lambda: 2)
+    ei.announce(types.SimpleNamespace(choices=choices))
+    assert any(long in m for m in said())  # the evidence, in full, with --verbose
 
 
 def test_a_replay_that_misses_its_noise_says_what_to_do(said, table1):

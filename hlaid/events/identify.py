@@ -270,15 +270,39 @@ and in the clone's ``provenance["choices"]``)."""
 
 
 def announce(settings: Resolution) -> None:
-    """Say which settings were chosen from the data: a short block, one line each (each its own
-    message, so no line break is escaped), the evidence in full at ``--verbose``."""
+    """Say which settings were chosen from the data: a short block (:func:`choice_block`, each line
+    its own message, so no line break is escaped), every choice with its evidence at ``--verbose``."""
     if not settings.choices:
         return
     full = _progress.verbosity() >= 2
     _progress.info("[identify] settings chosen from the data (a config value overrides any"
                    + ("" if full else "; --verbose gives the evidence") + "):")
-    for c in settings.choices:
-        _progress.info(f"  {c.line()}" if full else f"  {choice_line(c)}")
+    for line in ([f"  {c.line()}" for c in settings.choices] if full else choice_block(settings.choices)):
+        _progress.info(line)
+
+
+def choice_block(choices) -> list[str]:
+    """The chosen settings grouped by the config's sections (``hla``, ``refine``, the rest), each
+    group ``setting = value`` items wrapped at :data:`CHOICE_WIDTH` characters; a setting left
+    unchosen with advice (``system = null``) keeps it."""
+    import textwrap
+
+    from ..hla.auto import show_value
+
+    groups: dict[str, list[str]] = {}
+    for c in choices:
+        top, _, rest = c.setting.partition(".")
+        group, leaf = (top, rest.rpartition(".")[2]) if rest else ("", top)
+        item = f"{leaf} = {show_value(c.value)}"
+        if c.value is None:  # not chosen: its reason, shortly, says what to do
+            item = choice_line(c).replace(f"{c.setting} = {show_value(c.value)}: ", f"{item} (", 1) + ")"
+        groups.setdefault(group, []).append(item)
+    out = []
+    for group, items in groups.items():
+        head = f"  {group}: " if group else "  "
+        out += textwrap.wrap(", ".join(items), CHOICE_WIDTH, initial_indent=head, subsequent_indent="    ",
+                             break_on_hyphens=False)
+    return out
 
 
 def choice_line(c) -> str:
