@@ -189,3 +189,24 @@ def test_loss_takes_the_clones_own_collapse_fragility(event, ida_run, tmp_path, 
     assert main(["loss", str(csv), "-o", str(tmp_path / "l"), "--floor-area", "100", "--collapse-from", str(ida),
                  "--collapse-median", "1.2", "--collapse-beta", "0.4"]) == 2
     assert "not both" in capsys.readouterr().err
+
+
+def test_the_fleet_keeps_what_each_unit_rests_on(event):
+    """A unit's assessment carries the basis (its table the flags, one column): P(collapse) at the
+    clone's event, contradicted at 60 %."""
+    from hlaid.fleet.assess import assess_clone, flatten
+    from hlaid.ida.config import IDAConfig
+
+    clone, meas, _ = event
+
+    def fake(clone, records, *, n_ensemble, ida_config, own_motion, seed):
+        return {"n_ensemble": 3, "p_collapse": 0.6, "own_peak_drift": [0.0125, 0.0124, 0.0126],
+                "events": [{"name": meas.name, "im": 1.46, "p_collapse": 0.6, "p_collapse_band": [0.4, 0.8]}]}
+    a = assess_clone(clone, [], n_ensemble=3, ida_config=IDAConfig(heights_mm=[3000.0] * 3), own_motion=None, seed=0,
+                     assess=fake)
+    b = a["basis"]
+    assert b["survival_contradicted"] == [meas.name] and b["extrapolated"] is False
+    assert b["heights_assumed"] is True
+    row = flatten(a)
+    assert f"P(collapse) 60% at {meas.name}" in row["basis_flags"] and "assumed" in row["basis_flags"]
+    assert row["basis.survived_drift_ratio"] == pytest.approx(float(np.max(clone.survived_drift() / 3000.0)))
