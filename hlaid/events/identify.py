@@ -285,8 +285,6 @@ def choice_block(choices) -> list[str]:
     """The chosen settings grouped by the config's sections (``hla``, ``refine``, the rest), each
     group ``setting = value`` items wrapped at :data:`CHOICE_WIDTH` characters; a setting left
     unchosen with advice (``system = null``) keeps it."""
-    import textwrap
-
     from ..hla.auto import show_value
 
     groups: dict[str, list[str]] = {}
@@ -298,10 +296,17 @@ def choice_block(choices) -> list[str]:
             item = choice_line(c).replace(f"{c.setting} = {show_value(c.value)}: ", f"{item} (", 1) + ")"
         groups.setdefault(group, []).append(item)
     out = []
-    for group, items in groups.items():
-        head = f"  {group}: " if group else "  "
-        out += textwrap.wrap(", ".join(items), CHOICE_WIDTH, initial_indent=head, subsequent_indent="    ",
-                             break_on_hyphens=False)
+    for group, items in groups.items():  # wrapped between items, never inside one
+        line = f"  {group}: " if group else "  "
+        fresh = True
+        for k, item in enumerate(items):
+            piece = item + ("," if k < len(items) - 1 else "")
+            if not fresh and len(line) + 1 + len(piece) > CHOICE_WIDTH:
+                out.append(line)
+                line, fresh = "    ", True
+            line += ("" if fresh else " ") + piece
+            fresh = False
+        out.append(line)
     return out
 
 
