@@ -68,3 +68,10 @@ def test_stiffness_figure_gives_each_story_its_own_k0_with_a_unit(table1):
     assert not any(lb.startswith("k0 = ") for lb in labels)  # no number without a unit, not story 1's for all
     # a mass-normalised analysis says what N/t is
     assert "(floor masses unknown)" in _force_unit(types.SimpleNamespace(mass_normalised=True))[1]
+
+
+def test_fleet_table_headers_carry_units():
+    from hlaid.fleet.report import header
+
+    assert header("own_im") == "own_im [g]" and header("collapse_median") == "collapse_median [g]"
+    assert header("T1_s") == "T1_s [s]" and header("p_collapse") == "p_collapse"
