@@ -202,8 +202,9 @@ def print_summary(clone, seconds: float | None = None, before=None) -> None:
     stories = d.get("stories") or []
     lines.append(modal_line(b, [s.get("k0_hla") for s in stories] if len(stories) == b.n_stories else None))
     events = (d.get("joint") or {}).get("events") or []
-    for e in events:
-        lines.append(f"replay of {e.get('name') or 'event'}: R {np.round(e['r_measured'], 3).tolist()}")
+    if events:  # one line: R per floor of each event's replay
+        lines.append("replay R (floors bottom to top): " + "; ".join(
+            f"{e.get('name') or 'event'} " + "/".join(f"{v:.3f}" for v in e["r_measured"]) for e in events))
     if not events and isinstance(d.get("replay"), dict):
         lines.append(f"replay: R {np.round(d['replay']['r_measured'], 3).tolist()}")
     if clone.state is not None:

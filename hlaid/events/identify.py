@@ -187,7 +187,7 @@ def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPr
     n_eff = np.mean([f.n_eff for f in tried.values()], axis=0)
     evidence = [(laws, f.log_evidence(n_eff)) for laws, f in tried.items()]
     chosen, reason = choose_laws(evidence, default)
-    _progress.info(f"[identify] story laws: {reason}")
+    _progress.step(f"[identify] story laws: {reason}")
     best = tried[chosen]
     if chosen != default:  # the candidate's short fit, in full
         best = run_stage(f"the fit under the laws {'/'.join(chosen)}",
@@ -258,7 +258,7 @@ def prefix_history(fit: JointFit, meas: Sequence[Measurement], system: Structura
             del out[j]
         else:
             c, r = out[j].get("carried", {}).get("r"), out[j].get("rest", {}).get("r")
-            _progress.info(f"[identify] the clone of {', '.join(names[:j])} predicts {names[j]}: R {c:.3f} carried, "
+            _progress.step(f"[identify] the clone of {', '.join(names[:j])} predicts {names[j]}: R {c:.3f} carried, "
                            f"{r:.3f} from rest" if c is not None and r is not None else
                            f"[identify] the clone of {', '.join(names[:j])} predicts {names[j]}")
     return out
