@@ -89,7 +89,7 @@ class AtEvent:
     def text(self) -> str:
         p = "not assessed" if self.p_collapse is None else f"{self.p_collapse:.1%}"
         band = "" if self.p_collapse_band is None else \
-            f" (90 % band {self.p_collapse_band[0]:.1%}-{self.p_collapse_band[1]:.1%})"
+            f" (90% band {self.p_collapse_band[0]:.1%}-{self.p_collapse_band[1]:.1%})"
         im = "" if self.im is None else f" at {self.im:.3g} g"
         return f"{self.name}{im}: {p}{band}"
 
