@@ -31,7 +31,8 @@ def section(s: RunSummary) -> str:
     if s.basis is not None:
         from ...ida.basis import DecisionBasis
 
-        lines = DecisionBasis.from_dict(s.basis).lines()[1:]
+        lines = [x for x in DecisionBasis.from_dict(s.basis).lines()[1:]  # P(collapse) at the events: the table
+                 if not (s.events and x.lstrip().startswith("P(collapse) at the events"))]
         out.append("<p>What the figures rest on:</p><ul>" + "".join(f"<li>{e(x.strip())}</li>" for x in lines)
                    + "</ul>")
     v = s.survival
