@@ -75,3 +75,20 @@ def test_fleet_table_headers_carry_units():
 
     assert header("own_im") == "own_im [g]" and header("collapse_median") == "collapse_median [g]"
     assert header("T1_s") == "T1_s [s]" and header("p_collapse") == "p_collapse"
+
+
+def test_the_reports_first_section_says_what_the_figures_rest_on():
+    from hlaid.ida.basis import AtEvent, DecisionBasis
+    from hlaid.run.sections.decision import section
+
+    b = DecisionBasis(events=(AtEvent("s4", 1.2, 0.574, source="IDA of the identified clone"),),
+                      heights_mm=(1000.0,) * 3, heights_assumed=True, survived_mm=(38.0, 47.4, 51.6))
+    s = types.SimpleNamespace(flags=tuple(b.flags()), events=(types.SimpleNamespace(
+        name="s4", im=1.2, p_collapse=0.574, p_collapse_band=None, source="IDA of the identified clone"),),
+        basis=b.to_dict(), survival=None)
+    page = section(s)
+    assert "P(collapse) 57% at s4 (1.2 g), an event the building survived" in page  # the flag, first
+    assert "largest drift survived: 38.0, 47.4, 51.6 mm (up to 5.16% of the story height)" in page
+    assert "1000, 1000, 1000 mm, assumed (given, not measured)" in page
+    assert "not assessed (no replay record kept with its events)" in page
+    assert page.count("57.4%") == 1  # in the events' table only
