@@ -105,7 +105,8 @@ def plausibility_flags(clone: Clone) -> list[str]:
     named = clone.system in PRIORS and clone.system != "generic"
     system = clone.system if named else "generic"
     prior = PRIORS[system]
-    title = f"a {get_system(system).title}" if named else "the generic prior (no structural system named)"
+    title = (f"a {get_system(system).title} (its prior" if named else
+             "any structure under the generic prior (no structural system named; the prior")
     out = []
     if b.height is not None:
         h = np.asarray(b.height, dtype=float)
@@ -129,7 +130,7 @@ def plausibility_flags(clone: Clone) -> list[str]:
         if abs(zp) > PRIOR_SIGMAS:
             far.append(f"story {i + 1} p {b.p[i]:.3g} ({zp:+.1f} sd)")
     if far:
-        out.append(f"implausible for {title} (its prior: alpha median {prior.alpha.median:g}, p median "
+        out.append(f"implausible for {title}: alpha median {prior.alpha.median:g}, p median "
                    f"{prior.p.median:g}; flagged beyond {PRIOR_SIGMAS:g} standard deviations): " + ", ".join(far)
                    + ("; name the structural system (--system) so its prior bounds them" if not named else
                       "; check the records' band and the story heights, or identify from more events"))
