@@ -210,3 +210,14 @@ def test_the_fleet_keeps_what_each_unit_rests_on(event):
     row = flatten(a)
     assert f"P(collapse) 60% at {meas.name}" in row["basis_flags"] and "assumed" in row["basis_flags"]
     assert row["basis.survived_drift_ratio"] == pytest.approx(float(np.max(clone.survived_drift() / 3000.0)))
+
+
+def test_predict_and_demands_say_which_drifts_they_compare(event, tmp_path, capsys):
+    """The same question, two answers unless each says its band: predict compares band-passed
+    drifts (and says the band), demands gives the full replay's (and says so)."""
+    clone, meas, path = event
+    assert main(["predict", str(path), str(meas.source), "-o", str(tmp_path / "p"), "--start", "undamaged",
+                 "--band", "0.3", "10", "--no-plots"]) == 0
+    assert "drifts compared in 0.3-10 Hz, hlaid demands gives the full replay's" in capsys.readouterr().err
+    assert main(["demands", str(path), "--motion", str(meas.source), "-o", str(tmp_path / "d.csv")]) == 0
+    assert "the clones' full replay, unfiltered; hlaid predict compares drifts in a band" in capsys.readouterr().err
