@@ -221,3 +221,9 @@ def test_predict_and_demands_say_which_drifts_they_compare(event, tmp_path, caps
     assert "drifts compared in 0.3-10 Hz, hlaid demands gives the full replay's" in capsys.readouterr().err
     assert main(["demands", str(path), "--motion", str(meas.source), "-o", str(tmp_path / "d.csv")]) == 0
     assert "the clones' full replay, unfiltered; hlaid predict compares drifts in a band" in capsys.readouterr().err
+
+
+def test_a_clone_without_events_says_so(table1):
+    b = decision_basis(Clone(building=table1))
+    assert "not assessed (the clone records no events it was identified from" in b.lines()[1]
+    assert "not recorded with the clone" in b.lines()[2] and b.flags() == []

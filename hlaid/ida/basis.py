@@ -252,6 +252,8 @@ def decision_basis(clone, *, events: Iterable[AtEvent | Mapping] = (), heights=N
     used [mm] (None: the clone's), whether they were ``heights_assumed``, the decision's
     ``demand_ratio`` and ``drift_limit``; ``events_note`` why there are no ``events``."""
     evs = tuple(e if isinstance(e, AtEvent) else _at_event(e) for e in events)
+    if events_note is None and clone is not None and not clone.events:
+        events_note = "the clone records no events it was identified from (an older clone file)"
     h = heights if heights is not None else (None if clone is None else clone.building.height)
     seen = None if clone is None else survived_drift(clone)
     return DecisionBasis(events=evs, heights_mm=None if h is None else tuple(float(v) for v in h),
