@@ -111,6 +111,12 @@ def info(msg: str) -> None:
     LOGGER.info(msg)
 
 
+def step(msg: str) -> None:
+    """A step of the work: a progress line (INFO) at the top level, a detail (DEBUG) inside a
+    :class:`Stage` (whose closing line sums it up), so a command prints one line per stage."""
+    (debug if nested() else info)(msg)
+
+
 def debug(msg: str) -> None:
     """A detail (DEBUG)."""
     _interrupt.check()

@@ -79,7 +79,7 @@ def run_update(args) -> int:
 
     res = update_clone(clone, meas, cfg, widen=args.widen)
     res.clone.save(out, force=args.force)
-    print_summary(res.clone, res.timings.get("total"))
+    print_summary(res.clone, res.timings.get("total"), before=clone)
     _progress.info(f"wrote {out}")
     return 0
 
@@ -135,7 +135,9 @@ def run_predict(args) -> int:
     pde = (100 * p.peak_drift_error).round(1).tolist()
     _progress.info(f"{meas.name or args.measurement}: R {p.r.round(3).tolist()} (mean {p.r_mean:.3f}), story drift "
                    f"R {p.drift_r.round(3).tolist()}, peak drift error {pde} % "
-                   f"(mean |error| {100 * p.peak_drift_error_mean_abs:.1f} %, roof {100 * p.roof_error:+.1f} %){cov}; "
+                   f"(mean |error| {100 * p.peak_drift_error_mean_abs:.1f} %, roof {100 * p.roof_error:+.1f} %; "
+                   f"drifts compared in {p.band_hz[0]:g}-{p.band_hz[1]:g} Hz, hlaid demands gives the full replay's)"
+                   f"{cov}; "
                    f"from the {p.start} state ({p.start_reason})")
     _progress.info(f"wrote {args.out}")
     return 0

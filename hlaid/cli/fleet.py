@@ -61,7 +61,13 @@ def run_fleet_cli(args) -> int:
                    f"{summary.out / 'results.csv'}):")
     for r in ok[:5]:
         p = r.get("p_collapse")
+        flags = [f for f in str(r.get("basis_flags") or "").split(" | ") if f]
         _progress.info(f"  {r.get('rank')}. {r['building']}@{r['event']}: "
                        + (f"P(collapse) {p:.1%}, " if isinstance(p, (int, float)) else "")
-                       + f"indicator {r.get('indicator', '-')}")
+                       + f"indicator {r.get('indicator', '-')}"
+                       + (f"; rests on {len(flags)} flag(s) (column basis_flags)" if flags else ""))
+    for r in ok:
+        for f in str(r.get("basis_flags") or "").split(" | "):
+            if f.startswith("P(collapse)"):  # survival contradicted: said for every unit
+                _progress.warn(f"flag: {r['building']}@{r['event']}: {f}")
     return 0

@@ -97,8 +97,12 @@ def run_ida(args) -> int:
     prepare_building(clone, pdelta=cfg.pdelta, heights=cfg.heights_mm, collapse=cfg.collapse,
                      gravity_load=cfg.gravity_load_n())
     res = ida_from_config(clone, cfg, records=args.records, base_dir=base)  # the clone read once
+    from ..ida.basis import decision_basis, ida_events
+
+    basis = decision_basis(clone, events=ida_events(clone, res), heights=res.building.height,
+                           heights_assumed=cfg.heights_mm is not None, drift_limit=cfg.drift_limit)
     res.save(out, force=args.force, plots=not args.no_plots, n_boot=cfg.bootstrap, ci=cfg.ci, seed=cfg.seed,
-             inputs=inputs)
+             inputs=inputs, basis=basis.to_dict())
     s = res.summary(n_boot=0)
     f = s["collapse_fragility"]["capacities"]
     if "median_g" in f:
@@ -106,9 +110,19 @@ def run_ida(args) -> int:
                        f"({res.n_records} records, {f['n_censored']} censored)")
     for note in res.notes:
         _progress.debug(f"note: {note}")
+    print_basis(basis)
     _progress.info(f"wrote {out}/ (points.csv, summary.json, ida.npz"
                    + ("" if args.no_plots else ", ida_curves.png, fragility.png, exceedance.png") + ")")
     return 0
+
+
+def print_basis(basis) -> None:
+    """What a decision rests on (:class:`hlaid.ida.basis.DecisionBasis`): its block, then its
+    flags as warnings."""
+    for line in basis.lines():
+        _progress.info(line)
+    for flag in basis.flags():
+        _progress.warn(f"flag: {flag}")
 
 
 def run_export(args) -> int:

@@ -160,9 +160,14 @@ def modal_line(b, k0_hla=None) -> str:
     return line
 
 
-def print_summary(clone, seconds: float | None = None) -> None:
+MOVED = 0.10
+"""An update's parameter that changed by more than this fraction is said to have moved (not
+labelled as the earlier events' or the prior's)."""
+
+
+def print_summary(clone, seconds: float | None = None, before=None) -> None:
     """The clone's story parameters, where each comes from, its replay of its events and its
-    state."""
+    state; ``before``: the clone an update started from (parameters that moved are said so)."""
     import numpy as np
 
     b = clone.building
@@ -170,13 +175,24 @@ def print_summary(clone, seconds: float | None = None) -> None:
     flags = {(f["name"], f["story"]): f for f in d.get("parameters", [])}
     table = parameter_lines(b, bool(clone.mass_normalised))
     lines = table[:1]
+
+    def moved(n: str, i: int) -> bool:
+        if before is None or before.building.n_stories != b.n_stories:
+            return False
+        old, new = float(getattr(before.building, n)[i]), float(getattr(b, n)[i])
+        return abs(new - old) > MOVED * max(abs(old), 1e-12)
     for i in range(b.n_stories):
         mark = ""
         for source in ("prior", "earlier events"):
-            names = [n for n in ("alpha", "p", "dy", "delta_eta") if flags.get((n, i + 1), {}).get("source") == source]
+            names = [n for n in ("alpha", "p", "dy", "delta_eta")
+                     if flags.get((n, i + 1), {}).get("source") == source and not moved(n, i)]
             if names:
                 mark += f"  (from the {source}: {', '.join(names)})" if source == "prior" else \
                     f"  (from {source}, little from this one: {', '.join(names)})"
+        shifts = [f"{n} {float(getattr(before.building, n)[i]):.3g} -> {float(getattr(b, n)[i]):.3g}"
+                  for n in ("alpha", "p", "dy", "delta_eta") if moved(n, i)]
+        if shifts:
+            mark += f"  (moved by this event: {', '.join(shifts)})"
         limit = [n for n in ("alpha", "p", "dy", "delta_eta") if flags.get((n, i + 1), {}).get("at_limit")]
         if limit:
             mark += f"  (at a limit: {', '.join(limit)})"
@@ -186,8 +202,9 @@ def print_summary(clone, seconds: float | None = None) -> None:
     stories = d.get("stories") or []
     lines.append(modal_line(b, [s.get("k0_hla") for s in stories] if len(stories) == b.n_stories else None))
     events = (d.get("joint") or {}).get("events") or []
-    for e in events:
-        lines.append(f"replay of {e.get('name') or 'event'}: R {np.round(e['r_measured'], 3).tolist()}")
+    if events:  # one line: R per floor of each event's replay
+        lines.append("replay R (floors bottom to top): " + "; ".join(
+            f"{e.get('name') or 'event'} " + "/".join(f"{v:.3f}" for v in e["r_measured"]) for e in events))
     if not events and isinstance(d.get("replay"), dict):
         lines.append(f"replay: R {np.round(d['replay']['r_measured'], 3).tolist()}")
     if clone.state is not None:

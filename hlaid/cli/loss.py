@@ -13,7 +13,7 @@ from .ida import _numbers
 
 def register(sub) -> None:
     d = subcommand(sub, "demands", help="peak drifts, floor accelerations and residual drifts of a clone in pelicun's "
-                                        "demand format",
+                                        "demand format (and OUT.basis.json: what they rest on)",
                    example="hlaid demands clone.json --motion measurement.npz --ensemble 20 -o demands.csv")
     d.add_argument("clone", help="clone file (hlaid-clone JSON)")
     src = d.add_mutually_exclusive_group(required=True)
@@ -56,6 +56,9 @@ def register(sub) -> None:
     p.add_argument("--irreparable-beta", type=float, help="its dispersion (default 0.3)")
     p.add_argument("--collapse-median", type=float, metavar="G", help="collapse fragility median [g] (demand CSV)")
     p.add_argument("--collapse-beta", type=float, help="collapse fragility dispersion (demand CSV)")
+    p.add_argument("--collapse-from", metavar="IDA_DIR",
+                   help="the collapse fragility of an hlaid ida output folder (the clone's own; demand CSV), instead "
+                        "of --collapse-median/--collapse-beta")
     p.add_argument("--drift-limit", type=float,
                    help="peak drift ratio above which a realization of a demand CSV is a collapse (default 0.10)")
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
@@ -85,6 +88,8 @@ def run_demands(args) -> int:
 
     inputs = [args.clone, args.motion, args.config, *(args.records or [])]
     check_output_file(args.out, force=args.force, inputs=inputs)
+    basis_file = Path(str(args.out) + ".basis.json")  # what the demands rest on, beside them
+    check_output_file(basis_file, force=args.force, inputs=inputs)
     if args.records and args.level is None:
         raise InputError("--records needs --level G (the stripe's intensity); for the recorded event use --motion")
     if args.motion and args.level is not None:
@@ -100,15 +105,31 @@ def run_demands(args) -> int:
     records = _own_motion(args.motion, options) if args.motion else args.records
     check_output_file(args.out, force=args.force, inputs=inputs)  # and the files they named (a columns YAML's table)
     d = clone_demands(clone, records, level=args.level, n_ensemble=n_ens, seed=args.seed or 0, ida_config=cfg)
+    from ..ida.basis import decision_basis
+    from ..loss.demands import median_peak_ratio
+    from .ida import print_basis
+
+    basis = decision_basis(clone, heights=cfg.heights_mm, heights_assumed=cfg.heights_mm is not None,
+                           demand_ratio=median_peak_ratio(d.pid[~d.collapsed]), drift_limit=cfg.drift_limit,
+                           events_note="demands run no IDA; hlaid ida CLONE gives it")
     d.write_csv(args.out, force=args.force)
+    from .._fileio import write_json
+
+    write_json(basis_file, {**basis.to_dict(), "demands": str(args.out), "flags_of_demands": list(d.flags)},
+               force=args.force)
     s = d.summary()
     _progress.info(f"wrote {args.out}: {d.n_realizations} realizations ({s['n_collapsed']} collapsed), "
                    f"median peak drift ratio {max(s['pid_median'] or [0]):.2%}, median residual "
-                   f"{max(s['rid_median'] or [0]):.2%}, {d.im_label} {float(d.im.max()):.3g} g")
-    for flag in d.flags:
-        _progress.warn(f"flag: {flag}")
+                   f"{max(s['rid_median'] or [0]):.2%}, {d.im_label} {float(d.im.max()):.3g} g"
+                   + (" (the clones' full replay, unfiltered; hlaid predict compares drifts in a band, so its "
+                      "errors differ)" if args.motion else ""))
     for note in d.notes:
         _progress.debug(f"note: {note}")
+    for flag in d.flags:
+        if not flag.startswith("demands extrapolated"):  # said once, by the basis
+            _progress.warn(f"flag: {flag}")
+    print_basis(basis)
+    _progress.info(f"wrote {basis_file} (what the demands rest on)")
     return 0
 
 
@@ -124,6 +145,12 @@ def run_loss(args) -> int:
     if (args.collapse_median is None) != (args.collapse_beta is None):
         raise InputError("give both --collapse-median and --collapse-beta, or neither")
     collapse = None if args.collapse_median is None else (args.collapse_median, args.collapse_beta)
+    if args.collapse_from is not None:
+        if collapse is not None:
+            raise InputError("give --collapse-from or --collapse-median/--collapse-beta, not both")
+        if not src.is_file():
+            raise InputError("--collapse-from is for a demand CSV; a run folder has its own fragility")
+        collapse = ida_fragility(args.collapse_from, src)
     if src.is_file():
         if not args.out:
             raise InputError("a demand CSV needs an output folder: -o DIR")
@@ -131,6 +158,13 @@ def run_loss(args) -> int:
         s = loss_of_demand_file(src, cfg, args.out, collapse=collapse,
                                 drift_limit=0.10 if args.drift_limit is None else args.drift_limit, force=args.force)
         _report(s, args.out)
+        side = Path(str(src) + ".basis.json")
+        _progress.info("what the decision rests on: " + (f"the demands' own, in {side} (hlaid demands wrote it)"
+                                                         if side.is_file() else
+                                                         "not assessed (a demand CSV carries no clone: P(collapse) "
+                                                         "at the events the building survived, the drift survived "
+                                                         "and the heights are unknown here; run hlaid loss on a run "
+                                                         "folder to have them)"))
         return 0
     if collapse is not None:
         raise InputError("--collapse-median/--collapse-beta are for a demand CSV; a run folder has its own fragility")
@@ -142,9 +176,46 @@ def run_loss(args) -> int:
     folder = Path(args.out) if args.out else src / "loss"
     if block["recorded"]:
         _report(block["recorded"], folder)
+    if block.get("basis"):
+        from ..ida.basis import P_SURVIVED_FLAG, DecisionBasis
+        from .ida import print_basis
+
+        basis = DecisionBasis.from_dict(block["basis"])
+        print_basis(basis)
+        p = (block["recorded"] or {}).get("p_collapse")
+        if p is not None and p >= P_SURVIVED_FLAG and not basis.contradicted:
+            _progress.warn(f"flag: P(collapse) {p:.0%} in the losses at the recorded event, which the building "
+                           "survived: the figure contradicts the record; check the story heights, the collapse law "
+                           "and the drift limit before acting on it")
     if block["stripes"]:
         _progress.info(f"loss curve at {len(block['stripes'])} intensities: {folder / 'loss_curve.csv'}")
     return 0
+
+
+def ida_fragility(folder: str, demands: Path) -> tuple[float, float]:
+    """``(median [g], beta)`` of the collapse fragility in an ``hlaid ida`` output folder (its fit to the
+    records' collapse capacities), checked to be in the intensity of the demand file ``demands``."""
+    from .._inputs import read_json
+    from ..loss.demands import read_demand_csv
+
+    path = Path(folder) / "summary.json"
+    if not Path(folder).is_dir() or not path.is_file():
+        raise InputError("--collapse-from: expected an hlaid ida output folder (with summary.json)", source=folder)
+    s = read_json(path)
+    try:
+        f = s["collapse_fragility"]["capacities"]
+        median, beta = float(f["median_g"]), float(f["beta"])
+        im, period = s["intensity_measure"]["name"], s["intensity_measure"].get("period_s")
+    except (KeyError, TypeError, ValueError):
+        raise InputError("--collapse-from: no fitted collapse fragility in summary.json (collapse_fragility."
+                         "capacities.median_g, beta); raise the IDA's levels", source=str(path)) from None
+    df = read_demand_csv(demands)
+    want = "PGA" if im == "pga" else f"SA_{period:.3g}" if period else None
+    if df.im_type is None or want is None or df.im_type != want:
+        raise InputError(f"--collapse-from: the IDA's intensity ({want or im}) is not the demand file's "
+                         f"({df.im_type or 'none'}); run hlaid ida and hlaid demands on the same clone with the same "
+                         "settings", source=str(path))
+    return median, beta
 
 
 def _report(s: dict, out) -> None:
@@ -153,5 +224,6 @@ def _report(s: dict, out) -> None:
                    f"({s['repair_cost_ratio_median']:.1%} of replacement), 90 % band {lo:,.0f} - {hi:,.0f}; "
                    f"repair time median {s['repair_time_parallel_median']:.0f} worker-days (parallel); "
                    + ("P(collapse) not assessed (no collapse fragility)" if s['p_collapse'] is None
-                      else f"P(collapse) {s['p_collapse']:.1%}") + f", P(irreparable) {s['p_irreparable']:.1%}")
+                      else f"P(collapse) {s['p_collapse']:.1%} (pelicun's sample of the collapse fragility)")
+                   + f", P(irreparable) {s['p_irreparable']:.1%}")
     _progress.info(f"wrote {out}/ (loss.json, pelicun's inputs: demands.csv, inventory.csv, config.json)")

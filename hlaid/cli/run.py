@@ -60,17 +60,28 @@ def print_run_summary(s, out) -> None:
             lines.append(f"  collapse fragility, {label}: median {im} {cf.median_g:.3g} g, beta {cf.beta:.2f}")
     a = s.assessment
     if a is not None and a.own_im is not None and a.p_collapse is not None:
-        band = (f" ({a.ci:.0%} band {a.p_collapse_band[0]:.1%}-{a.p_collapse_band[1]:.1%})"
-                if a.p_collapse_band is not None else "")
-        lines.append(f"  at the record's own intensity ({a.own_im:.3g} g): P(collapse) {a.p_collapse:.1%}{band}, "
+        lines.append(f"  at the record's own intensity ({a.own_im:.3g} g): {p_collapse_text(a)}; "
                      f"indicator {a.indicator or '-'}")
     loss = s.loss.recorded if s.loss is not None else None
     if loss is not None:
         lines.append(f"  losses at the record: repair cost {loss.repair_cost_ratio_median:.1%} of replacement "
                      f"(median), repair time {loss.repair_time_parallel_median:.1f} worker-days")
     lines.append(f"  report: {out}/report.html")
+    if s.basis is not None:
+        from ..ida.basis import DecisionBasis
+
+        lines += DecisionBasis.from_dict(s.basis).lines()
     for line in lines:
         _progress.info(line)
+
+
+def p_collapse_text(a) -> str:
+    """P(collapse) of an ensemble assessment at the record, its interval and the indicator's
+    percentile, said one way everywhere (``hlaid run``, the report)."""
+    band = ("" if a.p_collapse_band is None else
+            f", {a.ci:.0%} band {a.p_collapse_band[0]:.1%}-{a.p_collapse_band[1]:.1%} (its 5th to 95th percentile "
+            "over members and record resamples)")
+    return f"P(collapse) {a.p_collapse:.1%} (mean of the ensemble{band})"
 
 
 def run_report(args) -> int:

@@ -155,17 +155,19 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
         events = [at_replay_rate(m, hi) for m in measurements]
         series = event_series(start, events, band_hz, ground_noise, substeps, jac_substeps, y0, tangent_max_mb,
                               compare=compare)
-    for _ in range(max(int(rounds), 1)):
-        info = series.reweigh(current)
-        if weights is not None and bool(np.all(np.abs(np.log(series.weights / weights)) < np.log(1.2))):
-            break
-        weights = series.weights.copy()
-        fits += 1
-        _progress.info(f"[identify] joint fit over {len(series.events)} event(s), round {fits}: effective samples "
-                       + ", ".join(f"{d['n_eff']:.0f}" for d in info))
-        rr = fit_residuals(vector, PosteriorResiduals(series, vector, prior), max_iterations=max_iterations,
-                           ftol=ftol, jac_substeps=jac_substeps)
-        current = rr.building
+    with _progress.stage(f"[identify] joint fit over {len(series.events)} event(s)", unit="rounds") as st:
+        for _ in range(max(int(rounds), 1)):
+            info = series.reweigh(current)
+            if weights is not None and bool(np.all(np.abs(np.log(series.weights / weights)) < np.log(1.2))):
+                break
+            weights = series.weights.copy()
+            fits += 1
+            _progress.step(f"[identify] joint fit over {len(series.events)} event(s), round {fits}: effective "
+                           "samples " + ", ".join(f"{d['n_eff']:.0f}" for d in info))
+            rr = fit_residuals(vector, PosteriorResiduals(series, vector, prior), max_iterations=max_iterations,
+                               ftol=ftol, jac_substeps=jac_substeps)
+            current = rr.building
+            st.update(1, note=f"cost {rr.cost_initial:.4g} -> {rr.cost_final:.4g}")
     assert rr is not None
     for d, w in zip(info, series.weights):
         d["weight"] = float(w)

@@ -18,6 +18,7 @@ prior, its state the start, the new event the data (sequential updating).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import time
@@ -89,12 +90,14 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     tb = TBLogger(tensorboard)
     timings: dict[str, float] = {}
     t_all = time.perf_counter()
-    events = [analyse(m, cfg) for m in meas]
+    events = [analyse(m, cfg) for m in _progress.progress(meas, desc="[identify] hysteresis loop analysis",
+                                                          unit="record(s)")]
     timings["hla"] = time.perf_counter() - t_all
     best = most_informative(events)
     single = None
     if best is not None:
-        single = identify_event(events[best], cfg, cache, tb, timings)
+        with _progress.stage(f"[identify] the paper's method on {events[best].measurement.name or 'the record'}"):
+            single = identify_event(events[best], cfg, cache, tb, timings)
         m = events[best].measurement
         state = state_after(single.clone.building, [m], cfg.refine.band_hz, [m.name or "event 1"])
         record = event_record(m, hla=events[best].hla)
@@ -111,16 +114,19 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     default = default_laws(system, len(k0_ref))
     notes: list[dict] = []
     t = time.perf_counter()
-    fit, start, settings = _main_fit(starts, meas, system, settings, names=names, k0_ref=k0_ref, laws=default)
+    with _progress.stage(f"[identify] joint fit of {len(meas)} record(s) from {len(starts)} start(s)"):
+        fit, start, settings = _main_fit(starts, meas, system, settings, names=names, k0_ref=k0_ref, laws=default)
     cfg = settings.config
     timings["joint"] = time.perf_counter() - t
     t = time.perf_counter()
-    fit, laws = select_laws(fit, meas, system, cfg, names=names, k0_ref=k0_ref,
-                            isolation=isolation_start(events, meas[0], system, fit.building), notes=notes)
+    with _progress.stage("[identify] fits under the candidate story laws"):
+        fit, laws = select_laws(fit, meas, system, cfg, names=names, k0_ref=k0_ref,
+                                isolation=isolation_start(events, meas[0], system, fit.building), notes=notes)
     timings["laws"] = time.perf_counter() - t
     t = time.perf_counter()
-    history = prefix_history(fit, meas, system, cfg, names=names, k0_ref=k0_ref, notes=notes,
-                             mass_normalised=events[-1].hla.mass_normalised)
+    with _progress.stage("[identify] prefix fits of the start rule") if len(meas) > 1 else contextlib.nullcontext():
+        history = prefix_history(fit, meas, system, cfg, names=names, k0_ref=k0_ref, notes=notes,
+                                 mass_normalised=events[-1].hla.mass_normalised)
     timings["prequential"] = time.perf_counter() - t
     result = result_of_joint(events, meas, fit, cfg, system=system, start=start, single=single, timings=timings)
     timings["total"] = time.perf_counter() - t_all
@@ -181,7 +187,7 @@ def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPr
     n_eff = np.mean([f.n_eff for f in tried.values()], axis=0)
     evidence = [(laws, f.log_evidence(n_eff)) for laws, f in tried.items()]
     chosen, reason = choose_laws(evidence, default)
-    _progress.info(f"[identify] story laws: {reason}")
+    _progress.step(f"[identify] story laws: {reason}")
     best = tried[chosen]
     if chosen != default:  # the candidate's short fit, in full
         best = run_stage(f"the fit under the laws {'/'.join(chosen)}",
@@ -252,17 +258,70 @@ def prefix_history(fit: JointFit, meas: Sequence[Measurement], system: Structura
             del out[j]
         else:
             c, r = out[j].get("carried", {}).get("r"), out[j].get("rest", {}).get("r")
-            _progress.info(f"[identify] the clone of {', '.join(names[:j])} predicts {names[j]}: R {c:.3f} carried, "
+            _progress.step(f"[identify] the clone of {', '.join(names[:j])} predicts {names[j]}: R {c:.3f} carried, "
                            f"{r:.3f} from rest" if c is not None and r is not None else
                            f"[identify] the clone of {', '.join(names[:j])} predicts {names[j]}")
     return out
 
 
+CHOICE_WIDTH = 100
+"""A chosen setting's line is cut to this many characters (its whole evidence with ``--verbose``
+and in the clone's ``provenance["choices"]``)."""
+
+
 def announce(settings: Resolution) -> None:
-    """Say which settings were chosen from the data, one line each."""
-    if settings.choices:
-        _progress.info("[identify] settings chosen from the data (a config value overrides any):\n"
-                       + "\n".join(f"  {line}" for line in settings.lines()))
+    """Say which settings were chosen from the data: a short block (:func:`choice_block`, each line
+    its own message, so no line break is escaped), every choice with its evidence at ``--verbose``."""
+    if not settings.choices:
+        return
+    full = _progress.verbosity() >= 2
+    _progress.info("[identify] settings chosen from the data (a config value overrides any"
+                   + ("" if full else "; --verbose gives the evidence") + "):")
+    for line in ([f"  {c.line()}" for c in settings.choices] if full else choice_block(settings.choices)):
+        _progress.info(line)
+
+
+def choice_block(choices) -> list[str]:
+    """The chosen settings grouped by the config's sections (``hla``, ``refine``, the rest), each
+    group ``setting = value`` items wrapped at :data:`CHOICE_WIDTH` characters; a setting left
+    unchosen with advice (``system = null``) keeps it."""
+    from ..hla.auto import show_value
+
+    groups: dict[str, list[str]] = {}
+    for c in choices:
+        top, _, rest = c.setting.partition(".")
+        group, leaf = (top, rest.rpartition(".")[2]) if rest else ("", top)
+        item = f"{leaf} = {show_value(c.value)}"
+        if c.value is None:  # not chosen: its reason, shortly, says what to do
+            item = choice_line(c).replace(f"{c.setting} = {show_value(c.value)}: ", f"{item} (", 1) + ")"
+        groups.setdefault(group, []).append(item)
+    out = []
+    for group, items in groups.items():  # wrapped between items, never inside one
+        line = f"  {group}: " if group else "  "
+        fresh = True
+        for k, item in enumerate(items):
+            piece = item + ("," if k < len(items) - 1 else "")
+            if not fresh and len(line) + 1 + len(piece) > CHOICE_WIDTH:
+                out.append(line)
+                line, fresh = "    ", True
+            line += ("" if fresh else " ") + piece
+            fresh = False
+        out.append(line)
+    return out
+
+
+def choice_line(c) -> str:
+    """``setting = value: the reason's first clause``, at most :data:`CHOICE_WIDTH` characters."""
+    from ..hla.auto import show_value
+
+    head = f"{c.setting} = {show_value(c.value)}"
+    text = str(c.reason)
+    reason = text.split(":")[0].split(";")[0].split(" (")[0].strip()
+    advice = text.rsplit("; ", 1)[1].strip() if "; " in text else ""
+    if advice and len(advice) <= 40 and "(" not in advice and ":" not in advice:  # what to do, kept
+        reason += f"; {advice}"
+    line = f"{head}: {reason}" if reason else head
+    return line if len(line) <= CHOICE_WIDTH else line[: CHOICE_WIDTH - 3].rstrip() + "..."
 
 
 def with_choices(result: IdentificationResult, settings: Resolution) -> IdentificationResult:

@@ -66,7 +66,27 @@ def assess_clone(clone: Clone, records: Sequence[GroundMotion], *, n_ensemble: i
     d = dict(res.to_dict() if hasattr(res, "to_dict") else res)
     d["engine"] = engine or label
     d["ensemble"] = 0 if assess is point_assess else int(d.get("n_ensemble", n_ensemble))
+    d["basis"] = basis_of(clone, d, ida_config)
+    d["basis_flags"] = " | ".join(d["basis"]["flags"])
     return d
+
+
+def basis_of(clone: Clone, d: dict, ida_config: IDAConfig) -> dict:
+    """What a unit's assessment ``d`` rests on (:func:`hlaid.ida.basis.decision_basis`): P(collapse)
+    at the clone's events (the assessment's ``events``), the members' median peak drift ratio
+    under the own record against the drift survived, the heights and the clone's replay error."""
+    from ..ida.basis import decision_basis
+
+    own = d.get("own_peak_drift")
+    ratio = None
+    if isinstance(own, (list, tuple, np.ndarray)) and len(own):
+        ratio = float(np.median(np.asarray(own, dtype=float)))
+    events = [e for e in d.get("events") or () if isinstance(e, dict) and "name" in e]
+    return decision_basis(clone, events=events, heights=ida_config.heights_mm,
+                          heights_assumed=ida_config.heights_mm is not None, demand_ratio=ratio,
+                          drift_limit=ida_config.drift_limit,
+                          events_note="the assessment reports none (the clone's events' ground motions not at "
+                                      "hand)").to_dict()
 
 
 def engine_label(assess: Callable) -> str:
@@ -111,6 +131,8 @@ class PointAssessment:
     p_exceed: tuple = ()
     indicator: str | None = None
     notes: tuple = ()
+    events: tuple = ()
+    """P(collapse) at each of the clone's events (:meth:`hlaid.ida.basis.AtEvent.to_dict`)."""
 
     def to_dict(self) -> dict:
         return {"n_ensemble": 0, "n_records": self.n_records, "ci": self.ci, "im": self.im,
@@ -120,7 +142,7 @@ class PointAssessment:
                 "drift_limits": list(self.drift_limits), "p_exceed": list(self.p_exceed),
                 "indicator": self.indicator,
                 "placard": None if self.indicator is None else PLACARDS.get(self.indicator), "rule": FALLBACK_RULE,
-                "notes": list(self.notes)}
+                "notes": list(self.notes), "events": list(self.events)}
 
 
 def _num(v) -> float | None:
@@ -158,6 +180,10 @@ def point_assess(clone, records, *, n_ensemble: int = 0, ida_config: IDAConfig |
             if here is not None and above is not None:
                 p_exc[j] = max(here, above)
     indicator = None if p_col is None else "red" if p_col >= 0.10 else "yellow" if p_col >= 0.02 else "green"
+    from ..ida.basis import ida_events
+
+    events = () if not isinstance(clone, Clone) or not clone.events else tuple(
+        e.to_dict() for e in ida_events(clone, res, None if own_motion is None else _with_own(clone, own_motion)))
     return PointAssessment(
         n_records=res.n_records, ci=cfg.ci, im=res.im, period=_num(res.period),
         collapse_median=None if frag is None else _num(frag.median),
@@ -165,7 +191,15 @@ def point_assess(clone, records, *, n_ensemble: int = 0, ida_config: IDAConfig |
                               else cast("tuple[float, float]", tuple(float(v) for v in frag.median_ci))),
         beta=None if frag is None else _num(frag.beta), own_im=own, p_collapse=p_col,
         drift_limits=tuple(res.exceedance_limits) if own is not None else (), p_exceed=tuple(p_exc),
-        indicator=indicator, notes=tuple(notes))
+        indicator=indicator, notes=tuple(notes), events=events)
+
+
+def _with_own(clone: Clone, own_motion: GroundMotion) -> list:
+    """``(name, motion)`` of the clone's events, ``own_motion`` where it is one of them."""
+    from ..events.evidence import event_motions
+
+    em = event_motions(clone, [own_motion])
+    return list(zip(em.names, em.motions))
 
 
 def flatten(d: dict, prefix: str = "") -> dict:

@@ -24,6 +24,18 @@ LEADING = ["rank", "building", "event", "status", "reason", "indicator", "p_coll
            "n_stories", "T1_s", "replay_r_min", "identify_s", "assess_s", "total_s", "total_cpu_s", "worker", "digest"]
 """Columns that come first in the table (others, e.g. ``p_exceed_0.01``, follow in order of appearance)."""
 
+UNITS = {"own_im": "g", "collapse_median": "g", "collapse_median_band_lo": "g", "collapse_median_band_hi": "g",
+         "T1_s": "s", "total_s": "s", "loss.repair_cost_median": "USD_2011",
+         "loss.repair_time_parallel_median": "worker-days"}
+"""The unit of a column of the report's table (probabilities, ratios, counts and R: none)."""
+
+
+def header(column: str) -> str:
+    """A column's header with its unit (``own_im [g]``)."""
+    unit = UNITS.get(column)
+    return f"{column} [{unit}]" if unit else column
+
+
 LOSS_COLUMNS = ("loss.repair_cost_median", "loss.repair_cost_ratio_median", "loss.repair_cost_ratio_band_lo",
                 "loss.repair_cost_ratio_band_hi", "loss.repair_time_parallel_median", "loss.p_irreparable",
                 "loss.p_collapse")
@@ -235,7 +247,7 @@ def build_fleet_report(out: Path, rows: list[dict], meta: dict) -> Path:
             if any(c in r for r in ok)]
     cols += [c for c in columns(ok) if c.startswith("p_exceed_") and "_band" not in c]
     cols += [c for c in LOSS_COLUMNS if any(c in r for r in ok)]
-    parts.append("<h2>Ranked by risk</h2><table><tr>" + "".join(f"<th>{e(c)}</th>" for c in cols) + "</tr>")
+    parts.append("<h2>Ranked by risk</h2><table><tr>" + "".join(f"<th>{e(header(c))}</th>" for c in cols) + "</tr>")
     for r in ok:
         cls = e(str(r.get("indicator", "")))
         parts.append(f"<tr class='{cls}'>" + "".join(
@@ -243,6 +255,11 @@ def build_fleet_report(out: Path, rows: list[dict], meta: dict) -> Path:
             else f"<td>{e(_short(r.get(c)))}</td>"
             for c in cols) + "</tr>")
     parts.append("</table>")
+    rests = [(r, [f for f in str(r.get("basis_flags") or "").split(" | ") if f]) for r in ok]
+    if any(f for _, f in rests):
+        parts.append("<h2>What each figure rests on</h2><ul>" + "".join(
+            f"<li>{e(str(r.get('building')))}@{e(str(r.get('event')))}: " + "; ".join(e(x) for x in f) + "</li>"
+            for r, f in rests if f) + "</ul>")
     if failed:
         parts.append("<h2>Failed</h2><table><tr><th>building</th><th>event</th><th>reason</th></tr>")
         parts += [f"<tr><td class='l'>{e(r['building'])}</td><td class='l'>{e(r['event'])}</td>"

@@ -12,7 +12,10 @@ from .result import HLAResult
 
 
 def _force_unit(result: HLAResult) -> tuple[float, str]:
-    return (1.0, "force / total mass [N/t]") if result.mass_normalised else (1e-3, "story force [kN]")
+    """Scale and label of the story force: kN, or per tonne of floor mass (N/t) when the masses are
+    unknown (a mass-normalised analysis: equal or given mass ratios, total mass 1 t)."""
+    return (1.0, "story force / total mass [N/t]\n(floor masses unknown)") if result.mass_normalised else \
+        (1e-3, "story force [kN]")
 
 
 WIDE_HZ = 20.0
@@ -82,14 +85,17 @@ def plot_stiffness(result: HLAResult, truth: Truth | None = None, *, clone_ke: n
 
     t = result.time
     fig, axes = story_axes(result.n_stories, ncols=1, size=(11, 2.6), sharex=True)
-    unit = "k/M [N/mm/t]" if result.mass_normalised else "stiffness [kN/mm]"
+    unit = "k / total mass [N/mm/t]" if result.mass_normalised else "stiffness [kN/mm]"
+    k_unit = "N/mm/t" if result.mass_normalised else "kN/mm"
     sc = 1.0 if result.mass_normalised else 1e-3
     for i, (s, ax) in enumerate(zip(result.stories, axes)):
         hc = s.half_cycles
         ax.plot(t, s.k * sc, color="0.75", lw=0.5, label="k(t) tangent")
         ax.plot(hc.t_start, hc.ke_raw * sc, ".", color="C0", ms=3, alpha=0.6, label="ke per half cycle (raw)")
         ax.step(hc.t_start, hc.ke * sc, where="post", color="C0", lw=1.5, label="ke(t) HLA")
-        ax.axhline(s.k0 * sc, color="C0", ls=":", lw=1, label=f"k0 = {s.k0 * sc:.4g}")
+        ax.axhline(s.k0 * sc, color="C0", ls=":", lw=1, label="k0 (each story's, in its panel)")
+        ax.text(0.995, 0.97, f"story {s.story}: k0 = {s.k0 * sc:.4g} {k_unit}", transform=ax.transAxes, ha="right",
+                va="top", fontsize=8, color="C0", bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8})
         if truth is not None:
             b = truth.building
             ke_true = b.alpha[i] * b.k0[i] + (1 - b.alpha[i]) * b.k0[i] / truth.eta[:, i]

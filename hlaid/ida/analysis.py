@@ -240,9 +240,9 @@ def run_ida(model: Clone | Building | str | os.PathLike,
                                        gravity_load=cfg.gravity_load_n(), collapse=cfg.collapse)
     if isinstance(model, Clone) and model.events:
         notes.extend(survival_notes(model, building, cfg, event_motions))
-    for note in notes:  # what the evidence changed or found: said, not only noted
+    for note in notes:  # what the evidence changed or found: said (a detail inside a run's step), not only noted
         if note.startswith(("collapse law ", "survival")):
-            _progress.info(note)
+            _progress.step(note)
     start = start_state(model, building, cfg.start, notes)
     motions = as_motions(records, units=cfg.units)
     measure, T1, im0 = record_intensities(motions, cfg.im, building, cfg.period)
@@ -374,8 +374,10 @@ def survival_notes(clone: Clone, building: Building, cfg: IDAConfig, motions: Se
     if surv.nominal_survives and surv.nominal_peak is not None:
         h = np.asarray(building.height, dtype=float)  # prepare_building requires the heights
         drifts = ", ".join(f"{100 * d / hi:.2f}" for d, hi in zip(surv.nominal_peak, h))
-        out.append(f"survival: the clone survives {', '.join(surv.events)} (events it was identified from) with its "
-                   f"collapse law, largest drift {drifts} %")
+        law = (f"with its collapse law {building.collapse.name!r}" if building.collapse is not None else
+               f"with no collapse law (collapse only beyond the {cfg.drift_limit:.0%} drift limit)")
+        out.append(f"survival: the clone survives {', '.join(surv.events)} (events it was identified from) {law}; "
+                   f"its largest drift in that replay {drifts} % of the story heights")
     return out
 
 

@@ -400,8 +400,9 @@ def _indicator(p_collapse: np.ndarray, residual: np.ndarray, thr: ReoccupancyThr
     rd = float(np.quantile(np.where(np.isfinite(residual), residual, 1.0), thr.quantile))  # stopped runs: 100 %
     level_p = 2 if pc >= thr.p_collapse_red else 1 if pc >= thr.p_collapse_yellow else 0
     level_r = 2 if rd >= thr.residual_red else 1 if rd >= thr.residual_yellow else 0
-    q = f"{thr.quantile:.0%} of the ensemble"
-    reasons = [f"P(collapse) at the experienced intensity, {q}: {pc:.1%} (yellow >= {thr.p_collapse_yellow:.0%}, "
+    q = f"its {100 * thr.quantile:.0f}th percentile over the ensemble"
+    reasons = [f"P(collapse) at the experienced intensity, {q} (members x record resamples; the indicator reads "
+               f"this upper end, the figure reported is their mean): {pc:.1%} (yellow >= {thr.p_collapse_yellow:.0%}, "
                f"red >= {thr.p_collapse_red:.0%})",
                f"residual drift ratio under the record, {q}: "
                + ("runs stopped at the drift limit" if rd >= 1.0 else f"{rd:.2%}")

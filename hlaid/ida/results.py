@@ -271,12 +271,16 @@ class IDAResult:
                 "collapse_mode": np.array(self.collapse_mode), "censored_im": self.censored_im}
 
     def save(self, out: str | os.PathLike, *, force: bool = False, plots: bool = True, n_boot: int = 1000,
-             ci: float = 0.90, seed: int | None = 0, inputs: Sequence[str | os.PathLike | None] = ()) -> Path:
-        """Write the folder ``out`` atomically: points.csv, summary.json, ida.npz and, with
+             ci: float = 0.90, seed: int | None = 0, inputs: Sequence[str | os.PathLike | None] = (),
+             basis: dict | None = None) -> Path:
+        """Write the folder ``out`` atomically: points.csv, summary.json (with ``basis``, what the
+        decision rests on, :meth:`hlaid.ida.basis.DecisionBasis.to_dict`, where given), ida.npz and, with
         ``plots``, ida_curves.png, fragility.png, exceedance.png. An existing non-empty folder
         is replaced only with ``force``, and only when hlaid wrote it and it holds none of
         ``inputs`` (:func:`hlaid._fileio.check_output_folder`)."""
         summary = self.summary(n_boot=n_boot, ci=ci, seed=seed)
+        if basis is not None:
+            summary["basis"] = basis
         with atomic_directory(out, force=force, inputs=inputs) as tmp:
             (tmp / "points.csv").write_text(self.points_table())
             write_json(tmp / "summary.json", summary)

@@ -76,7 +76,7 @@ def _path_key(paths: list, estimate: Building, bins: list, identifiable: np.ndar
 def _cached_pass(hit: tuple, stage: str, chosen_C: dict) -> TrainedPass:
     """A pass loaded from the cache; its cross-validated C are kept for the later passes (as in a cold run)."""
     machines, meta = hit
-    _progress.info(f"[identify] {stage} pass: classifiers from the cache")
+    _progress.step(f"[identify] {stage} pass: classifiers from the cache")
     for name, st in meta["stats"].items():
         if "C" in st:
             chosen_C.setdefault(name, (st["C"], st.get("gamma_factor", 1.0)))

@@ -63,7 +63,7 @@ def outer_loop(event: Event, passes: ClassifierPasses, cfg: IdentifyConfig) -> t
         history.append({"iteration": it + 1, "alpha": new.alpha.tolist(), "p": new.p.tolist(),
                         "delta_eta": new.delta_eta.tolist(), "dy": new.dy.tolist(), "change": change})
         est = new
-        _progress.info(f"[identify] outer iteration {it + 1}: alpha {np.round(est.alpha, 3)}, "
+        _progress.step(f"[identify] outer iteration {it + 1}: alpha {np.round(est.alpha, 3)}, "
                        f"p {np.round(est.p, 2)}, delta_eta {np.round(est.delta_eta, 3)}, dy {np.round(est.dy, 3)} "
                        f"(change {change:.3f})")
         for i in range(event.n_stories):

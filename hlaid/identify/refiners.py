@@ -173,8 +173,10 @@ class LeastSquares(Refiner):
         rr = self._replay(start, problem, stories=problem.stories)
         ratio = problem.noise_ratio(rr)
         if self.restart_ratio is not None and ratio > self.restart_ratio:
-            _progress.info(f"[identify] the refined replay misses the data by {ratio:.1f}x its noise level: "
-                           "refining again from a neutral start")
+            _progress.info(f"[identify] the refined replay misses the data by {ratio:.1f}x its noise level "
+                           "(model error: a shear-building clone does not follow everything recorded); refining "
+                           "again from a neutral start. Judge the clone by its replay R and flags below; a narrower "
+                           "band (refine.band_hz) or the structural system (--system) may fit better")
             alt = self._replay(problem.neutral_start(), problem, desc="[identify] replay fit from a neutral start")
             kept = alt.cost_final < 0.8 * rr.cost_final
             info["restart"] = {"noise_ratio": ratio, "cost_final": alt.cost_final, "nfev": alt.nfev, "kept": kept,

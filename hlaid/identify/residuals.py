@@ -85,7 +85,7 @@ class ReplayResiduals:
         if ground_noise == "tangent":
             if at is None:
                 raise InputError("ground_noise = 'tangent' needs the building the tangent is taken at")
-            _progress.info("[identify] tangent of the replay to the ground motion (errors in the input)")
+            _progress.step("[identify] tangent of the replay to the ground motion (errors in the input)")
             self.stride = max(int(1.0 / (3.0 * hi * dt)), 1)  # the low-passed residuals, sampled at 3x their corner
             memory = ground_memory(at) if memory_s is None else memory_s
             with blas_threads(1):  # its block products: 2-5x faster than on two threads beside other work

@@ -129,7 +129,7 @@ def noise_level(meas: Measurement, cfg: IdentifyConfig) -> float:
 def analyse(meas: Measurement, cfg: IdentifyConfig) -> Event:
     """The HLA stage: HLA of ``meas`` and what the other stages need of it (an event where no story
     yielded in 3 half cycles has none identifiable: the paper's method cannot run on it)."""
-    _progress.info(f"[identify] hysteresis loop analysis{' of ' + meas.name if meas.name else ''}")
+    _progress.step(f"[identify] hysteresis loop analysis{' of ' + meas.name if meas.name else ''}")
     res = run_hla(meas, cfg.hla)
     yield_ratio = fixed(cfg.hla.stiffness.yield_ratio, "hla.stiffness.yield_ratio")
     features = tuple(half_cycle_features(s, cfg.training.n_segments, yield_ratio=yield_ratio, with_ke=True)

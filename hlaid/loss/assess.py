@@ -142,7 +142,8 @@ def assess_demands(demands: Demands, asset: Asset, cfg: LossConfig, folder: str 
 def assess_losses(clone, own_motion, *, records=None, levels=(), collapse: tuple[float, float] | None,
                   cfg: LossConfig | None = None, ida_config=None, n_ensemble: int = 0, seed: int = 0,
                   folder: str | os.PathLike, collapse_source: str = "",
-                  base_dir: str | os.PathLike | None = None, plots: bool = True) -> dict:
+                  base_dir: str | os.PathLike | None = None, plots: bool = True, events=None,
+                  heights_assumed: bool | None = None) -> dict:
     """Losses at the recorded event and at the IDA stripes; writes everything under ``folder``.
 
     Parameters
@@ -156,10 +157,16 @@ def assess_losses(clone, own_motion, *, records=None, levels=(), collapse: tuple
     n_ensemble, seed : the ensemble of clones (0: the identified clone alone)
     folder : output folder (``recorded/``, ``stripe-K/`` with pelicun's inputs, ``loss.json``,
         ``loss_curve.csv``, ``loss_curve.png``, ``repair_cost.png``; ``plots`` False: no PNG)
+    events : P(collapse) at the clone's events as its run reported them (mappings of
+        :class:`hlaid.ida.basis.AtEvent`'s fields), so the losses show the same figures; None: the
+        lognormal ``collapse`` at each event's intensity
+    heights_assumed : the story heights were given, not measured (None: where ``ida_config``
+        gives them)
 
     Returns
     -------
-    dict : the ``loss`` block of a run summary (also ``loss.json``)
+    dict : the ``loss`` block of a run summary (also ``loss.json``), with ``basis``: what the losses
+    rest on (:class:`hlaid.ida.basis.DecisionBasis`)
     """
     cfg = cfg or LossConfig()
     folder = Path(folder)
@@ -191,6 +198,8 @@ def assess_losses(clone, own_motion, *, records=None, levels=(), collapse: tuple
            "n_ensemble": n_ensemble, "realizations": cfg.realizations, "seed": cfg.seed,
            "recorded": None if own is None else own.summary, "stripes": [r.summary for r in stripes],
            "demands": {r.name: r.demands.summary() for r in results}, "assumptions": ASSUMPTIONS}
+    out["basis"] = loss_basis(clone, own, collapse, ida_config, events, heights_assumed, own_motion,
+                              collapse_source).to_dict()
     write_json(folder / "loss.json", out)
     if stripes:
         from .._fileio import atomic_write
@@ -207,6 +216,33 @@ def assess_losses(clone, own_motion, *, records=None, levels=(), collapse: tuple
     if own is not None:
         save_figure(plot_repair_cost(own, b.replacement_cost), folder / "repair_cost.png")
     return out
+
+
+def loss_basis(clone, own: LossResult | None, collapse, ida_config, events, heights_assumed, own_motion,
+               source: str = ""):
+    """What the losses rest on (:func:`hlaid.ida.basis.decision_basis`): P(collapse) at the clone's
+    events (``events`` as its run reported them, else the lognormal ``collapse`` at each event's
+    intensity), the recorded event's median peak drift ratio against the drift survived, the
+    heights and the clone's replay error."""
+    from ..events.evidence import event_motions
+    from ..ida.basis import decision_basis, events_at
+    from ..ida.config import IDAConfig
+    from ..ida.measures import intensity
+    from .demands import median_peak_ratio
+
+    cfg = ida_config or IDAConfig()
+    if events is None:
+        median, beta = collapse if collapse is not None else (None, None)
+        em = event_motions(clone, [own_motion] if own_motion is not None else [])
+        period = own.demands.period if own is not None else cfg.period
+        events = events_at(list(zip(em.names, em.motions)),
+                           lambda m: intensity(m, cfg.im, building=clone.building, period=period)[0], median, beta,
+                           f"the losses' collapse fragility ({source})" if source else "the losses' collapse fragility")
+    d = own.demands if own is not None else None
+    ratio = None if d is None else median_peak_ratio(d.pid[~d.collapsed])
+    assumed = cfg.heights_mm is not None if heights_assumed is None else heights_assumed
+    return decision_basis(clone, events=events, heights=cfg.heights_mm, heights_assumed=assumed,
+                          demand_ratio=ratio, drift_limit=cfg.drift_limit)
 
 
 ASSUMPTIONS = (

@@ -299,17 +299,20 @@ def clone_demands(clone: Clone | str | os.PathLike, records, *, level: float | N
 
 def extrapolation_flags(clone: Clone, pid: np.ndarray, height: np.ndarray) -> list[str]:
     """A line where the median peak drift ratio of the realisations ``pid`` ``(realisation,
-    story)`` lies beyond the largest the building survived (:meth:`Clone.survived_drift`): demands the clone
-    extrapolates to."""
-    seen = clone.survived_drift()
-    if seen is None or pid.size == 0:
+    story)`` lies beyond :data:`~hlaid.ida.basis.EXTRAPOLATION_MARGIN` times the largest the building
+    survived (:func:`hlaid.ida.basis.survived_drift`): demands the clone extrapolates to."""
+    from ..ida.basis import decision_basis
+
+    if pid.size == 0:
         return []
-    worst = float(np.max(seen / height))
-    median = float(np.median(np.max(pid, axis=-1)))
-    if median <= worst:
-        return []
-    return [f"demands extrapolated beyond what was observed: median peak drift ratio {median:.2%}, the largest the "
-            f"building survived (measured, or the clone's replay of its events) {worst:.2%}"]
+    b = decision_basis(clone, heights=height, demand_ratio=median_peak_ratio(pid))
+    return [f for f in b.flags() if f.startswith("demands extrapolated")]
+
+
+def median_peak_ratio(pid: np.ndarray) -> float | None:
+    """The demand a decision rests on: the median over realisations of the largest story's peak
+    drift ratio (``pid`` ``(realisation, story)``, the collapsed ones left out); None: none."""
+    return None if pid.size == 0 else float(np.median(np.max(pid, axis=-1)))
 
 
 def _settle(buildings, motions, r, ok: np.ndarray, window: float) -> tuple[np.ndarray, np.ndarray]:

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..clone import Clone
+from ..ida.basis import EXTRAPOLATION_MARGIN, P_SURVIVED_FLAG, DecisionBasis, decision_basis
 from ..motions import GroundMotion
 
 WIDE_INTERVAL_FLAG = 100.0
@@ -25,12 +26,6 @@ STIFFNESS_ERROR_FLAG = 0.20
 """A story whose stiffness-evolution error (the clone's elastic stiffness against HLA's along the
 record) exceeds this is flagged: the clone does not follow the building's degradation there."""
 
-EXTRAPOLATION_MARGIN = 1.10
-"""Demands are flagged extrapolated where the clones' median peak drift ratio exceeds the largest
-survived one by more than this factor: a clone's replay of the very record the building survived
-misses its peak drifts by about 10 % (docs/events.md), which is not extrapolation."""
-
-
 def event_risks(assessment: dict | None, ida, motions: Sequence[tuple[str, GroundMotion]]) -> list[dict]:
     """P(collapse) at each event's intensity: the ensemble assessment's (``assessment``: its
     :meth:`~hlaid.ida.Assessment.to_dict`) where there is one, else the identified clone's IDA
@@ -39,18 +34,9 @@ def event_risks(assessment: dict | None, ida, motions: Sequence[tuple[str, Groun
         return [{**e, "source": f"ensemble of {assessment['n_ensemble']} clones"} for e in assessment["events"]]
     if ida is None or not motions:
         return []
-    from ..ida.measures import intensity
+    from ..ida.basis import ida_events
 
-    try:
-        frag = ida.collapse_fragility("capacities", n_boot=0)
-    except ValueError:
-        frag = None
-    out = []
-    for name, m in motions:
-        im = float(intensity(m, ida.im, building=ida.building, period=ida.period)[0])
-        p = None if frag is None else float(frag.probability(im))
-        out.append({"name": name, "im": im, "p_collapse": p, "source": "IDA of the identified clone"})
-    return out
+    return [e.to_dict() for e in ida_events(None, ida, motions)]
 
 
 def parameter_flags(clone: Clone) -> list[str]:
@@ -68,7 +54,8 @@ def parameter_flags(clone: Clone) -> list[str]:
     def label(r: dict) -> str:
         return f"{r['name']}[{r['story']}]" if r.get("story") else str(r["name"])
     at = [label(r) for r in rows if isinstance(r, dict) and r.get("at_limit")]
-    prior = [label(r) for r in rows if isinstance(r, dict) and r.get("source") not in (None, "data")]
+    prior = [label(r) for r in rows if isinstance(r, dict) and r.get("source") not in (None, "data", "earlier events")]
+    carried = [label(r) for r in rows if isinstance(r, dict) and r.get("source") == "earlier events"]
     out = []
     u = clone.uncertainty
     if u is not None:
@@ -85,10 +72,68 @@ def parameter_flags(clone: Clone) -> list[str]:
                        + ("; the structural system's prior is that wide" if clone.system else
                           "; name the structural system to bound them by its prior") + "): " + ", ".join(wide))
     if at:
-        out.append(f"parameters at a limit of the model (the search could only approach them): {', '.join(at)}")
+        out.append(f"parameters at a limit of the model (the search could only approach them; the records hardly "
+                   f"bound them: add events or name the structural system): {', '.join(at)}")
     if prior:
-        out.append("parameters the data hardly informed (their value and interval are the prior's): "
-                   + ", ".join(prior))
+        out.append("parameters the data hardly informed (their value and interval are the prior's; more events or a "
+                   "record that drives the stories further would inform them): " + ", ".join(prior))
+    if carried:
+        out.append("parameters the last event hardly informed (their interval is carried from the earlier events; "
+                   "their value may still have moved): " + ", ".join(carried))
+    return out
+
+
+YIELD_DRIFT_MIN = 0.001
+"""A story whose yield drift ``dy`` is below this fraction of its height is flagged implausible: frames
+yield at drift ratios of about 0.5-1 % (a building that stays linear gets a "yield" in its noise)."""
+
+PRIOR_SIGMAS = 2.0
+"""A story's ``alpha`` or ``p`` more than this many of the structural system's prior standard
+deviations (in prior units, :mod:`hlaid.events.priors`) from its median is flagged implausible."""
+
+
+def plausibility_flags(clone: Clone) -> list[str]:
+    """Story parameters outside what the clone's structural system (the ``generic`` one when none
+    is named) makes plausible, each with its evidence and what to do: a yield drift under
+    :data:`YIELD_DRIFT_MIN` of the story height, ``alpha`` or ``p`` beyond :data:`PRIOR_SIGMAS` of the
+    system's prior."""
+    from ..events.priors import ALPHA_MAX, PRIORS
+
+    b = clone.building
+    from ..systems import get_system
+
+    named = clone.system in PRIORS and clone.system != "generic"
+    system = clone.system if named else "generic"
+    prior = PRIORS[system]
+    title = (f"a {get_system(system).title} (its prior" if named else
+             "any structure under the generic prior (no structural system named; the prior")
+    out = []
+    if b.height is not None:
+        h = np.asarray(b.height, dtype=float)
+        low = [i for i in range(b.n_stories) if b.dy[i] < YIELD_DRIFT_MIN * h[i]]
+        if low:
+            out.append("implausible yield drift: " + ", ".join(
+                f"story {i + 1} dy {b.dy[i]:.3g} mm = {100 * b.dy[i] / h[i]:.3g} % of its {h[i]:g} mm height"
+                for i in low) + f" (frames yield at about 0.5-1 %; under {100 * YIELD_DRIFT_MIN:g} % the record "
+                "hardly left the linear range there): read that story as linear; its hysteresis parameters are "
+                "noise, not the building's")
+
+    def logit(a: float) -> float:
+        x = min(max(a / ALPHA_MAX, 1e-9), 1 - 1e-9)
+        return float(np.log(x / (1 - x)))
+    far = []
+    for i in range(b.n_stories):
+        za = (logit(float(b.alpha[i])) - logit(prior.alpha.median)) / prior.alpha.beta
+        zp = (np.log(max(float(b.p[i]) - 1.0, 1e-9)) - np.log(prior.p.median - 1.0)) / prior.p.beta
+        if abs(za) > PRIOR_SIGMAS:
+            far.append(f"story {i + 1} alpha {b.alpha[i]:.3g} ({za:+.1f} sd)")
+        if abs(zp) > PRIOR_SIGMAS:
+            far.append(f"story {i + 1} p {b.p[i]:.3g} ({zp:+.1f} sd)")
+    if far:
+        out.append(f"implausible for {title}: alpha median {prior.alpha.median:g}, p median "
+                   f"{prior.p.median:g}; flagged beyond {PRIOR_SIGMAS:g} standard deviations): " + ", ".join(far)
+                   + ("; name the structural system (--system) so its prior bounds them" if not named else
+                      "; check the records' band and the story heights, or identify from more events"))
     return out
 
 
@@ -104,66 +149,60 @@ def identification_flags(clone: Clone, stiffness_error: Sequence[float] | None =
     out = []
     if bad:
         out.append(f"stiffness-evolution error above {STIFFNESS_ERROR_FLAG:.0%} ({', '.join(bad)}): the clone does not "
-                   "follow the building's loss of stiffness there")
+                   "follow the building's loss of stiffness there; read that story's degradation from HLA's figure, "
+                   "and identify from more events or with the structural system (--system)")
     out += parameter_flags(clone)
+    out += plausibility_flags(clone)
     if clone.mass_normalised:
         out.append("floor masses unknown: equal (or the given ratios) assumed, the clone is mass-normalised "
-                   "(stiffness per unit mass; losses take floor areas from the config)")
+                   "(stiffness per unit mass; losses take floor areas from the config); give the floor masses where "
+                   "known (measurement.mass_t in a run config)")
     return out
 
 
-P_SURVIVED_FLAG = 0.5
-"""P(collapse) at the intensity of an event the building survived from which on the run says the
-fragility contradicts the record more likely than not."""
+def run_basis(clone: Clone, *, assessment: dict | None = None, heights_given: Sequence[float] | None = None,
+              events: Sequence[dict] = (), drift_limit: float | None = None) -> DecisionBasis:
+    """What a run's decision rests on (:func:`hlaid.ida.basis.decision_basis`): P(collapse) at each
+    recorded event (``events``, :func:`event_risks`), the story heights the config gave (None: the
+    measurement's own), the ensemble's median peak drift ratio under the record (``assessment``)
+    against the drift survived, and the drift limit."""
+    own = None
+    if assessment and assessment.get("own_peak_drift") is not None:
+        own = float(np.median(np.asarray(assessment["own_peak_drift"], dtype=float)))
+    return decision_basis(clone, events=events, heights=heights_given, heights_assumed=heights_given is not None,
+                          demand_ratio=own, drift_limit=drift_limit)
 
 
 def run_flags(clone: Clone, *, stiffness_error: Sequence[float] | None = None, survival: dict | None = None,
               assessment: dict | None = None, heights_given: Sequence[float] | None = None,
-              loss: dict | None = None, events: Sequence[dict] = (), drift_limit: float | None = None) -> list[str]:
+              loss: dict | None = None, events: Sequence[dict] = (), drift_limit: float | None = None,
+              basis: DecisionBasis | None = None) -> list[str]:
     """The flags of a run (see the module doc): ``stiffness_error`` per story (None: the clone's
-    replay diagnostics), the ``survival``
-    block, the ``assessment`` (its members' own peak drift against what was observed), the story
-    heights the config gave (None: the measurement's own), the ``loss`` block (its demands'
-    flags) and P(collapse) at each recorded event (``events``, :func:`event_risks`; at or above
-    :data:`P_SURVIVED_FLAG` the drifts survived and the IDA's ``drift_limit`` are named)."""
+    replay diagnostics), the flags of what the decision rests on (``basis``; None: :func:`run_basis`
+    of ``assessment``, ``heights_given``, ``events`` and ``drift_limit``), the ``survival`` block and
+    the ``loss`` block (its demands' flags)."""
     out = identification_flags(clone, stiffness_error)
-    seen = clone.survived_drift()
-    h = clone.building.height if heights_given is None else np.asarray(heights_given, dtype=float)
-    for e in events:
-        if e.get("p_collapse") is not None and e["p_collapse"] >= P_SURVIVED_FLAG:
-            what = ""
-            if seen is not None and h is not None:
-                ratio = np.asarray(seen) / np.asarray(h, dtype=float)
-                what = (f": the building reached {float(ratio.max()):.1%} drift ("
-                        + ", ".join(f"{d:.0f}" for d in seen) + " mm at heights "
-                        + ", ".join(f"{v:g}" for v in np.asarray(h, dtype=float)) + " mm)"
-                        + (f", the collapse criterion is {drift_limit:.0%}" if drift_limit else ""))
-            out.append(f"P(collapse) {e['p_collapse']:.0%} at the intensity of {e['name']} ({e.get('im', 0):.3g} g), "
-                       f"which the building survived{what}; check the story heights, the collapse law and the drift "
-                       "limit before acting on the fragility")
+    if basis is None:
+        basis = run_basis(clone, assessment=assessment, heights_given=heights_given, events=events,
+                          drift_limit=drift_limit)
+    out += basis.flags()
     if survival and survival.get("nominal_survives") is False:
         out.append(f"the clone collapses under {survival.get('nominal_collapsed_in')}, an event it was identified "
                    "from and the building survived: its collapse risk is overstated (check the story heights and "
                    "the collapse law)")
     if survival and survival.get("n_rejected"):
         out.append(f"{survival['n_rejected']} of {survival['n_drawn']} ensemble draws collapsed under the clone's own "
-                   "events and were rejected (the posterior conditioned on survival)")
+                   "events and were rejected (the posterior conditioned on survival); many rejected means the clone "
+                   "and its collapse law sit near what the building survived: check the story heights and the law")
     if survival and survival.get("unchecked"):
-        out.append("survival not checked for: " + "; ".join(survival["unchecked"]))
-    if assessment and seen is not None and h is not None and assessment.get("own_peak_drift") is not None:
-        own = float(np.median(np.asarray(assessment["own_peak_drift"], dtype=float)))
-        worst = float(np.max(np.asarray(seen) / np.asarray(h, dtype=float)))
-        if own > EXTRAPOLATION_MARGIN * worst:
-            out.append(f"demands extrapolated: the clones' median peak drift ratio under the record {own:.2%} lies "
-                       f"beyond the largest the building survived (measured, or the clone's replay of its events), "
-                       f"{worst:.2%}")
+        out.append("survival not checked for: " + "; ".join(survival["unchecked"])
+                   + " (keep the events' files where the clone names them, unchanged)")
     for name, d in ((loss or {}).get("demands") or {}).items():
-        out += [f"losses ({name}): {f}" for f in d.get("flags", ())]
-    if heights_given is not None:
-        out.append("story heights " + ", ".join(f"{v:g}" for v in heights_given) + " mm given in the config, not "
-                   "measured: drift ratios, P-Delta and the collapse law rest on them")
+        out += [f"losses ({name}): {f}" for f in d.get("flags", ())
+                if not (name == "recorded" and f.startswith("demands extrapolated"))]  # the basis says it
     return out
 
 
 __all__ = ["EXTRAPOLATION_MARGIN", "P_SURVIVED_FLAG", "STIFFNESS_ERROR_FLAG", "WIDE_INTERVAL_FLAG", "event_risks",
-           "identification_flags", "parameter_flags", "run_flags"]
+           "identification_flags", "parameter_flags", "plausibility_flags", "run_basis", "run_flags",
+           "YIELD_DRIFT_MIN", "PRIOR_SIGMAS"]

@@ -113,10 +113,12 @@ def _assess(d: Path, s: RunSummary, cfg: LossConfig, recs, folder: Path, base_di
     own = meas.ground_motion(name="recorded", source=str(d / "measurement.npz"))
     n_ens = assess_cfg.n_ensemble if assess_cfg is not None and clone.uncertainty is not None else 0
     levels = cfg.levels if cfg.levels is not None else list(s.ida.levels_g if s.ida is not None else ())
+    events = [e.to_dict() for e in s.events] if s.events else None  # the run's figures, not new ones
+    assumed = bool(s.basis.get("heights_assumed")) if s.basis is not None else None
     return assess_losses(clone, own, records=recs, levels=levels, collapse=collapse, cfg=cfg,
                          ida_config=_ida_config(s, src), n_ensemble=n_ens,
                          seed=assess_cfg.seed if assess_cfg is not None else 0, folder=folder,
-                         collapse_source=collapse_src, base_dir=base_dir)
+                         collapse_source=collapse_src, base_dir=base_dir, events=events, heights_assumed=assumed)
 
 
 def _ida_config(s: RunSummary, src: str):

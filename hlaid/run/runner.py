@@ -35,7 +35,7 @@ from ..model import Building
 from ..plots import plot_time_histories, save_figure
 from ..synthetic import measurement_from_config
 from .config import MeasurementSource, RunConfig, input_paths, load_run_config
-from .decision import event_risks, run_flags
+from .decision import event_risks, run_basis, run_flags
 from .summary import (
     Assessment,
     ConfigRecord,
@@ -92,16 +92,27 @@ def _csv(rows: list[dict]) -> str:
 
 
 class _Steps:
-    """The numbered steps of a run (``[3/7] figures``), counted from the config before the work."""
+    """The numbered steps of a run (``[3/7] figures``), counted from the config before the work;
+    each a :class:`~hlaid._progress.Stage` (a bar on a terminal, one closing line), so the work
+    inside it says its own steps as details: one line per step."""
 
     def __init__(self, cfg: RunConfig) -> None:
         after = cfg.ida is not None and cfg.ida.start == "undamaged"
         self.total = 3 + (cfg.ida is not None) + after + (cfg.assess is not None) + (cfg.loss is not None)
         self.done = 0
+        self.current: _progress.Stage | None = None
 
     def __call__(self, text: str) -> None:
+        self.close()
         self.done += 1
-        _progress.info(f"[{self.done}/{self.total}] {text}")
+        self.current = _progress.stage(f"[{self.done}/{self.total}] {text}")
+        self.current.__enter__()
+
+    def close(self, exc: BaseException | None = None) -> None:
+        """End the step in progress (``exc``: left by that exception)."""
+        st, self.current = self.current, None
+        if st is not None:
+            st.__exit__(type(exc) if exc is not None else None, exc, None)
 
 
 def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None = None, force: bool = False,
@@ -111,7 +122,6 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
     ``out`` is replaced only with ``force``, when hlaid wrote it and it holds none of ``inputs``
     (the run's own input files are added to them). ``plots`` False: no figures (the report holds
     the tables alone)."""
-    from .report import build_report
     t_all = time.perf_counter()
     timings = {}
     if cfg.loss is not None:  # fail before the pipeline when pelicun is missing
@@ -119,6 +129,20 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
         require_pelicun()
     inputs = [*inputs, *input_paths(cfg, base_dir), cache_dir]
     step = _Steps(cfg)
+    try:
+        summary = _pipeline(cfg, out, base_dir, force, cache_dir, inputs, plots, step, t_all, timings)
+    except BaseException as exc:
+        step.close(exc)
+        raise
+    _progress.info(f"wrote {out}/ (report.html, clone.json, hla/, ida/, figures/, tensorboard/) in "
+                   f"{timings['total']:.0f} s")
+    return summary
+
+
+def _pipeline(cfg: RunConfig, out, base_dir, force: bool, cache_dir, inputs, plots: bool, step: _Steps, t_all: float,
+              timings: dict) -> RunSummary:
+    """The work of :func:`run_pipeline` (its steps said by ``step``, its times into ``timings``)."""
+    from .report import build_report
     with atomic_directory(out, force=force, inputs=inputs) as tmp:
         tmp = Path(tmp)
         (tmp / "figures").mkdir()
@@ -136,11 +160,12 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
         timings["identify"] = time.perf_counter() - t
         table, paper = _identification_outputs(meas, res, tmp, step, plots)
         risk = _risk(res.clone, meas, cfg, tmp, base_dir, timings, step, plots)
-        flags = run_flags(res.clone, stiffness_error=res.replay.stiffness_error.tolist(),
-                          survival=risk.pop("survival_dict"), assessment=risk.pop("assessment_dict"),
-                          heights_given=_heights_given(cfg), loss=risk.pop("loss_dict"),
+        basis = run_basis(res.clone, assessment=risk.pop("assessment_dict"), heights_given=_heights_given(cfg),
                           events=[e.to_dict() for e in risk["events"]],
                           drift_limit=cfg.ida.drift_limit if cfg.ida is not None else None)
+        flags = run_flags(res.clone, stiffness_error=res.replay.stiffness_error.tolist(),
+                          survival=risk.pop("survival_dict"), loss=risk.pop("loss_dict"), basis=basis)
+        step.close()
         for flag in flags:
             _progress.warn(f"flag: {flag}")
         timings["total"] = time.perf_counter() - t_all
@@ -153,11 +178,10 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
                           r_true=None if rc.r_true is None else tuple(rc.r_true.tolist()),
                           stiffness_error=tuple(rc.stiffness_error.tolist())),
             outer_iterations=res.iterations, identify_timings=dict(res.timings), timings=timings,
-            noise_rms=meas.noise_rms, flags=tuple(flags), figures=plots, **risk)
+            noise_rms=meas.noise_rms, flags=tuple(flags), figures=plots,
+            basis=basis.to_dict() if cfg.ida is not None else None, **risk)
         write_json(tmp / "summary.json", summary.to_dict())
         build_report(tmp)
-    _progress.info(f"wrote {out}/ (report.html, clone.json, hla/, ida/, figures/, tensorboard/) in "
-                   f"{timings['total']:.0f} s")
     return summary
 
 

@@ -8,7 +8,7 @@ field names; :meth:`RunSummary.to_dict` writes them in this order, after ``forma
 
 Versions: 1 (hlaid 0.1) and 2 (this one) hold the same fields; version 2 is the first written
 from this schema, and this hlaid reads both. Fields added since (``events``, ``survival``,
-``flags``, the assessment's ``events`` and ``survival``) are optional: older summaries read without them.
+``flags``, ``basis``, the assessment's ``events`` and ``survival``) are optional: older summaries read without them.
 """
 
 from __future__ import annotations
@@ -345,6 +345,9 @@ class RunSummary(Block):
     events: tuple[EventRisk, ...] = ()
     survival: Survival | None = None
     flags: tuple[str, ...] = ()
+    basis: dict[str, Any] | None = None
+    """What the decision rests on (:meth:`hlaid.ida.basis.DecisionBasis.to_dict`; None: no IDA, or an
+    older summary)."""
     figures: bool = True
     """Whether the run made its figures (``hlaid run --no-plots``: the report holds the tables alone)."""
 

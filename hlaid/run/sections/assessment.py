@@ -49,7 +49,8 @@ def assessment_html(a: Assessment) -> str:
         rows.append(f"<tr><td class='l'>peak drift ratio &gt; {lim:.1%}</td><td>{fmt(p, '.1%')}</td>"
                     f"<td>{fmt(band[0], '.1%')} &ndash; {fmt(band[1], '.1%')}</td></tr>")
     out.append(f"<p>At the measured record's intensity, {e(a.im_label)} = {a.own_im:.3g} g:</p>"
-               f"<table><tr><th class='l'>event</th><th>probability</th><th>{ci} band</th></tr>"
+               f"<table><tr><th class='l'>event</th><th>probability (mean of the ensemble)</th>"
+               f"<th>{ci} band (5th &ndash; 95th percentile)</th></tr>"
                + "".join(rows) + "</table>")
     if a.own_residual_drift_median is not None:
         out.append(f"<p>The clones under the measured record: median peak drift ratio "

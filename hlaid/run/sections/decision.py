@@ -28,6 +28,13 @@ def section(s: RunSummary) -> str:
         out.append("<p>P(collapse) of the undamaged clone at the intensity of each event it was identified from "
                    "(the building survived every one):</p><table><tr><th class='l'>event</th><th>IM [g]</th>"
                    "<th>P(collapse)</th><th>90 % band</th><th class='l'>fragility</th></tr>" + rows + "</table>")
+    if s.basis is not None:
+        from ...ida.basis import DecisionBasis
+
+        lines = [x for x in DecisionBasis.from_dict(s.basis).lines()[1:]  # P(collapse) at the events: the table
+                 if not (s.events and x.lstrip().startswith("P(collapse) at the events"))]
+        out.append("<p>What the figures rest on:</p><ul>" + "".join(f"<li>{e(x.strip())}</li>" for x in lines)
+                   + "</ul>")
     v = s.survival
     if v is not None and (v.events or v.unchecked):
         said = (f"the identified clone {'survives' if v.nominal_survives else 'collapses under'} "

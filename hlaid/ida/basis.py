@@ -1,0 +1,309 @@
+"""What a decision rests on: one definition of each figure every decision command reports.
+
+``hlaid ida``, ``hlaid demands``, ``hlaid run`` (and ``hlaid demo``), ``hlaid loss`` and ``hlaid
+fleet`` turn a clone into a decision. Each prints and stores (``basis`` in its JSON output) a
+:class:`DecisionBasis`, built here and nowhere else:
+
+* **P(collapse) at each event the clone recorded** (:func:`p_collapse`, the lognormal collapse
+  fragility at the event's intensity). The building survived every one of them.
+* **Survival contradicted**: P(collapse) at or above :data:`P_SURVIVED_FLAG` at an event the
+  building survived. The clone, its collapse law or the story heights are wrong there, not the
+  building at risk.
+* **The drift the building survived** (:func:`survived_drift`): per story the largest drift of the
+  events the clone was identified from, measured or in the clone's replay of them, whichever is
+  larger (:meth:`hlaid.clone.Clone.survived_drift`). The collapse law is made consistent with the
+  same drift (:func:`hlaid.model.collapse.accommodate`).
+* **Extrapolation**: the decision's demand (median peak drift ratio) beyond
+  :data:`EXTRAPOLATION_MARGIN` times the largest drift ratio the building survived. A clone's
+  replay of the very record the building survived misses its peak drifts by about 10 %
+  (docs/events.md), which is not extrapolation. A collapse fragility always extrapolates to its
+  drift limit, and says from which drift.
+* **Assumed heights**: story heights given on the command line or in a config instead of measured.
+  Drift ratios, P-Delta and the collapse law rest on them.
+* **The clone's own replay error** (:meth:`hlaid.clone.Clone.own_replay_miss`): flagged when its
+  worst peak-drift error is larger than :data:`REPLAY_MISS_FLAG`; "not assessed" where the clone
+  keeps no record of its replay.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+P_SURVIVED_FLAG = 0.5
+"""P(collapse) at the intensity of an event the building survived from which on the figure
+contradicts the record more likely than not."""
+
+EXTRAPOLATION_MARGIN = 1.10
+"""A decision's median peak drift ratio more than this factor above the largest drift ratio the
+building survived is flagged as extrapolated."""
+
+REPLAY_MISS_FLAG = 0.15
+"""The clone's replay of its own events missing a story's peak drift by more than this fraction
+is flagged."""
+
+
+def p_collapse(im: float, median: float | None, beta: float | None) -> float | None:
+    """P(collapse | IM = ``im``) of the lognormal fragility (``median`` [g], ``beta``); None where
+    the fragility or the intensity is unknown."""
+    if median is None or beta is None or im is None or not (median > 0 and beta > 0 and math.isfinite(im)):
+        return None
+    if im <= 0:
+        return 0.0
+    return 0.5 * math.erfc(-math.log(im / median) / (beta * math.sqrt(2.0)))
+
+
+def survived_drift(clone) -> np.ndarray | None:
+    """``(story,)`` the drift each story of ``clone``'s building survived [mm] (see the module doc);
+    None where no event recorded one."""
+    return clone.survived_drift()
+
+
+@dataclass(frozen=True)
+class AtEvent:
+    """P(collapse) at the intensity of one event the building survived.
+
+    Attributes
+    ----------
+    name : the event
+    im : its intensity [g] (None: its ground motion was not at hand)
+    p_collapse : P(collapse) there (None: not assessed)
+    p_collapse_band : the interval of an ensemble (5th to 95th percentile over its members and
+        record resamples), or None
+    source : whose fragility (the identified clone's IDA, an ensemble of N clones)
+    """
+
+    name: str
+    im: float | None
+    p_collapse: float | None
+    p_collapse_band: tuple[float, float] | None = None
+    source: str = ""
+
+    @property
+    def contradicted(self) -> bool:
+        return self.p_collapse is not None and self.p_collapse >= P_SURVIVED_FLAG
+
+    def text(self) -> str:
+        p = "not assessed" if self.p_collapse is None else f"{self.p_collapse:.1%}"
+        band = "" if self.p_collapse_band is None else \
+            f" (90% band {self.p_collapse_band[0]:.1%}-{self.p_collapse_band[1]:.1%})"
+        im = "" if self.im is None else f" at {self.im:.3g} g"
+        return f"{self.name}{im}: {p}{band}"
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "im": self.im, "p_collapse": self.p_collapse,
+                "p_collapse_band": None if self.p_collapse_band is None else list(self.p_collapse_band),
+                "source": self.source, "contradicts_survival": self.contradicted}
+
+
+@dataclass(frozen=True)
+class DecisionBasis:
+    """What a decision figure rests on (see the module doc).
+
+    Attributes
+    ----------
+    events : P(collapse) at each event the clone recorded
+    heights_mm : the story heights the figures use [mm] (None: none known)
+    heights_assumed : True where they were given (command line, config), not measured
+    survived_mm : the drift each story survived [mm] (:func:`survived_drift`; None: not recorded)
+    demand_ratio : the decision's median peak drift ratio (None: the command has none)
+    drift_limit : the collapse criterion, peak drift ratio (None: the command has none)
+    replay_miss : :meth:`~hlaid.clone.Clone.own_replay_miss` (None: not assessed)
+    events_note : why P(collapse) at the events is not assessed, where ``events`` is empty
+    """
+
+    events: tuple[AtEvent, ...] = ()
+    heights_mm: tuple[float, ...] | None = None
+    heights_assumed: bool = False
+    survived_mm: tuple[float, ...] | None = None
+    demand_ratio: float | None = None
+    drift_limit: float | None = None
+    replay_miss: tuple[float, int, str, tuple[float, float]] | None = None
+    events_note: str = "the clone's events' ground motions are not at hand"
+
+    # ---------------------------------------------------------------- the figures
+    @property
+    def survived_ratio(self) -> float | None:
+        """The largest drift ratio the building survived (over stories); None where unknown."""
+        if self.survived_mm is None or self.heights_mm is None or len(self.survived_mm) != len(self.heights_mm):
+            return None
+        return float(np.max(np.asarray(self.survived_mm) / np.asarray(self.heights_mm)))
+
+    @property
+    def extrapolated(self) -> bool | None:
+        """Whether the demand lies beyond :data:`EXTRAPOLATION_MARGIN` times the drift survived
+        (None: not assessed)."""
+        s = self.survived_ratio
+        if s is None or self.demand_ratio is None:
+            return None
+        return bool(self.demand_ratio > EXTRAPOLATION_MARGIN * s)
+
+    @property
+    def contradicted(self) -> tuple[AtEvent, ...]:
+        """The events the building survived at which P(collapse) >= :data:`P_SURVIVED_FLAG`."""
+        return tuple(e for e in self.events if e.contradicted)
+
+    @property
+    def replay_flagged(self) -> bool | None:
+        """Whether the clone's replay of its own events misses a peak drift by more than
+        :data:`REPLAY_MISS_FLAG` (None: not assessed)."""
+        return None if self.replay_miss is None else abs(self.replay_miss[0]) > REPLAY_MISS_FLAG
+
+    # ---------------------------------------------------------------- in words
+    def flags(self) -> list[str]:
+        """One warning per thing that changes the reading of the figures, each saying what to do."""
+        out = []
+        for e in self.contradicted:
+            out.append(f"P(collapse) {e.p_collapse:.0%} at {e.name}"
+                       + (f" ({e.im:.3g} g)" if e.im is not None else "")
+                       + ", an event the building survived: the figure contradicts the record; check the story "
+                       "heights (--heights), the collapse law (--collapse) and the drift limit before acting on it")
+        if self.extrapolated:
+            out.append(f"demands extrapolated: median peak drift ratio {self.demand_ratio:.2%}, beyond "
+                       f"{EXTRAPOLATION_MARGIN:g} x the largest the building survived ({self.survived_ratio:.2%}); "
+                       "the clone there follows its law, not the data: treat the figure as an estimate")
+        if self.heights_assumed and self.heights_mm is not None:
+            out.append("story heights " + ", ".join(f"{v:g}" for v in self.heights_mm) + " mm assumed, not "
+                       "measured: drift ratios, P-Delta and the collapse law rest on them; give the building's "
+                       "own heights")
+        if self.replay_flagged:
+            err, story, event, band = self.replay_miss  # type: ignore[misc]
+            out.append(f"the clone's replay of its own event {event} misses story {story + 1}'s peak drift by "
+                       f"{err:+.0%} ({_band(band)}): decisions inherit that error; identify again with more "
+                       "events or a structural system (--system)")
+        return out
+
+    def lines(self) -> list[str]:
+        """The short block a command prints (its warnings come from :meth:`flags`)."""
+        out = ["what the decision rests on:"]
+        if self.events:
+            out.append("  P(collapse) at the events the building survived: "
+                       + "; ".join(e.text() for e in self.events)
+                       + (f" ({self.events[0].source})" if self.events[0].source else ""))
+        else:
+            out.append(f"  P(collapse) at the events the building survived: not assessed ({self.events_note})")
+        if self.survived_mm is not None:
+            s = ", ".join(f"{v:.1f}" for v in self.survived_mm)
+            r = self.survived_ratio
+            out.append(f"  largest drift survived: {s} mm"
+                       + ("" if r is None else f" (up to {r:.2%} of the story height)")
+                       + (f"; demand: median {self.demand_ratio:.2%}, "
+                          + ("extrapolated" if self.extrapolated else f"within {EXTRAPOLATION_MARGIN:g} x")
+                          if self.demand_ratio is not None and r is not None else "")
+                       + (f"; the collapse criterion {self.drift_limit:.0%} is {self.drift_limit / r:.2g} x the "
+                          "drift survived (the fragility there rests on the model, not the data)"
+                          if self.drift_limit is not None and r else ""))
+        else:
+            out.append("  largest drift survived: not recorded with the clone (extrapolation not assessed)")
+        if self.heights_mm is not None:
+            out.append("  story heights: " + ", ".join(f"{v:g}" for v in self.heights_mm) + " mm, "
+                       + ("assumed (given, not measured)" if self.heights_assumed else "the clone's own"))
+        if self.replay_miss is None:
+            out.append("  the clone's replay of its own events: not assessed (no replay record kept with its events)")
+        else:
+            err, story, event, band = self.replay_miss
+            out.append(f"  the clone's replay of its own events: worst peak-drift error {err:+.1%} (story {story + 1}, "
+                       f"{event}, {_band(band)})")
+        return out
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> DecisionBasis:
+        """The basis :meth:`to_dict` wrote (a run's ``summary.json``, ``loss.json``)."""
+        miss = d.get("replay_miss")
+        h, seen = d.get("heights_mm"), d.get("survived_drift_mm")
+        return cls(events=tuple(_at_event(e) for e in d.get("events") or ()),
+                   heights_mm=None if h is None else tuple(float(v) for v in h),
+                   heights_assumed=bool(d.get("heights_assumed")),
+                   survived_mm=None if seen is None else tuple(float(v) for v in seen),
+                   demand_ratio=d.get("demand_drift_ratio"), drift_limit=d.get("drift_limit"),
+                   replay_miss=None if not miss else (float(miss["error"]), int(miss["story"]) - 1, str(miss["event"]),
+                                                      tuple(float(v) for v in miss.get("band_hz") or (math.nan,) * 2)),
+                   events_note=d.get("events_note") or cls.events_note)
+
+    def to_dict(self) -> dict:
+        miss = self.replay_miss
+        return {"events": [e.to_dict() for e in self.events],
+                "heights_mm": None if self.heights_mm is None else list(self.heights_mm),
+                "heights_assumed": self.heights_assumed,
+                "survived_drift_mm": None if self.survived_mm is None else list(self.survived_mm),
+                "survived_drift_ratio": self.survived_ratio, "demand_drift_ratio": self.demand_ratio,
+                "extrapolation_margin": EXTRAPOLATION_MARGIN, "extrapolated": self.extrapolated,
+                "drift_limit": self.drift_limit,
+                "survival_contradicted": [e.name for e in self.contradicted],
+                "replay_miss": None if miss is None else {"error": miss[0], "story": miss[1] + 1, "event": miss[2],
+                                                          "band_hz": list(miss[3])},
+                "replay_miss_flagged": self.replay_flagged,
+                "events_note": None if self.events else self.events_note, "flags": self.flags()}
+
+
+def _band(band) -> str:
+    lo, hi = band
+    return "band not recorded" if not (math.isfinite(lo) and math.isfinite(hi)) else f"{lo:g}-{hi:g} Hz"
+
+
+def decision_basis(clone, *, events: Iterable[AtEvent | Mapping] = (), heights=None, heights_assumed: bool = False,
+                   demand_ratio: float | None = None, drift_limit: float | None = None,
+                   events_note: str | None = None) -> DecisionBasis:
+    """The :class:`DecisionBasis` of a decision taken from ``clone`` (None: no clone at hand, e.g. a
+    demand CSV): ``events`` (:class:`AtEvent` or mappings of its fields), the story ``heights``
+    used [mm] (None: the clone's), whether they were ``heights_assumed``, the decision's
+    ``demand_ratio`` and ``drift_limit``; ``events_note`` why there are no ``events``."""
+    evs = tuple(e if isinstance(e, AtEvent) else _at_event(e) for e in events)
+    if events_note is None and clone is not None and not clone.events:
+        events_note = "the clone records no events it was identified from (an older clone file)"
+    h = heights if heights is not None else (None if clone is None else clone.building.height)
+    seen = None if clone is None else survived_drift(clone)
+    return DecisionBasis(events=evs, heights_mm=None if h is None else tuple(float(v) for v in h),
+                         heights_assumed=bool(heights_assumed and h is not None),
+                         survived_mm=None if seen is None else tuple(float(v) for v in seen),
+                         demand_ratio=None if demand_ratio is None else float(demand_ratio),
+                         drift_limit=drift_limit, replay_miss=None if clone is None else clone.own_replay_miss(),
+                         **({"events_note": events_note} if events_note else {}))
+
+
+def _at_event(d: Mapping) -> AtEvent:
+    band = d.get("p_collapse_band")
+    return AtEvent(name=str(d.get("name")), im=None if d.get("im") is None else float(d["im"]),
+                   p_collapse=None if d.get("p_collapse") is None else float(d["p_collapse"]),
+                   p_collapse_band=None if band is None else (float(band[0]), float(band[1])),
+                   source=str(d.get("source") or ""))
+
+
+def events_at(motions: Sequence[tuple[str, object]], im_of, median: float | None, beta: float | None,
+              source: str) -> tuple[AtEvent, ...]:
+    """P(collapse) of the fragility (``median`` [g], ``beta``) at each ``(name, GroundMotion)``, its
+    intensity given by ``im_of(motion)`` [g] (a motion None: not assessed)."""
+    out = []
+    for name, m in motions:
+        im = None if m is None else float(im_of(m))
+        out.append(AtEvent(name=str(name), im=im, p_collapse=None if im is None else p_collapse(im, median, beta),
+                           source=source))
+    return tuple(out)
+
+
+def ida_events(clone, ida, motions: Sequence[tuple[str, object]] | None = None) -> tuple[AtEvent, ...]:
+    """P(collapse) of an IDA's collapse fragility (``ida``: an :class:`~hlaid.ida.IDAResult`) at the
+    intensity of each of ``clone``'s events (``motions``: ``(name, GroundMotion)``; None: read
+    from the events' files where unchanged, :func:`hlaid.events.evidence.event_motions`)."""
+    from .measures import intensity
+
+    if motions is None:
+        from ..events.evidence import event_motions
+        em = event_motions(clone)
+        motions = list(zip(em.names, em.motions))
+    source = "the identified clone's IDA fragility"
+    try:
+        frag = ida.collapse_fragility("capacities", n_boot=0)
+        median, beta = float(frag.median), float(frag.beta)
+    except ValueError as err:
+        median = beta = None
+        source = f"no collapse fragility: {err}; raise the IDA levels"
+    return events_at(motions, lambda m: intensity(m, ida.im, building=ida.building, period=ida.period)[0],
+                     median, beta, source)
+
+
+__all__ = ["AtEvent", "DecisionBasis", "EXTRAPOLATION_MARGIN", "P_SURVIVED_FLAG", "REPLAY_MISS_FLAG", "decision_basis",
+           "events_at", "ida_events", "p_collapse", "survived_drift"]
