@@ -18,6 +18,7 @@ import errno
 import json
 import os
 import shutil
+import stat
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -149,6 +150,19 @@ def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
         return False
 
 
+def _kind(path: Path) -> str | None:
+    """What ``path`` is when it is neither a regular file nor a symbolic link (a device, a FIFO, a
+    socket), else None."""
+    try:
+        mode = os.lstat(path).st_mode
+    except OSError:
+        return None
+    if stat.S_ISREG(mode) or stat.S_ISLNK(mode) or stat.S_ISDIR(mode):
+        return None
+    return {stat.S_IFCHR: "a character device", stat.S_IFBLK: "a block device", stat.S_IFIFO: "a FIFO (named pipe)",
+            stat.S_IFSOCK: "a socket"}.get(stat.S_IFMT(mode), "a special file")
+
+
 def check_output_file(path: str | os.PathLike, *, force: bool = False,
                       inputs: Iterable[str | os.PathLike | None] = ()) -> Path:
     """Refuse an output file that :func:`atomic_write` would refuse (an existing file or link without
@@ -165,6 +179,10 @@ def check_output_file(path: str | os.PathLike, *, force: bool = False,
         if named or read:
             raise InputError(f"is an input of this run ({named[0] if named else read}); write the output to another "
                              "file (--force never replaces an input)", source=str(path))
+        kind = _kind(path)
+        if kind is not None:
+            raise InputError(f"exists and is {kind}, not a file hlaid could have written; hlaid never replaces one "
+                             "(choose another output name)", source=str(path))
         if not force:
             what = "exists as a symbolic link; use --force to replace it" if path.is_symlink() else \
                 "already exists; use --force to overwrite"
@@ -224,20 +242,23 @@ def write_json(path, obj, *, force: bool = True) -> Path:
     return atomic_write(path, lambda tmp: tmp.write_text(json_text(obj)), force=force)
 
 
-@contextlib.contextmanager
-def atomic_files() -> Iterator[Callable[[str | os.PathLike, Callable[[Path], object]], Path]]:
-    """Replace several files together: ``stage(path, write)`` writes each through ``write(tmp)``
-    under a temporary name beside it; when the block ends without an error every one is renamed
-    into place, on an error (Ctrl-C too) none is and the temporary files are removed. The work
-    that may fail goes inside the block, so a failure leaves every file as it was."""
-    staged: list[tuple[Path, Path]] = []
+class Staged:
+    """The ``stage`` of :func:`atomic_files`: ``stage(path, write)`` stages a file; ``then(done, undo)``
+    registers what to do once every file is in place (``done``) or, should one of them fail,
+    to put back what was already changed (``undo``): an output folder placed before the files
+    (:func:`atomic_directory`'s ``with_files``)."""
 
-    def stage(path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
+    def __init__(self):
+        self.files: list[tuple[Path, Path]] = []
+        self.done: list[Callable[[], object]] = []
+        self.undo: list[Callable[[], object]] = []
+
+    def __call__(self, path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
         path = check_output_file(path, force=True)
         parent = path.parent if str(path.parent) else Path(".")
         fd, name = tempfile.mkstemp(prefix=f".{_stem(path.name)}.{os.getpid()}-", suffix=".tmp", dir=parent)
         os.close(fd)
-        staged.append((Path(name), path))
+        self.files.append((Path(name), path))
         try:
             write(Path(name))
             os.chmod(name, _creation_mode())
@@ -248,14 +269,85 @@ def atomic_files() -> Iterator[Callable[[str | os.PathLike, Callable[[Path], obj
             raise
         return path
 
+    def then(self, done: Callable[[], object], undo: Callable[[], object]) -> None:
+        self.done.append(done)
+        self.undo.append(undo)
+
+
+@contextlib.contextmanager
+def atomic_files() -> Iterator[Staged]:
+    """Replace several files together: ``stage(path, write)`` writes each through ``write(tmp)``
+    under a temporary name beside it; when the block ends without an error every one is renamed
+    into place, on an error (Ctrl-C too) none is and the temporary files are removed. Should a
+    rename fail half-way (refused by the file system), the files already replaced are put back
+    from copies kept until then, what :meth:`Staged.then` registered is undone, and nothing is
+    left behind: all or nothing. The work that may fail goes inside the block."""
+    stage = Staged()
     try:
         yield stage
     except BaseException:
-        for tmp, _ in staged:
+        for tmp, _ in stage.files:
             tmp.unlink(missing_ok=True)
+        _run(stage.undo)
         raise
-    for tmp, path in staged:
-        _put(tmp, path)
+    kept: list[tuple[Path, Path | None]] = []  # (path, its old content's copy or None: there was none)
+    try:
+        for tmp, path in stage.files:
+            kept.append((path, _keep(path)))
+            _put(tmp, path)
+    except BaseException as err:
+        for path, old in reversed(kept):
+            with contextlib.suppress(OSError):
+                if old is None:
+                    path.unlink(missing_ok=True)
+                    continue
+                try:
+                    os.replace(old, path)
+                except OSError:
+                    shutil.copyfile(old, path)
+        for tmp, _ in stage.files:
+            tmp.unlink(missing_ok=True)
+        for _, old in kept:
+            if old is not None:
+                old.unlink(missing_ok=True)
+        _run(stage.undo)
+        full = no_space_error(err, kept[-1][0], kept[-1][0].parent) if kept else None
+        if full is not None:
+            raise full from None
+        if isinstance(err, OSError) and kept:
+            raise InputError(f"cannot be replaced ({err.strerror or err}); nothing was changed, the outputs written "
+                             "with it are as they were", source=str(kept[-1][0])) from None
+        raise
+    for _, old in kept:
+        if old is not None:
+            old.unlink(missing_ok=True)
+    _run(stage.done)
+
+
+def _run(fns: list[Callable[[], object]]) -> None:
+    for fn in reversed(fns):
+        with contextlib.suppress(OSError):
+            fn()
+
+
+def _keep(path: Path) -> Path | None:
+    """A copy of the existing file ``path`` beside it, or None."""
+    if not os.path.lexists(path):
+        return None
+    parent = path.parent if str(path.parent) else Path(".")
+    fd, name = tempfile.mkstemp(prefix=f".{_stem(path.name)}.{os.getpid()}-", suffix=".tmp", dir=parent)
+    os.close(fd)
+    old = Path(name)
+    try:  # a copy, not a hard link: a file whose rename is refused is rewritten in place (its inode)
+        if os.path.islink(path):
+            old.unlink()
+            os.symlink(os.readlink(path), old)
+        else:
+            shutil.copy2(path, old)
+    except BaseException:
+        old.unlink(missing_ok=True)
+        raise
+    return old
 
 
 def write_npz(path, arrays: dict, *, force: bool = True) -> Path:
@@ -332,7 +424,8 @@ def check_output_folder(path: str | os.PathLike, *, force: bool = False,
 
 @contextlib.contextmanager
 def atomic_directory(path: str | os.PathLike, *, force: bool = False,
-                     inputs: Iterable[str | os.PathLike | None] = (), what: str | None = None) -> Iterator[Path]:
+                     inputs: Iterable[str | os.PathLike | None] = (), what: str | None = None,
+                     with_files: Staged | None = None) -> Iterator[Path]:
     """Build an output folder in a temporary sibling and move it into place on success.
 
     The folder gets a :data:`MARKER` naming the command that wrote it (``what``, default
@@ -344,6 +437,10 @@ def atomic_directory(path: str | os.PathLike, *, force: bool = False,
     ``path``'s place is replaced by the folder; what it pointed to is left alone. A folder that
     cannot be renamed (a mount point) is built inside itself and replaced in place, entry by
     entry (:func:`hlaid._outdir.replace_contents`); so is one whose rename fails at the end.
+
+    ``with_files`` (the ``stage`` of an enclosing :func:`atomic_files`): the folder is one of a
+    set of outputs replaced together; the folder it replaces is kept aside until the files are in
+    place too, and put back should one of them fail (a folder replaced in place is not).
     """
     inputs = list(inputs)
     path = check_output_folder(path, force=force, inputs=inputs)
@@ -358,7 +455,7 @@ def atomic_directory(path: str | os.PathLike, *, force: bool = False,
         os.chmod(tmp, _creation_mode(directory=True))
         check_output_folder(path, force=force, inputs=inputs)  # what is there now may differ from before
         placing, files = True, _outdir.listing(tmp)
-        if in_place or not _renamed(tmp, path, _outdir.marker(what or command, files, tmp)):
+        if in_place or not _renamed(tmp, path, _outdir.marker(what or command, files, tmp), with_files):
             _outdir.replace_contents(path, tmp)
             write_json(path / MARKER, _outdir.marker(what or command, files, path))
         tmp = None
@@ -373,7 +470,7 @@ def atomic_directory(path: str | os.PathLike, *, force: bool = False,
         raise
 
 
-def _renamed(tmp: Path, path: Path, body: dict) -> bool:
+def _renamed(tmp: Path, path: Path, body: dict, with_files: Staged | None = None) -> bool:
     """Put the complete folder ``tmp`` in ``path``'s place by renames, its marker ``body`` written
     first; False (nothing changed, no marker) where a rename is refused: ``path`` is a mount point."""
     write_json(tmp / MARKER, body)
@@ -393,9 +490,23 @@ def _renamed(tmp: Path, path: Path, body: dict) -> bool:
         if old is not None:
             os.replace(old, path)  # the existing folder back where it was
         raise
-    if old is not None:
-        if old.is_symlink() or not old.is_dir():
-            old.unlink(missing_ok=True)
+    def drop(p: Path | None) -> None:
+        if p is None:
+            return
+        if p.is_symlink() or not p.is_dir():
+            p.unlink(missing_ok=True)
         else:
-            shutil.rmtree(old, ignore_errors=True)
+            shutil.rmtree(p, ignore_errors=True)
+
+    if with_files is None:
+        drop(old)
+        return True
+
+    def undo() -> None:  # the new folder out, the old one back
+        gone = path.with_name(f".{_stem(path.name)}.{os.getpid()}-undone.tmp")
+        os.replace(path, gone)
+        if old is not None:
+            os.replace(old, path)
+        drop(gone)
+    with_files.then(lambda: drop(old), undo)
     return True

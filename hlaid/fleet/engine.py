@@ -115,7 +115,7 @@ def prepare_output(out: Path, *, force: bool, jobs: list[UnitJob] | tuple = ()) 
     out = check_output(out, force=force)
     out.mkdir(exist_ok=True)
     (out / "buildings").mkdir(exist_ok=True)
-    mark_output(out, jobs)
+    mark_output(out, jobs, pending=True)
     return out
 
 
@@ -123,12 +123,29 @@ FLEET_FILES = (MARKER, "buildings", "results.csv", "results.parquet", "report.ht
 """What a fleet writes in its folder, besides ``buildings/UNIT.json`` per unit."""
 
 
-def mark_output(out: Path, jobs: list[UnitJob] | tuple = ()) -> None:
+def mark_output(out: Path, jobs: list[UnitJob] | tuple = (), *, pending: bool = False) -> None:
     """Write the folder's :data:`hlaid._fileio.MARKER` listing what the fleet writes there (also
     for earlier configs, where the marker is this folder's own), so that another command's
-    ``--force`` may replace the folder when it holds nothing else."""
+    ``--force`` may replace the folder when it holds nothing else, and a rerun resumes it. With
+    ``pending`` (before the run) the tables, the report and the results of units not finished yet
+    are listed without their contents (the run rewrites them); the rest are recorded."""
     files = set(FLEET_FILES) | {f"buildings/{j.unit}.json" for j in jobs} | (written_here(out) or set())
-    write_json(out / OUTPUT_MARKER, output_marker("hlaid fleet", sorted(files), out))
+    todo = set()
+    if pending:
+        todo = set(FLEET_FILES) - {"buildings"} | {f"buildings/{j.unit}.json" for j in jobs}
+        todo -= {f for f in files if f.startswith("buildings/") and _finished(out / f, jobs)}
+    write_json(out / OUTPUT_MARKER, output_marker("hlaid fleet", sorted(files), out, pending=todo))
+
+
+def _finished(path: Path, jobs) -> bool:
+    """Whether ``path`` holds an ``ok`` result of one of ``jobs`` (kept by this run)."""
+    digests = {f"{j.unit}.json": j.digest for j in jobs}
+    try:
+        with own_files():
+            d = read_json(path)
+    except InputError:
+        return False
+    return isinstance(d, dict) and d.get("status") == "ok" and d.get("digest") == digests.get(path.name)
 
 
 def result_path(out: Path, job: UnitJob) -> Path:
