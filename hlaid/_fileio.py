@@ -51,6 +51,10 @@ def no_space_error(err: BaseException, path: str | os.PathLike, folder: str | os
         what = err.what
     elif isinstance(err, OSError) and err.errno in NO_SPACE:
         what = "no space left on the device" if err.errno == errno.ENOSPC else "disk quota exceeded"
+    elif isinstance(err, OSError) and err.errno == errno.EFBIG:
+        what = "the file-size limit of this process (ulimit -f) was reached"
+    elif isinstance(err, Exception) and not isinstance(err, InputError) and "File too large" in str(err):
+        what = "the file-size limit of this process (ulimit -f) was reached"  # wrapped by a library
     elif not isinstance(err, (OSError, InputError)) and isinstance(err, Exception) and _disk_full(folder):
         what = "no space left on the device"  # a library that wraps the OSError (torch.save: RuntimeError)
     else:
@@ -63,8 +67,8 @@ class NoSpaceError(InputError):
 
     def __init__(self, what: str, path: str | os.PathLike):
         self.what = what
-        super().__init__(f"{what} while writing it; nothing was written (free some space or choose another "
-                         "folder)", source=str(path))
+        advice = "raise the limit" if "ulimit" in what else "free some space or choose another folder"
+        super().__init__(f"{what} while writing it; nothing was written ({advice})", source=str(path))
 
 
 def _disk_full(folder: str | os.PathLike) -> bool:
@@ -150,6 +154,46 @@ def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
         return False
 
 
+FS_IOC_GETFLAGS = 0x80086601
+"""Linux's ioctl reading a file's attributes (``lsattr``); FS_IMMUTABLE_FL 0x10, FS_APPEND_FL 0x20."""
+
+
+def _locked(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is immutable or append-only (``chattr +i`` / ``+a``): no one, root
+    included, may replace or remove it (Linux; False elsewhere or where it cannot be told)."""
+    if not hasattr(os, "O_NOFOLLOW"):
+        return False
+    try:
+        import array
+        import fcntl
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0))
+    except (ImportError, OSError):
+        return False
+    try:
+        buf = array.array("l", [0])
+        fcntl.ioctl(fd, FS_IOC_GETFLAGS, buf, True)
+        return bool(buf[0] & 0x30)
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+
+
+def locked_entries(folder: str | os.PathLike, limit: int = 10000) -> list[str]:
+    """Entries under ``folder`` (itself included, as ".") that are immutable or append-only, or
+    inside such a folder: what a replacement could not remove."""
+    out = []
+    root = Path(folder)
+    for n, (dirpath, dirnames, filenames) in enumerate(os.walk(root)):
+        for name in [".", *dirnames, *filenames] if n == 0 else [*dirnames, *filenames]:
+            p = Path(dirpath) / name if name != "." else root
+            if _locked(p):
+                out.append(p.relative_to(root).as_posix())
+        if n > limit:
+            break
+    return out
+
+
 def _kind(path: Path) -> str | None:
     """What ``path`` is when it is neither a regular file nor a symbolic link (a device, a FIFO, a
     socket), else None."""
@@ -187,6 +231,9 @@ def check_output_file(path: str | os.PathLike, *, force: bool = False,
             what = "exists as a symbolic link; use --force to replace it" if path.is_symlink() else \
                 "already exists; use --force to overwrite"
             raise InputError(what, source=str(path))
+        if not path.is_symlink() and _locked(path):
+            raise InputError("is immutable or append-only (chattr +i/+a): it cannot be replaced; remove the "
+                             "attribute or choose another output name", source=str(path))
     check_parent(path)
     return path
 
@@ -200,7 +247,7 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], object], *, fo
     path = check_output_file(path, force=force)
     parent = path.parent if str(path.parent) else Path(".")
     remove_stale(parent, path.name)
-    tmp = None
+    tmp, placing = None, False
     try:
         fd, name = tempfile.mkstemp(prefix=f".{_stem(path.name)}.{os.getpid()}-", suffix=".tmp" + path.suffix[:16],
                                     dir=parent)
@@ -209,6 +256,7 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], object], *, fo
         write(tmp)
         os.chmod(tmp, _creation_mode())
         check_output_file(path, force=force)  # a file read by the work since (a record of a folder) stays
+        placing = True
         _put(tmp, path)
     except BaseException as err:  # Ctrl-C too: nothing is left behind
         full = no_space_error(err, path, parent)
@@ -216,6 +264,9 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], object], *, fo
             tmp.unlink(missing_ok=True)
         if full is not None:
             raise full from None
+        if placing and isinstance(err, OSError):
+            raise InputError(f"cannot be replaced ({err.strerror or err}); nothing was written", source=str(path)) \
+                from None
         raise
     return path
 
@@ -414,6 +465,12 @@ def check_output_folder(path: str | os.PathLike, *, force: bool = False,
                 raise InputError(f"{why}: --force replaces only a folder hlaid wrote, holding only what hlaid wrote "
                                  "there, or an empty one; move its contents away or choose another folder",
                                  source=str(path))
+        if force:
+            locked = locked_entries(path)
+            if locked:
+                raise InputError(f"holds {len(locked)} entr{'y' if len(locked) == 1 else 'ies'} that cannot be removed "
+                                 f"(immutable or append-only, chattr: {', '.join(locked[:3])}); remove the attribute "
+                                 "or choose another folder", source=str(path))
         if _outdir.cannot_rename(path):
             if not os.access(path, os.W_OK | os.X_OK):
                 raise InputError("folder is not writable", source=str(path))

@@ -266,7 +266,7 @@ def check_band(meas: Measurement, band_hz, field: str, *, default=None) -> None:
     ``None`` and ``"auto"`` (chosen from the record) pass."""
     if band_hz is None or isinstance(band_hz, str):
         return
-    from .signal import max_corner
+    from .signal import max_corner, min_corner
 
     lo, hi = (float(v) for v in band_hz)
     src = meas.source or None
@@ -276,6 +276,10 @@ def check_band(meas: Measurement, band_hz, field: str, *, default=None) -> None:
     rule = f"{top:.4g} Hz (0.9 x the Nyquist frequency of this {1.0 / meas.dt:.4g} Hz measurement)"
     if not lo < top:
         raise InputError(f"{field}: low corner {lo:g} Hz is not below {rule}; lower it", source=src)
+    low = min_corner(meas.dt)
+    if hi < low or 0 < lo < low or lo < 0 or not lo < hi:
+        raise InputError(f"{field}: corners {lo:g} {hi:g} Hz; expected 0 (no high-pass) or at least {low:g} Hz for the "
+                         f"low corner, and a high corner above it of at least {low:g} Hz", source=src)
     given = default is None or isinstance(default, str) or tuple(float(v) for v in default) != (lo, hi)
     if given and hi > top:
         raise InputError(f"{field}: high corner {hi:g} Hz is above {rule}, the highest corner hlaid uses; lower "

@@ -8,8 +8,8 @@ through the transform and are clipped to the parameter's physical bounds. Parame
 are not slots (those of stories the record did not drive past yield, which identification
 does not refine) are held at their identified value.
 
-This module imports only numpy, scipy and the model, so :mod:`hlaid.clone` can hold one
-(``hlaid.uncertainty`` re-exports it).
+This module imports only numpy and the model (scipy when an interval is asked for), so
+:mod:`hlaid.clone` can hold one (``hlaid.uncertainty`` re-exports it).
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.stats import norm
 
 from ..errors import InputError
 from .params import Building, Damping
@@ -130,6 +129,8 @@ class ParameterUncertainty:
         """Central ``level`` interval of every slot, ``{"k0[1]": (lo, hi), ...}`` (parameter units)."""
         if not (isinstance(level, (int, float)) and 0.0 < level < 1.0):
             raise InputError(f"interval level = {level!r}; expected a probability in (0, 1), e.g. 0.9")
+        from scipy.stats import norm  # here, not at import: reading a clone needs no scipy
+
         z = float(norm.ppf(0.5 + 0.5 * level))
         lo = self.values(self.centre - z * self.std)
         hi = self.values(self.centre + z * self.std)
