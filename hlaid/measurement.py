@@ -95,6 +95,9 @@ class Measurement:
         if not lo <= 1.0 / self.dt <= hi:
             raise InputError(f"dt = {self.dt:g} s is a sample rate of {1.0 / self.dt:.3g} Hz, outside the {lo:g} Hz "
                              f"to {hi:g} Hz of structural records; check dt (seconds per sample)", source=src)
+        for name in ("ground_acc", "floor_acc"):
+            if np.iscomplexobj(getattr(self, name)):
+                raise InputError(f"{name} holds complex numbers; expected real accelerations", source=src)
         g = np.asarray(self.ground_acc, dtype=np.float64)
         f = np.asarray(self.floor_acc, dtype=np.float64)
         if g.ndim != 1:
@@ -122,6 +125,13 @@ class Measurement:
         if not lo <= pga <= hi:
             raise InputError(f"ground_acc peak is {pga:.3g} mm/s^2 ({pga / G_MM_S2:.3g} g), not a plausible "
                              "earthquake; check the units (expected mm/s^2)", source=src)
+        if np.ptp(g) == 0:
+            raise InputError(f"ground_acc is constant ({float(g[0]):g} mm/s^2 at every sample): not a record of "
+                             "ground motion", source=src)
+        still = [j + 1 for j in range(f.shape[1]) if np.ptp(f[:, j]) == 0]
+        if still:
+            raise InputError(f"floor_acc of floor {still[0]} is constant ({float(f[0, still[0] - 1]):g} mm/s^2 at every "
+                             "sample): no floor of a shaken building keeps still; check the channel", source=src)
         if self.floor_disp is not None:
             d = np.asarray(self.floor_disp, dtype=np.float64)
             d = d[:, None] if d.ndim == 1 else d

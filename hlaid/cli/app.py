@@ -95,9 +95,24 @@ def add_ensemble(p: argparse.ArgumentParser, what: str) -> None:
                         "when the clone has it, else 0; 0: the identified clone alone)")
 
 
+def _seed(text: str) -> int:
+    """A ``--seed`` value: an integer within :data:`hlaid.bounds.SEED`, checked as it is parsed."""
+    from ..bounds import SEED
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text[:40]!r}") from None
+    try:
+        SEED.check("--seed", value)
+    except InputError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+    return value
+
+
 def add_seed(p: argparse.ArgumentParser, what: str, default: str = "0") -> None:
-    """``--seed N``."""
-    p.add_argument("--seed", type=int, default=None, metavar="N", help=f"seed of {what} (default {default})")
+    """``--seed N`` (checked against :data:`hlaid.bounds.SEED` as it is parsed)."""
+    p.add_argument("--seed", type=_seed, default=None, metavar="N", help=f"seed of {what} (default {default})")
 
 
 def add_building(p: argparse.ArgumentParser, *, pdelta_default: str = "when story heights are known") -> None:
