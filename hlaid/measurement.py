@@ -332,17 +332,57 @@ def ground_digest(meas: Measurement) -> str:
     return hashlib.sha256(np.ascontiguousarray(meas.ground_acc, dtype=np.float64).tobytes()).hexdigest()
 
 
+PROFILE_WINDOWS = 32
+"""Windows of :func:`ground_profile`."""
+
+PROFILE_TOL = 0.02
+"""Largest difference of two :func:`ground_profile` s of one record written differently (rounded
+to 6 digits, trimmed or padded by a sample, scaled by 1 + 1e-12: under 1e-3)."""
+
+
+def ground_profile(meas: Measurement) -> list[float]:
+    """The ground record's RMS in :data:`PROFILE_WINDOWS` equal windows over its duration, as a
+    fraction of its overall RMS (4 decimals): the same for one record however it was written (a
+    sample more or less, rounded, rescaled by a hair), different for different records even of one
+    peak and duration."""
+    g = np.asarray(meas.ground_acc, dtype=np.float64)
+    total = float(np.sqrt(np.mean(g * g))) or 1.0
+    edges = np.linspace(0, g.size, PROFILE_WINDOWS + 1).round().astype(int)
+    return [round(float(np.sqrt(np.mean(g[a:b] ** 2))) / total, 4) if b > a else 0.0
+            for a, b in zip(edges[:-1], edges[1:])]
+
+
+def _same_record(e: dict, meas: Measurement) -> bool:
+    """Whether ``meas`` holds the ground record of the clone's event ``e`` written differently: the
+    same sample interval, a duration within 2 samples, a peak within 0.1 % and the same
+    :func:`ground_profile` (a clone that kept none: not told this way)."""
+    prof = e.get("ground_profile")
+    if not isinstance(prof, list) or not all(isinstance(e.get(f), (int, float)) for f in ("pga_g", "dt", "duration_s")):
+        return False
+    if not math.isclose(e["dt"], meas.dt, rel_tol=1e-6):
+        return False
+    if abs(e["duration_s"] - meas.n_samples * meas.dt) > 2.01 * meas.dt:
+        return False
+    pga = float(np.max(np.abs(meas.ground_acc)) / G_MM_S2)
+    if not math.isclose(e["pga_g"], pga, rel_tol=1e-3):
+        return False
+    mine = ground_profile(meas)
+    return len(mine) == len(prof) and max(abs(a - b) for a, b in zip(mine, prof)) <= PROFILE_TOL
+
+
 def check_not_learnt(events, meas: Measurement | None = None, sha256: str | None = None,
                      source: str | None = None) -> None:
     """Refuse an event a clone has learnt from already (``events``: its ``events[]`` records): the
-    same file (``sha256`` of the file at ``source``) or the same ground record (``meas``), also in
-    a clone that kept no digest of its ground record (same peak, duration and sample interval)."""
+    same file (``sha256`` of the file at ``source``) or the same ground record (``meas``), also
+    written differently (rounded, a sample trimmed or padded, rescaled by a hair:
+    :func:`ground_profile`), also in a clone that kept no digest of its ground record (same peak,
+    duration and sample interval)."""
     for k, e in enumerate(events):
         name = e.get("name") or f"event {k + 1}"
         same = sha256 is not None and e.get("sha256") == sha256
         if meas is not None and not same:
             if e.get("ground_sha256") is not None:
-                same = e["ground_sha256"] == ground_digest(meas)
+                same = e["ground_sha256"] == ground_digest(meas) or _same_record(e, meas)
             elif all(isinstance(e.get(f), (int, float)) for f in ("pga_g", "dt", "duration_s")):
                 pga = float(np.max(np.abs(meas.ground_acc)) / G_MM_S2)
                 same = (math.isclose(e["pga_g"], pga, rel_tol=1e-9) and math.isclose(e["dt"], meas.dt, rel_tol=1e-9)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from .. import _progress
@@ -90,6 +91,12 @@ def run_demands(args) -> int:
         raise InputError("--records needs --level G (the stripe's intensity); for the recorded event use --motion")
     if args.motion and args.level is not None:
         raise InputError("--level scales --records; the recorded event (--motion) is taken as recorded")
+    if args.level is not None:
+        from ..bounds import bounds_of
+        from ..ida.config import IDAConfig
+
+        b = bounds_of(next(f for f in dataclasses.fields(IDAConfig) if f.name == "levels"))
+        b.check("--level", args.level)  # as the IDA's levels: 1e-6 to 100 g
     clone = Clone.load(args.clone)
     n_ens = args.ensemble if args.ensemble is not None else (N_ENSEMBLE if clone.uncertainty is not None else 0)
     cfg = load_ida_config(args.config) if args.config else IDAConfig()

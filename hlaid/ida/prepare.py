@@ -73,6 +73,13 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     elif not want:
         notes.append("P-Delta off" + (" (requested)" if pdelta is False else " (story heights unknown)"))
     building = building.replace(pdelta=want)
+    if want:
+        kg, k0 = building.geometric_stiffness(), np.asarray(building.k0, dtype=float)
+        k = int(np.argmax(kg / k0))
+        if kg[k] >= k0[k]:
+            raise InputError(f"the gravity load gives story {k + 1} a P-Delta stiffness P/h = {kg[k]:.4g} N/mm, not "
+                             f"below its elastic stiffness k0 = {k0[k]:.4g} N/mm: the building would buckle under its "
+                             "own weight; check the gravity loads (gravity_kN) and story heights", source=source)
     building = building.replace(collapse=_collapse_law(model, building, law, collapse, system, notes))
     if want:
         kg = building.geometric_stiffness()
