@@ -135,6 +135,9 @@ def run_loss(args) -> int:
     if src.is_file():
         if not args.out:
             raise InputError("a demand CSV needs an output folder: -o DIR")
+        if area is None:  # before pelicun loads: the file holds no floor masses to take the area from
+            raise InputError("a demand CSV holds no floor masses to take the floor area from: give it, --floor-area "
+                             "M2 (one value or one per story)", source=str(src))
         cfg = LossConfig().replace(**over)
         s = loss_of_demand_file(src, cfg, args.out, collapse=collapse,
                                 drift_limit=0.10 if args.drift_limit is None else args.drift_limit, force=args.force)
@@ -142,6 +145,8 @@ def run_loss(args) -> int:
         return 0
     if collapse is not None:
         raise InputError("--collapse-median/--collapse-beta are for a demand CSV; a run folder has its own fragility")
+    if area is None:
+        _check_run_area(src)
     from .._inputs import rewrites
     from ..run.loss import loss_of_run
 
@@ -153,6 +158,22 @@ def run_loss(args) -> int:
     if block["stripes"]:
         _progress.info(f"loss curve at {len(block['stripes'])} intensities: {folder / 'loss_curve.csv'}")
     return 0
+
+
+def _check_run_area(run: Path) -> None:
+    """Refuse, from the run folder's summary alone, losses of a mass-normalised clone without
+    ``--floor-area`` (its floor masses are unknown), before pelicun or torch loads; anything else
+    about the folder is left to the assessment's own checks."""
+    from .._inputs import own_files, read_json
+
+    try:
+        with own_files():  # the run's own summary, rewritten by the losses: no input of the run
+            s = read_json(run / "summary.json")
+    except InputError:
+        return
+    if isinstance(s, dict) and s.get("mass_normalised") is True:
+        raise InputError("the run's clone is mass-normalised, so its floor masses are unknown: give the floor area, "
+                         "--floor-area M2 (one value or one per story)", source=str(run))
 
 
 def _report(s: dict, out) -> None:
