@@ -21,9 +21,9 @@ from __future__ import annotations
 import hashlib
 import hmac
 import json
-import secrets
 import os
 import re
+import secrets
 import shutil
 import stat
 import time

@@ -130,7 +130,8 @@ class Measurement:
                              "ground motion", source=src)
         still = [j + 1 for j in range(f.shape[1]) if np.ptp(f[:, j]) == 0]
         if still:
-            raise InputError(f"floor_acc of floor {still[0]} is constant ({float(f[0, still[0] - 1]):g} mm/s^2 at every "
+            v = float(f[0, still[0] - 1])
+            raise InputError(f"floor_acc of floor {still[0]} is constant ({v:g} mm/s^2 at every "
                              "sample): no floor of a shaken building keeps still; check the channel", source=src)
         if self.floor_disp is not None:
             d = np.asarray(self.floor_disp, dtype=np.float64)

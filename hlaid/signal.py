@@ -34,8 +34,8 @@ MIN_CORNER_RATIO = 1e-6
 DESIGN_GUARD = 0.95
 """Fraction of the Nyquist frequency above which a corner cannot be designed and is lowered to it."""
 
-__all__ = ["MAX_CORNER_RATIO", "MIN_CORNER_HZ", "min_corner", "max_corner", "cap_corner", "butter_sos", "bandpass", "lowpass", "highpass",
-           "integrate_twice"]
+__all__ = ["MAX_CORNER_RATIO", "MIN_CORNER_HZ", "min_corner", "max_corner", "cap_corner", "butter_sos", "bandpass",
+           "lowpass", "highpass", "integrate_twice"]
 
 
 def max_corner(dt: float) -> float:

@@ -17,7 +17,6 @@ from test_loss import needs_pelicun
 
 from hlaid import _outdir
 from hlaid._fileio import MARKER, atomic_directory, is_hlaid_output
-from hlaid.cli import main
 from hlaid.clone import Clone
 
 POSIX = pytest.mark.skipif(os.name != "posix", reason="FIFOs and devices of POSIX")
@@ -59,9 +58,9 @@ def test_fleet_refuses_a_symlink_to_nothing_as_its_folder(tmp_path, capsys):
 def test_a_fleet_folder_is_recognised_by_its_signed_marker(tmp_path):
     """What a fleet wrote (a marker of "hlaid fleet" listing its files) is resumed; a file of its
     changed by the user is not."""
+    from hlaid.errors import InputError
     from hlaid.fleet.engine import mark_output
     from hlaid.fleet.output import check_output
-    from hlaid.errors import InputError
     out = tmp_path / "f"
     (out / "buildings").mkdir(parents=True)
     (out / "fleet.json").write_text("{}")
@@ -95,7 +94,7 @@ def test_force_never_replaces_a_fifo_or_a_device(tmp_path, capsys, clone_file):
 
 # ----------------------------------------------------------------------------- hlaid loss RUN: all or nothing
 @needs_pelicun
-def test_loss_whose_last_rename_is_refused_changes_nothing(loss_run, tmp_path, capsys, monkeypatch):
+def test_loss_whose_last_rename_is_refused_changes_nothing(loss_run, tmp_path, capsys, monkeypatch):  # noqa: F811
     """The file system refuses to replace report.html (EPERM, also in place): exit 2, one line, the
     run folder exactly as it was (no loss/, summary.json unchanged) and no temporary file left."""
     run = Path(shutil.copytree(loss_run, tmp_path / "run"))

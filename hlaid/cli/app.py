@@ -259,7 +259,8 @@ def _no_space(err: OSError) -> str | None:
     from .._fileio import NO_SPACE
     where = f"{_short(err.filename)}: " if err.filename else ""
     if err.errno in NO_SPACE:
-        return f"{where}{err.strerror or 'no space left on the device'}; free some space or choose another output folder"
+        return (f"{where}{err.strerror or 'no space left on the device'}; free some space or choose another "
+                "output folder")
     if err.errno == errno.EFBIG:
         return f"{where}the file-size limit of this process (ulimit -f) was reached; raise it"
     if err.errno == errno.ENAMETOOLONG:

@@ -20,7 +20,6 @@ from ..model.schema import STORY_BOUNDS
 from ..specs import SimulationConfig
 from ..uncertainty.config import AssessConfig
 
-
 RESERVED_OPTIONS = ("path", "kind", "format")
 """Names a reader's ``options`` cannot hold: the reading itself takes them (the file, what it is)."""
 
