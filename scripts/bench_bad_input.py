@@ -78,7 +78,8 @@ def data_cases(d: Path) -> list[tuple[str, list[str], dict]]:
     learnt = _clone(d, "learnt.json", lambda c: c.update(events=[{"name": "three", "sha256": sha}]))
     (d / "big.yaml").write_text("".join(f"key{i}: {i}\n" for i in range(200_000)))
     member = gzip.compress(b"0.0,0.0,0.0\n" * (2**20 // 12), compresslevel=9)
-    (d / "bomb.csv.gz").write_bytes(member * 600)  # 600 MiB of text, about 1 MiB on disk
+    head = gzip.compress(b"# dt_s: 0.01\ntime_s,ground_acc,floor_acc_1\n")  # a measurement CSV's header
+    (d / "bomb.csv.gz").write_bytes(head + member * 600)  # 600 MiB of text, about 1 MiB on disk
     (d / "fl2.yaml").write_text("records: builtin-suite\nn_ensemble: 0\nbuildings:\n"
                                 "  - {name: B1, measurements: {ev1: {file: three.npz}}}\n")
     with socket.socket() as s:  # a port nothing listens on

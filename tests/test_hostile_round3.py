@@ -371,3 +371,9 @@ def test_an_empty_home_puts_no_cache_at_the_root(monkeypatch):
     monkeypatch.setenv("HOME", "")
     with pytest.warns(Warning, match="HOME names no folder"):
         assert default_cache_dir() is None
+
+
+def test_an_event_source_longer_than_a_file_name_is_said_not_raised():
+    from hlaid.events.evidence import read_event
+    meas, why = read_event({"name": "e1", "source": "s" * 300 + ".npz"})
+    assert meas is None and "cannot be looked up" in why and len(why) < 300

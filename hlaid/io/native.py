@@ -32,7 +32,7 @@ __all__ = ["read_native"]
 def read_native(path: str | os.PathLike) -> Measurement:
     """Read a measurement from hlaid's NPZ or CSV layout (by extension; see the module docstring)."""
     p = Path(path)
-    if p.suffix.lower() == ".csv":
+    if p.name.lower().endswith((".csv", ".csv.gz")):  # read_text gunzips
         return _read_csv(p)
     return _read_npz(p)
 
