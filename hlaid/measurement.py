@@ -125,14 +125,6 @@ class Measurement:
         if not lo <= pga <= hi:
             raise InputError(f"ground_acc peak is {pga:.3g} mm/s^2 ({pga / G_MM_S2:.3g} g), not a plausible "
                              "earthquake; check the units (expected mm/s^2)", source=src)
-        if np.ptp(g) == 0:
-            raise InputError(f"ground_acc is constant ({float(g[0]):g} mm/s^2 at every sample): not a record of "
-                             "ground motion", source=src)
-        still = [j + 1 for j in range(f.shape[1]) if np.ptp(f[:, j]) == 0]
-        if still:
-            v = float(f[0, still[0] - 1])
-            raise InputError(f"floor_acc of floor {still[0]} is constant ({v:g} mm/s^2 at every "
-                             "sample): no floor of a shaken building keeps still; check the channel", source=src)
         if self.floor_disp is not None:
             d = np.asarray(self.floor_disp, dtype=np.float64)
             d = d[:, None] if d.ndim == 1 else d
@@ -326,6 +318,22 @@ def check_series(measurements) -> None:
             raise InputError(f"the same ground motion as {seen[key].source or seen[key].name or 'an earlier event'}: "
                              "each event once", source=m.source or m.name or None)
         seen[key] = m
+
+
+def check_moving(meas: Measurement) -> None:
+    """Refuse a measurement whose ground or a floor channel is constant (every sample the same):
+    no record of a shaken building, and its replay's correlations would be NaN. The commands that
+    analyse a measurement call it; the readers do not (a channel may be read to be looked at)."""
+    src = meas.source or None
+    g, f = np.asarray(meas.ground_acc), np.asarray(meas.floor_acc)
+    if np.ptp(g) == 0:
+        raise InputError(f"ground_acc is constant ({float(g[0]):g} mm/s^2 at every sample): not a record of "
+                         "ground motion", source=src)
+    still = [j + 1 for j in range(f.shape[1]) if np.ptp(f[:, j]) == 0]
+    if still:
+        v = float(f[0, still[0] - 1])
+        raise InputError(f"floor_acc of floor {still[0]} is constant ({v:g} mm/s^2 at every sample): no floor of a "
+                         "shaken building keeps still; check the channel", source=src)
 
 
 def ground_digest(meas: Measurement) -> str:

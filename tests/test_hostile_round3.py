@@ -244,7 +244,7 @@ def test_ida_refusals_from_the_command_line_come_before_torch(tmp_path, table1):
     h = Clone(building=table1.replace(height=HEIGHTS)).save(tmp_path / "h.json")
     (tmp_path / "empty").mkdir()
     for argv, expect in ((["ida", noh, "-o", "o"], "story heights are unknown"),
-                         (["ida", h, "--heights", "3000", "-o", "o"], "the clone has 3 stories"),
+                         (["ida", h, "--heights", "3000", "-o", "o"], "the building has 3 stories"),
                          (["ida", h, "--records", "missing", "-o", "o"], "not found"),
                          (["ida", h, "--records", "empty", "-o", "o"], "no record files"),
                          (["predict", h, "m.npz", "--seed", "-1"], "--seed = -1 is out of range"),

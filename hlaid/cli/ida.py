@@ -123,8 +123,8 @@ def _check_heights(clone, heights, source: str) -> None:
     number of stories, from the clone file alone."""
     n = clone.building.n_stories
     if heights is not None and len(heights) != n:
-        raise InputError(f"--heights gives {len(heights)} value(s); the clone has {n} stories: give one height in mm "
-                         "per story, bottom to top", source=source)
+        raise InputError(f"--heights: height has {len(heights)} values but the building has {n} stories; give one "
+                         "height in mm per story, bottom to top", source=source)
     if heights is None and clone.building.height is None:
         raise InputError("story heights are unknown; IDA reports drift ratios and needs them: give the heights in mm, "
                          "bottom to top: --heights MM,MM,...", source=source)
