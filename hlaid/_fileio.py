@@ -258,6 +258,7 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], object], *, fo
         check_output_file(path, force=force)  # a file read by the work since (a record of a folder) stays
         placing = True
         _put(tmp, path)
+        _outdir.rerecord(path)  # a file of an hlaid output folder rewritten by hlaid stays hlaid's
     except BaseException as err:  # Ctrl-C too: nothing is left behind
         full = no_space_error(err, path, parent)
         if tmp is not None:
@@ -373,6 +374,8 @@ def atomic_files() -> Iterator[Staged]:
         if old is not None:
             old.unlink(missing_ok=True)
     _run(stage.done)
+    for _, path in stage.files:
+        _outdir.rerecord(path)
 
 
 def _run(fns: list[Callable[[], object]]) -> None:

@@ -322,6 +322,39 @@ def _foreign(root: Path, files: set[str], recs: dict, skip: tuple[str, ...]) -> 
     return out
 
 
+def rerecord(path: str | os.PathLike, levels: int = 4) -> None:
+    """After hlaid rewrote the file ``path`` inside one of its output folders (``hlaid report`` and
+    ``hlaid loss`` rewrite a run folder's ``report.html`` and ``summary.json``): record its new
+    contents in that folder's marker, re-signed, so the folder stays hlaid's. Nothing where no
+    folder up to ``levels`` above holds a valid marker that records ``path``."""
+    path = Path(path)
+    if path.name == MARKER:
+        return
+    folder = path.parent
+    for _ in range(levels):
+        try:
+            rel = path.relative_to(folder).as_posix()
+        except ValueError:
+            return
+        if os.path.lexists(folder / MARKER):
+            d = _own_marker(folder)
+            if d is None or rel not in d["contents"]:
+                return
+            key = signing_key(create=False)
+            rec = content(path)
+            if key is None or rec is None:
+                return
+            d["contents"][rel] = rec
+            d["signature"] = _sign(d, key)
+            from ._fileio import write_json  # a cycle at import time otherwise
+
+            write_json(folder / MARKER, d)
+            return
+        if folder.parent == folder:
+            return
+        folder = folder.parent
+
+
 def cannot_rename(path: Path) -> bool:
     """Whether the existing folder ``path`` cannot be replaced by a rename: a mount point (also a
     bind mount: another device than its parent's)."""
@@ -372,5 +405,5 @@ def _remove(p: Path) -> None:
 
 
 __all__ = ["MARKER", "VERSION", "STALE_AFTER_S", "stem", "remove_stale", "identity", "listing", "marker",
-           "signing_key", "content",
+           "signing_key", "content", "rerecord",
            "read_marker", "written_here", "not_ours", "cannot_rename", "replace_contents"]

@@ -196,3 +196,22 @@ def test_without_a_home_markers_are_unsigned_and_open_nothing(tmp_path, monkeypa
     assert json.loads((out / MARKER).read_text())["signature"] is None
     refused(capsys, ["hla", _measurement(tmp_path), "-o", out, "--force"], ["no key to check it with"],
             root=tmp_path, within=30)
+
+
+def test_a_file_hlaid_rewrites_in_its_own_output_stays_hlaids(tmp_path):
+    """``hlaid report`` / ``hlaid loss`` rewrite report.html and summary.json of a run folder: the
+    marker records the new contents, so --force may still replace the folder."""
+    from hlaid._fileio import atomic_files, write_json
+    out = tmp_path / "run"
+    with atomic_directory(out, what="hlaid run") as tmp:
+        (tmp / "summary.json").write_text("{}")
+        (tmp / "report.html").write_text("<p>old</p>")
+        (tmp / "figures").mkdir()
+        (tmp / "figures" / "a.png").write_bytes(b"png")
+    write_json(out / "summary.json", {"loss": 1})
+    with atomic_files() as stage:
+        stage(out / "report.html", lambda p: p.write_text("<p>new, longer</p>"))
+        stage(out / "figures" / "a.png", lambda p: p.write_bytes(b"png redrawn"))
+    assert _outdir.not_ours(out) is None
+    (out / "report.html").write_text("<p>the user's</p>")
+    assert "report.html (changed)" in _outdir.not_ours(out)
