@@ -346,13 +346,27 @@ def rerecord(path: str | os.PathLike, levels: int = 4) -> None:
                 return
             d["contents"][rel] = rec
             d["signature"] = _sign(d, key)
-            from ._fileio import write_json  # a cycle at import time otherwise
-
-            write_json(folder / MARKER, d)
+            _write_marker(folder, d)
             return
         if folder.parent == folder:
             return
         folder = folder.parent
+
+
+def _write_marker(folder: Path, body: dict) -> None:
+    """Replace ``folder``'s :data:`MARKER` by ``body`` atomically (a temporary file renamed over it)."""
+    import tempfile
+
+    fd, name = tempfile.mkstemp(prefix=f".{MARKER}.{os.getpid()}-", suffix=".tmp", dir=folder)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(json.dumps(body, indent=2) + "\n")
+        mode = os.stat(folder / MARKER).st_mode & 0o777 if os.path.exists(folder / MARKER) else 0o644
+        os.chmod(name, mode)
+        os.replace(name, folder / MARKER)
+    except BaseException:
+        Path(name).unlink(missing_ok=True)
+        raise
 
 
 def cannot_rename(path: Path) -> bool:
