@@ -136,7 +136,7 @@ class ClusterConfig:
     def __post_init__(self):
         check_bounds(self)
         if not MEMORY_LIMIT.match(str(self.memory_limit)):
-            raise InputError(f"cluster.memory_limit = {str(self.memory_limit)[:40]!r}: expected 'auto', a size such "
+            raise InputError(f"memory_limit = {str(self.memory_limit)[:40]!r}: expected 'auto', a size such "
                              "as 4GB, 2 GiB or 500MB, or a fraction of the machine's memory such as 0.5")
 
 

@@ -36,8 +36,9 @@ def check_output(out: Path, *, force: bool) -> Path:
         if why is None and (mark or {}).get("command") != "hlaid fleet":
             why = f"was written by {str((mark or {}).get('command'))[:40]!r}"
         if why is not None:
-            raise InputError(f"is not empty and is not an hlaid fleet output ({why}); --force does not write into "
-                             "another folder: choose an empty or new folder", source=str(out))
+            raise InputError(f"is not empty and is not an hlaid fleet output: the folder {why}; "
+                             "--force does not write into another folder: choose an empty or new folder",
+                             source=str(out))
     if not out.exists():
         check_parent(out)
     return out
