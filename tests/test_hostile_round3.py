@@ -377,3 +377,13 @@ def test_an_event_source_longer_than_a_file_name_is_said_not_raised():
     from hlaid.events.evidence import read_event
     meas, why = read_event({"name": "e1", "source": "s" * 300 + ".npz"})
     assert meas is None and "cannot be looked up" in why and len(why) < 300
+
+
+def test_an_inventory_quantity_no_building_holds_is_refused(tmp_path, capsys):
+    demands = tmp_path / "d.csv"
+    demands.write_text(",1-PID-1-1,1-PID-2-1,1-PID-3-1,1-RID-1-1\nUnits,rad,rad,rad,rad\n"
+                       + "".join(f"{i},0.01,0.012,0.008,0.001\n" for i in range(5)))
+    inv = tmp_path / "inv.csv"
+    inv.write_text("ID,Units,Location,Direction,Theta_0\nB.10.35.021,ea,1,1,999999\n")
+    refused(capsys, ["loss", demands, "-o", tmp_path / "loss", "--floor-area", "100", "--inventory", inv],
+            ["line 2: column Theta_0: 999999 is 1e+04 per m2"], root=tmp_path, within=120)
