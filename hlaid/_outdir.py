@@ -149,17 +149,21 @@ def signing_key(create: bool = True) -> bytes | None:
                 return None
         except OSError:
             return None
+        tmp = root / f".output-key.{os.getpid()}.tmp"
         try:
             root.mkdir(parents=True, exist_ok=True, mode=0o700)
-            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+            try:
+                os.write(fd, secrets.token_hex(32).encode() + b"\n")
+            finally:
+                os.close(fd)
+            os.link(tmp, path)  # complete or absent: another process never reads half a key
         except FileExistsError:
-            continue  # another process made it meanwhile
+            pass  # another process made it meanwhile: read that one
         except OSError:
+            tmp.unlink(missing_ok=True)
             return None
-        try:
-            os.write(fd, secrets.token_hex(32).encode() + b"\n")
-        finally:
-            os.close(fd)
+        tmp.unlink(missing_ok=True)
     return None
 
 
