@@ -324,6 +324,8 @@ def check_moving(meas: Measurement) -> None:
     """Refuse a measurement whose ground or a floor channel is constant (every sample the same):
     no record of a shaken building, and its replay's correlations would be NaN. The commands that
     analyse a measurement call it; the readers do not (a channel may be read to be looked at)."""
+    if not isinstance(meas, Measurement):
+        return
     src = meas.source or None
     g, f = np.asarray(meas.ground_acc), np.asarray(meas.floor_acc)
     if np.ptp(g) == 0:
