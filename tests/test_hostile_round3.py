@@ -387,3 +387,14 @@ def test_an_inventory_quantity_no_building_holds_is_refused(tmp_path, capsys):
     inv.write_text("ID,Units,Location,Direction,Theta_0\nB.10.35.021,ea,1,1,999999\n")
     refused(capsys, ["loss", demands, "-o", tmp_path / "loss", "--floor-area", "100", "--inventory", inv],
             ["line 2: column Theta_0: 999999 is 1e+04 per m2"], root=tmp_path, within=120)
+
+
+def test_a_survived_drift_beyond_the_story_height_names_the_clone(tmp_path, capsys, table1):
+    d = _clone_dict(table1)
+    d["system"] = "steel-moment-frame"
+    d["events"] = [{"name": "e1", "peak_drift": [4000.0, 10.0, 10.0]}]
+    c = tmp_path / "drift.json"
+    c.write_text(json.dumps(d))
+    line = refused(capsys, ["export-opensees", c, "-o", tmp_path / "m.py"], ["survived a drift of 4000 mm"],
+                   root=tmp_path, within=120)
+    assert "drift.json" in line and "--heights" in line
