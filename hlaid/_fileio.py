@@ -18,6 +18,7 @@ import errno
 import json
 import os
 import shutil
+import stat
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -50,6 +51,10 @@ def no_space_error(err: BaseException, path: str | os.PathLike, folder: str | os
         what = err.what
     elif isinstance(err, OSError) and err.errno in NO_SPACE:
         what = "no space left on the device" if err.errno == errno.ENOSPC else "disk quota exceeded"
+    elif isinstance(err, OSError) and err.errno == errno.EFBIG:
+        what = "the file-size limit of this process (ulimit -f) was reached"
+    elif isinstance(err, Exception) and not isinstance(err, InputError) and "File too large" in str(err):
+        what = "the file-size limit of this process (ulimit -f) was reached"  # wrapped by a library
     elif not isinstance(err, (OSError, InputError)) and isinstance(err, Exception) and _disk_full(folder):
         what = "no space left on the device"  # a library that wraps the OSError (torch.save: RuntimeError)
     else:
@@ -62,8 +67,8 @@ class NoSpaceError(InputError):
 
     def __init__(self, what: str, path: str | os.PathLike):
         self.what = what
-        super().__init__(f"{what} while writing it; nothing was written (free some space or choose another "
-                         "folder)", source=str(path))
+        advice = "raise the limit" if "ulimit" in what else "free some space or choose another folder"
+        super().__init__(f"{what} while writing it; nothing was written ({advice})", source=str(path))
 
 
 def _disk_full(folder: str | os.PathLike) -> bool:
@@ -149,6 +154,59 @@ def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
         return False
 
 
+FS_IOC_GETFLAGS = 0x80086601
+"""Linux's ioctl reading a file's attributes (``lsattr``); FS_IMMUTABLE_FL 0x10, FS_APPEND_FL 0x20."""
+
+
+def _locked(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is immutable or append-only (``chattr +i`` / ``+a``): no one, root
+    included, may replace or remove it (Linux; False elsewhere or where it cannot be told)."""
+    if not hasattr(os, "O_NOFOLLOW"):
+        return False
+    try:
+        import array
+        import fcntl
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0))
+    except (ImportError, OSError):
+        return False
+    try:
+        buf = array.array("l", [0])
+        fcntl.ioctl(fd, FS_IOC_GETFLAGS, buf, True)
+        return bool(buf[0] & 0x30)
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+
+
+def locked_entries(folder: str | os.PathLike, limit: int = 10000) -> list[str]:
+    """Entries under ``folder`` (itself included, as ".") that are immutable or append-only, or
+    inside such a folder: what a replacement could not remove."""
+    out = []
+    root = Path(folder)
+    for n, (dirpath, dirnames, filenames) in enumerate(os.walk(root)):
+        for name in [".", *dirnames, *filenames] if n == 0 else [*dirnames, *filenames]:
+            p = Path(dirpath) / name if name != "." else root
+            if _locked(p):
+                out.append(p.relative_to(root).as_posix())
+        if n > limit:
+            break
+    return out
+
+
+def _kind(path: Path) -> str | None:
+    """What ``path`` is when it is neither a regular file nor a symbolic link (a device, a FIFO, a
+    socket), else None."""
+    try:
+        mode = os.lstat(path).st_mode
+    except OSError:
+        return None
+    if stat.S_ISREG(mode) or stat.S_ISLNK(mode) or stat.S_ISDIR(mode):
+        return None
+    return {stat.S_IFCHR: "a character device", stat.S_IFBLK: "a block device", stat.S_IFIFO: "a FIFO (named pipe)",
+            stat.S_IFSOCK: "a socket"}.get(stat.S_IFMT(mode), "a special file")
+
+
 def check_output_file(path: str | os.PathLike, *, force: bool = False,
                       inputs: Iterable[str | os.PathLike | None] = ()) -> Path:
     """Refuse an output file that :func:`atomic_write` would refuse (an existing file or link without
@@ -165,10 +223,17 @@ def check_output_file(path: str | os.PathLike, *, force: bool = False,
         if named or read:
             raise InputError(f"is an input of this run ({named[0] if named else read}); write the output to another "
                              "file (--force never replaces an input)", source=str(path))
+        kind = _kind(path)
+        if kind is not None:
+            raise InputError(f"exists and is {kind}, not a file hlaid could have written; hlaid never replaces one "
+                             "(choose another output name)", source=str(path))
         if not force:
             what = "exists as a symbolic link; use --force to replace it" if path.is_symlink() else \
                 "already exists; use --force to overwrite"
             raise InputError(what, source=str(path))
+        if not path.is_symlink() and _locked(path):
+            raise InputError("is immutable or append-only (chattr +i/+a): it cannot be replaced; remove the "
+                             "attribute or choose another output name", source=str(path))
     check_parent(path)
     return path
 
@@ -182,7 +247,7 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], object], *, fo
     path = check_output_file(path, force=force)
     parent = path.parent if str(path.parent) else Path(".")
     remove_stale(parent, path.name)
-    tmp = None
+    tmp, placing = None, False
     try:
         fd, name = tempfile.mkstemp(prefix=f".{_stem(path.name)}.{os.getpid()}-", suffix=".tmp" + path.suffix[:16],
                                     dir=parent)
@@ -191,13 +256,18 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], object], *, fo
         write(tmp)
         os.chmod(tmp, _creation_mode())
         check_output_file(path, force=force)  # a file read by the work since (a record of a folder) stays
+        placing = True
         _put(tmp, path)
+        _outdir.rerecord(path)  # a file of an hlaid output folder rewritten by hlaid stays hlaid's
     except BaseException as err:  # Ctrl-C too: nothing is left behind
         full = no_space_error(err, path, parent)
         if tmp is not None:
             tmp.unlink(missing_ok=True)
         if full is not None:
             raise full from None
+        if placing and isinstance(err, OSError):
+            raise InputError(f"cannot be replaced ({err.strerror or err}); nothing was written", source=str(path)) \
+                from None
         raise
     return path
 
@@ -224,20 +294,23 @@ def write_json(path, obj, *, force: bool = True) -> Path:
     return atomic_write(path, lambda tmp: tmp.write_text(json_text(obj)), force=force)
 
 
-@contextlib.contextmanager
-def atomic_files() -> Iterator[Callable[[str | os.PathLike, Callable[[Path], object]], Path]]:
-    """Replace several files together: ``stage(path, write)`` writes each through ``write(tmp)``
-    under a temporary name beside it; when the block ends without an error every one is renamed
-    into place, on an error (Ctrl-C too) none is and the temporary files are removed. The work
-    that may fail goes inside the block, so a failure leaves every file as it was."""
-    staged: list[tuple[Path, Path]] = []
+class Staged:
+    """The ``stage`` of :func:`atomic_files`: ``stage(path, write)`` stages a file; ``then(done, undo)``
+    registers what to do once every file is in place (``done``) or, should one of them fail,
+    to put back what was already changed (``undo``): an output folder placed before the files
+    (:func:`atomic_directory`'s ``with_files``)."""
 
-    def stage(path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
+    def __init__(self):
+        self.files: list[tuple[Path, Path]] = []
+        self.done: list[Callable[[], object]] = []
+        self.undo: list[Callable[[], object]] = []
+
+    def __call__(self, path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
         path = check_output_file(path, force=True)
         parent = path.parent if str(path.parent) else Path(".")
         fd, name = tempfile.mkstemp(prefix=f".{_stem(path.name)}.{os.getpid()}-", suffix=".tmp", dir=parent)
         os.close(fd)
-        staged.append((Path(name), path))
+        self.files.append((Path(name), path))
         try:
             write(Path(name))
             os.chmod(name, _creation_mode())
@@ -248,14 +321,87 @@ def atomic_files() -> Iterator[Callable[[str | os.PathLike, Callable[[Path], obj
             raise
         return path
 
+    def then(self, done: Callable[[], object], undo: Callable[[], object]) -> None:
+        self.done.append(done)
+        self.undo.append(undo)
+
+
+@contextlib.contextmanager
+def atomic_files() -> Iterator[Staged]:
+    """Replace several files together: ``stage(path, write)`` writes each through ``write(tmp)``
+    under a temporary name beside it; when the block ends without an error every one is renamed
+    into place, on an error (Ctrl-C too) none is and the temporary files are removed. Should a
+    rename fail half-way (refused by the file system), the files already replaced are put back
+    from copies kept until then, what :meth:`Staged.then` registered is undone, and nothing is
+    left behind: all or nothing. The work that may fail goes inside the block."""
+    stage = Staged()
     try:
         yield stage
     except BaseException:
-        for tmp, _ in staged:
+        for tmp, _ in stage.files:
             tmp.unlink(missing_ok=True)
+        _run(stage.undo)
         raise
-    for tmp, path in staged:
-        _put(tmp, path)
+    kept: list[tuple[Path, Path | None]] = []  # (path, its old content's copy or None: there was none)
+    try:
+        for tmp, path in stage.files:
+            kept.append((path, _keep(path)))
+            _put(tmp, path)
+    except BaseException as err:
+        for path, old in reversed(kept):
+            with contextlib.suppress(OSError):
+                if old is None:
+                    path.unlink(missing_ok=True)
+                    continue
+                try:
+                    os.replace(old, path)
+                except OSError:
+                    shutil.copyfile(old, path)
+        for tmp, _ in stage.files:
+            tmp.unlink(missing_ok=True)
+        for _, old in kept:
+            if old is not None:
+                old.unlink(missing_ok=True)
+        _run(stage.undo)
+        full = no_space_error(err, kept[-1][0], kept[-1][0].parent) if kept else None
+        if full is not None:
+            raise full from None
+        if isinstance(err, OSError) and kept:
+            raise InputError(f"cannot be replaced ({err.strerror or err}); nothing was changed, the outputs written "
+                             "with it are as they were", source=str(kept[-1][0])) from None
+        raise
+    for _, old in kept:
+        if old is not None:
+            old.unlink(missing_ok=True)
+    _run(stage.done)
+    for _, path in stage.files:
+        _outdir.rerecord(path)
+
+
+def _run(fns: list[Callable[[], object]]) -> None:
+    for fn in reversed(fns):
+        with contextlib.suppress(OSError):
+            fn()
+
+
+def _keep(path: Path) -> Path | None:
+    """A copy of the existing file ``path`` beside it, or None."""
+    if not os.path.lexists(path):
+        return None
+    parent = path.parent if str(path.parent) else Path(".")
+    fd, name = tempfile.mkstemp(prefix=f".{_stem(path.name)}.{os.getpid()}-", suffix=".tmp", dir=parent)
+    os.close(fd)
+    old = Path(name)
+    try:  # a copy, not a hard link: a file whose rename is refused is rewritten in place (its inode)
+        if os.path.islink(path):
+            old.unlink()
+            os.symlink(os.readlink(path), old)
+        else:
+            shutil.copy2(path, old)
+    except BaseException:
+        old.unlink(missing_ok=True)
+        raise
+    return old
 
 
 def write_npz(path, arrays: dict, *, force: bool = True) -> Path:
@@ -322,6 +468,12 @@ def check_output_folder(path: str | os.PathLike, *, force: bool = False,
                 raise InputError(f"{why}: --force replaces only a folder hlaid wrote, holding only what hlaid wrote "
                                  "there, or an empty one; move its contents away or choose another folder",
                                  source=str(path))
+        if force:
+            locked = locked_entries(path)
+            if locked:
+                raise InputError(f"holds {len(locked)} entr{'y' if len(locked) == 1 else 'ies'} that cannot be removed "
+                                 f"(immutable or append-only, chattr: {', '.join(locked[:3])}); remove the attribute "
+                                 "or choose another folder", source=str(path))
         if _outdir.cannot_rename(path):
             if not os.access(path, os.W_OK | os.X_OK):
                 raise InputError("folder is not writable", source=str(path))
@@ -332,7 +484,8 @@ def check_output_folder(path: str | os.PathLike, *, force: bool = False,
 
 @contextlib.contextmanager
 def atomic_directory(path: str | os.PathLike, *, force: bool = False,
-                     inputs: Iterable[str | os.PathLike | None] = (), what: str | None = None) -> Iterator[Path]:
+                     inputs: Iterable[str | os.PathLike | None] = (), what: str | None = None,
+                     with_files: Staged | None = None) -> Iterator[Path]:
     """Build an output folder in a temporary sibling and move it into place on success.
 
     The folder gets a :data:`MARKER` naming the command that wrote it (``what``, default
@@ -344,6 +497,10 @@ def atomic_directory(path: str | os.PathLike, *, force: bool = False,
     ``path``'s place is replaced by the folder; what it pointed to is left alone. A folder that
     cannot be renamed (a mount point) is built inside itself and replaced in place, entry by
     entry (:func:`hlaid._outdir.replace_contents`); so is one whose rename fails at the end.
+
+    ``with_files`` (the ``stage`` of an enclosing :func:`atomic_files`): the folder is one of a
+    set of outputs replaced together; the folder it replaces is kept aside until the files are in
+    place too, and put back should one of them fail (a folder replaced in place is not).
     """
     inputs = list(inputs)
     path = check_output_folder(path, force=force, inputs=inputs)
@@ -358,7 +515,7 @@ def atomic_directory(path: str | os.PathLike, *, force: bool = False,
         os.chmod(tmp, _creation_mode(directory=True))
         check_output_folder(path, force=force, inputs=inputs)  # what is there now may differ from before
         placing, files = True, _outdir.listing(tmp)
-        if in_place or not _renamed(tmp, path, _outdir.marker(what or command, files, tmp)):
+        if in_place or not _renamed(tmp, path, _outdir.marker(what or command, files, tmp), with_files):
             _outdir.replace_contents(path, tmp)
             write_json(path / MARKER, _outdir.marker(what or command, files, path))
         tmp = None
@@ -373,7 +530,7 @@ def atomic_directory(path: str | os.PathLike, *, force: bool = False,
         raise
 
 
-def _renamed(tmp: Path, path: Path, body: dict) -> bool:
+def _renamed(tmp: Path, path: Path, body: dict, with_files: Staged | None = None) -> bool:
     """Put the complete folder ``tmp`` in ``path``'s place by renames, its marker ``body`` written
     first; False (nothing changed, no marker) where a rename is refused: ``path`` is a mount point."""
     write_json(tmp / MARKER, body)
@@ -393,9 +550,23 @@ def _renamed(tmp: Path, path: Path, body: dict) -> bool:
         if old is not None:
             os.replace(old, path)  # the existing folder back where it was
         raise
-    if old is not None:
-        if old.is_symlink() or not old.is_dir():
-            old.unlink(missing_ok=True)
+    def drop(p: Path | None) -> None:
+        if p is None:
+            return
+        if p.is_symlink() or not p.is_dir():
+            p.unlink(missing_ok=True)
         else:
-            shutil.rmtree(old, ignore_errors=True)
+            shutil.rmtree(p, ignore_errors=True)
+
+    if with_files is None:
+        drop(old)
+        return True
+
+    def undo() -> None:  # the new folder out, the old one back
+        gone = path.with_name(f".{_stem(path.name)}.{os.getpid()}-undone.tmp")
+        os.replace(path, gone)
+        if old is not None:
+            os.replace(old, path)
+        drop(gone)
+    with_files.then(lambda: drop(old), undo)
     return True

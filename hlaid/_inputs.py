@@ -27,6 +27,7 @@ inside :func:`own_files` and are no inputs.
 from __future__ import annotations
 
 import contextlib
+import errno
 import gzip
 import hashlib
 import io
@@ -199,9 +200,7 @@ def open_input(path: str | os.PathLike) -> Iterator[IO[bytes]]:
             raise InputError("is a folder; expected a file", source=source)
         _check_stat(st, source)
         _register(path, st)
-        if hasattr(os, "set_blocking"):
-            os.set_blocking(fd, True)
-        fh = os.fdopen(fd, "rb")
+        fh = os.fdopen(fd, "rb")  # left non-blocking: a pseudo-file that waits (/proc/kmsg) cannot hang a read
     except BaseException:
         os.close(fd)
         raise
@@ -209,24 +208,84 @@ def open_input(path: str | os.PathLike) -> Iterator[IO[bytes]]:
         yield fh
 
 
-def read_bytes(path: str | os.PathLike) -> bytes:
-    """The bytes of a regular file within ``HLAID_MAX_FILE_MB`` (see :func:`open_input`)."""
+def _unreadable(err: OSError) -> str:
+    if isinstance(err, BlockingIOError) or err.errno in (errno.EAGAIN, errno.EWOULDBLOCK):
+        return ("cannot be read: it waits for data instead of holding any (a kernel or device pseudo-file such as "
+                "/proc/kmsg?); expected a data file")
+    return f"cannot be read ({err.strerror or err})"
+
+
+DATA_LINES = "data"
+"""``read_text(path, max_lines=DATA_LINES)``: a data file of one sample per line at most, bounded by
+``HLAID_MAX_SAMPLES`` (and a header's worth of lines): refused while it is read, not after."""
+
+HEADER_LINES = 1000
+"""Lines a data file may hold beyond ``HLAID_MAX_SAMPLES`` (headers, comments)."""
+
+
+def _line_limit(max_lines: int | str | None) -> tuple[int | None, str]:
+    if max_lines is None:
+        return None, ""
+    if max_lines == DATA_LINES:
+        from .limits import limit
+
+        top = int(limit("SAMPLES"))
+        return top + HEADER_LINES, (f"a record holds at most {top:,} samples, one a line at most (set "
+                                    "HLAID_MAX_SAMPLES to raise the limit)")
+    return int(max_lines), "more than hlaid reads from such a file"
+
+
+class _Lines:
+    """Counts the lines of the blocks of a file as they are read; refuses past ``top``."""
+
+    def __init__(self, max_lines, source: str):
+        self.top, self.why = _line_limit(max_lines)
+        self.n, self.source = 0, source
+
+    def add(self, block: bytes) -> None:
+        if self.top is None:
+            return
+        self.n += block.count(b"\n")
+        if self.n > self.top:
+            raise InputError(f"holds more than {self.top:,} lines; {self.why}", source=self.source)
+
+
+def read_bytes(path: str | os.PathLike, *, max_lines: int | str | None = None) -> bytes:
+    """The bytes of a regular file within ``HLAID_MAX_FILE_MB`` (see :func:`open_input`), read in
+    blocks; with ``max_lines`` (a count, or :data:`DATA_LINES`) refused as soon as it holds more
+    lines than that (a gzipped file's lines are counted as it is inflated, :func:`read_text`)."""
     top = max_file_bytes()
+    parts, size = [], 0
     with open_input(path) as fh:
+        lines = None
         try:
-            raw = fh.read(top + 1)
+            while True:
+                block = fh.read(min(1 << 22, top + 1 - size))
+                if block is None:  # nothing to read yet: a pseudo-file that waits for data
+                    raise BlockingIOError(errno.EAGAIN, "")
+                if not block:
+                    break
+                if size == 0:
+                    lines = _Lines(None if block[:2] == b"\x1f\x8b" else max_lines, str(path))
+                parts.append(block)
+                size += len(block)
+                if lines is not None:
+                    lines.add(block)
+                if size > top:
+                    break
         except OSError as err:
-            raise InputError(f"cannot be read ({err.strerror or err})", source=str(path)) from None
-    if len(raw) > top:  # it grew after it was opened
+            raise InputError(_unreadable(err), source=str(path)) from None
+    if size > top:  # it grew after it was opened
         raise InputError(f"holds more than {file_limit_text()}", source=str(path))
-    return raw
+    return b"".join(parts)
 
 
-def read_text(path: str | os.PathLike) -> str:
-    """Text of a file, transparently gunzipped (inflated size limited too); binary files refused."""
-    raw = read_bytes(path)
+def read_text(path: str | os.PathLike, *, max_lines: int | str | None = None) -> str:
+    """Text of a file, transparently gunzipped (inflated size limited too); binary files refused.
+    ``max_lines``: see :func:`read_bytes` (a data file: :data:`DATA_LINES`)."""
+    raw = read_bytes(path, max_lines=max_lines)
     if raw[:2] == b"\x1f\x8b":
-        raw = gunzip(raw, str(path))
+        raw = gunzip(raw, str(path), max_lines=max_lines)
     if b"\x00" in raw[:4096]:
         raise NotTextError("is a binary file; expected text", source=str(path))
     try:
@@ -235,11 +294,12 @@ def read_text(path: str | os.PathLike) -> str:
         return raw.decode("latin-1")
 
 
-def gunzip(raw: bytes, source: str) -> bytes:
-    """``raw`` (gzip) inflated in blocks, refused as soon as it passes ``HLAID_MAX_FILE_MB`` or
-    inflates more than :data:`GZIP_MAX_RATIO` times beyond :data:`GZIP_FREE_MB` (a gzip bomb is
-    refused after a few MiB, not after it filled memory)."""
+def gunzip(raw: bytes, source: str, *, max_lines: int | str | None = None) -> bytes:
+    """``raw`` (gzip) inflated in blocks, refused as soon as it passes ``HLAID_MAX_FILE_MB``, inflates
+    more than :data:`GZIP_MAX_RATIO` times beyond :data:`GZIP_FREE_MB` (a gzip bomb is refused after
+    a few MiB, not after it filled memory) or holds more than ``max_lines`` lines."""
     top, free = max_file_bytes(), GZIP_FREE_MB * 2**20
+    lines = _Lines(max_lines, source)
     src = io.BytesIO(raw)
     parts, size = [], 0
     try:
@@ -247,6 +307,7 @@ def gunzip(raw: bytes, source: str) -> bytes:
             while block := gz.read(1 << 20):
                 parts.append(block)
                 size += len(block)
+                lines.add(block)
                 if size > top:
                     raise InputError(f"holds more than {file_limit_text()}", source=source)
                 if size > free and size > GZIP_MAX_RATIO * max(src.tell(), 1):
@@ -258,15 +319,41 @@ def gunzip(raw: bytes, source: str) -> bytes:
     return b"".join(parts)
 
 
+def read_head(path: str | os.PathLike, n_bytes: int = 1 << 16) -> str:
+    """The first ``n_bytes`` of a file's text (gunzipped where it is gzip), for a format to be told
+    from its first lines without reading the rest; a binary file is :class:`NotTextError`."""
+    with open_input(path) as fh:
+        try:
+            raw = fh.read(n_bytes) or b""
+        except OSError as err:
+            raise InputError(_unreadable(err), source=str(path)) from None
+        if raw[:2] == b"\x1f\x8b":
+            fh.seek(0)
+            try:
+                with gzip.GzipFile(fileobj=fh) as gz:
+                    raw = gz.read(n_bytes)
+            except (OSError, EOFError, zlib.error) as err:
+                raise InputError(f"cannot read it as gzip ({' '.join(str(err).split())[:80]})",
+                                 source=str(path)) from None
+    if b"\x00" in raw[:4096]:
+        raise NotTextError("is a binary file; expected text", source=str(path))
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
 def file_sha256(path: str | os.PathLike) -> str:
     """SHA-256 (hex) of a regular file within ``HLAID_MAX_FILE_MB``, read in blocks."""
     h = hashlib.sha256()
     with open_input(path) as fh:
         try:
-            for block in iter(lambda: fh.read(1 << 20), b""):
+            while block := fh.read(1 << 20):
                 h.update(block)
+            if block is None:
+                raise BlockingIOError(errno.EAGAIN, "")
         except OSError as err:
-            raise InputError(f"cannot be read ({err.strerror or err})", source=str(path)) from None
+            raise InputError(_unreadable(err), source=str(path)) from None
     return h.hexdigest()
 
 
@@ -370,9 +457,34 @@ def _npy_header(member: IO[bytes], name: str, size: int, source: str):
     return shape, fortran, dtype
 
 
-def load_npz(path: str | os.PathLike, *, not_npz: str = "not an NPZ file (a zip archive of named arrays)") -> dict:
+def _check_rows(zf: zipfile.ZipFile, source: str, max_rows: int | str) -> None:
+    """Refuse an NPZ whose array headers claim more than ``max_rows`` rows, reading headers only."""
+    if max_rows == DATA_LINES:
+        from .limits import limit
+
+        top, why = int(limit("SAMPLES")), "set HLAID_MAX_SAMPLES to raise the limit"
+    else:
+        top, why = int(max_rows), "more than hlaid reads"
+    for info in zf.infolist():
+        if not info.filename.endswith(".npy"):
+            continue
+        name = info.filename[:-4]
+        try:
+            with zf.open(info) as member:
+                shape, _, _ = _npy_header(member, name, info.file_size, source)
+        except (zipfile.BadZipFile, OSError, EOFError, RuntimeError, NotImplementedError):
+            continue  # the reading below says what is wrong with it
+        if shape and int(shape[0]) > top:
+            raise InputError(f"array {name!r} claims {int(shape[0]):,} samples; a record holds at most {top:,} "
+                             f"({why})", source=source)
+
+
+def load_npz(path: str | os.PathLike, *, not_npz: str = "not an NPZ file (a zip archive of named arrays)",
+             max_rows: int | str | None = None) -> dict:
     """The arrays of an NPZ file by name, each checked against its member's size before it is
-    allocated (see the module docstring); ``not_npz`` is the message for a file that is no zip."""
+    allocated (see the module docstring); ``not_npz`` is the message for a file that is no zip.
+    ``max_rows`` (a count, or :data:`DATA_LINES`: ``HLAID_MAX_SAMPLES``): the longest first
+    dimension of an array, checked from its header before any array is inflated."""
     import numpy as np
     source = str(path)
     with open_input(path) as fh:
@@ -382,6 +494,8 @@ def load_npz(path: str | os.PathLike, *, not_npz: str = "not an NPZ file (a zip 
             raise InputError(not_npz, source=source) from None
         with zf:
             _inflated_total(zf, source)
+            if max_rows is not None:
+                _check_rows(zf, source, max_rows)
             out = {}
             for info in zf.infolist():
                 if not info.filename.endswith(".npy"):

@@ -1,11 +1,14 @@
 """What hlaid wrote in an output folder, and replacing a folder that cannot be renamed.
 
 An output folder's marker (:data:`MARKER`, written last) names the command that wrote it, lists
-every entry the command wrote there, and names the folder it was written in by its device and
-inode. ``--force`` replaces a folder only when its marker is that folder's own and lists every
-entry in it (an entry that is itself such a folder, e.g. ``RUN/loss/``, counts as hlaid's): a
-hand-made marker, one copied into another folder or written by an hlaid that kept no list, or a
-file the user put into the folder, stops it (:func:`not_ours` says why).
+every entry the command wrote there with what it held (size, modification time and SHA-256 of
+each file, the target of each link), names the folder it was written in by its device and inode,
+and is signed with a key only hlaid keeps (an HMAC-SHA256 under ``~/.local/state/hlaid/output-key``,
+readable by its user alone, :func:`signing_key`). ``--force`` replaces a folder only when its
+marker bears a valid signature, is that folder's own, lists every entry in it and every file still
+holds what hlaid wrote (an entry that is itself such a folder, e.g. ``RUN/loss/``, counts as
+hlaid's): a hand-made marker, one copied into another folder or written by an older hlaid, a file
+the user put into the folder or a file the user changed stops it (:func:`not_ours` says why).
 
 A folder that cannot be renamed (a mount point, a bind-mounted folder of a container) is replaced
 in place instead (:func:`replace_contents`): what hlaid wrote there is removed and the new entries
@@ -16,8 +19,11 @@ are moved in, one by one. What killed runs left (``.NAME.PID-*.tmp``) is removed
 from __future__ import annotations
 
 import hashlib
+import hmac
+import json
 import os
 import re
+import secrets
 import shutil
 import stat
 import time
@@ -31,8 +37,9 @@ from .errors import InputError
 MARKER = ".hlaid-output.json"
 """The file that makes a folder an output of hlaid (``--force`` may replace it)."""
 
-VERSION = 2
-"""Version of :data:`MARKER`'s content (1: no list of files, no folder identity)."""
+VERSION = 3
+"""Version of :data:`MARKER`'s content (1: no list of files, no folder identity; 2: no contents,
+no signature)."""
 
 SHOWN = 3
 """Entries named in a refusal (the rest are counted)."""
@@ -119,11 +126,118 @@ def listing(folder: str | os.PathLike, skip: tuple[str, ...] = ()) -> list[str]:
     return sorted(out)
 
 
-def marker(what: str, files: list[str], folder: str | os.PathLike) -> dict:
+def signing_key(create: bool = True) -> bytes | None:
+    """The key that signs output markers: ``output-key`` in :func:`hlaid._userdirs.state_root`
+    (32 random bytes, hex; created with mode 0600 on first use), or None where there is no such
+    folder (no home) or it cannot be read or written: markers are then unsigned and ``--force``
+    does not replace what they mark."""
+    from ._userdirs import state_root
+
+    root = state_root()
+    if root is None:
+        return None
+    path = root / "output-key"
+    for _ in range(2):
+        try:
+            with open(path, "rb") as fh:
+                raw = fh.read(200).strip()
+            if len(raw) == 64 and all(c in b"0123456789abcdef" for c in raw):
+                return raw
+            return None
+        except FileNotFoundError:
+            if not create:
+                return None
+        except OSError:
+            return None
+        tmp = root / f".output-key.{os.getpid()}.tmp"
+        try:
+            root.mkdir(parents=True, exist_ok=True, mode=0o700)
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+            try:
+                os.write(fd, secrets.token_hex(32).encode() + b"\n")
+            finally:
+                os.close(fd)
+            os.link(tmp, path)  # complete or absent: another process never reads half a key
+        except FileExistsError:
+            pass  # another process made it meanwhile: read that one
+        except OSError:
+            tmp.unlink(missing_ok=True)
+            return None
+        tmp.unlink(missing_ok=True)
+    return None
+
+
+def _sign(body: dict, key: bytes) -> str:
+    text = json.dumps({k: v for k, v in body.items() if k != "signature"}, sort_keys=True, separators=(",", ":"))
+    return hmac.new(key, text.encode(), hashlib.sha256).hexdigest()
+
+
+def _sha256(path: str | os.PathLike) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def content(path: str | os.PathLike) -> dict | None:
+    """What ``path`` holds now, as :data:`MARKER` records it: ``{"size", "mtime_ns", "sha256"}`` of a
+    regular file, ``{"link": target}`` of a symbolic link, ``{"folder": true}`` of a folder; None
+    for anything else or what cannot be read."""
+    try:
+        st = os.lstat(path)
+        if stat.S_ISLNK(st.st_mode):
+            return {"link": os.readlink(path)}
+        if stat.S_ISDIR(st.st_mode):
+            return {"folder": True}
+        if stat.S_ISREG(st.st_mode):
+            return {"size": int(st.st_size), "mtime_ns": int(st.st_mtime_ns), "sha256": _sha256(path)}
+    except OSError:
+        return None
+    return None
+
+
+def _unchanged(path: str | os.PathLike, rec: object) -> bool:
+    """Whether ``path`` still holds what ``rec`` (see :func:`content`) says hlaid wrote."""
+    if not isinstance(rec, dict):
+        return False
+    try:
+        st = os.lstat(path)
+    except OSError:
+        return False
+    if "link" in rec:
+        return stat.S_ISLNK(st.st_mode) and os.readlink(path) == rec["link"]
+    if rec.get("folder") is True:
+        return stat.S_ISDIR(st.st_mode)
+    if not stat.S_ISREG(st.st_mode) or st.st_size != rec.get("size"):
+        return False
+    try:
+        return st.st_mtime_ns == rec.get("mtime_ns") and len(str(rec.get("sha256"))) == 64 or \
+            _sha256(path) == rec.get("sha256")
+    except OSError:
+        return False
+
+
+def marker(what: str, files: list[str], folder: str | os.PathLike, *, pending: tuple[str, ...] | set[str] = (),
+           contents_of: str | os.PathLike | None = None) -> dict:
     """The content of :data:`MARKER` of ``folder`` holding ``files`` (see :func:`listing`),
-    written by the command ``what``."""
-    return {"format": "hlaid-output", "version": VERSION, "command": what, "hlaid_version": __version__,
-            "written": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "folder": identity(folder), "files": list(files)}
+    written by the command ``what``: what each entry holds (read in ``contents_of``, default
+    ``folder``; an entry in ``pending`` is one the command is still writing: listed, not recorded)
+    and the signature (None without a :func:`signing_key`)."""
+    base = Path(contents_of if contents_of is not None else folder)
+    recs = {}
+    for f in files:
+        if f in pending:
+            continue
+        rec = content(base / f)
+        if rec is not None:
+            recs[f] = rec
+    body = {"format": "hlaid-output", "version": VERSION, "command": what, "hlaid_version": __version__,
+            "written": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "folder": identity(folder), "files": list(files),
+            "contents": recs}
+    key = signing_key()
+    body["signature"] = _sign(body, key) if key is not None else None
+    return body
 
 
 def read_marker(folder: str | os.PathLike) -> dict | None:
@@ -136,39 +250,57 @@ def read_marker(folder: str | os.PathLike) -> dict | None:
     return d if isinstance(d, dict) and d.get("format") == "hlaid-output" else None
 
 
+def _signed(d: dict) -> bool:
+    sig = d.get("signature")
+    if d.get("version") != VERSION or not isinstance(sig, str):
+        return False
+    key = signing_key(create=False)
+    return key is not None and hmac.compare_digest(sig, _sign(d, key))
+
+
 def written_here(folder: str | os.PathLike) -> set[str] | None:
-    """The entries the marker of ``folder`` lists, when the marker is the folder's own (written
-    there by an hlaid that lists its files); else None."""
+    """The entries the marker of ``folder`` lists, when the marker is the folder's own (signed by
+    hlaid and written in this folder); else None."""
+    d = _own_marker(folder)
+    return None if d is None else {f for f in d["files"] if isinstance(f, str)}
+
+
+def _own_marker(folder: str | os.PathLike) -> dict | None:
     d = read_marker(folder)
-    if d is None or not isinstance(d.get("files"), list) or not isinstance(d.get("folder"), dict):
+    if d is None or not isinstance(d.get("files"), list) or not isinstance(d.get("folder"), dict) \
+            or not isinstance(d.get("contents"), dict) or not _signed(d):
         return None
     try:
         if d["folder"] != identity(folder):
             return None
     except OSError:
         return None
-    return {f for f in d["files"] if isinstance(f, str)}
+    return d
 
 
 def not_ours(folder: str | os.PathLike, skip: tuple[str, ...] = ()) -> str | None:
     """Why ``folder`` is not an output hlaid may replace (None: it is): no marker, a marker that is
-    not the folder's own, or entries the marker does not list (top-level names in ``skip`` are
-    left out: the temporary folder of a run in progress)."""
+    not the folder's own (unsigned, forged, copied), entries the marker does not list, or files
+    that no longer hold what hlaid wrote (top-level names in ``skip`` are left out: the temporary
+    folder of a run in progress)."""
     d = read_marker(folder)
     if d is None:
         return f"is not an output folder of hlaid (it has no {MARKER})"
-    files = written_here(folder)
-    if files is None:
-        return (f"is not an output folder of hlaid: its {MARKER} was not written there by hlaid (made by hand, copied "
-                "from another folder, or written by an hlaid that kept no list of its files)")
-    foreign = _foreign(Path(folder), files, skip)
+    own = _own_marker(folder)
+    if own is None:
+        why = "no key to check it with (HOME names no folder)" if signing_key(create=False) is None else \
+            "made by hand, copied from another folder, edited, or written by an older hlaid"
+        return f"is not an output folder of hlaid: its {MARKER} was not written there by hlaid ({why})"
+    files = {f for f in own["files"] if isinstance(f, str)}
+    foreign = _foreign(Path(folder), files, own["contents"], skip)
     if foreign:
         shown = ", ".join(foreign[:SHOWN]) + (f" and {len(foreign) - SHOWN} more" if len(foreign) > SHOWN else "")
-        return f"holds {len(foreign)} entr{'y' if len(foreign) == 1 else 'ies'} hlaid did not write there ({shown})"
+        return (f"holds {len(foreign)} entr{'y' if len(foreign) == 1 else 'ies'} hlaid did not write there or that "
+                f"changed since ({shown})")
     return None
 
 
-def _foreign(root: Path, files: set[str], skip: tuple[str, ...]) -> list[str]:
+def _foreign(root: Path, files: set[str], recs: dict, skip: tuple[str, ...]) -> list[str]:
     out = []
     stack = [Path(".")]
     while stack:
@@ -184,11 +316,61 @@ def _foreign(root: Path, files: set[str], skip: tuple[str, ...]) -> list[str]:
                 continue
             is_dir = e.is_dir(follow_symlinks=False)
             if name in files:
-                if is_dir:
+                if name in recs and not _unchanged(e.path, recs[name]):
+                    if not (is_dir and not_ours(e.path) is None):
+                        out.append(name + ("/" if is_dir else "") + " (changed)")
+                elif is_dir:
                     stack.append(rel / e.name)
             elif not (is_dir and not_ours(e.path) is None):  # a folder hlaid wrote later (RUN/loss/) is hlaid's
                 out.append(name + ("/" if is_dir else ""))
     return out
+
+
+def rerecord(path: str | os.PathLike, levels: int = 4) -> None:
+    """After hlaid rewrote the file ``path`` inside one of its output folders (``hlaid report`` and
+    ``hlaid loss`` rewrite a run folder's ``report.html`` and ``summary.json``): record its new
+    contents in that folder's marker, re-signed, so the folder stays hlaid's. Nothing where no
+    folder up to ``levels`` above holds a valid marker that records ``path``."""
+    path = Path(path)
+    if path.name == MARKER:
+        return
+    folder = path.parent
+    for _ in range(levels):
+        try:
+            rel = path.relative_to(folder).as_posix()
+        except ValueError:
+            return
+        if os.path.lexists(folder / MARKER):
+            d = _own_marker(folder)
+            if d is None or rel not in d["contents"]:
+                return
+            key = signing_key(create=False)
+            rec = content(path)
+            if key is None or rec is None:
+                return
+            d["contents"][rel] = rec
+            d["signature"] = _sign(d, key)
+            _write_marker(folder, d)
+            return
+        if folder.parent == folder:
+            return
+        folder = folder.parent
+
+
+def _write_marker(folder: Path, body: dict) -> None:
+    """Replace ``folder``'s :data:`MARKER` by ``body`` atomically (a temporary file renamed over it)."""
+    import tempfile
+
+    fd, name = tempfile.mkstemp(prefix=f".{MARKER}.{os.getpid()}-", suffix=".tmp", dir=folder)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(json.dumps(body, indent=2) + "\n")
+        mode = os.stat(folder / MARKER).st_mode & 0o777 if os.path.exists(folder / MARKER) else 0o644
+        os.chmod(name, mode)
+        os.replace(name, folder / MARKER)
+    except BaseException:
+        Path(name).unlink(missing_ok=True)
+        raise
 
 
 def cannot_rename(path: Path) -> bool:
@@ -241,4 +423,5 @@ def _remove(p: Path) -> None:
 
 
 __all__ = ["MARKER", "VERSION", "STALE_AFTER_S", "stem", "remove_stale", "identity", "listing", "marker",
+           "signing_key", "content", "rerecord",
            "read_marker", "written_here", "not_ours", "cannot_rename", "replace_contents"]

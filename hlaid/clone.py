@@ -226,7 +226,8 @@ class Clone:
                 raise InputError(f"uncertainty names a story beyond the clone's {b.n_stories}", source=source)
         system, events, state = _history(d, b.n_stories, source)
         if state is not None:
-            _checked(check_state, state.z, b.dy, source=source)
+            _checked(check_state, state.z, b.dy, drift=state.drift, height=b.height, source=source,
+                     peaks=(("peak_positive", state.peak_positive), ("peak_negative", state.peak_negative)))
         return cls(building=b, mass_normalised=d.get("mass_normalised", False),
                    diagnostics=d.get("diagnostics") or {}, provenance=d.get("provenance") or {}, uncertainty=unc,
                    system=system, events=events, state=state)
@@ -274,12 +275,13 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dic
 
 _EVENT_KEYS = ("name", "source", "sha256", "ground_sha256", "pga_g", "duration_s", "dt", "n_floors", "recorded",
                "start", "prequential", "peak_drift")
+_EVENT_KEYS += ("ground_profile",)  # the ground record's RMS in equal windows (hlaid.measurement.ground_profile)
 
 
-def _checked(check, *args, source: str | None) -> None:
-    """``check(*args)``, its InputError said of ``source``."""
+def _checked(check, *args, source: str | None, **kw) -> None:
+    """``check(*args, **kw)``, its InputError said of ``source``."""
     try:
-        check(*args)
+        check(*args, **kw)
     except InputError as err:
         raise InputError(str(err), source=source) from None
 

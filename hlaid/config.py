@@ -78,6 +78,14 @@ def _safe_loader_base() -> type:
     return _Fast
 
 
+MAX_VALUE_CHARS = 65536
+"""Longest value of a config (a path, a name, a list written as text): hlaid's are far shorter."""
+
+MAX_CONFIG_BYTES = 16 * 2**20
+"""Largest config file read (the largest that :data:`HLAID_MAX_CONFIG_NODES` keys and values fill
+is a few MiB): a bigger one is refused before it is read."""
+
+
 class _NoAliasLoader(_safe_loader_base()):  # type: ignore[misc]
     """``yaml.SafeLoader`` that refuses aliases (``*name``, also in ``<<: *name`` merges).
 
@@ -100,6 +108,11 @@ class _NoAliasLoader(_safe_loader_base()):  # type: ignore[misc]
             line = self.peek_event().start_mark.line + 1
             raise ConfigError(f"{self.source}:{line}: more than {self.max_nodes} keys and values; hlaid configs are "
                               "far smaller (set HLAID_MAX_CONFIG_NODES to raise the limit)")
+        if self.check_event(yaml.ScalarEvent):
+            event = self.peek_event()
+            if len(event.value) > MAX_VALUE_CHARS:
+                raise ConfigError(f"{self.source}:{event.start_mark.line + 1}: a value of {len(event.value):,} "
+                                  f"characters; a config value (a path, a name) has at most {MAX_VALUE_CHARS:,}")
         return super().compose_node(parent, index)
 
 
@@ -347,6 +360,13 @@ def load_yaml(path: str | os.PathLike) -> _Node:
     source = str(path)
     if not os.path.lexists(source):
         raise ConfigError("config file not found", source=source)
+    try:
+        size = os.stat(source).st_size
+    except OSError:
+        size = 0
+    if size > MAX_CONFIG_BYTES:
+        raise ConfigError(f"is {size / 2**20:.3g} MiB; a config is at most {MAX_CONFIG_BYTES // 2**20} MiB (hlaid "
+                          "configs are a few KiB: data belong in the files they name)", source=source)
     return parse_yaml(read_text(source), source)  # a regular file within HLAID_MAX_FILE_MB (hlaid._inputs)
 
 

@@ -95,6 +95,9 @@ class Measurement:
         if not lo <= 1.0 / self.dt <= hi:
             raise InputError(f"dt = {self.dt:g} s is a sample rate of {1.0 / self.dt:.3g} Hz, outside the {lo:g} Hz "
                              f"to {hi:g} Hz of structural records; check dt (seconds per sample)", source=src)
+        for name in ("ground_acc", "floor_acc"):
+            if np.iscomplexobj(getattr(self, name)):
+                raise InputError(f"{name} holds complex numbers; expected real accelerations", source=src)
         g = np.asarray(self.ground_acc, dtype=np.float64)
         f = np.asarray(self.floor_acc, dtype=np.float64)
         if g.ndim != 1:
@@ -273,7 +276,7 @@ def check_band(meas: Measurement, band_hz, field: str, *, default=None) -> None:
     ``None`` and ``"auto"`` (chosen from the record) pass."""
     if band_hz is None or isinstance(band_hz, str):
         return
-    from .signal import max_corner
+    from .signal import max_corner, min_corner
 
     lo, hi = (float(v) for v in band_hz)
     src = meas.source or None
@@ -283,6 +286,10 @@ def check_band(meas: Measurement, band_hz, field: str, *, default=None) -> None:
     rule = f"{top:.4g} Hz (0.9 x the Nyquist frequency of this {1.0 / meas.dt:.4g} Hz measurement)"
     if not lo < top:
         raise InputError(f"{field}: low corner {lo:g} Hz is not below {rule}; lower it", source=src)
+    low = min_corner(meas.dt)
+    if hi < low or 0 < lo < low or lo < 0 or not lo < hi:
+        raise InputError(f"{field}: corners {lo:g} {hi:g} Hz; expected 0 (no high-pass) or at least {low:g} Hz for the "
+                         f"low corner, and a high corner above it of at least {low:g} Hz", source=src)
     given = default is None or isinstance(default, str) or tuple(float(v) for v in default) != (lo, hi)
     if given and hi > top:
         raise InputError(f"{field}: high corner {hi:g} Hz is above {rule}, the highest corner hlaid uses; lower "
@@ -320,22 +327,80 @@ def check_series(measurements) -> None:
         seen[key] = m
 
 
+def check_moving(meas: Measurement) -> None:
+    """Refuse a measurement whose ground or a floor channel is constant (every sample the same):
+    no record of a shaken building, and its replay's correlations would be NaN. The commands that
+    analyse a measurement call it; the readers do not (a channel may be read to be looked at)."""
+    if not isinstance(meas, Measurement):
+        return
+    src = meas.source or None
+    g, f = np.asarray(meas.ground_acc), np.asarray(meas.floor_acc)
+    if np.ptp(g) == 0:
+        raise InputError(f"ground_acc is constant ({float(g[0]):g} mm/s^2 at every sample): not a record of "
+                         "ground motion", source=src)
+    still = [j + 1 for j in range(f.shape[1]) if np.ptp(f[:, j]) == 0]
+    if still:
+        v = float(f[0, still[0] - 1])
+        raise InputError(f"floor_acc of floor {still[0]} is constant ({v:g} mm/s^2 at every sample): no floor of a "
+                         "shaken building keeps still; check the channel", source=src)
+
+
 def ground_digest(meas: Measurement) -> str:
     """SHA-256 of the ground record's samples (float64): the same event, however its file was written."""
     return hashlib.sha256(np.ascontiguousarray(meas.ground_acc, dtype=np.float64).tobytes()).hexdigest()
 
 
+PROFILE_WINDOWS = 32
+"""Windows of :func:`ground_profile`."""
+
+PROFILE_TOL = 0.02
+"""Largest difference of two :func:`ground_profile` s of one record written differently (rounded
+to 6 digits, trimmed or padded by a sample, scaled by 1 + 1e-12: under 1e-3)."""
+
+
+def ground_profile(meas: Measurement) -> list[float]:
+    """The ground record's RMS in :data:`PROFILE_WINDOWS` equal windows over its duration, as a
+    fraction of its overall RMS (4 decimals): the same for one record however it was written (a
+    sample more or less, rounded, rescaled by a hair), different for different records even of one
+    peak and duration."""
+    g = np.asarray(meas.ground_acc, dtype=np.float64)
+    total = float(np.sqrt(np.mean(g * g))) or 1.0
+    edges = np.linspace(0, g.size, PROFILE_WINDOWS + 1).round().astype(int)
+    return [round(float(np.sqrt(np.mean(g[a:b] ** 2))) / total, 4) if b > a else 0.0
+            for a, b in zip(edges[:-1], edges[1:])]
+
+
+def _same_record(e: dict, meas: Measurement) -> bool:
+    """Whether ``meas`` holds the ground record of the clone's event ``e`` written differently: the
+    same sample interval, a duration within 2 samples, a peak within 0.1 % and the same
+    :func:`ground_profile` (a clone that kept none: not told this way)."""
+    prof = e.get("ground_profile")
+    if not isinstance(prof, list) or not all(isinstance(e.get(f), (int, float)) for f in ("pga_g", "dt", "duration_s")):
+        return False
+    if not math.isclose(e["dt"], meas.dt, rel_tol=1e-6):
+        return False
+    if abs(e["duration_s"] - meas.n_samples * meas.dt) > 2.01 * meas.dt:
+        return False
+    pga = float(np.max(np.abs(meas.ground_acc)) / G_MM_S2)
+    if not math.isclose(e["pga_g"], pga, rel_tol=1e-3):
+        return False
+    mine = ground_profile(meas)
+    return len(mine) == len(prof) and max(abs(a - b) for a, b in zip(mine, prof)) <= PROFILE_TOL
+
+
 def check_not_learnt(events, meas: Measurement | None = None, sha256: str | None = None,
                      source: str | None = None) -> None:
     """Refuse an event a clone has learnt from already (``events``: its ``events[]`` records): the
-    same file (``sha256`` of the file at ``source``) or the same ground record (``meas``), also in
-    a clone that kept no digest of its ground record (same peak, duration and sample interval)."""
+    same file (``sha256`` of the file at ``source``) or the same ground record (``meas``), also
+    written differently (rounded, a sample trimmed or padded, rescaled by a hair:
+    :func:`ground_profile`), also in a clone that kept no digest of its ground record (same peak,
+    duration and sample interval)."""
     for k, e in enumerate(events):
         name = e.get("name") or f"event {k + 1}"
         same = sha256 is not None and e.get("sha256") == sha256
         if meas is not None and not same:
             if e.get("ground_sha256") is not None:
-                same = e["ground_sha256"] == ground_digest(meas)
+                same = e["ground_sha256"] == ground_digest(meas) or _same_record(e, meas)
             elif all(isinstance(e.get(f), (int, float)) for f in ("pga_g", "dt", "duration_s")):
                 pga = float(np.max(np.abs(meas.ground_acc)) / G_MM_S2)
                 same = (math.isclose(e["pga_g"], pga, rel_tol=1e-9) and math.isclose(e["dt"], meas.dt, rel_tol=1e-9)

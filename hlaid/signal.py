@@ -24,16 +24,29 @@ import numpy as np
 MAX_CORNER_RATIO = 0.45
 """Highest analysis corner as a fraction of the sample rate (0.9 x Nyquist)."""
 
+MIN_CORNER_HZ = 0.001
+"""Lowest corner [Hz] hlaid designs a filter at (a period of 1000 s: far below any building's and any
+record's content); a lower one, 1e-300 Hz, is refused (the design's initial conditions are singular)."""
+
+MIN_CORNER_RATIO = 1e-6
+"""Lowest corner as a fraction of the Nyquist frequency (the same reason at a high sample rate)."""
+
 DESIGN_GUARD = 0.95
 """Fraction of the Nyquist frequency above which a corner cannot be designed and is lowered to it."""
 
-__all__ = ["MAX_CORNER_RATIO", "max_corner", "cap_corner", "butter_sos", "bandpass", "lowpass", "highpass",
-           "integrate_twice"]
+__all__ = ["MAX_CORNER_RATIO", "MIN_CORNER_HZ", "min_corner", "max_corner", "cap_corner", "butter_sos", "bandpass",
+           "lowpass", "highpass", "integrate_twice"]
 
 
 def max_corner(dt: float) -> float:
     """The highest corner [Hz] used for analysis at sample interval ``dt`` [s]: ``0.45 / dt``."""
     return MAX_CORNER_RATIO / dt
+
+
+def min_corner(dt: float) -> float:
+    """The lowest corner [Hz] a filter is designed at, sample interval ``dt`` [s]: a high-pass corner
+    of 0 means none; any other corner below this is refused."""
+    return max(MIN_CORNER_HZ, MIN_CORNER_RATIO * 0.5 / dt)
 
 
 def cap_corner(hi_hz: float, dt: float) -> float:
@@ -64,6 +77,12 @@ def butter_sos(band_hz, dt: float, order: int = 4, kind: str = "bandpass") -> np
     nyq = 0.5 / dt
     lo, hi = band_hz
     hi = min(hi, DESIGN_GUARD * nyq)
+    low = min_corner(dt)
+    if hi < low or 0 < lo < low:
+        from .errors import InputError
+
+        raise InputError(f"band {lo:g}-{hi:g} Hz: a corner below {low:g} Hz cannot be designed; give 0 for no "
+                         f"high-pass and a high corner of at least {low:g} Hz")
     if kind == "bandpass" and lo > 0:
         return _scipy_signal().butter(order, [lo / nyq, hi / nyq], btype="bandpass", output="sos")
     if kind == "bandpass":

@@ -78,13 +78,33 @@ def data_cases(d: Path) -> list[tuple[str, list[str], dict]]:
     learnt = _clone(d, "learnt.json", lambda c: c.update(events=[{"name": "three", "sha256": sha}]))
     (d / "big.yaml").write_text("".join(f"key{i}: {i}\n" for i in range(200_000)))
     member = gzip.compress(b"0.0,0.0,0.0\n" * (2**20 // 12), compresslevel=9)
-    (d / "bomb.csv.gz").write_bytes(member * 600)  # 600 MiB of text, about 1 MiB on disk
+    head = gzip.compress(b"# dt_s: 0.01\ntime_s,ground_acc,floor_acc_1\n")  # a measurement CSV's header
+    (d / "bomb.csv.gz").write_bytes(head + member * 600)  # 600 MiB of text, about 1 MiB on disk
     (d / "fl2.yaml").write_text("records: builtin-suite\nn_ensemble: 0\nbuildings:\n"
                                 "  - {name: B1, measurements: {ev1: {file: three.npz}}}\n")
     with socket.socket() as s:  # a port nothing listens on
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
+    with open(d / "rows.csv", "w") as fh:  # 3 million rows: over the 2 million samples of a record
+        fh.write("# dt_s: 0.01\ntime_s,ground_acc,floor_acc_1\n")
+        block = "".join(f"{i * 0.01:.2f},1.0,2.0\n" for i in range(100_000))
+        for _ in range(30):
+            fh.write(block)
+    inner = io.BytesIO()
+    with zipfile.ZipFile(inner, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("CHAN001.V2", b"0" * (600 * 2**20))
+    outer = io.BytesIO()
+    with zipfile.ZipFile(outer, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("Free Field.zip", inner.getvalue())
+    (d / "nested.zip").write_bytes(outer.getvalue())  # 600 MiB in a zip in a zip: about 1 MiB
+    (d / "run-root.yaml").write_text(f"measurement: {{file: {three}}}\nida: {{records: /}}\n")
+    (d / "fl1.yaml").write_text("records: builtin:elcentro-1940-ns\nbuildings:\n"
+                                "  - {name: B1, measurements: {ev1: {file: three.npz}}}\n")
     return [
+        ("hla: CSV of 3 million rows", ["hla", "rows.csv", "-o", "h"], {}),
+        ("hla: nested zip of 600 MiB (CSMIP)", ["hla", "nested.zip", "-o", "h"], {}),
+        ("run: ida.records /", ["run", "run-root.yaml", "-o", "r"], {}),
+        ("fleet: one IDA record for an ensemble", ["fleet", "fl1.yaml", "-o", "f"], {}),
         ("identify: 3 and 2 floors", ["identify", three, two, "-o", "c.json"], {}),
         ("identify: one record twice", ["identify", three, three, "-o", "c.json"], {}),
         ("identify: one record twice, two names", ["identify", three, "copy.npz", "-o", "c.json"], {}),
@@ -122,7 +142,48 @@ def cases(d: Path) -> list[tuple[str, list[str], dict]]:
     with open(sparse / "summary.json", "wb") as fh:
         fh.truncate(3 * 2**30)
     good = _clone(d, "clone.json")
+    noh = _clone(d, "noheights.json", lambda c: [st.pop("height", None) for st in c["stories"]])
+    os.mkfifo(d / "pipe.py")
+    (d / "mine").mkdir()
+    (d / "mine" / "fleet.json").write_text("{}")
+    (d / "mine" / "report.html").write_text("<p>mine</p>")
+    (d / "forged").mkdir()
+    (d / "forged" / "ch1.tex").write_text("four years")
+    st = os.stat(d / "forged")
+    (d / "forged" / ".hlaid-output.json").write_text(json.dumps(
+        {"format": "hlaid-output", "version": 3, "command": "hlaid hla", "folder": {"device": st.st_dev,
+         "inode": st.st_ino}, "files": ["ch1.tex"], "contents": {}, "signature": "0" * 64}))
+    (d / "empty").mkdir()
+    with open(d / "huge.yaml", "wb") as fh:
+        fh.truncate(100 * 2**20)  # sparse
+    (d / "demands.csv").write_text(",1-PID-1-1\nUnits,rad\n0,0.01\n")
     return [
+        ("ida: clone without story heights", ["ida", noh, "-o", "i"], {}),
+        ("ida: --heights 3000 for 3 stories", ["ida", good, "-o", "i", "--heights", "3000"], {}),
+        ("ida: --records missing", ["ida", good, "-o", "i", "--records", "missing"], {}),
+        ("ida: --records an empty folder", ["ida", good, "-o", "i", "--records", "empty"], {}),
+        ("ida: --records name of 300 bytes", ["ida", good, "-o", "i", "--records", "r" * 300], {}),
+        ("ida: config of 100 MiB", ["ida", good, "-o", "i", "--config", "huge.yaml"], {}),
+        ("predict: --seed -1", ["predict", good, "meas.npz", "--seed", "-1"], {}),
+        ("demands: --level 1e300", ["demands", good, "--records", "builtin-suite", "--level", "1e300", "-o", "d.csv"],
+         {}),
+        ("loss: demand CSV without --floor-area", ["loss", "demands.csv", "-o", "l"], {}),
+        ("export-opensees: -o FIFO --force", ["export-opensees", good, "-o", "pipe.py", "--force"], {}),
+        ("export-opensees: clone state drift 9e5 mm",
+         ["export-opensees", _clone(d, "state.json", lambda c: c.update(state={
+             "drift": [9e5, 0, 0], "z": [0, 0, 0], "work": [0, 0, 0], "peak_positive": [9e5, 0, 0],
+             "peak_negative": [0, 0, 0]})), "-o", "m.py"], {}),
+        ("hla: -o a forged marker's folder --force", ["hla", "meas.npz", "-o", "forged", "--force"], {}),
+        ("fleet: -o a folder holding a fleet.json", ["fleet", "f.yaml", "-o", "mine"], {}),
+        ("fleet: cluster.memory_limit lots",
+         ["fleet", w("mem.yaml", "records: builtin-suite\ncluster: {memory_limit: lots}\nbuildings:\n"
+                                 "  - {name: B1, measurements: {ev1: {file: b.npz}}}\n"), "-o", "f"], {}),
+        ("fleet: --scheduler tcp://localhost:\u00b2", ["fleet", "f.yaml", "-o", "f", "--scheduler",
+                                                       "tcp://localhost:\u00b2"], {}),
+        ("run: measurement missing", ["run", w("run-missing.yaml", "measurement: {file: missing.npz}\n"), "-o", "r"],
+         {}),
+        ("run: measurement.options.path", ["run", w("run-opt.yaml", "measurement: {file: m.npz, options: {path: x}}\n"),
+                                           "-o", "r"], {}),
         ("simulate: unknown key", ["simulate", w("k.yaml", sim + "colour: red\n"), "-o", "o.npz"], {}),
         ("simulate: rate_hz 0.001", ["simulate", w("r.yaml", sim + "measurement: {rate_hz: 0.001}\n"), "-o", "o.npz"],
          {}),

@@ -857,7 +857,7 @@ def test_a_mount_point_as_the_output_folder(tmp_path):
                        env=env)
     assert r.returncode == 0, r.stderr
     assert r.stdout.splitlines() == ["['.hlaid-output.json', 'a.json']", "['.hlaid-output.json', 'b.json']",
-                                     "refused holds 1 entry hlaid did not write there",
+                                     "refused holds 1 entry hlaid did not write there or that changed since",
                                      "['.hlaid-output.json', 'b.json', 'mine.txt'] ['mnt', 'write.py']"]
 
 
@@ -1062,7 +1062,8 @@ def _gzip_bomb(path: Path, inflated_mb: int) -> Path:
     """A gzip file of ``inflated_mb`` MiB of CSV-like text, a thousandth of that on disk (one member repeated)."""
     import gzip
     member = gzip.compress(b"0.0,0.0,0.0\n" * (2**20 // 12), compresslevel=9)
-    path.write_bytes(member * inflated_mb)
+    head = gzip.compress(b"# dt_s: 0.01\ntime_s,ground_acc,floor_acc_1\n")  # a measurement CSV to its reader
+    path.write_bytes(head + member * inflated_mb)
     return path
 
 

@@ -127,7 +127,8 @@ def test_save_does_not_overwrite_without_force(tmp_path, noisy):
 
 
 # ---------------------------------------------------------------------- bad input
-_OK = {"dt": 0.01, "ground_acc": np.full(100, 1000.0), "floor_acc": np.full((100, 2), 1000.0)}
+_OK = {"dt": 0.01, "ground_acc": np.linspace(500.0, 1500.0, 100),
+       "floor_acc": np.linspace(500.0, 1500.0, 200).reshape(100, 2)}
 
 
 @pytest.mark.parametrize("change,match", [

@@ -95,9 +95,24 @@ def add_ensemble(p: argparse.ArgumentParser, what: str) -> None:
                         "when the clone has it, else 0; 0: the identified clone alone)")
 
 
+def _seed(text: str) -> int:
+    """A ``--seed`` value: an integer within :data:`hlaid.bounds.SEED`, checked as it is parsed."""
+    from ..bounds import SEED
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text[:40]!r}") from None
+    try:
+        SEED.check("--seed", value)
+    except InputError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+    return value
+
+
 def add_seed(p: argparse.ArgumentParser, what: str, default: str = "0") -> None:
-    """``--seed N``."""
-    p.add_argument("--seed", type=int, default=None, metavar="N", help=f"seed of {what} (default {default})")
+    """``--seed N`` (checked against :data:`hlaid.bounds.SEED` as it is parsed)."""
+    p.add_argument("--seed", type=_seed, default=None, metavar="N", help=f"seed of {what} (default {default})")
 
 
 def add_building(p: argparse.ArgumentParser, *, pdelta_default: str = "when story heights are known") -> None:
@@ -236,12 +251,26 @@ def _main(argv: list[str] | None) -> int:
 
 
 def _no_space(err: OSError) -> str | None:
-    """One line for a full disk or an exhausted quota (outside hlaid's atomic writers), else None."""
+    """One line for what the system refuses whatever hlaid does (outside hlaid's atomic writers),
+    else None: a full disk or an exhausted quota, the file-size limit (``ulimit -f``), a file name
+    longer than the file system allows (named shortened)."""
+    import errno
+
     from .._fileio import NO_SPACE
-    if err.errno not in NO_SPACE:
-        return None
-    where = f"{escape_controls(err.filename)}: " if err.filename else ""
-    return f"{where}{err.strerror or 'no space left on the device'}; free some space or choose another output folder"
+    where = f"{_short(err.filename)}: " if err.filename else ""
+    if err.errno in NO_SPACE:
+        return (f"{where}{err.strerror or 'no space left on the device'}; free some space or choose another "
+                "output folder")
+    if err.errno == errno.EFBIG:
+        return f"{where}the file-size limit of this process (ulimit -f) was reached; raise it"
+    if err.errno == errno.ENAMETOOLONG:
+        return f"{where}a name in this path is longer than the file system allows (255 bytes a name); shorten it"
+    return None
+
+
+def _short(name) -> str:
+    text = escape_controls(str(name))
+    return text if len(text) <= 120 else f"{text[:50]}...{text[-50:]} ({len(text)} characters)"
 
 
 def _internal(prog: str, err: BaseException, verbose: bool) -> int:

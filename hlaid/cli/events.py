@@ -68,6 +68,9 @@ def run_update(args) -> int:
     if Path(args.measurement).is_file():  # the clone's own file again: refused from its bytes
         check_not_learnt(clone.events, sha256=file_sha256(args.measurement), source=args.measurement)
     meas = read(args.measurement, "measurement", **reader_options(args))
+    from ..measurement import check_moving
+
+    check_moving(meas)
     check_output_file(args.out, force=args.force, inputs=inputs)  # and the files it named
     check_of_building(meas, clone.building, mass_normalised=clone.mass_normalised)
     check_not_learnt(clone.events, meas)
@@ -109,6 +112,9 @@ def run_predict(args) -> int:
         raise InputError("--start carried: the clone carries no state (identified by an older hlaid?); use "
                          "--start undamaged", source=args.clone)
     meas = read(args.measurement, "measurement", **reader_options(args))
+    from ..measurement import check_moving
+
+    check_moving(meas)
     check_output_folder(args.out, force=args.force, inputs=inputs)  # and the files it named
     check_of_building(meas, clone.building, mass_normalised=clone.mass_normalised)
     if args.band is not None:

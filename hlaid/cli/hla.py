@@ -34,6 +34,9 @@ def run_hla(args) -> int:
     from ..io import read
     from ..measurement import check_band
     meas = read(args.measurement, "measurement", **reader_options(args))
+    from ..measurement import check_moving
+
+    check_moving(meas)
     check_output_folder(args.out, force=args.force, inputs=inputs)  # and the files it named (a columns YAML's table)
     check_band(meas, cfg.preprocess.band_hz, f"preprocess.band_hz (in {args.config})")
     from ..hla import run_hla  # the heavy libraries, once the inputs are known to be good

@@ -88,6 +88,13 @@ def run_ida(args) -> int:
         inputs += cfg.record_specs(base) or []
         check_output_folder(args.out, force=args.force, inputs=inputs)
     clone = load_clone(args.clone)  # a bad clone file is refused before the heavy libraries load
+    _check_heights(clone, cfg.heights_mm, str(args.clone))  # so are missing heights or a wrong count
+    from ..io.records import as_motions
+
+    specs = args.records if args.records is not None else cfg.record_specs(base)
+    if specs is None:
+        raise InputError("no records: give them with --records or in the config ('records:')")
+    motions = as_motions(specs, units=cfg.units)  # missing or unreadable records: before the analysis
     from ..events.start import resolve_start
 
     resolve_start(clone, cfg.start)  # a start the clone cannot give is refused before the heavy libraries load
@@ -96,7 +103,7 @@ def run_ida(args) -> int:
     # fail on a bad clone before reading records
     prepare_building(clone, pdelta=cfg.pdelta, heights=cfg.heights_mm, collapse=cfg.collapse,
                      gravity_load=cfg.gravity_load_n())
-    res = ida_from_config(clone, cfg, records=args.records, base_dir=base)  # the clone read once
+    res = ida_from_config(clone, cfg, records=motions, base_dir=base)  # the clone and records read once
     from ..ida.basis import decision_basis, ida_events
 
     basis = decision_basis(clone, events=ida_events(clone, res), heights=res.building.height,
@@ -123,6 +130,18 @@ def print_basis(basis) -> None:
         _progress.info(line)
     for flag in basis.flags():
         _progress.warn(f"flag: {flag}")
+
+
+def _check_heights(clone, heights, source: str) -> None:
+    """Refuse missing story heights (IDA reports drift ratios) or a count that is not the clone's
+    number of stories, from the clone file alone."""
+    n = clone.building.n_stories
+    if heights is not None and len(heights) != n:
+        raise InputError(f"--heights: height has {len(heights)} values but the building has {n} stories; give one "
+                         "height in mm per story, bottom to top", source=source)
+    if heights is None and clone.building.height is None:
+        raise InputError("story heights are unknown; IDA reports drift ratios and needs them: give the heights in mm, "
+                         "bottom to top: --heights MM,MM,...", source=source)
 
 
 def run_export(args) -> int:

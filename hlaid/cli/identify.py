@@ -76,6 +76,10 @@ def run_identify(args) -> int:
     from ..measurement import check_band, check_series
     options = reader_options(args)
     records = [read(path, "measurement", **options) for path in args.measurement]
+    from ..measurement import check_moving
+
+    for m in records:
+        check_moving(m)
     check_output_file(args.out, force=args.force, inputs=[*args.measurement, args.config])  # and the files they named
     if len(records) > 1:
         check_series(records)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from .. import _progress
@@ -94,6 +95,12 @@ def run_demands(args) -> int:
         raise InputError("--records needs --level G (the stripe's intensity); for the recorded event use --motion")
     if args.motion and args.level is not None:
         raise InputError("--level scales --records; the recorded event (--motion) is taken as recorded")
+    if args.level is not None:
+        from ..bounds import bounds_of
+        from ..ida.config import IDAConfig
+
+        b = bounds_of(next(f for f in dataclasses.fields(IDAConfig) if f.name == "levels"))
+        b.check("--level", args.level)  # as the IDA's levels: 1e-6 to 100 g
     clone = Clone.load(args.clone)
     n_ens = args.ensemble if args.ensemble is not None else (N_ENSEMBLE if clone.uncertainty is not None else 0)
     cfg = load_ida_config(args.config) if args.config else IDAConfig()
@@ -154,6 +161,9 @@ def run_loss(args) -> int:
     if src.is_file():
         if not args.out:
             raise InputError("a demand CSV needs an output folder: -o DIR")
+        if area is None:  # before pelicun loads: the file holds no floor masses to take the area from
+            raise InputError("a demand CSV holds no floor masses to take the floor area from: give it, --floor-area "
+                             "M2 (one value or one per story)", source=str(src))
         cfg = LossConfig().replace(**over)
         s = loss_of_demand_file(src, cfg, args.out, collapse=collapse,
                                 drift_limit=0.10 if args.drift_limit is None else args.drift_limit, force=args.force)
@@ -168,6 +178,8 @@ def run_loss(args) -> int:
         return 0
     if collapse is not None:
         raise InputError("--collapse-median/--collapse-beta are for a demand CSV; a run folder has its own fragility")
+    if area is None:
+        _check_run_area(src)
     from .._inputs import rewrites
     from ..run.loss import loss_of_run
 
@@ -216,6 +228,22 @@ def ida_fragility(folder: str, demands: Path) -> tuple[float, float]:
                          f"({df.im_type or 'none'}); run hlaid ida and hlaid demands on the same clone with the same "
                          "settings", source=str(path))
     return median, beta
+
+
+def _check_run_area(run: Path) -> None:
+    """Refuse, from the run folder's summary alone, losses of a mass-normalised clone without
+    ``--floor-area`` (its floor masses are unknown), before pelicun or torch loads; anything else
+    about the folder is left to the assessment's own checks."""
+    from .._inputs import own_files, read_json
+
+    try:
+        with own_files():  # the run's own summary, rewritten by the losses: no input of the run
+            s = read_json(run / "summary.json")
+    except InputError:
+        return
+    if isinstance(s, dict) and s.get("mass_normalised") is True:
+        raise InputError("the run's clone is mass-normalised, so its floor masses are unknown: give the floor area, "
+                         "--floor-area M2 (one value or one per story)", source=str(run))
 
 
 def _report(s: dict, out) -> None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from .app import add_plots, subcommand
 
 
@@ -22,7 +24,6 @@ def register(sub) -> None:
 
 
 def run_run(args) -> int:
-    from pathlib import Path
 
     from .._fileio import check_output_folder
     from ..run.config import input_paths, load_run_config
@@ -33,11 +34,29 @@ def run_run(args) -> int:
     base = Path(args.config).parent
     inputs += input_paths(cfg, base)
     check_output_folder(args.out, force=args.force, inputs=inputs)
+    _check_inputs(cfg, base)  # a missing measurement or bad records: before the pipeline loads, not after HLA
     from ..run.runner import run_pipeline  # the heavy libraries, once the inputs are known to be good
     summary = run_pipeline(cfg, args.out, base_dir=base, force=args.force, cache_dir=args.cache, inputs=inputs,
                            plots=not args.no_plots)
     print_run_summary(summary, args.out)
     return 0
+
+
+def _check_inputs(cfg, base) -> None:
+    """Refuse a run whose measurement file is missing or no regular file, or whose IDA records cannot
+    be read (a missing file, a folder without records, ``/``), from the config alone."""
+    from .._inputs import check_input
+
+    m = cfg.measurement
+    if m.file is not None and not str(m.file).startswith("builtin"):
+        p = Path(m.file)
+        check_input(p if p.is_absolute() else base / p)
+    if cfg.ida is not None:
+        specs = cfg.ida.record_specs(base)
+        if specs:
+            from ..io.records import as_motions
+
+            as_motions(specs, units=cfg.ida.units)
 
 
 def print_run_summary(s, out) -> None:

@@ -114,10 +114,15 @@ def read_event(event: Mapping, base: Path | None = None) -> tuple[Measurement | 
         return None, f"{name}: its file (none recorded) is not there"
     path = Path(str(src))
     src = escape_controls(src)  # as the messages show it
-    if not path.exists() and base is not None and not path.is_absolute():
-        path = base / path
-    if not path.is_file():
-        return None, f"{name}: its file {src} is not found"
+    if len(src) > 200:
+        src = f"{src[:90]}...{src[-90:]}"
+    try:
+        if not path.exists() and base is not None and not path.is_absolute():
+            path = base / path
+        if not path.is_file():
+            return None, f"{name}: its file {src} is not found"
+    except (OSError, ValueError) as err:  # a name longer than the file system allows, a NUL in it
+        return None, f"{name}: its file {src} cannot be looked up ({getattr(err, 'strerror', None) or err})"
     sha = event.get("sha256")
     try:
         if sha and file_sha256(path) != sha:

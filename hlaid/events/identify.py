@@ -38,7 +38,7 @@ from ..identify.replaycheck import replay_check
 from ..identify.result import IdentificationResult, file_digest, provenance
 from ..identify.stages import Event, analyse
 from ..identify.tb import TBLogger
-from ..measurement import Measurement, building_name, check_series, ground_digest
+from ..measurement import Measurement, building_name, check_series, ground_digest, ground_profile
 from ..model import Building, Damping
 from ..units import G_MM_S2
 from .evidence import measured_peak_drift
@@ -339,7 +339,7 @@ def event_record(meas: Measurement, start: str | None = None, hla: HLAResult | N
     return {"name": meas.name, "source": meas.source or None,
             "sha256": file_digest(meas.source) if meas.source else None, "ground_sha256": ground_digest(meas),
             "pga_g": float(np.max(np.abs(meas.ground_acc)) / G_MM_S2), "duration_s": float(meas.n_samples * meas.dt),
-            "dt": float(meas.dt), "n_floors": int(meas.n_floors),
+            "dt": float(meas.dt), "n_floors": int(meas.n_floors), "ground_profile": ground_profile(meas),
             **({"recorded": meas.recorded} if meas.recorded else {}), **({"start": start} if start else {}),
             **({"peak_drift": peak} if peak is not None else {})}
 

@@ -58,7 +58,7 @@ def parse_address(address: str) -> tuple[str, str, int]:
             raise _bad(address, "no HOST:PORT")
         if not _HOST.fullmatch(host):
             raise _bad(address, "the host is not a host name or an IP address")
-    if not port_text.isdigit() or not 1 <= int(port_text) <= 65535:
+    if not (port_text.isascii() and port_text.isdigit()) or not 1 <= int(port_text) <= 65535:
         raise _bad(address, "the port must be a number in 1..65535")
     return scheme, host, int(port_text)
 

@@ -68,6 +68,11 @@ class EventSpec:
         _check_name("event", self.name)
 
 
+MEMORY_LIMIT = re.compile(r"\s*(auto|(\d+(\.\d*)?|\.\d+)(e[+-]?\d+)?\s*([kmgtp]i?b?|b)?)\s*\Z", re.I)
+"""What dask reads as a worker's memory limit: 'auto', a number of bytes with an optional unit, or a
+fraction (<= 1) of the machine's memory."""
+
+
 @dataclass(frozen=True, kw_only=True)
 class FleetMeasurement:
     """One building's record of one event: a measurement ``file`` (any format hlaid reads, with
@@ -84,6 +89,9 @@ class FleetMeasurement:
 
     def __post_init__(self):
         check_bounds(self)
+        from ..run.config import check_reader_options
+
+        check_reader_options(self.options, "options")
         given = [k for k in ("file", "station", "simulate") if getattr(self, k) is not None]
         if len(given) != 1:
             raise InputError("give exactly one of file, station or simulate"
@@ -127,6 +135,9 @@ class ClusterConfig:
 
     def __post_init__(self):
         check_bounds(self)
+        if not MEMORY_LIMIT.match(str(self.memory_limit)):
+            raise InputError(f"memory_limit = {str(self.memory_limit)[:40]!r}: expected 'auto', a size such "
+                             "as 4GB, 2 GiB or 500MB, or a fraction of the machine's memory such as 0.5")
 
 
 @dataclass(frozen=True, kw_only=True)

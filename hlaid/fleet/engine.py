@@ -115,7 +115,7 @@ def prepare_output(out: Path, *, force: bool, jobs: list[UnitJob] | tuple = ()) 
     out = check_output(out, force=force)
     out.mkdir(exist_ok=True)
     (out / "buildings").mkdir(exist_ok=True)
-    mark_output(out, jobs)
+    mark_output(out, jobs, pending=True)
     return out
 
 
@@ -123,12 +123,29 @@ FLEET_FILES = (MARKER, "buildings", "results.csv", "results.parquet", "report.ht
 """What a fleet writes in its folder, besides ``buildings/UNIT.json`` per unit."""
 
 
-def mark_output(out: Path, jobs: list[UnitJob] | tuple = ()) -> None:
+def mark_output(out: Path, jobs: list[UnitJob] | tuple = (), *, pending: bool = False) -> None:
     """Write the folder's :data:`hlaid._fileio.MARKER` listing what the fleet writes there (also
     for earlier configs, where the marker is this folder's own), so that another command's
-    ``--force`` may replace the folder when it holds nothing else."""
+    ``--force`` may replace the folder when it holds nothing else, and a rerun resumes it. With
+    ``pending`` (before the run) the tables, the report and the results of units not finished yet
+    are listed without their contents (the run rewrites them); the rest are recorded."""
     files = set(FLEET_FILES) | {f"buildings/{j.unit}.json" for j in jobs} | (written_here(out) or set())
-    write_json(out / OUTPUT_MARKER, output_marker("hlaid fleet", sorted(files), out))
+    todo = set()
+    if pending:
+        todo = set(FLEET_FILES) - {"buildings"} | {f"buildings/{j.unit}.json" for j in jobs}
+        todo -= {f for f in files if f.startswith("buildings/") and _finished(out / f, jobs)}
+    write_json(out / OUTPUT_MARKER, output_marker("hlaid fleet", sorted(files), out, pending=todo))
+
+
+def _finished(path: Path, jobs) -> bool:
+    """Whether ``path`` holds an ``ok`` result of one of ``jobs`` (kept by this run)."""
+    digests = {f"{j.unit}.json": j.digest for j in jobs}
+    try:
+        with own_files():
+            d = read_json(path)
+    except InputError:
+        return False
+    return isinstance(d, dict) and d.get("status") == "ok" and d.get("digest") == digests.get(path.name)
 
 
 def result_path(out: Path, job: UnitJob) -> Path:
@@ -195,6 +212,7 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
         from ..loss.fema_p58 import require_pelicun
         require_pelicun()
     records = read(cfg.record_specs(base), kind="records", units=cfg.ida.units)
+    given_assess = assess
     if assess is None and cfg.n_ensemble == 0:
         assess, engine = point_assess, POINT
     elif assess is None:
@@ -204,6 +222,10 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
                              "which the ensemble (n_ensemble > 0) is drawn from; use 'replay' or n_ensemble: 0")
     else:
         engine = engine_label(assess)
+    if given_assess is None and engine != POINT and len(records) < 2:
+        raise InputError(f"the assessment fits a collapse fragility and needs at least 2 IDA records; the config "
+                         f"names {len(records)} (records:)")
+    _check_measurements(cfg, base)  # a missing measurement: before a cluster starts or anything is identified
     jobs = make_jobs(cfg, base, records_digest(records), engine, cache_dir=cache_dir)
     todo, kept = plan(out, jobs, force=force)
     computed: list[str] = []
@@ -236,6 +258,21 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
                    f"{len(rows) - len(failed)} ok, {len(failed)} failed, {wall:.1f} s")
     return FleetSummary(out=out, computed=tuple(computed), skipped=tuple(d["unit"] for d in kept),
                         failed=tuple(failed), rows=rows, wall_s=wall)
+
+
+def _check_measurements(cfg: FleetConfig, base: Path | None) -> None:
+    """Refuse a fleet whose measurement files are missing or no regular files, before it runs."""
+    from .._inputs import check_input
+
+    for b in cfg.buildings:
+        for event, m in b.measurements.items():
+            if m.file is None or str(m.file).startswith("builtin"):
+                continue
+            p = Path(m.file)
+            try:
+                check_input(p if p.is_absolute() or base is None else base / p)
+            except InputError as err:
+                raise InputError(f"building {b.name!r}, event {event!r}: {err}") from None
 
 
 def _run_on(client, todo: list[UnitJob], records, assess, out: Path, results: dict) -> tuple[list, list]:

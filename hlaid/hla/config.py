@@ -60,6 +60,11 @@ class PreprocessConfig:
             lo, hi = self.band_hz
             if not 0 <= lo < hi:
                 raise InputError(f"band_hz = {list(self.band_hz)}; expected [low, high] with 0 <= low < high")
+            from ..signal import MIN_CORNER_HZ
+
+            if hi < MIN_CORNER_HZ or 0 < lo < MIN_CORNER_HZ:
+                raise InputError(f"band_hz = {list(self.band_hz)}; a corner below {MIN_CORNER_HZ:g} Hz cannot be "
+                                 f"designed: give 0 (no high-pass) or at least {MIN_CORNER_HZ:g} Hz")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -73,7 +73,14 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     elif not want:
         notes.append("P-Delta off" + (" (requested)" if pdelta is False else " (story heights unknown)"))
     building = building.replace(pdelta=want)
-    building = building.replace(collapse=_collapse_law(model, building, law, collapse, system, notes))
+    if want:
+        kg, k0 = building.geometric_stiffness(), np.asarray(building.k0, dtype=float)
+        k = int(np.argmax(kg / k0))
+        if kg[k] >= k0[k]:
+            raise InputError(f"the gravity load gives story {k + 1} a P-Delta stiffness P/h = {kg[k]:.4g} N/mm, not "
+                             f"below its elastic stiffness k0 = {k0[k]:.4g} N/mm: the building would buckle under its "
+                             "own weight; check the gravity loads (gravity_kN) and story heights", source=source)
+    building = building.replace(collapse=_collapse_law(model, building, law, collapse, system, notes, source))
     if want:
         kg = building.geometric_stiffness()
         post = building.alpha * building.k0 - kg
@@ -84,7 +91,8 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     return building, notes
 
 
-def _collapse_law(model, building: Building, law, collapse, system: str | None, notes: list[str]):
+def _collapse_law(model, building: Building, law, collapse, system: str | None, notes: list[str],
+                  source: str | None = None):
     """The collapse law in force: ``collapse`` where given, else the clone's own, else its
     structural system's; made consistent with the drifts the building survived; with notes."""
     if collapse is not None:
@@ -96,7 +104,12 @@ def _collapse_law(model, building: Building, law, collapse, system: str | None, 
                          f"strength loss as measured on such members ({law.source})")
     if law is not None and building.height is not None:
         survived = model.survived_drift() if isinstance(model, Clone) else None
-        law, changed = accommodate(law, dy=building.dy, height=building.height, survived=survived)
+        try:
+            law, changed = accommodate(law, dy=building.dy, height=building.height, survived=survived)
+        except InputError as err:  # said of the clone whose events give the drifts
+            if err.source:
+                raise
+            raise InputError(f"{err} (the drifts of the clone's recorded events)", source=source) from None
         notes.extend(changed)
     c = building.replace(collapse=law).collapse  # as the building holds it
     if c is None:

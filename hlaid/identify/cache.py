@@ -24,9 +24,16 @@ from ..errors import InputError, one_line
 from ..svm import KernelSVC
 
 
-def default_cache_dir() -> Path:
-    base = os.environ.get("HLAID_CACHE") or os.path.join(os.environ.get("XDG_CACHE_HOME") or
-                                                          os.path.expanduser("~/.cache"), "hlaid")
+def default_cache_dir() -> Path | None:
+    """``HLAID_CACHE/svm``, else ``~/.cache/hlaid/svm``; None (no cache, a warning) when ``HOME`` names
+    no folder (unset, empty or relative: never ``/.cache``)."""
+    from .._userdirs import cache_root
+
+    base = os.environ.get("HLAID_CACHE") or cache_root()
+    if base is None:
+        _progress.warn("HOME names no folder, so trained classifiers are not cached; set HLAID_CACHE or --cache "
+                       "to keep them")
+        return None
     return Path(base) / "svm"
 
 

@@ -31,9 +31,37 @@ def is_mat5(raw: bytes) -> bool:
 
 
 def check_mat5(raw: bytes, source: str) -> None:
-    """Raise InputError naming ``source`` if the level-5 MAT file ``raw`` is malformed."""
+    """Raise InputError naming ``source`` if the level-5 MAT file ``raw`` is malformed, or if its
+    compressed elements inflate past ``HLAID_MAX_FILE_MB`` or more than the gzip rule allows
+    (:data:`hlaid._inputs.GZIP_MAX_RATIO` times beyond :data:`hlaid._inputs.GZIP_FREE_MB`), all of
+    them together: checked block by block while inflating, before scipy inflates anything."""
+    from .._inputs import GZIP_FREE_MB, GZIP_MAX_RATIO
+    from ..limits import max_file_bytes
+
     endian = "<" if raw[126:128] == b"IM" else ">"
-    _walk(raw, 128, len(raw), endian, source, top=True, depth=0)
+    budget = [min(max_file_bytes(), max(GZIP_FREE_MB * 2**20, GZIP_MAX_RATIO * len(raw)))]
+    _walk(raw, 128, len(raw), endian, source, top=True, depth=0, budget=budget)
+
+
+def _inflate(data: bytes, pos: int, source: str, budget: list[int]) -> bytes:
+    """``data`` (zlib) inflated in blocks, each taken from ``budget[0]`` (bytes still allowed)."""
+    z = zlib.decompressobj()
+    parts, rest = [], data
+    try:
+        while rest or not z.eof:
+            block = z.decompress(rest, 1 << 20)
+            rest = z.unconsumed_tail
+            budget[0] -= len(block)
+            if budget[0] < 0:
+                raise _bad(f"compressed element at byte {pos} inflates far more than data compresses (a "
+                           "decompression bomb?) or past the file-size limit (set HLAID_MAX_FILE_MB to raise it)",
+                           source)
+            parts.append(block)
+            if not block and not rest:
+                break
+    except zlib.error as err:
+        raise _bad(f"compressed element at byte {pos} does not decompress ({err})", source) from None
+    return b"".join(parts)
 
 
 def _bad(msg: str, source: str):
@@ -57,20 +85,16 @@ def _tag(buf: bytes, pos: int, end: int, e: str, source: str) -> tuple[int, int,
     return word, nbytes, start, min(nxt, end)
 
 
-def _walk(buf: bytes, pos: int, end: int, e: str, source: str, *, top: bool, depth: int) -> None:
+def _walk(buf: bytes, pos: int, end: int, e: str, source: str, *, top: bool, depth: int,
+          budget: list[int] | None = None) -> None:
+    budget = [MAX_INFLATED] if budget is None else budget
     while pos < end:
         if top and end - pos < 8:
             return                                   # trailing padding
         typ, nbytes, start, nxt = _tag(buf, pos, end, e, source)
         if typ == MI_COMPRESSED and top and depth < MAX_DEPTH:
-            z = zlib.decompressobj()
-            try:
-                inner = z.decompress(buf[start:start + nbytes], MAX_INFLATED)
-            except zlib.error as err:
-                raise _bad(f"compressed element at byte {pos} does not decompress ({err})", source) from None
-            if z.unconsumed_tail:
-                raise _bad(f"compressed element at byte {pos} inflates to more than {MAX_INFLATED} bytes", source)
-            _walk(inner, 0, len(inner), e, source, top=True, depth=depth + 1)
+            inner = _inflate(buf[start:start + nbytes], pos, source, budget)
+            _walk(inner, 0, len(inner), e, source, top=True, depth=depth + 1, budget=budget)
         elif typ == MI_MATRIX:
             if nbytes:
                 _matrix(buf, start, start + nbytes, e, source)

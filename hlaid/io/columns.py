@@ -35,7 +35,7 @@ from typing import Any, Literal, cast
 
 import numpy as np
 
-from .._inputs import read_text
+from .._inputs import DATA_LINES, read_text
 from ..bounds import bounded, check_bounds, with_bounds
 from ..config import load_config
 from ..errors import InputError, quotable
@@ -178,7 +178,8 @@ def read_columns(config: str | os.PathLike | ColumnsConfig, *, base: str | os.Pa
     if not data_path.is_absolute():
         data_path = folder / data_path
     src = str(data_path)
-    table = parse_table(read_text(data_path), src, delimiter=_delimiter(cfg, data_path), comment=cfg.comment,
+    text = read_text(data_path, max_lines=DATA_LINES)  # refused while read beyond HLAID_MAX_SAMPLES rows
+    table = parse_table(text, src, delimiter=_delimiter(cfg, data_path), comment=cfg.comment,
                         header=cfg.header)
     specs = [cfg.ground, *cfg.floors]
     acc = np.stack([table.column(s.column, src) * s.sign * acceleration_factor(s.units) for s in specs], axis=1)

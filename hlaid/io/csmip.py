@@ -123,8 +123,17 @@ def _channel(lines: list[str], offset: int, *, key: str, source: str) -> CsmipCh
                         location=(m.group(5) or "").strip(), key=key, header=tuple(lines[:min(i, 30)]), source=source)
 
 
-def _walk_zip(data: bytes, prefix: str, source: str, depth: int = 0) -> list[tuple[str, bytes]]:
-    """(member path, bytes) of every .V2 file, descending into nested zips (in memory)."""
+def _walk_zip(data: bytes, prefix: str, source: str, depth: int = 0,
+              budget: list[int] | None = None) -> list[tuple[str, bytes]]:
+    """(member path, bytes) of every .V2 file, descending into nested zips (in memory). All members
+    together, nested ones too, inflate to at most ``HLAID_MAX_FILE_MB`` and at most the gzip rule's
+    ratio (:data:`hlaid._inputs.GZIP_MAX_RATIO` times the archive beyond
+    :data:`hlaid._inputs.GZIP_FREE_MB`), checked from the members' sizes before each is inflated."""
+    if budget is None:
+        from .._inputs import GZIP_FREE_MB, GZIP_MAX_RATIO
+        from ..limits import max_file_bytes
+
+        budget = [min(max_file_bytes(), max(GZIP_FREE_MB * 2**20, GZIP_MAX_RATIO * len(data)))]
     try:
         zf = zipfile.ZipFile(io.BytesIO(data))
     except zipfile.BadZipFile:
@@ -138,8 +147,16 @@ def _walk_zip(data: bytes, prefix: str, source: str, depth: int = 0) -> list[tup
             if info.file_size > MAX_MEMBER_BYTES:
                 raise InputError(f"{prefix}{name} is {info.file_size} bytes; too large for a strong-motion record",
                                  source=source)
+            wanted = name.lower().endswith(".v2") or (name.lower().endswith(".zip") and depth < 3)
+            if wanted:
+                budget[0] -= info.file_size
+                if budget[0] < 0:
+                    raise InputError(f"{prefix}{name}: the archive's members inflate far more than records compress "
+                                     "(a zip bomb?) or past the file-size limit (set HLAID_MAX_FILE_MB to raise it)",
+                                     source=source)
             if name.lower().endswith(".zip") and depth < 3:
-                out += _walk_zip(_read_member(zf, info, prefix, source), f"{prefix}{name}/", source, depth + 1)
+                out += _walk_zip(_read_member(zf, info, prefix, source), f"{prefix}{name}/", source, depth + 1,
+                                 budget)
             elif name.lower().endswith(".v2"):
                 out.append((f"{prefix}{name}", _read_member(zf, info, prefix, source)))
     return out

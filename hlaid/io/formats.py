@@ -7,7 +7,7 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
-from .._inputs import NotTextError, check_readable_file, read_text
+from .._inputs import NotTextError, check_readable_file, read_head
 from ..errors import InputError
 from ..measurement import Measurement
 from .columns import read_columns
@@ -38,7 +38,7 @@ MEASUREMENT_READERS: dict[str, Callable[..., Measurement]] = {
 def _head(p: Path) -> str:
     """The first 40 lines of ``p`` ("" for a binary file); a file that cannot be read is an error."""
     try:
-        return "\n".join(read_text(p).splitlines()[:40])
+        return "\n".join(read_head(p).splitlines()[:40])  # the head alone: a 10^7-row file is not read here
     except NotTextError:
         return ""
 

@@ -25,7 +25,7 @@ from typing import cast
 
 import numpy as np
 
-from .._inputs import read_text
+from .._inputs import DATA_LINES, read_text
 from ..errors import InputError
 from ..measurement import Measurement
 from ..units import acceleration_factor
@@ -61,7 +61,7 @@ def read_mini_shake_table(path: str | os.PathLike, *, axis: str = "X", pre_event
     axis = str(axis).upper()
     if axis not in ("X", "Y", "Z"):
         raise InputError(f"axis must be X, Y or Z, got {axis!r}", source=src)
-    table = parse_table(read_text(path), src, delimiter=",", comment="#")
+    table = parse_table(read_text(path, max_lines=DATA_LINES), src, delimiter=",", comment="#")
     table.index(TIME, src)
     chans = {}
     for n in table.names:

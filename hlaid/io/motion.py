@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .._inputs import read_text
+from .._inputs import DATA_LINES, read_text
 from ..errors import InputError, columns_text, quotable
 from ..motions.at2 import NUMBER, floats, number, read_at2, record_name
 from ..motions.builtin import load_builtin
@@ -61,7 +61,7 @@ def read_text_record(path: str | os.PathLike, *, units: str | None = None, dt: f
     column : which acceleration column to read (0-based, not counting a time column)
     """
     src = str(path)
-    text = read_text(path)
+    text = read_text(path, max_lines=DATA_LINES)
     comments = [ln.strip()[1:] for ln in text.splitlines() if ln.strip()[:1] in ("#", "%")]
     numbered = [(i + 1, ln.replace(",", " ")) for i, ln in enumerate(text.splitlines())
                 if ln.strip() and ln.strip()[:1] not in ("#", "%")]
@@ -125,7 +125,7 @@ def read_csv_record(path: str | os.PathLike, *, units: str | None = None, dt: fl
     may be given in the header in parentheses or brackets.
     """
     src = str(path)
-    text = read_text(path)
+    text = read_text(path, max_lines=DATA_LINES)
     numbered = [(i + 1, ln) for i, ln in enumerate(text.splitlines()) if ln.strip() and not ln.lstrip().startswith("#")]
     lines = [ln for _, ln in numbered]
     if len(lines) < 2:

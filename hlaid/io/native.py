@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._inputs import load_npz, loads_json, read_text
+from .._inputs import DATA_LINES, load_npz, loads_json, read_text
 from ..errors import InputError, column_label
 from ..measurement import TRUTH_FIELDS, Measurement, Truth
 from ..model import Building
@@ -32,7 +32,7 @@ __all__ = ["read_native"]
 def read_native(path: str | os.PathLike) -> Measurement:
     """Read a measurement from hlaid's NPZ or CSV layout (by extension; see the module docstring)."""
     p = Path(path)
-    if p.suffix.lower() == ".csv":
+    if p.name.lower().endswith((".csv", ".csv.gz")):  # read_text gunzips
         return _read_csv(p)
     return _read_npz(p)
 
@@ -41,7 +41,8 @@ def _read_npz(p: Path) -> Measurement:
     src = str(p)
     # every member checked against its header before it is allocated; never unpickled
     d = load_npz(p, not_npz="not a readable NPZ measurement file (not a zip archive of named arrays); give a .npz "
-                            "written by hlaid or numpy.savez, a .csv measurement, or format= for another layout")
+                            "written by hlaid or numpy.savez, a .csv measurement, or format= for another layout",
+                 max_rows=DATA_LINES)
     for key in ("dt", "ground_acc", "floor_acc"):
         if key not in d:
             raise InputError(f"missing field {key!r}; a measurement needs dt, ground_acc and floor_acc", source=src)
@@ -102,7 +103,7 @@ def _header_numbers(value: str, key: str, src: str) -> np.ndarray:
 
 def _read_csv(p: Path) -> Measurement:
     src = str(p)
-    text = read_text(p)
+    text = read_text(p, max_lines=DATA_LINES)
     meta: dict[str, str] = {}
     rows: list[str] = []
     linenos: list[int] = []  # file line of each row, for messages

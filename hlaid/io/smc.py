@@ -27,7 +27,7 @@ from typing import cast
 
 import numpy as np
 
-from .._inputs import read_text
+from .._inputs import DATA_LINES, read_text
 from ..errors import InputError, quotable
 from ..measurement import Measurement
 from ..motions import GroundMotion
@@ -88,7 +88,7 @@ def _fixed(line: str, width: int, count: int, kind, what: str, src: str, lineno:
 def read_smc_channel(path: str | os.PathLike) -> SmcChannel:
     """Read one ``.smc`` file (see the module docstring for the layout)."""
     src = str(path)
-    lines = read_text(path).splitlines()
+    lines = read_text(path, max_lines=DATA_LINES).splitlines()
     head = TEXT_LINES + INT_LINES + REAL_LINES
     if len(lines) < head + 1:
         raise InputError(f"has {len(lines)} lines; an SMC file has {head} header lines before the comments and data",

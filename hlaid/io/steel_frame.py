@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._inputs import read_text
+from .._inputs import DATA_LINES, read_text
 from ..errors import InputError
 from ..measurement import Measurement
 from ..units import G_MM_S2, INCH_MM
@@ -69,7 +69,7 @@ def read_steel_frame(path: str | os.PathLike, *, lowpass_hz: float | None = 10.0
         ``resampled``, ``lowpass_hz`` and ``columns``.
     """
     src = str(path)
-    table = parse_table(read_text(path), src, delimiter="\t", comment="#")
+    table = parse_table(read_text(path, max_lines=DATA_LINES), src, delimiter="\t", comment="#")
     for col in (TIME, TABLE_ACC):
         table.index(col, src)
     levels = _level_columns(table.names)

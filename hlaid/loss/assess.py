@@ -68,7 +68,7 @@ def describe_building(n: int, masses, cfg: LossConfig, collapse: tuple[float, fl
         p = Path(cfg.inventory)
         if base_dir is not None and not p.is_absolute():
             p = Path(base_dir) / p
-        inv, inv_src = read_inventory(p, n), str(p)
+        inv, inv_src = read_inventory(p, n, area), str(p)
     else:
         inv, inv_src = default_inventory(system, area), f"default {system.name}: {system.description}"
     total = float(sum(area))

@@ -171,14 +171,45 @@ def check_inventory(text: str, n_stories: int, source: str) -> int:
     return len(body)
 
 
-def read_inventory(path: str | os.PathLike, n_stories: int) -> str:
-    """The text of the user's inventory CSV, checked (:func:`check_inventory`)."""
+DENSITY_MAX = 100.0
+"""Largest quantity of one inventory row per m2 of the largest floor, in the row's unit (100 ea, m or
+ft2 per m2 of floor is far beyond any building: FEMA P-58's densities are below 1; a row beyond it is
+a typing slip whose cost would be thousands of replacement costs)."""
+
+
+def check_density(text: str, area_m2, source: str) -> None:
+    """Refuse an inventory row whose quantity is more than :data:`DENSITY_MAX` per m2 of the largest
+    floor area ``area_m2`` [m2] (per story)."""
+    top = max(float(a) for a in area_m2)
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows:
+        return
+    head = [h.strip() for h in rows[0]]
+    if "Theta_0" not in head:
+        return
+    k = head.index("Theta_0")
+    for ln, row in enumerate(rows[1:], start=2):
+        try:
+            q = float(row[k])
+        except (IndexError, ValueError):
+            continue
+        if q > DENSITY_MAX * top:
+            raise InputError(f"line {ln}: column Theta_0: {show(q)} is {q / top:.3g} per m2 of the largest floor "
+                             f"({show(top)} m2); at most {DENSITY_MAX:g} per m2 describes a building: check the "
+                             "quantity (and the floor area)", source=source)
+
+
+def read_inventory(path: str | os.PathLike, n_stories: int, area_m2=None) -> str:
+    """The text of the user's inventory CSV, checked (:func:`check_inventory`; with the floor areas
+    ``area_m2`` [m2] also :func:`check_density`)."""
     from .._inputs import read_text
 
     text = read_text(path)
     check_inventory(text, n_stories, str(path))
+    if area_m2 is not None:
+        check_density(text, area_m2, str(path))
     return text
 
 
 __all__ = ["Component", "Inventory", "INVENTORIES", "get_inventory", "default_inventory", "check_inventory",
-           "read_inventory"]
+           "read_inventory", "check_density", "DENSITY_MAX"]

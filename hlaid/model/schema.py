@@ -69,6 +69,10 @@ def check_event(e: dict, i: int) -> None:
             raise InputError(f"field 'events[{i}].{key}' must be a string")
     if e.get("replay") is not None:
         check_replay(e["replay"], f"events[{i}].replay")
+    prof = e.get("ground_profile")
+    if prof is not None and not (isinstance(prof, list) and 1 <= len(prof) <= 256 and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and 0 <= x <= 1e3 for x in prof)):
+        raise InputError(f"field 'events[{i}].ground_profile' must be a list of at most 256 numbers in 0..1000")
 
 
 REPLAY_KEYS = ("band_hz", "peak_drift_error", "drift_r")
@@ -97,10 +101,29 @@ def check_replay(r, where: str) -> None:
             raise InputError(f"field '{where}.band_hz' must be [lo, hi] with 0 <= lo < hi (Hz)")
 
 
-def check_state(z, dy) -> None:
+STATE_DRIFT_RATIO = 0.2
+"""Largest residual or peak drift of a carried state as a fraction of its story's height: a story
+that drifted a fifth of its height has collapsed, it carries no state to the next event."""
+
+
+def check_state(z, dy, *, drift=None, peaks=(), height=None) -> None:
     """Refuse a carried state whose hysteretic displacement ``z`` [mm] exceeds its story's ``dy``
-    (by more than :data:`Z_SLACK`): no replay of the clone's law leaves one there."""
+    (by more than :data:`Z_SLACK`): no replay of the clone's law leaves one there; and, where the
+    story ``height`` [mm] is known, a residual ``drift`` or a peak (``peaks``: arrays of peak
+    drifts) beyond :data:`STATE_DRIFT_RATIO` of it."""
     import numpy as np
+
+    if height is not None:
+        h = np.asarray(height, dtype=float)
+        for name, v in (("drift", drift), *peaks):
+            if v is None:
+                continue
+            ratio = np.abs(np.asarray(v, dtype=float)) / h
+            k = int(np.argmax(ratio))
+            if ratio[k] > STATE_DRIFT_RATIO:
+                raise InputError(f"state.{name}[{k}] = {show(float(np.asarray(v)[k]))} mm is {ratio[k]:.3g} x the "
+                                 f"story's height of {show(float(h[k]))} mm; a story that drifted more than "
+                                 f"{STATE_DRIFT_RATIO:.0%} of its height has collapsed")
 
     ratio = np.abs(np.asarray(z, dtype=float)) / np.asarray(dy, dtype=float)
     k = int(np.argmax(ratio))

@@ -8,8 +8,8 @@ through the transform and are clipped to the parameter's physical bounds. Parame
 are not slots (those of stories the record did not drive past yield, which identification
 does not refine) are held at their identified value.
 
-This module imports only numpy, scipy and the model, so :mod:`hlaid.clone` can hold one
-(``hlaid.uncertainty`` re-exports it).
+This module imports only numpy and the model (scipy when an interval is asked for), so
+:mod:`hlaid.clone` can hold one (``hlaid.uncertainty`` re-exports it).
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.stats import norm
 
 from ..errors import InputError
 from .params import Building, Damping
@@ -29,6 +28,10 @@ TRANSFORMS = ("log", "linear", "logit", "log1")
 """``theta`` of a value ``x``: ``log x``; ``x``; ``logit(x / 0.95)`` (alpha, within its bounds);
 ``log(x - 1)`` (p, above 1)."""
 ALPHA_SCALE = 0.95
+
+MAX_THETA_STD = 3.0
+"""Largest standard deviation of a parameter in its log (or logit) scale: a factor e^3 = 20 per
+sigma; a wider one says the record did not identify it, and its ensemble would span absurd values."""
 
 
 def to_theta(transform: str, x):
@@ -101,6 +104,14 @@ class ParameterUncertainty:
             raise InputError("uncertainty: the covariance must be symmetric")
         if P and np.linalg.eigvalsh(0.5 * (S + S.T)).min() < -1e-9 * max(1e-300, float(np.abs(np.diag(S)).max())):
             raise InputError("uncertainty: the covariance must be positive semi-definite")
+        for j, ((n, i), t) in enumerate(zip(self.slots, self.transform)):
+            lo, hi = BOUNDS[n] if n in BOUNDS else (0.0, 1.0)
+            top = MAX_THETA_STD if t != "linear" else float(hi - lo) if math.isfinite(hi - lo) else math.inf
+            if S[j, j] > top**2:
+                name = n if int(i) < 0 else f"{n}[{int(i) + 1}]"
+                raise InputError(f"uncertainty: {name} has a standard deviation of {math.sqrt(S[j, j]):.3g} in its "
+                                 f"{t} scale; at most {top:.3g} (a factor e^{top:.3g} per sigma) describes an "
+                                 "identified parameter: such a covariance was not computed from a record")
         object.__setattr__(self, "centre", c)
         object.__setattr__(self, "covariance", 0.5 * (S + S.T))
         object.__setattr__(self, "slots", tuple((str(n), int(i)) for n, i in self.slots))
@@ -130,6 +141,8 @@ class ParameterUncertainty:
         """Central ``level`` interval of every slot, ``{"k0[1]": (lo, hi), ...}`` (parameter units)."""
         if not (isinstance(level, (int, float)) and 0.0 < level < 1.0):
             raise InputError(f"interval level = {level!r}; expected a probability in (0, 1), e.g. 0.9")
+        from scipy.stats import norm  # here, not at import: reading a clone needs no scipy
+
         z = float(norm.ppf(0.5 + 0.5 * level))
         lo = self.values(self.centre - z * self.std)
         hi = self.values(self.centre + z * self.std)

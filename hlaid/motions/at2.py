@@ -9,8 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._inputs import read_text
+from .._inputs import DATA_LINES, read_text
 from ..errors import InputError
+from ..limits import check_count
 from ..units import acceleration_factor
 from .record import GroundMotion
 
@@ -57,7 +58,7 @@ def read_at2(path: str | os.PathLike, *, name: str | None = None) -> GroundMotio
     must equal NPTS.
     """
     src = str(path)
-    lines = read_text(path).splitlines()
+    lines = read_text(path, max_lines=DATA_LINES).splitlines()
     if len(lines) < 5:
         raise InputError(f"has {len(lines)} lines; an AT2 file has 4 header lines and data", source=src)
     header = lines[3]
@@ -71,6 +72,7 @@ def read_at2(path: str | os.PathLike, *, name: str | None = None) -> GroundMotio
             raise InputError("line 4 should give NPTS and DT (e.g. 'NPTS= 5372, DT= .0100 SEC') and does not",
                              source=src)
         npts, dt = int(m_old.group(1)), number(m_old.group(2))
+    check_count(npts, "SAMPLES", "NPTS", source=src)  # from the header, before the values are parsed
     units = lines[2].upper()
     if re.search(r"CM/S", units):
         factor = acceleration_factor("cm/s^2")

@@ -39,6 +39,8 @@ class GroundMotion:
             raise InputError(f"dt must be a number, got {self.dt!r}", source=src) from None
         if not np.isfinite(dt) or dt <= 0:
             raise InputError(f"dt = {self.dt} s; expected a positive sample interval", source=src)
+        if np.iscomplexobj(self.acc):
+            raise InputError("acceleration holds complex numbers; expected real values", source=src)
         acc = np.array(self.acc, dtype=np.float64)
         if acc.ndim != 1:
             raise InputError(f"acceleration must be one channel (time,), got shape {acc.shape}", source=src)

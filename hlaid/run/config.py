@@ -20,6 +20,21 @@ from ..model.schema import STORY_BOUNDS
 from ..specs import SimulationConfig
 from ..uncertainty.config import AssessConfig
 
+RESERVED_OPTIONS = ("path", "kind", "format")
+"""Names a reader's ``options`` cannot hold: the reading itself takes them (the file, what it is)."""
+
+
+def check_reader_options(options: dict, where: str) -> None:
+    """Refuse reader ``options`` that no reader takes as such: a name of :data:`RESERVED_OPTIONS`
+    (the file is ``file``, its layout ``format``) or a key that is not a name."""
+    for k in options:
+        if not isinstance(k, str) or not k.isidentifier():
+            raise InputError(f"{where}: {str(k)[:40]!r} is no option name (expected a name such as event or floors)")
+        if k in RESERVED_OPTIONS:
+            what = "the file is given as file:" if k == "path" else "the layout is given as format:" \
+                if k == "format" else "what is read is told by the command"
+            raise InputError(f"{where}.{k} is not a reader option ({what}); remove it")
+
 
 @dataclass(frozen=True, kw_only=True)
 class MeasurementSource:
@@ -37,6 +52,7 @@ class MeasurementSource:
     def __post_init__(self):
         if (self.file is None) == (self.simulate is None):
             raise InputError("give exactly one of measurement.file or measurement.simulate")
+        check_reader_options(self.options, "measurement.options")
         check_bounds(self)
 
 

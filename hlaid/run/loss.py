@@ -86,7 +86,7 @@ def loss_of_run(run_dir: str | os.PathLike, cfg: LossConfig | None = None, *, ch
         check_output_file(d / name, force=True)
     Figures(d).check(dataclasses.replace(s, loss=None))
     require_pelicun()
-    with atomic_files() as stage, atomic_directory(d / "loss", force=force, inputs=inputs) as tmp:
+    with atomic_files() as stage, atomic_directory(d / "loss", force=force, inputs=inputs, with_files=stage) as tmp:
         block = _assess(d, s, cfg, recs, tmp, base_dir)
         new = dataclasses.replace(s, loss=LossSummary.of_losses(block))
         figs = Figures(d, loss_dir=tmp)

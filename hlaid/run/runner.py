@@ -30,7 +30,7 @@ from ..events.identify import identify_clone
 from ..identify.config import RefineConfig
 from ..identify.replaycheck import corrcoef
 from ..io import read
-from ..measurement import Measurement, check_band
+from ..measurement import Measurement, check_band, check_moving
 from ..model import Building
 from ..plots import plot_time_histories, save_figure
 from ..synthetic import measurement_from_config
@@ -60,6 +60,7 @@ def load_measurement(src: MeasurementSource, base_dir: Path | None) -> Measureme
         if base_dir is not None and not path.is_absolute():
             path = Path(base_dir) / path
         meas = read(path, "measurement", format=src.format, **src.options)
+        check_moving(meas)
     changes: dict[str, Any] = {}
     if src.mass_t is not None:
         changes["mass"] = np.asarray(src.mass_t, float)
