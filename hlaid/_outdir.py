@@ -187,7 +187,7 @@ def content(path: str | os.PathLike) -> dict | None:
     try:
         st = os.lstat(path)
         if stat.S_ISLNK(st.st_mode):
-            return {"link": os.readlink(path)}
+            return {"link": os.readlink(os.fspath(path))}
         if stat.S_ISDIR(st.st_mode):
             return {"folder": True}
         if stat.S_ISREG(st.st_mode):
@@ -206,7 +206,7 @@ def _unchanged(path: str | os.PathLike, rec: object) -> bool:
     except OSError:
         return False
     if "link" in rec:
-        return stat.S_ISLNK(st.st_mode) and os.readlink(path) == rec["link"]
+        return stat.S_ISLNK(st.st_mode) and os.readlink(os.fspath(path)) == rec["link"]
     if rec.get("folder") is True:
         return stat.S_ISDIR(st.st_mode)
     if not stat.S_ISREG(st.st_mode) or st.st_size != rec.get("size"):

@@ -274,8 +274,8 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dic
 
 
 _EVENT_KEYS = ("name", "source", "sha256", "ground_sha256", "pga_g", "duration_s", "dt", "n_floors", "recorded",
-               "start", "prequential", "peak_drift")
-_EVENT_KEYS += ("ground_profile",)  # the ground record's RMS in equal windows (hlaid.measurement.ground_profile)
+               "start", "prequential", "peak_drift",
+               "ground_profile")  # the ground record's RMS in equal windows (hlaid.measurement.ground_profile)
 
 
 def _checked(check, *args, source: str | None, **kw) -> None:

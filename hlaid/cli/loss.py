@@ -100,6 +100,7 @@ def run_demands(args) -> int:
         from ..ida.config import IDAConfig
 
         b = bounds_of(next(f for f in dataclasses.fields(IDAConfig) if f.name == "levels"))
+        assert b is not None  # the IDA's levels are bounded
         b.check("--level", args.level)  # as the IDA's levels: 1e-6 to 100 g
     clone = Clone.load(args.clone)
     n_ens = args.ensemble if args.ensemble is not None else (N_ENSEMBLE if clone.uncertainty is not None else 0)

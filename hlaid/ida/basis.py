@@ -220,7 +220,7 @@ class DecisionBasis:
                    survived_mm=None if seen is None else tuple(float(v) for v in seen),
                    demand_ratio=d.get("demand_drift_ratio"), drift_limit=d.get("drift_limit"),
                    replay_miss=None if not miss else (float(miss["error"]), int(miss["story"]) - 1, str(miss["event"]),
-                                                      tuple(float(v) for v in miss.get("band_hz") or (math.nan,) * 2)),
+                                                      _band_pair(miss.get("band_hz"))),
                    events_note=d.get("events_note") or cls.events_note)
 
     def to_dict(self) -> dict:
@@ -295,6 +295,8 @@ def ida_events(clone, ida, motions: Sequence[tuple[str, object]] | None = None) 
         em = event_motions(clone)
         motions = list(zip(em.names, em.motions))
     source = "the identified clone's IDA fragility"
+    median: float | None
+    beta: float | None
     try:
         frag = ida.collapse_fragility("capacities", n_boot=0)
         median, beta = float(frag.median), float(frag.beta)
@@ -307,3 +309,9 @@ def ida_events(clone, ida, motions: Sequence[tuple[str, object]] | None = None) 
 
 __all__ = ["AtEvent", "DecisionBasis", "EXTRAPOLATION_MARGIN", "P_SURVIVED_FLAG", "REPLAY_MISS_FLAG", "decision_basis",
            "events_at", "ida_events", "p_collapse", "survived_drift"]
+
+
+def _band_pair(v) -> tuple[float, float]:
+    """A stored ``band_hz`` as ``(lo, hi)`` [Hz]; NaNs where none was stored."""
+    lo, hi = (float(x) for x in (v or (math.nan, math.nan)))
+    return lo, hi

@@ -103,7 +103,7 @@ def plausibility_flags(clone: Clone) -> list[str]:
     from ..systems import get_system
 
     named = clone.system in PRIORS and clone.system != "generic"
-    system = clone.system if named else "generic"
+    system = clone.system if named and clone.system is not None else "generic"
     prior = PRIORS[system]
     title = (f"a {get_system(system).title} (its prior" if named else
              "any structure under the generic prior (no structural system named; the prior")

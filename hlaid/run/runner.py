@@ -124,7 +124,7 @@ def run_pipeline(cfg: RunConfig, out: str | Path, *, base_dir: str | Path | None
     (the run's own input files are added to them). ``plots`` False: no figures (the report holds
     the tables alone)."""
     t_all = time.perf_counter()
-    timings = {}
+    timings: dict[str, float] = {}
     if cfg.loss is not None:  # fail before the pipeline when pelicun is missing
         from ..loss.fema_p58 import require_pelicun
         require_pelicun()
