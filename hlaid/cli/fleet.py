@@ -33,22 +33,13 @@ def _check_config_inputs(cfg, base: Path) -> None:
     """What the engine checks before a cluster starts, checked before dask and torch load: the
     measurement files exist and are regular files, the IDA records can be read and are enough for
     the ensemble's collapse fragility (2)."""
-    from .._inputs import check_input
     from ..io import read
 
     records = read(cfg.record_specs(base), kind="records", units=cfg.ida.units)
     if cfg.n_ensemble > 0 and len(records) < 2:
         raise InputError(f"the assessment fits a collapse fragility and needs at least 2 IDA records; the config "
                          f"names {len(records)} (records:)")
-    for b in cfg.buildings:
-        for event, m in b.measurements.items():
-            if m.file is None or str(m.file).startswith("builtin"):
-                continue
-            p = Path(m.file)
-            try:
-                check_input(p if p.is_absolute() else base / p)
-            except InputError as err:
-                raise InputError(f"building {b.name!r}, event {event!r}: {err}") from None
+    cfg.check_measurement_files(base)
 
 
 def run_fleet_cli(args) -> int:

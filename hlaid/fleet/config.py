@@ -172,6 +172,21 @@ class FleetConfig:
             raise InputError("no IDA records: give 'records:' (a folder, builtin-suite or a list of files)")
         return specs
 
+    def check_measurement_files(self, base_dir: Path | None) -> None:
+        """Refuse a fleet whose measurement files are missing or no regular files (relative paths
+        from ``base_dir``), before it runs."""
+        from .._inputs import check_input
+
+        for b in self.buildings:
+            for event, m in b.measurements.items():
+                if m.file is None or str(m.file).startswith("builtin"):
+                    continue
+                p = Path(m.file)
+                try:
+                    check_input(p if p.is_absolute() or base_dir is None else base_dir / p)
+                except InputError as err:
+                    raise InputError(f"building {b.name!r}, event {event!r}: {err}") from None
+
 
 def unit_id(building: str, event: str) -> str:
     """The name of a (building, event) result: ``B001@ev1``."""

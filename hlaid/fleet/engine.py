@@ -225,7 +225,7 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
     if given_assess is None and engine != POINT and len(records) < 2:
         raise InputError(f"the assessment fits a collapse fragility and needs at least 2 IDA records; the config "
                          f"names {len(records)} (records:)")
-    _check_measurements(cfg, base)  # a missing measurement: before a cluster starts or anything is identified
+    cfg.check_measurement_files(base)  # a missing measurement: before a cluster starts or anything is identified
     jobs = make_jobs(cfg, base, records_digest(records), engine, cache_dir=cache_dir)
     todo, kept = plan(out, jobs, force=force)
     computed: list[str] = []
@@ -258,21 +258,6 @@ def run_fleet(cfg: FleetConfig, out: str | Path, *, base_dir: str | Path | None 
                    f"{len(rows) - len(failed)} ok, {len(failed)} failed, {wall:.1f} s")
     return FleetSummary(out=out, computed=tuple(computed), skipped=tuple(d["unit"] for d in kept),
                         failed=tuple(failed), rows=rows, wall_s=wall)
-
-
-def _check_measurements(cfg: FleetConfig, base: Path | None) -> None:
-    """Refuse a fleet whose measurement files are missing or no regular files, before it runs."""
-    from .._inputs import check_input
-
-    for b in cfg.buildings:
-        for event, m in b.measurements.items():
-            if m.file is None or str(m.file).startswith("builtin"):
-                continue
-            p = Path(m.file)
-            try:
-                check_input(p if p.is_absolute() or base is None else base / p)
-            except InputError as err:
-                raise InputError(f"building {b.name!r}, event {event!r}: {err}") from None
 
 
 def _run_on(client, todo: list[UnitJob], records, assess, out: Path, results: dict) -> tuple[list, list]:
