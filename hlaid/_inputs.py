@@ -333,7 +333,7 @@ def read_head(path: str | os.PathLike, n_bytes: int = 1 << 16) -> str:
                 with gzip.GzipFile(fileobj=fh) as gz:
                     raw = gz.read(n_bytes)
             except (OSError, EOFError, zlib.error) as err:
-                raise InputError(f"cannot read it as gzip ({' '.join(str(err).split())[:80]})",
+                raise InputError(f"cannot read it as gzip ({one_line(err, 80)})",
                                  source=str(path)) from None
     if b"\x00" in raw[:4096]:
         raise NotTextError("is a binary file; expected text", source=str(path))

@@ -290,7 +290,7 @@ def test_loss_updates_the_run_folder_all_or_nothing(loss_run, tmp_path, capsys):
     assert {k: new[k] for k in old if k != "version"} == {k: v for k, v in old.items() if k != "version"}
     assert {k: v for k, v in new.items() if k not in old} == {"ida_after": None, "assessment": None, "events": [],
                                                               "survival": None, "flags": [], "loss": new["loss"],
-                                                              "figures": True}
+                                                              "figures": True, "basis": None}
     page = (run / "report.html").read_text()
     assert "Losses (FEMA P-58 through pelicun)" in page and 'alt="repair_cost.png"' in page
     assert [p.name for p in run.iterdir() if p.name.startswith(".")] == []

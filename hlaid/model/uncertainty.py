@@ -29,9 +29,10 @@ TRANSFORMS = ("log", "linear", "logit", "log1")
 ``log(x - 1)`` (p, above 1)."""
 ALPHA_SCALE = 0.95
 
-MAX_THETA_STD = 3.0
-"""Largest standard deviation of a parameter in its log (or logit) scale: a factor e^3 = 20 per
-sigma; a wider one says the record did not identify it, and its ensemble would span absurd values."""
+MAX_THETA_STD = 10.0
+"""Largest standard deviation of a parameter in its log (or logit) scale that a clone file may hold:
+a factor e^10 per sigma; a wider one was not computed from a record (a hand-edited file), and its
+ensemble would span absurd values. Checked where a file is read (:meth:`ParameterUncertainty.from_dict`)."""
 
 
 def to_theta(transform: str, x):
@@ -104,18 +105,23 @@ class ParameterUncertainty:
             raise InputError("uncertainty: the covariance must be symmetric")
         if P and np.linalg.eigvalsh(0.5 * (S + S.T)).min() < -1e-9 * max(1e-300, float(np.abs(np.diag(S)).max())):
             raise InputError("uncertainty: the covariance must be positive semi-definite")
+        object.__setattr__(self, "centre", c)
+        object.__setattr__(self, "covariance", 0.5 * (S + S.T))
+        object.__setattr__(self, "slots", tuple((str(n), int(i)) for n, i in self.slots))
+        object.__setattr__(self, "transform", tuple(self.transform))
+
+    def check_spread(self, source: str | None = None) -> None:
+        """Refuse a parameter whose standard deviation exceeds :data:`MAX_THETA_STD` in its scale
+        (its bounds' width for a linear one): no identification from a record gives one."""
+        S = self.covariance
         for j, ((n, i), t) in enumerate(zip(self.slots, self.transform)):
             lo, hi = BOUNDS[n] if n in BOUNDS else (0.0, 1.0)
             top = MAX_THETA_STD if t != "linear" else float(hi - lo) if math.isfinite(hi - lo) else math.inf
             if S[j, j] > top**2:
                 name = n if int(i) < 0 else f"{n}[{int(i) + 1}]"
                 raise InputError(f"uncertainty: {name} has a standard deviation of {math.sqrt(S[j, j]):.3g} in its "
-                                 f"{t} scale; at most {top:.3g} (a factor e^{top:.3g} per sigma) describes an "
-                                 "identified parameter: such a covariance was not computed from a record")
-        object.__setattr__(self, "centre", c)
-        object.__setattr__(self, "covariance", 0.5 * (S + S.T))
-        object.__setattr__(self, "slots", tuple((str(n), int(i)) for n, i in self.slots))
-        object.__setattr__(self, "transform", tuple(self.transform))
+                                 f"{t} scale; at most {top:.3g} describes an identified parameter: such a covariance "
+                                 "was not computed from a record", source=source)
 
     # ------------------------------------------------------------------ values
     @property
@@ -233,7 +239,9 @@ class ParameterUncertainty:
         if not isinstance(info, dict):
             raise bad("info must be a mapping")
         try:
-            return cls(slots=tuple(slots), transform=tuple(transforms), centre=np.array(centre), covariance=S,
-                       method=str(d.get("method", "")), info=info)
+            out = cls(slots=tuple(slots), transform=tuple(transforms), centre=np.array(centre), covariance=S,
+                      method=str(d.get("method", "")), info=info)
         except InputError as err:
             raise InputError(str(err), source=source) from None
+        out.check_spread(source)
+        return out
