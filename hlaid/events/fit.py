@@ -60,6 +60,10 @@ class JointFit:
     log_det_hessian : ``log det`` of the Gauss-Newton matrix of the posterior at the optimum
     log_det_prior : ``log det`` of the prior's precision over the free entries
     compare : what the events' residuals compared (:data:`hlaid.events.compare.COMPARES`)
+    series : the events' residuals the search ran (for screens from this fit: the candidate
+        laws, the prefixes; None where not kept)
+    jac_weights : ``(event,)`` the events' weights ``result.jacobian``'s data rows carry
+    prior : the prior searched under (None where not kept)
     """
 
     building: Building
@@ -76,6 +80,9 @@ class JointFit:
     log_det_hessian: float = float("nan")
     log_det_prior: float = float("nan")
     compare: str = "acc"
+    series: EventSeries | None = None
+    jac_weights: np.ndarray | None = None
+    prior: SystemPrior | GaussianPrior | None = None
 
     @property
     def laws(self) -> tuple[str, ...] | None:
@@ -181,7 +188,9 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
     prior_cost = 0.5 * float(np.sum(prior.residuals(np.asarray(rr.x)) ** 2))
     return JointFit(building=current, result=rr, vector=vector, covariance=cov, prior_sd=prior_sd, states=states,
                     events=info, rounds=fits, seconds=time.perf_counter() - t0, squares=squares,
-                    prior_cost=prior_cost, log_det_hessian=_logdet(H), log_det_prior=_logdet(P), compare=compare)
+                    prior_cost=prior_cost, log_det_hessian=_logdet(H), log_det_prior=_logdet(P), compare=compare,
+                    series=series, jac_weights=None if weights is None else weights.copy(),
+                    prior=prior)
 
 
 def _pinv(A: np.ndarray) -> np.ndarray:
