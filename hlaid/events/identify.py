@@ -155,7 +155,7 @@ def _from_starts(starts: Sequence[Building], meas: Sequence[Measurement], system
     k = firsts.index(lead)
     _progress.info(f"[identify] joint fit: start {k + 1} of {len(starts)} kept after one weighting round")
     more = joint_fit(lead.building, meas, system, cfg, names=names, k0_ref=k0_ref, laws=laws,
-                     rounds=WEIGHT_ROUNDS - 1)
+                     rounds=WEIGHT_ROUNDS - 1, warm=True)
     return (more if more.score(lead.n_eff) <= lead.score(lead.n_eff) else lead), k
 
 
@@ -165,8 +165,8 @@ round, warm-started; a candidate the screen cannot judge: not nested in the syst
 from an isolation-layer start)."""
 
 MAX_CONTENDERS = 2
-"""At most this many candidate laws the screen finds close to beating the system's law are fitted
-in full (the best first)."""
+"""At most this many candidate laws the screen finds close to beating the system's law get a
+short fit (the best first)."""
 
 
 def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPrior, cfg: IdentifyConfig, *,
@@ -177,7 +177,9 @@ def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPr
     the system's law. Every candidate nested in ``fit``'s laws (the fit under the system's laws)
     is judged from ``fit`` itself (:func:`hlaid.events.screen.screen_laws`: no fit of its own);
     those the screen finds within :data:`~hlaid.events.screen.SCREEN_MARGIN` of beating the
-    system's law are fitted in full before they are compared (at most :data:`MAX_CONTENDERS`).
+    system's law get a short fit (one weighting round from the screen's point) before they are
+    compared (at most :data:`MAX_CONTENDERS`); the law chosen, where it is not the system's, is
+    fitted in full.
     A candidate the screen cannot judge, and the candidates whose first story differs from the
     others from ``isolation`` (an isolation-layer start, where there is one), get a short fit.
     Returns the fit under the laws chosen and what was compared."""
@@ -221,24 +223,24 @@ def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPr
     bar = z[default] + TIE_LOG_UNITS - SCREEN_MARGIN
     contenders = sorted((laws for laws, f in tried.items() if isinstance(f, Screened) and np.isfinite(z[laws])
                          and z[laws] > bar), key=lambda laws: -z[laws])
-    for laws in contenders[:MAX_CONTENDERS]:  # close enough to matter: fitted in full before it is compared
+    for laws in contenders[:MAX_CONTENDERS]:  # close enough to matter: a search of its own before it is compared
         sc = tried[laws]
-        full = run_stage(f"the fit under the laws {'/'.join(laws)}",
-                         functools.partial(joint_fit, sc.building, meas, system, cfg, names=names, k0_ref=k0_ref,
-                                           laws=laws, y0=y0), None, notes, used="the candidate is left out",
-                         extra=(NotIdentifiableError,))
-        if full is None:
+        short = run_stage(f"the fit under the laws {'/'.join(laws)}",
+                          functools.partial(joint_fit, sc.building, meas, system, cfg, names=names, k0_ref=k0_ref,
+                                            laws=laws, rounds=1, max_iterations=iterations, warm=True, y0=y0),
+                          None, notes, used="the candidate is left out", extra=(NotIdentifiableError,))
+        if short is None:
             del tried[laws]
         else:
-            tried[laws], how[laws] = full, "fitted in full"
-            seconds[laws] += full.seconds
+            tried[laws], how[laws] = short, "screened, then a short fit"
+            seconds[laws] += short.seconds
     for laws in contenders[MAX_CONTENDERS:]:
         del tried[laws]  # close, but behind two that were fitted: not chosen on the screen alone
     evidence = evidence_of()
     chosen, reason = choose_laws(evidence, default)
     _progress.info(f"[identify] story laws: {reason}")
     best = tried[chosen]
-    if chosen != default and how[chosen] != "fitted in full":  # a short fit, in full
+    if chosen != default:  # a short fit, in full
         short = best
         best = run_stage(f"the fit under the laws {'/'.join(chosen)}",
                          lambda: joint_fit(short.building, meas, system, cfg, names=names, k0_ref=k0_ref, laws=chosen,
