@@ -287,6 +287,12 @@ def isolation_start(events: Sequence[Event], meas: Measurement, system: Structur
                      damping=Damping(kind=b.damping.kind, ratio=ISOLATION["damping"], modes=b.damping.modes))
 
 
+PREFIX_ROUNDS = 1
+"""Weighting rounds of a prefix's fit (from the full fit's building, the weights at its start):
+the prefix's clone only predicts the record after it. On the steel frame the prefix clones of
+one round predict as those of three did (docs/events.md)."""
+
+
 def prefix_history(fit: JointFit, meas: Sequence[Measurement], system: StructuralPrior, cfg: IdentifyConfig, *,
                    names: Sequence[str], k0_ref: np.ndarray, notes: list[dict] | None = None,
                    mass_normalised: bool = False, refit: bool = False) -> dict[int, dict]:
@@ -294,8 +300,8 @@ def prefix_history(fit: JointFit, meas: Sequence[Measurement], system: Structura
     predict the record after them, from their carried state and from rest: per record index its
     prequential record. Each prefix's clone is ``fit``'s optimum moved by one Newton step of the
     prefix's posterior (:func:`hlaid.events.screen.prefix_point`: no fit of its own); where the
-    replay does not bear the step out (or ``refit``), the prefix is fitted (warm-started from
-    ``fit``'s building under its laws)."""
+    replay does not bear the step out, or it goes beyond the Gaussian's reach (or ``refit``), the
+    prefix is fitted (:data:`PREFIX_ROUNDS` weighting rounds from ``fit``'s building under its laws)."""
     out: dict[int, dict] = {}
     k = len(meas)
     for j in range(max(1, k - HISTORY), k):
@@ -307,7 +313,7 @@ def prefix_history(fit: JointFit, meas: Sequence[Measurement], system: Structura
         else:
             f = run_stage(f"the prefix fit of {', '.join(names[:j])}",
                           functools.partial(joint_fit, fit.building, meas[:j], system, cfg, names=names[:j],
-                                            k0_ref=k0_ref, laws=fit.laws),
+                                            k0_ref=k0_ref, laws=fit.laws, rounds=PREFIX_ROUNDS),
                           None, notes, used=f"{names[j]} is not in the start rule's history",
                           extra=(NotIdentifiableError,))
             if f is None:
