@@ -176,10 +176,11 @@ def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPr
     the joint fit of ``meas`` under each candidate (:func:`~hlaid.events.laws.candidates`), ties to
     the system's law. Every candidate nested in ``fit``'s laws (the fit under the system's laws)
     is judged from ``fit`` itself (:func:`hlaid.events.screen.screen_laws`: no fit of its own);
-    those the screen finds within :data:`~hlaid.events.screen.SCREEN_MARGIN` of beating the
-    system's law get a short fit (one weighting round from the screen's point) before they are
-    compared (at most :data:`MAX_CONTENDERS`); the law chosen, where it is not the system's, is
-    fitted in full.
+    one the screen finds better than the system's law by more than the tie and
+    :data:`~hlaid.events.screen.SCREEN_MARGIN` wins on the screen (the screen errs against a
+    candidate); else those within the margin of beating it get a short fit (one weighting round
+    from the screen's point) before they are compared (at most :data:`MAX_CONTENDERS`). The law
+    chosen, where it is not the system's, is fitted in full from its point.
     A candidate the screen cannot judge, and the candidates whose first story differs from the
     others from ``isolation`` (an isolation-layer start, where there is one), get a short fit.
     Returns the fit under the laws chosen and what was compared."""
@@ -220,9 +221,10 @@ def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPr
         return [(laws, f.log_evidence(n_eff)) for laws, f in tried.items()]
 
     z = dict(evidence_of())
-    bar = z[default] + TIE_LOG_UNITS - SCREEN_MARGIN
-    contenders = sorted((laws for laws, f in tried.items() if isinstance(f, Screened) and np.isfinite(z[laws])
-                         and z[laws] > bar), key=lambda laws: -z[laws])
+    screened_z = {laws: z[laws] for laws, f in tried.items() if isinstance(f, Screened) and np.isfinite(z[laws])}
+    clear = [laws for laws, v in screened_z.items() if v > z[default] + TIE_LOG_UNITS + SCREEN_MARGIN]
+    contenders = [] if clear else sorted((laws for laws, v in screened_z.items()
+                                          if v > z[default] + TIE_LOG_UNITS - SCREEN_MARGIN), key=lambda k: -z[k])
     for laws in contenders[:MAX_CONTENDERS]:  # close enough to matter: a search of its own before it is compared
         sc = tried[laws]
         short = run_stage(f"the fit under the laws {'/'.join(laws)}",
@@ -237,15 +239,18 @@ def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPr
     for laws in contenders[MAX_CONTENDERS:]:
         del tried[laws]  # close, but behind two that were fitted: not chosen on the screen alone
     evidence = evidence_of()
-    chosen, reason = choose_laws(evidence, default)
+    eligible = [(k, v) for k, v in evidence if k == default or not isinstance(tried[k], Screened) or k in clear]
+    chosen, reason = choose_laws(eligible, default)
     _progress.info(f"[identify] story laws: {reason}")
     best = tried[chosen]
-    if chosen != default:  # a short fit, in full
-        short = best
+    if chosen != default:  # the candidate's point (a short fit, or the screen's where it won clearly), in full
+        near = best.building
         best = run_stage(f"the fit under the laws {'/'.join(chosen)}",
-                         lambda: joint_fit(short.building, meas, system, cfg, names=names, k0_ref=k0_ref, laws=chosen,
-                                           y0=y0), short, notes, used="the candidate's fit",
+                         lambda: joint_fit(near, meas, system, cfg, names=names, k0_ref=k0_ref, laws=chosen, y0=y0,
+                                           warm=True), None, notes, used="the system's law is kept",
                          extra=(NotIdentifiableError,))
+        if best is None:
+            chosen, reason, best = default, reason + "; its fit failed: the system's law is kept", fit
     info = {"chosen": list(chosen), "default": list(default), "reason": reason, "tie_log_units": TIE_LOG_UNITS,
             "screen_margin": SCREEN_MARGIN,
             "candidates": [{"laws": list(laws), "log_evidence": z if np.isfinite(z) else None,
