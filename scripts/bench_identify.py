@@ -23,7 +23,7 @@ the identification's speed aims are stated in, with the load average before and 
 * ``update``: ``hlaid update`` of the clone of s1..s3 (identified once per worker, not timed)
   with s4;
 * ``mini``: the mini shake table's flexible model under Northridge, one nearly elastic record
-  (``configs/identify.yaml``, ``--data``), from an empty cache;
+  (each checkout's default identification, ``--data``), from an empty cache;
 * ``hotel21``: the joint clone of the hotel's 21 events (``--data``; default identification);
 * ``tall20``: the ``--stories 20`` building from scratch.
 
@@ -121,11 +121,10 @@ class Cases:
         return time.perf_counter() - t
 
     def mini(self) -> float:
-        from hlaid.config import load_config
         from hlaid.io import read_mini_shake_table
         meas = read_mini_shake_table(self.data / MINI)
         with tempfile.TemporaryDirectory() as d:
-            return run(meas, d, load_config(ROOT / "configs/identify.yaml", IdentifyConfig))[0]
+            return run(meas, d)[0]  # each checkout's default identification
 
     def hotel21(self) -> float:
         import dataclasses
