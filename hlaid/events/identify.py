@@ -154,6 +154,10 @@ def _from_starts(starts: Sequence[Building], meas: Sequence[Measurement], system
     lead = best_fit(firsts)
     k = firsts.index(lead)
     _progress.info(f"[identify] joint fit: start {k + 1} of {len(starts)} kept after one weighting round")
+    if lead.series is not None and lead.jac_weights is not None:
+        lead.series.reweigh(lead.building)
+        if bool(np.all(np.abs(np.log(lead.series.weights / lead.jac_weights)) < np.log(1.2))):
+            return lead, k  # its weights settled: nothing to continue
     more = joint_fit(lead.building, meas, system, cfg, names=names, k0_ref=k0_ref, laws=laws,
                      rounds=WEIGHT_ROUNDS - 1, warm=True)
     return (more if more.score(lead.n_eff) <= lead.score(lead.n_eff) else lead), k
