@@ -45,8 +45,8 @@ from .fallback import run_stage
 from .fit import WEIGHT_ROUNDS, JointFit, best_fit, flags, joint_fit, posterior_uncertainty
 from .laws import NO_DEGRADATION, TIE_LOG_UNITS, candidates, choose_laws, default_laws, with_laws
 from .prequential import HISTORY, predicted, with_history
-from .screen import SCREEN_MARGIN, Screened, prefix_point, screen_laws
 from .priors import StructuralPrior, elf_profile, get_prior, weight_above
+from .screen import SCREEN_MARGIN, Screened, prefix_point, screen_laws
 from .series import state_after
 from .vector import PriorVector, SystemPrior
 
@@ -195,8 +195,9 @@ def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPr
     how: dict[tuple[str, ...], str] = {default: "the joint fit"}
     others = [laws for laws in candidates(n) if laws != default]
     t = time.perf_counter()
-    screened = run_stage("the screen of the candidate laws", functools.partial(screen_laws, fit, others, system, k0_ref),
-                         {}, notes, used="each candidate gets a short fit")
+    screened = run_stage("the screen of the candidate laws",
+                         functools.partial(screen_laws, fit, others, system, k0_ref), {}, notes,
+                         used="each candidate gets a short fit")
     if screened:
         dt = (time.perf_counter() - t) / len(screened)
         for laws, sc in screened.items():
@@ -246,15 +247,17 @@ def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPr
     eligible = [(k, v) for k, v in evidence if k == default or not isinstance(tried[k], Screened) or k in clear]
     chosen, reason = choose_laws(eligible, default)
     _progress.info(f"[identify] story laws: {reason}")
-    best = tried[chosen]
+    best: JointFit = fit
     if chosen != default:  # the candidate's point (a short fit, or the screen's where it won clearly), in full
-        near = best.building
-        best = run_stage(f"the fit under the laws {'/'.join(chosen)}",
+        near = tried[chosen].building
+        full = run_stage(f"the fit under the laws {'/'.join(chosen)}",
                          lambda: joint_fit(near, meas, system, cfg, names=names, k0_ref=k0_ref, laws=chosen, y0=y0,
                                            warm=True), None, notes, used="the system's law is kept",
                          extra=(NotIdentifiableError,))
-        if best is None:
-            chosen, reason, best = default, reason + "; its fit failed: the system's law is kept", fit
+        if full is None:
+            chosen, reason = default, reason + "; its fit failed: the system's law is kept"
+        else:
+            best = full
     info = {"chosen": list(chosen), "default": list(default), "reason": reason, "tie_log_units": TIE_LOG_UNITS,
             "screen_margin": SCREEN_MARGIN,
             "candidates": [{"laws": list(laws), "log_evidence": z if np.isfinite(z) else None,

@@ -191,7 +191,7 @@ def screen_laws(fit: JointFit, laws_list: Sequence[tuple[str, ...]], system: Str
                     live.append(c)
         if not live:
             break
-        for c, (pk, cost) in zip(live, replay([(c, c.trial) for c in live])):
+        for c, (pk, cost) in zip(live, replay([(c, c.trial) for c in live if c.trial is not None])):
             if cost < c.cost:
                 c.x, c.cost, c.parts, c.steps = c.trial, cost, pk, c.steps + 1
                 c.rd = np.concatenate([wt * p for wt, p in zip(series.weights, pk)])
