@@ -59,11 +59,6 @@ def load_earlier(events: Sequence[Mapping], given: Sequence[Measurement] | None 
     return (found, missing) if not missing else ([], missing)
 
 
-def _squares(building: Building, series) -> np.ndarray:
-    parts, _, _ = series.run([building])
-    return np.array([float(np.sum(p[0] ** 2)) for p in parts])
-
-
 def check_update(before: Building, after: Building, earlier: Sequence[Measurement], prior: GaussianPrior,
                  vector: PriorVector, *, band_hz, compare: str = "acc", y0: np.ndarray | None = None) -> dict:
     """The earlier events' log-misfit change against the Gaussian's prediction (see the module):
@@ -71,10 +66,10 @@ def check_update(before: Building, after: Building, earlier: Sequence[Measuremen
     hi = float(band_hz[1])
     series = event_series(before, [at_replay_rate(m, hi) for m in earlier], band_hz, "ignore", 4, 2, y0, None,
                           compare=compare)
-    parts, _, _ = series.run([before])
+    parts, _, _ = series.run([before, after])  # one batch
     n_eff = np.array([effective_samples(p[0].reshape(-1, ev.channels)) for p, ev in zip(parts, series.events)])
     ss0 = np.array([float(np.sum(p[0] ** 2)) for p in parts])
-    ss1 = _squares(after, series)
+    ss1 = np.array([float(np.sum(p[1] ** 2)) for p in parts])
     exact = float(np.sum(0.5 * n_eff * np.log(np.maximum(ss1, 1e-300) / np.maximum(ss0, 1e-300))))
     dz = prior.residuals(vector.of(after)) - prior.residuals(vector.of(before))
     gauss = 0.5 * float(np.sum(dz**2))

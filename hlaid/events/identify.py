@@ -43,10 +43,11 @@ from ..model import Building, Damping
 from ..units import G_MM_S2
 from .evidence import measured_peak_drift
 from .fallback import run_stage
-from .fit import JointFit, best_fit, flags, joint_fit, posterior_uncertainty
+from .fit import WEIGHT_ROUNDS, JointFit, best_fit, flags, joint_fit, posterior_uncertainty
 from .laws import NO_DEGRADATION, TIE_LOG_UNITS, candidates, choose_laws, default_laws, with_laws
 from .prequential import HISTORY, predicted, with_history
 from .priors import StructuralPrior, elf_profile, get_prior, weight_above
+from .screen import SCREEN_MARGIN, Screened, prefix_point, screen_laws
 from .series import state_after
 from .vector import PriorVector, SystemPrior
 
@@ -140,39 +141,77 @@ def _main_fit(starts: Sequence[Building], meas: Sequence[Measurement], system: S
     ran to the model's bound (it took up model error) the damping is held and the fits run again.
     Returns the fit, its start and the settings (with the held damping where it was)."""
     cfg = settings.config
-    fits = [joint_fit(b, meas, system, cfg, names=names, k0_ref=k0_ref, laws=laws) for b in starts]
-    fit = best_fit(fits)
+    fit, k = _from_starts(starts, meas, system, cfg, names=names, k0_ref=k0_ref, laws=laws)
     if damping_ran_away(cfg, fit.building):
-        settings = held_damping(settings, fit.building.damping.ratio, starts[fits.index(fit)].damping.ratio)
+        settings = held_damping(settings, fit.building.damping.ratio, starts[k].damping.ratio)
         _progress.warn(settings.choices[-1].line())
-        fits = [joint_fit(b, meas, system, settings.config, names=names, k0_ref=k0_ref, laws=laws) for b in starts]
-        fit = best_fit(fits)
-    return fit, starts[fits.index(fit)], settings
+        fit, k = _from_starts(starts, meas, system, settings.config, names=names, k0_ref=k0_ref, laws=laws)
+    return fit, starts[k], settings
+
+
+def _from_starts(starts: Sequence[Building], meas: Sequence[Measurement], system: StructuralPrior,
+                 cfg: IdentifyConfig, *, names: Sequence[str], k0_ref: np.ndarray, laws) -> tuple[JointFit, int]:
+    """The joint fit from the best of ``starts`` and its index: with several, each searched for
+    one weighting round, the others pruned there and the best one's search continued (its
+    remaining rounds, from its optimum)."""
+    if len(starts) == 1:
+        return joint_fit(starts[0], meas, system, cfg, names=names, k0_ref=k0_ref, laws=laws), 0
+    firsts = [joint_fit(b, meas, system, cfg, names=names, k0_ref=k0_ref, laws=laws, rounds=1) for b in starts]
+    lead = best_fit(firsts)
+    k = firsts.index(lead)
+    _progress.step(f"[identify] joint fit: start {k + 1} of {len(starts)} kept after one weighting round")
+    if lead.series is not None and lead.jac_weights is not None:
+        lead.series.reweigh(lead.building)
+        if bool(np.all(np.abs(np.log(lead.series.weights / lead.jac_weights)) < np.log(1.2))):
+            return lead, k  # its weights settled: nothing to continue
+    more = joint_fit(lead.building, meas, system, cfg, names=names, k0_ref=k0_ref, laws=laws,
+                     rounds=WEIGHT_ROUNDS - 1, warm=True)
+    return (more if more.score(lead.n_eff) <= lead.score(lead.n_eff) else lead), k
 
 
 CANDIDATE_ITERATIONS = 20
-"""At most this many evaluations of the residuals per candidate law's fit (one weighting round,
-warm-started): enough to rank their evidence; the chosen one, where it is not the main fit's,
-is fitted again in full."""
+"""At most this many evaluations of the residuals per candidate law's short fit (one weighting
+round, warm-started; a candidate the screen cannot judge: not nested in the system's laws, or
+from an isolation-layer start)."""
+
+MAX_CONTENDERS = 2
+"""At most this many candidate laws the screen finds close to beating the system's law get a
+short fit (the best first)."""
 
 
 def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPrior, cfg: IdentifyConfig, *,
                 names: Sequence[str], k0_ref: np.ndarray, isolation: Building | None = None,
                 notes: list[dict] | None = None, y0: np.ndarray | None = None) -> tuple[JointFit, dict]:
     """The laws the stories follow (:mod:`hlaid.events.laws`), chosen by the Laplace evidence of
-    the joint fit of ``meas`` under each candidate (:func:`~hlaid.events.laws.candidates`,
-    warm-started from ``fit``, the fit under the system's laws; the candidates whose first story
-    differs from the others also from ``isolation``, an isolation-layer start, where there is
-    one), ties to the system's law; the fit under the laws chosen and what was compared."""
+    the joint fit of ``meas`` under each candidate (:func:`~hlaid.events.laws.candidates`), ties to
+    the system's law. Every candidate nested in ``fit``'s laws (the fit under the system's laws)
+    is judged from ``fit`` itself (:func:`hlaid.events.screen.screen_laws`: no fit of its own);
+    one the screen finds better than the system's law by more than the tie and
+    :data:`~hlaid.events.screen.SCREEN_MARGIN` wins on the screen (the screen errs against a
+    candidate); else those within the margin of beating it get a short fit (one weighting round
+    from the screen's point) before they are compared (at most :data:`MAX_CONTENDERS`). The law
+    chosen, where it is not the system's, is fitted in full from its point.
+    A candidate the screen cannot judge, and the candidates whose first story differs from the
+    others from ``isolation`` (an isolation-layer start, where there is one), get a short fit.
+    Returns the fit under the laws chosen and what was compared."""
     n = fit.building.n_stories
     default = fit.laws or default_laws(system, n)
-    tried: dict[tuple[str, ...], JointFit] = {default: fit}
+    tried: dict[tuple[str, ...], JointFit | Screened] = {default: fit}
     seconds: dict[tuple[str, ...], float] = {default: fit.seconds}
+    how: dict[tuple[str, ...], str] = {default: "the joint fit"}
+    others = [laws for laws in candidates(n) if laws != default]
+    t = time.perf_counter()
+    screened = run_stage("the screen of the candidate laws",
+                         functools.partial(screen_laws, fit, others, system, k0_ref), {}, notes,
+                         used="each candidate gets a short fit")
+    if screened:
+        dt = (time.perf_counter() - t) / len(screened)
+        for laws, sc in screened.items():
+            tried[laws], seconds[laws], how[laws] = sc, dt, "screened from the joint fit"
     iterations = min(cfg.refine.max_iterations, CANDIDATE_ITERATIONS)
-    for laws in candidates(n):
-        if laws == default:
-            continue
-        starts = [fit.building] + ([isolation] if isolation is not None and len(set(laws)) > 1 else [])
+    for laws in others:
+        starts = ([] if laws in screened else [fit.building]) + (
+            [isolation] if isolation is not None and len(set(laws)) > 1 else [])
         found = []
         for b in starts:
             f = run_stage(f"the fit under the laws {'/'.join(laws)}",
@@ -182,21 +221,53 @@ def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPr
             if f is not None:
                 found.append(f)
         if found:
-            tried[laws] = best_fit(found)
-            seconds[laws] = float(sum(f.seconds for f in found))
-    n_eff = np.mean([f.n_eff for f in tried.values()], axis=0)
-    evidence = [(laws, f.log_evidence(n_eff)) for laws, f in tried.items()]
-    chosen, reason = choose_laws(evidence, default)
+            best_found = best_fit(found)
+            n_eff = np.mean([fit.n_eff, best_found.n_eff], axis=0)
+            if laws not in tried or best_found.log_evidence(n_eff) > tried[laws].log_evidence(n_eff):
+                tried[laws], how[laws] = best_found, "short fit"
+            seconds[laws] = seconds.get(laws, 0.0) + float(sum(f.seconds for f in found))
+
+    def evidence_of() -> list[tuple[tuple[str, ...], float]]:
+        n_eff = np.mean([f.n_eff for f in tried.values()], axis=0)
+        return [(laws, f.log_evidence(n_eff)) for laws, f in tried.items()]
+
+    z = dict(evidence_of())
+    screened_z = {laws: z[laws] for laws, f in tried.items() if isinstance(f, Screened) and np.isfinite(z[laws])}
+    clear = [laws for laws, v in screened_z.items() if v > z[default] + TIE_LOG_UNITS + SCREEN_MARGIN]
+    contenders = [] if clear else sorted((laws for laws, v in screened_z.items()
+                                          if v > z[default] + TIE_LOG_UNITS - SCREEN_MARGIN), key=lambda k: -z[k])
+    for laws in contenders[:MAX_CONTENDERS]:  # close enough to matter: a search of its own before it is compared
+        sc = tried[laws]
+        short = run_stage(f"the fit under the laws {'/'.join(laws)}",
+                          functools.partial(joint_fit, sc.building, meas, system, cfg, names=names, k0_ref=k0_ref,
+                                            laws=laws, rounds=1, max_iterations=iterations, warm=True, y0=y0),
+                          None, notes, used="the candidate is left out", extra=(NotIdentifiableError,))
+        if short is None:
+            del tried[laws]
+        else:
+            tried[laws], how[laws] = short, "screened, then a short fit"
+            seconds[laws] += short.seconds
+    for laws in contenders[MAX_CONTENDERS:]:
+        del tried[laws]  # close, but behind two that were fitted: not chosen on the screen alone
+    evidence = evidence_of()
+    eligible = [(k, v) for k, v in evidence if k == default or not isinstance(tried[k], Screened) or k in clear]
+    chosen, reason = choose_laws(eligible, default)
     _progress.step(f"[identify] story laws: {reason}")
-    best = tried[chosen]
-    if chosen != default:  # the candidate's short fit, in full
-        best = run_stage(f"the fit under the laws {'/'.join(chosen)}",
-                         lambda: joint_fit(best.building, meas, system, cfg, names=names, k0_ref=k0_ref, laws=chosen,
-                                           y0=y0), best, notes, used="the candidate's fit",
+    best: JointFit = fit
+    if chosen != default:  # the candidate's point (a short fit, or the screen's where it won clearly), in full
+        near = tried[chosen].building
+        full = run_stage(f"the fit under the laws {'/'.join(chosen)}",
+                         lambda: joint_fit(near, meas, system, cfg, names=names, k0_ref=k0_ref, laws=chosen, y0=y0,
+                                           warm=True), None, notes, used="the system's law is kept",
                          extra=(NotIdentifiableError,))
+        if full is None:
+            chosen, reason = default, reason + "; its fit failed: the system's law is kept"
+        else:
+            best = full
     info = {"chosen": list(chosen), "default": list(default), "reason": reason, "tie_log_units": TIE_LOG_UNITS,
+            "screen_margin": SCREEN_MARGIN,
             "candidates": [{"laws": list(laws), "log_evidence": z if np.isfinite(z) else None,
-                            "seconds": seconds[laws]} for laws, z in evidence]}
+                            "seconds": seconds[laws], "judged_by": how[laws]} for laws, z in evidence]}
     return best, info
 
 
@@ -234,29 +305,46 @@ def isolation_start(events: Sequence[Event], meas: Measurement, system: Structur
                      damping=Damping(kind=b.damping.kind, ratio=ISOLATION["damping"], modes=b.damping.modes))
 
 
+PREFIX_ROUNDS = 1
+"""Weighting rounds of a prefix's fit (from the full fit's building, the weights at its start):
+the prefix's clone only predicts the record after it. On the steel frame the prefix clones of
+one round predict as those of three did (docs/events.md)."""
+
+
 def prefix_history(fit: JointFit, meas: Sequence[Measurement], system: StructuralPrior, cfg: IdentifyConfig, *,
                    names: Sequence[str], k0_ref: np.ndarray, notes: list[dict] | None = None,
-                   mass_normalised: bool = False) -> dict[int, dict]:
-    """How the clones of the prefixes of ``meas`` (the last :data:`~hlaid.events.prequential.HISTORY`,
-    each fitted from ``fit``'s building under its laws) predict the record after them, from their
-    carried state and from rest: per record index its prequential record."""
+                   mass_normalised: bool = False, refit: bool = False) -> dict[int, dict]:
+    """How the clones of the prefixes of ``meas`` (the last :data:`~hlaid.events.prequential.HISTORY`)
+    predict the record after them, from their carried state and from rest: per record index its
+    prequential record. Each prefix's clone is ``fit``'s optimum moved by one Newton step of the
+    prefix's posterior (:func:`hlaid.events.screen.prefix_point`: no fit of its own); where the
+    replay does not bear the step out, or it goes beyond the Gaussian's reach (or ``refit``), the
+    prefix is fitted (:data:`PREFIX_ROUNDS` weighting rounds from ``fit``'s building under its laws)."""
     out: dict[int, dict] = {}
     k = len(meas)
     for j in range(max(1, k - HISTORY), k):
-        f = run_stage(f"the prefix fit of {', '.join(names[:j])}",
-                      functools.partial(joint_fit, fit.building, meas[:j], system, cfg, names=names[:j],
-                                        k0_ref=k0_ref, laws=fit.laws),
-                      None, notes, used=f"{names[j]} is not in the start rule's history",
-                      extra=(NotIdentifiableError,))
-        if f is None:
-            continue
-        clone = Clone(building=f.building, state=f.states[-1], mass_normalised=mass_normalised)
+        point = None if refit else run_stage(f"the Newton step to the clone of {', '.join(names[:j])}",
+                                             functools.partial(prefix_point, fit, j, names), None, notes,
+                                             used="the prefix is fitted")
+        if point is not None and point.building is not None:
+            building, state, how = point.building, point.state, "newton"
+        else:
+            f = run_stage(f"the prefix fit of {', '.join(names[:j])}",
+                          functools.partial(joint_fit, fit.building, meas[:j], system, cfg, names=names[:j],
+                                            k0_ref=k0_ref, laws=fit.laws, rounds=PREFIX_ROUNDS),
+                          None, notes, used=f"{names[j]} is not in the start rule's history",
+                          extra=(NotIdentifiableError,))
+            if f is None:
+                continue
+            building, state, how = f.building, f.states[-1], "fit"
+        clone = Clone(building=building, state=state, mass_normalised=mass_normalised)
         out[j] = run_stage(f"the prediction of {names[j]} by the clone of {', '.join(names[:j])}",
                            functools.partial(predicted, clone, meas[j], cfg.hla, names[:j]), None, notes,
                            used=f"{names[j]} is not in the start rule's history")
         if out[j] is None:
             del out[j]
         else:
+            out[j]["prefix"] = {"by": how, **({} if point is None else {"newton": point.to_dict()})}
             c, r = out[j].get("carried", {}).get("r"), out[j].get("rest", {}).get("r")
             _progress.step(f"[identify] the clone of {', '.join(names[:j])} predicts {names[j]}: R {c:.3f} carried, "
                            f"{r:.3f} from rest" if c is not None and r is not None else
