@@ -134,6 +134,7 @@ def test_ctrl_c_during_ida(table1, tmp_path):
     assert _leftovers(tmp_path, "ida-out") == []
 
 
+@pytest.mark.slow  # the demo up to its identification; Ctrl-C in the pipeline is checked by the path training's test
 def test_ctrl_c_during_demo(tmp_path):
     rc, elapsed, lines = _interrupt(["demo", "--out", "demo-out", "--cache", "cache"], tmp_path,
                                     after="hysteresis loop analysis and identification", delay=1.0)

@@ -99,6 +99,7 @@ def test_quick_start_command_lines_identify_table1(cli_folder):
     assert any("collapse model 'steel-mrf' chosen for the clone's structural system" in n for n in summary["notes"])
 
 
+@pytest.mark.slow  # the whole quick start again, through Python
 def test_quick_start_python_gives_the_command_lines_clone(cli_folder, python_folder):
     py, cli = _building(python_folder / "clone.json"), _building(cli_folder / "clone.json")
     for k in PARAMS:
