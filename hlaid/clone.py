@@ -273,7 +273,7 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dic
 
 
 _EVENT_KEYS = ("name", "source", "sha256", "ground_sha256", "pga_g", "duration_s", "dt", "n_floors", "recorded",
-               "start", "prequential", "peak_drift")
+               "start", "prequential", "peak_drift", "replay")
 
 
 def _checked(check, *args, source: str | None) -> None:

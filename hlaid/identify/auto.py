@@ -12,8 +12,11 @@ the config is kept as it is. Several records get one set of choices (the evidenc
   cannot follow the record above its first mode, so its misfit is model error, which the
   errors-in-variables weighting (sensor noise only) does not model; else ``eiv`` (which still
   falls back to least squares where its fit misses the data by more than the noise);
-- ``refine.band_hz``: HLA's band where it is one for every record (a first-mode band, or one
-  given), else 0.1-20 Hz (the replay of a shear building follows every mode);
+- ``refine.band_hz``: the band the records hold (:func:`records_band`: 0.1 Hz up to where the
+  floor records' spectra stay above their noise floor) where HLA chose a first-mode band (the
+  clone is used under the whole ground motion, so it is fitted on every frequency its records
+  hold, not only its first mode's); HLA's band where one is given; else 0.1-20 Hz (the replay
+  of a shear building follows every mode);
 - ``refine.parameters``: all five, without ``k0`` where the floor masses are unknown and no mass
   ratios are given (with assumed ratios the replay fit of k0 is ill-conditioned; k0 stays HLA's);
 - ``refine.damping``: fitted where HLA found the assumed damping over-corrects, else held;
@@ -31,6 +34,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, cast
 
+import numpy as np
+
 from ..hla.auto import Choice, HLAResolution, resolve_hla
 from ..hla.config import AUTO
 from ..measurement import Measurement
@@ -38,6 +43,21 @@ from .config import PARAMETERS, IdentifyConfig
 
 BROAD_BAND_HZ = (0.1, 20.0)
 """``refine.band_hz`` where each record has its own HLA band (a shear building)."""
+
+
+def records_band(measurements: Measurement | Sequence[Measurement], lo_hz: float = BROAD_BAND_HZ[0]
+                 ) -> tuple[float, float]:
+    """The band the records hold: ``lo_hz`` up to the highest frequency at which some record's
+    floor accelerations stay above their noise floor (:func:`hlaid.signal.content_corner`,
+    below the Nyquist rule of each record); ``BROAD_BAND_HZ`` where no record has content."""
+    from ..signal import cap_corner, content_corner
+
+    meas = [measurements] if isinstance(measurements, Measurement) else list(measurements)
+    his = [min(content_corner(np.asarray(m.floor_acc), m.dt), cap_corner(BROAD_BAND_HZ[1] * 4, m.dt)) for m in meas]
+    hi = max(his) if his else 0.0
+    if not hi > lo_hz:
+        return BROAD_BAND_HZ
+    return (float(lo_hz), round(float(hi), 2))
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,9 +99,14 @@ def resolve_settings(measurements: Measurement | Sequence[Measurement], cfg: Ide
         if band is None:
             new["band_hz"] = BROAD_BAND_HZ
             why = "each record has its own HLA band: the replay of a shear building is compared over every mode"
+        elif hla.first_mode_band:
+            new["band_hz"] = records_band(meas)
+            why = (f"the band the records hold (their floor accelerations above their noise floor up to "
+                   f"{new['band_hz'][1]:g} Hz): the clone is used under the whole ground motion, so its replay is "
+                   f"fitted on every mode the records hold, not only in HLA's first-mode band {list(band)}")
         else:
             new["band_hz"] = tuple(band)
-            why = "HLA's band" + (" (the first-mode band)" if hla.first_mode_band else " (given)")
+            why = "HLA's band (given)"
         choices.append(Choice("refine.band_hz", list(new["band_hz"]), why))
     if rc.parameters == AUTO:
         unknown = [m.name or f"record {k + 1}" for k, m in enumerate(meas) if m.mass is None]
@@ -195,5 +220,6 @@ def _with(cfg: IdentifyConfig, values: dict) -> IdentifyConfig:
     return config_from_dict(IdentifyConfig, d, source="the clone's settings")
 
 
-__all__ = ["Resolution", "resolve_settings", "resolve_like", "damping_ran_away", "held_damping",
+__all__ = ["Resolution", "resolve_settings", "records_band", "BROAD_BAND_HZ",
+           "resolve_like", "damping_ran_away", "held_damping",
            "HLAResolution", "Choice"]

@@ -14,6 +14,7 @@ This module imports only numpy, scipy and the model, so :mod:`hlaid.clone` can h
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -22,7 +23,7 @@ import numpy as np
 from scipy.stats import norm
 
 from ..errors import InputError
-from .params import Building, Damping
+from .params import Building
 from .schema import DAMPING_RATIO_MAX, STORY_BOUNDS
 
 TRANSFORMS = ("log", "linear", "logit", "log1")
@@ -155,7 +156,7 @@ class ParameterUncertainty:
                                      f"{building.n_stories} stories")
                 fields[n][i] = v
         d = building.damping
-        return building.replace(**fields, damping=Damping(kind=d.kind, ratio=ratio, modes=d.modes))
+        return building.replace(**fields, damping=dataclasses.replace(d, ratio=ratio))
 
     # ------------------------------------------------------------------ I/O
     def to_dict(self, level: float = 0.9) -> dict:
