@@ -31,7 +31,7 @@ from ..model import Building
 from ..model.uncertainty import ParameterUncertainty
 from .laws import with_laws
 from .priors import StructuralPrior
-from .series import EventSeries, at_replay_rate, event_series
+from .series import REPLAY_RATE_RATIO, WIDE_RATE_RATIO, EventSeries, at_replay_rate, event_series
 from .state import BuildingState
 from .vector import GaussianPrior, PosteriorResiduals, PriorVector, SystemPrior
 
@@ -113,7 +113,8 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
                damping: bool = True, y0: np.ndarray | None = None, names: Sequence[str] = (),
                max_iterations: int = 40, ftol: float = 1e-8, substeps: int = 4, jac_substeps: int = 2,
                tangent_max_mb: float | None = None, compare: str = "acc", laws: Sequence[str] | None = None,
-               rounds: int = WEIGHT_ROUNDS, series: EventSeries | None = None) -> JointFit:
+               rounds: int = WEIGHT_ROUNDS, series: EventSeries | None = None, masses: bool = False,
+               rate_ratio: float = REPLAY_RATE_RATIO) -> JointFit:
     """Maximum a posteriori parameters of one building from its events in time order.
 
     Parameters
@@ -137,11 +138,15 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
     rounds : at most this many searches, each with the weights of the last one's optimum
     series : the events' residuals already built (for fits of the same events under other laws:
         one tangent for all); None: built here
+    masses : the floor-mass ratios are fitted too (the masses unknown; equal under the prior,
+        :data:`hlaid.events.vector.MASS_BETA`)
+    rate_ratio : the replays' samples per period of the band's upper corner
+        (:func:`hlaid.events.series.at_replay_rate`)
     """
     t0 = time.perf_counter()
     if prior is None and system is None:
         raise InputError("map_refine needs a prior or a structural system")
-    vector = PriorVector(start, damping=damping, laws=laws)
+    vector = PriorVector(start, damping=damping, laws=laws, masses=masses)
     if prior is None:
         assert system is not None
         prior = SystemPrior(system, vector, start.k0)
@@ -152,7 +157,7 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
     weights: np.ndarray | None = None
     fits = 0
     if series is None:
-        events = [at_replay_rate(m, hi) for m in measurements]
+        events = [at_replay_rate(m, hi, rate_ratio) for m in measurements]
         series = event_series(start, events, band_hz, ground_noise, substeps, jac_substeps, y0, tangent_max_mb,
                               compare=compare)
     for _ in range(max(int(rounds), 1)):
@@ -223,6 +228,10 @@ def flags(fit: JointFit, prior: str = "prior") -> list[dict]:
     for (name, i), inf in zip(fit.vector.slots, informed):
         if name == "damping":
             value = b.damping.ratio
+        elif name == "damping2":
+            value = float(b.damping.ratio2 if b.damping.ratio2 is not None else b.damping.ratio)
+        elif name == "mass":
+            value = float(b.mass[i])
         elif name == "cy":
             value, name = float(b.dy[i]), "dy"
         else:
@@ -236,26 +245,46 @@ def flags(fit: JointFit, prior: str = "prior") -> list[dict]:
 
 def joint_fit(start: Building, measurements: Sequence[Measurement], prior, cfg: IdentifyConfig, *, y0=None,
               names: Sequence[str] = (), k0_ref: np.ndarray | None = None, laws: Sequence[str] | None = None,
-              rounds: int = WEIGHT_ROUNDS, max_iterations: int | None = None) -> JointFit:
+              rounds: int = WEIGHT_ROUNDS, max_iterations: int | None = None, masses: bool | None = None
+              ) -> JointFit:
     """:func:`map_refine` with the settings of ``cfg.refine`` (errors in variables per event for
     ``method: eiv`` where the accelerations alone are compared, least squares otherwise), the
     stories following ``laws`` (None: every entry free; with a structural system's prior the
     start's fixed entries are set by the laws). A numerical failure of the errors-in-variables
     weighting falls back to least squares, with a note
-    (:func:`hlaid.identify.refiners.fit_or_fall_back`)."""
+    (:func:`hlaid.identify.refiners.fit_or_fall_back`). ``masses``: the floor-mass ratios are
+    fitted (None: :func:`masses_free`)."""
     rc = cfg.refine
     damping = fixed(rc.damping, "refine.damping")
     compare = fixed(rc.compare, "refine.compare")
+    masses = masses_free(measurements, cfg) if masses is None else masses
     if laws is not None and isinstance(prior, StructuralPrior):
         start = with_laws(start, laws, prior)
     if isinstance(prior, StructuralPrior):
-        prior = SystemPrior(prior, PriorVector(start, damping=damping, laws=laws),
+        prior = SystemPrior(prior, PriorVector(start, damping=damping, laws=laws, masses=masses),
                             start.k0 if k0_ref is None else k0_ref)
     fit = functools.partial(map_refine, start, measurements, prior, band_hz=fixed(rc.band_hz, "refine.band_hz"),
                             damping=damping, y0=y0, names=names, max_iterations=max_iterations or rc.max_iterations,
-                            tangent_max_mb=rc.tangent_max_mb, compare=compare, laws=laws, rounds=rounds)
+                            tangent_max_mb=rc.tangent_max_mb, compare=compare, laws=laws, rounds=rounds,
+                            masses=masses, rate_ratio=WIDE_RATE_RATIO if wide_band(cfg) else REPLAY_RATE_RATIO)
     eiv = fixed(rc.method, "refine.method") == "eiv" and compare == "acc"
     return fit_or_fall_back(fit, "tangent" if eiv else "ignore")
+
+
+def wide_band(cfg: IdentifyConfig) -> bool:
+    """Whether the replay fit's band reaches above HLA's (a first-mode band): the records'
+    higher modes are compared, so what sets them (the floor masses, the higher modes' damping)
+    can be fitted."""
+    hla, rb = cfg.hla.preprocess.band_hz, cfg.refine.band_hz
+    if not isinstance(hla, (tuple, list)) or not isinstance(rb, (tuple, list)):
+        return False
+    return float(rb[1]) > 1.5 * float(hla[1])
+
+
+def masses_free(measurements: Sequence[Measurement], cfg: IdentifyConfig) -> bool:
+    """The floor-mass ratios are fitted where no record gives masses, no mass ratios are given
+    and the band reaches the higher modes (:func:`wide_band`); equal masses are the prior."""
+    return (all(m.mass is None for m in measurements) and cfg.hla.force.mass_ratios is None and wide_band(cfg))
 
 
 def best_fit(fits: Sequence[JointFit]) -> JointFit:

@@ -88,8 +88,9 @@ def resolve_settings(measurements: Measurement | Sequence[Measurement], cfg: Ide
     if rc.method == AUTO:
         if hla.first_mode_band:
             new["method"] = "least_squares"
-            why = ("HLA's first-mode band: a shear-building clone cannot follow the record above it, so the misfit is "
-                   "model error, which the errors-in-variables weighting (sensor noise only) does not model")
+            why = ("HLA's first-mode band: the records are not a shear building's above their first mode, so a "
+                   "shear-building clone's misfit there is model error, which the errors-in-variables weighting "
+                   "(sensor noise only) does not model")
         else:
             new["method"] = "eiv"
             why = ("errors in variables: the records' modes are a shear building's (the fit falls back to least "
