@@ -145,7 +145,7 @@ def run_predict(args) -> int:
                    f"(mean |error| {100 * p.peak_drift_error_mean_abs:.1f} %, roof {100 * p.roof_error:+.1f} %)"
                    f"{resid}{cov}; from the {p.start} state ({p.start_reason})")
     for name, f in p.other_bands.items():
-        what = {"hla": "HLA's band"}.get(name, name)
+        what = {"hla": "HLA's band", "records": "the band the records hold"}.get(name, name)
         _progress.info(f"  in {what} {f.band_hz[0]:.2g}-{f.band_hz[1]:.3g} Hz (same replay): R {f.r.round(3).tolist()} "
                        f"(mean {float(np.mean(f.r)):.3f}), story drift R {f.drift_r.round(3).tolist()}, peak drift "
                        f"error {(100 * f.peak_drift_error).round(1).tolist()} %")

@@ -316,12 +316,12 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
     cfg = hla_config or clone_hla_config(clone) or HLAConfig()
     if cfg.unresolved():  # "auto" settings: as the clone was identified, else from this record
         cfg = clone_hla_config(clone) or resolve_hla(meas, cfg).config
+    from ..identify.auto import records_band
+
     hla_band = resolved_band(meas, cfg)
     band_name = "given"
-    if band_hz is None:
-        from ..identify.auto import records_band
-
-        band_hz, band_name = records_band(meas), "records"
+    if band_hz is None:  # with check_hla, HLA's band of the event, as HLA of it is compared
+        band_hz, band_name = (hla_band, "hla") if check_hla else (records_band(meas), "records")
     lo, hi = float(band_hz[0]), sg.cap_corner(float(band_hz[1]), meas.dt)
     if not 0 <= lo < hi:
         raise InputError(f"band {lo:g}-{band_hz[1]:g} Hz; expected low < high, below the Nyquist frequency",
@@ -353,9 +353,15 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
     pm, pk = np.max(np.abs(xm), axis=0), np.max(np.abs(xp), axis=0)
     others = {}
     h_lo, h_hi = float(hla_band[0]), sg.cap_corner(float(hla_band[1]), meas.dt)
-    if (h_lo, h_hi) != tuple(band) and 0 <= h_lo < h_hi:
+    if band_name != "hla" and (h_lo, h_hi) != tuple(band) and 0 <= h_lo < h_hi:
         m2, p2 = compare((h_lo, h_hi))
         others["hla"] = BandFigures.of((h_lo, h_hi), m2, p2[0])
+    if band_name != "records":  # the whole ground motion's replay, in the band the records hold
+        w = predict_event(clone, meas, start=start, hla_config=cfg, misfit=misfit)
+        others["records"] = BandFigures(band_hz=w.band_hz, r=w.r, drift_r=w.drift_r,
+                                        peak_drift_measured=w.peak_drift_measured,
+                                        peak_drift_predicted=w.peak_drift_predicted,
+                                        peak_drift_error=w.peak_drift_error)
     res_m, res_p = _residual_drift(meas, sim, resolved, hi_in)
     r_true = None if meas.truth is None else corrcoef(np.nan_to_num(sim.disp[0]), meas.truth.disp)
     pband = None if not n_ensemble else _band(clone, measured, predicted, misfit, len(buildings) - 1)

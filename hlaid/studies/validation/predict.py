@@ -71,7 +71,8 @@ class StudyPrediction:
                  ("r_broadband", self.r_broadband),
                  ("peak_drift_measured", p.peak_drift_measured), ("peak_drift_predicted", p.peak_drift_predicted),
                  ("peak_drift_error", p.peak_drift_error), ("stiffness_error", self.stiffness_error),
-                 ("stiffness_error_mean", nanmean(self.stiffness_error)), ("status", p.status))}
+                 ("stiffness_error_mean", nanmean(self.stiffness_error)), ("status", p.status),
+                 ("wide", p.other_bands["records"].to_dict() if "records" in p.other_bands else None))}
 
 
 def nanmean(x) -> float | None:
