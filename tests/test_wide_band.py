@@ -147,3 +147,19 @@ def test_the_prediction_names_its_bands_and_the_replay_record_round_trips(table1
     assert back.own_replay_miss() == (pytest.approx(err[j]), j, "other", tuple(soft["band_hz"]))
     line = summary_line(back.events)
     assert line is not None and "quake" in line and f"{100 * err[j]:+.0f}" in line
+
+
+def test_measured_drift_ratios_of_floor_displacements():
+    """Peak and residual drift ratios of a measurement's floor displacements, story by story."""
+    from types import SimpleNamespace
+
+    from hlaid.cli.loss import measured_drift_ratios
+
+    t = np.arange(0, 10, 0.01)
+    drift = np.column_stack([10 * np.sin(2 * np.pi * t) + (t > 5) * 3.0, -20 * np.sin(2 * np.pi * t), 0 * t])
+    meas = SimpleNamespace(floor_disp=np.cumsum(drift, axis=1), dt=0.01)
+    peak, residual = measured_drift_ratios(meas, [1000.0, 2000.0, 1000.0])
+    np.testing.assert_allclose(peak, [13.0 / 1000, 20.0 / 2000, 0.0], rtol=1e-3)
+    np.testing.assert_allclose(residual, [3.0 / 1000, 0.0, 0.0], atol=1e-5)
+    assert measured_drift_ratios(SimpleNamespace(floor_disp=None, dt=0.01), [1000.0] * 3) is None
+    assert measured_drift_ratios(meas, None) is None

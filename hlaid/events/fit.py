@@ -13,6 +13,7 @@ among searches from several starts and :func:`flags` says where each parameter c
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import time
 from collections.abc import Sequence
@@ -253,11 +254,15 @@ def joint_fit(start: Building, measurements: Sequence[Measurement], prior, cfg: 
     start's fixed entries are set by the laws). A numerical failure of the errors-in-variables
     weighting falls back to least squares, with a note
     (:func:`hlaid.identify.refiners.fit_or_fall_back`). ``masses``: the floor-mass ratios are
-    fitted (None: :func:`masses_free`)."""
+    fitted (None: :func:`masses_free`). Where the band reaches the higher modes
+    (:func:`wide_band`) and the damping is fitted, the second mode's Rayleigh ratio is fitted
+    apart from the first's (:attr:`hlaid.model.Damping.ratio2`, from the first's)."""
     rc = cfg.refine
     damping = fixed(rc.damping, "refine.damping")
     compare = fixed(rc.compare, "refine.compare")
     masses = masses_free(measurements, cfg) if masses is None else masses
+    if damping and wide_band(cfg) and start.damping.kind == "rayleigh" and start.damping.ratio2 is None:
+        start = start.replace(damping=dataclasses.replace(start.damping, ratio2=start.damping.ratio))
     if laws is not None and isinstance(prior, StructuralPrior):
         start = with_laws(start, laws, prior)
     if isinstance(prior, StructuralPrior):
