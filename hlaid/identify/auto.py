@@ -8,8 +8,8 @@ the config is kept as it is. Several records get one set of choices (the evidenc
 
 - ``hla.*``: the band, the displacement source, the damping handling and the yield ratio
   (:func:`hlaid.hla.auto.resolve_hla`);
-- ``refine.method``: ``least_squares`` where HLA chose a first-mode band: a shear-building clone
-  cannot follow the record above its first mode, so its misfit is model error, which the
+- ``refine.method``: ``least_squares`` where HLA chose a first-mode band: the records are not a
+  shear building's above their first mode, so a clone's misfit is model error, which the
   errors-in-variables weighting (sensor noise only) does not model; else ``eiv`` (which still
   falls back to least squares where its fit misses the data by more than the noise);
 - ``refine.band_hz``: the band the records hold (:func:`records_band`: 0.1 Hz up to where the
