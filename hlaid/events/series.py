@@ -34,8 +34,8 @@ band, :func:`hlaid.events.fit.wide_band`), at least :data:`WIDE_RATE_HZ`: the ba
 up to its corner (Nyquist at twice it; the ground's linear interpolation between samples loses
 0.3 dB at 0.4 of the corner, the frame's second mode, 0.9 dB at 0.7, its third, 1.8 dB at the
 corner, where the band's filter has already halved it) and the clone's modes up to 10 Hz are
-integrated at ``omega h <= 0.33`` by four RK4 steps a sample at 48 Hz. On the steel frame (0.1-12.8 Hz at 256 Hz): a fifth of the
-samples, 1.2 times those of its first-mode band's fit."""
+integrated at ``omega h <= 0.33`` by four RK4 steps a sample at 48 Hz. On the steel frame
+(0.1-12.8 Hz at 256 Hz): a fifth of the samples, 1.2 times those of its first-mode band's fit."""
 
 WIDE_RATE_HZ = 48.0
 """The lowest replay rate of a wide band's fit [Hz] (:data:`WIDE_RATE_RATIO`)."""
