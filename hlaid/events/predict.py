@@ -286,9 +286,11 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
     clone : the clone (its stories must match the measurement's floors)
     meas : the event
     band_hz : band of the comparison [Hz] (None: the band ``meas``'s floor records hold,
-        :func:`hlaid.identify.auto.records_band`; the figures in HLA's band of ``meas`` under
-        ``hla_config``, the band the clone was identified in where it was one band, a first-mode
-        band say, else the record's own from its spectrum, are given beside them)
+        :func:`hlaid.identify.auto.records_band`, its low corner HLA's where the displacements
+        compared are integrated accelerations, whose drift HLA's high-pass removes; the figures
+        in HLA's band of ``meas`` under ``hla_config``, the band the clone was identified in
+        where it was one band, a first-mode band say, else the record's own from its spectrum,
+        are given beside them)
     start : ``"carried"``, ``"undamaged"`` or ``"auto"`` (:func:`~hlaid.events.start.resolve_start`)
     n_ensemble : clones drawn from ``clone.uncertainty`` for the predictive band (0: none), those
         that collapse under the clone's own events rejected (:func:`hlaid.events.evidence.survivors`). The
@@ -322,6 +324,9 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
     band_name = "given"
     if band_hz is None:  # with check_hla, HLA's band of the event, as HLA of it is compared
         band_hz, band_name = (hla_band, "hla") if check_hla else (records_band(meas), "records")
+        p = cfg.preprocess
+        if band_name == "records" and (p.displacement == "integrate" or meas.floor_disp is None):
+            band_hz = (max(float(band_hz[0]), float(hla_band[0])), band_hz[1])  # integrated: HLA's high-pass
     lo, hi = float(band_hz[0]), sg.cap_corner(float(band_hz[1]), meas.dt)
     if not 0 <= lo < hi:
         raise InputError(f"band {lo:g}-{band_hz[1]:g} Hz; expected low < high, below the Nyquist frequency",

@@ -21,15 +21,22 @@ from .state import BuildingState
 
 
 def own_replay(building: Building, meas: Measurement, before: BuildingState | None = None, *,
-               mass_normalised: bool = False) -> dict:
+               mass_normalised: bool = False) -> dict | None:
     """The replay record of one of a clone's own events: ``building`` replayed under ``meas``
     from ``before`` (None: at rest) and compared in the band the event's floor records hold:
-    ``{"band_hz": [lo, hi], "peak_drift_error": [per story], "drift_r": [per story]}``."""
+    ``{"band_hz": [lo, hi], "peak_drift_error": [per story], "drift_r": [per story]}``; None
+    where the record cannot be compared (too short for the band's filters: a debug note)."""
+    from .. import _progress
     from ..clone import Clone
+    from ..errors import InputError
     from .predict import predict_event
 
     clone = Clone(building=building, state=before, mass_normalised=mass_normalised)
-    p = predict_event(clone, meas, start="carried" if before is not None else "undamaged")
+    try:
+        p = predict_event(clone, meas, start="carried" if before is not None else "undamaged")
+    except InputError as err:
+        _progress.debug(f"{meas.name or 'an event'}: its full replay is not assessed ({err})")
+        return None
     return {"band_hz": [float(v) for v in p.band_hz],
             "peak_drift_error": [float(v) for v in np.nan_to_num(p.peak_drift_error, nan=0.0)],
             "drift_r": [float(v) for v in np.nan_to_num(p.drift_r, nan=0.0)]}
@@ -42,7 +49,9 @@ def with_replays(records: Sequence[dict], building: Building, meas: Sequence[Mea
     out = list(records)
     first = len(out) - len(meas)
     for k, (m, y) in enumerate(zip(meas, befores)):
-        out[first + k] = {**out[first + k], "replay": own_replay(building, m, y, mass_normalised=mass_normalised)}
+        r = own_replay(building, m, y, mass_normalised=mass_normalised)
+        if r is not None:
+            out[first + k] = {**out[first + k], "replay": r}
     return tuple(out)
 
 

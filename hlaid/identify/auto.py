@@ -47,14 +47,17 @@ BROAD_BAND_HZ = (0.1, 20.0)
 
 def records_band(measurements: Measurement | Sequence[Measurement], lo_hz: float = BROAD_BAND_HZ[0]
                  ) -> tuple[float, float]:
-    """The band the records hold: ``lo_hz`` up to the highest frequency at which some record's
-    floor accelerations stay above their noise floor (:func:`hlaid.signal.content_corner`,
-    below the Nyquist rule of each record); ``BROAD_BAND_HZ`` where no record has content."""
+    """The band the records hold: ``lo_hz`` (raised to two periods of the shortest record, so
+    that its high-pass holds) up to the highest frequency at which some record's floor
+    accelerations stay above their noise floor (:func:`hlaid.signal.content_corner`, below the
+    Nyquist rule of each record); ``BROAD_BAND_HZ`` where no record has content."""
     from ..signal import cap_corner, content_corner
 
     meas = [measurements] if isinstance(measurements, Measurement) else list(measurements)
     his = [min(content_corner(np.asarray(m.floor_acc), m.dt), cap_corner(BROAD_BAND_HZ[1] * 4, m.dt)) for m in meas]
     hi = max(his) if his else 0.0
+    if meas:
+        lo_hz = max(float(lo_hz), float(np.ceil(100.0 * 2.0 / min(m.n_samples * m.dt for m in meas)) / 100.0))
     if not hi > lo_hz:
         return BROAD_BAND_HZ
     return (float(lo_hz), round(float(hi), 2))
