@@ -194,7 +194,7 @@ class Clone:
         damping = d.get("damping", {})
         if not isinstance(damping, dict):
             raise InputError(f"field 'damping' must be a mapping, got {kind_of(damping)}", source=source)
-        _no_unknown(damping, ("kind", "ratio", "modes"), "damping.", source)
+        _no_unknown(damping, ("kind", "ratio", "modes", "ratio2"), "damping.", source)
         if "kind" in damping and not isinstance(damping["kind"], str):
             raise InputError(f"damping.kind must be a string, got {kind_of(damping['kind'])}", source=source)
         if "ratio" in damping:
