@@ -166,3 +166,30 @@ def test_measured_drift_ratios_of_floor_displacements():
     np.testing.assert_allclose(residual, [3.0 / 1000, 0.0, 0.0], atol=1e-5)
     assert measured_drift_ratios(SimpleNamespace(floor_disp=None, dt=0.01), [1000.0] * 3) is None
     assert measured_drift_ratios(meas, None) is None
+
+
+def test_the_prior_vector_moves_masses_and_a_second_ratio_and_the_clone_keeps_them(table1, tmp_path):
+    """With masses and a second Rayleigh ratio in the vector: the building comes back from its
+    vector, the total mass is kept, the prior holds the masses equal and the clone file and the
+    posterior's slots keep the second ratio."""
+    from hlaid.events.priors import PRIORS
+    from hlaid.events.vector import MASS_BETA, PriorVector, SystemPrior
+
+    b = table1.replace(mass=np.full(3, 1.0 / 3.0), damping=Damping(ratio=0.03, ratio2=0.05))
+    v = PriorVector(b, damping=True, masses=True)
+    assert [s for s in v.slots if s[0] in ("damping", "damping2", "mass")] == [
+        ("damping", -1), ("damping2", -1), ("mass", 0), ("mass", 1)]
+    x = v.of(b).copy()
+    x[-2:] = np.log([0.5, 0.25])  # m1 / m3, m2 / m3
+    x[-3] = np.log(0.08)
+    moved = v.building_at(x)
+    np.testing.assert_allclose(moved.mass, np.array([0.5, 0.25, 1.0]) / 1.75, rtol=1e-12)
+    assert moved.damping.ratio2 == pytest.approx(0.08) and moved.damping.ratio == pytest.approx(0.03)
+    np.testing.assert_allclose(v.of(moved), x, atol=1e-9)
+    np.testing.assert_allclose(_modal_ratios(moved)[:2], [0.03, 0.08], rtol=1e-9)
+    prior = SystemPrior(PRIORS["steel-moment-frame"], v, b.k0)
+    np.testing.assert_allclose(prior.residuals(x)[-2:], np.log([0.5, 0.25]) / MASS_BETA)
+    assert len(v.clone_slots()[0]) == len(v.slots) - 2  # the masses are no clone slot
+    c = Clone(building=moved)
+    c.save(tmp_path / "c.json")
+    assert Clone.load(tmp_path / "c.json").building.damping == moved.damping

@@ -217,9 +217,10 @@ class RefineConfig:
         also the story drifts of the measured floor displacements, ``"disp+drift"`` floor
         displacements and story drifts (least squares: the errors-in-variables weighting models
         accelerations only). ``"auto"``: ``acc+drift`` where the records' floor displacements
-        resolve every story's drift (HLA's ``preprocess.displacement`` chosen ``measured``), else
-        ``acc``. On the steel frame the drifts put the next event's peak drift in the right story
-        (worst story error 23 -> 16 %)
+        resolve every story's drift (HLA's ``preprocess.displacement`` chosen ``measured``;
+        ``disp+drift`` there where the band is the records' band of a first-mode-band building),
+        else ``acc``. On the steel frame the drifts put the next event's peak drift in the right
+        story (worst story error 23 -> 16 %)
     restart_ratio : when the least-squares cost exceeds this multiple of ``0.5 N sigma^2`` (N
         residuals, sigma the measurement's noise level), the fit misses the data by more than its
         noise: it runs again, every story's parameters, from a neutral start (alpha 0.2, p 2,
