@@ -59,6 +59,11 @@ class StudyPrediction:
         return self.prediction.hla_check.stiffness_error
 
     @property
+    def status(self) -> int:
+        """The replay's simulator status (0 ok)."""
+        return self.prediction.status
+
+    @property
     def hla(self) -> HLAResult | None:
         return None if self.prediction.hla_check is None else self.prediction.hla_check.hla
 
