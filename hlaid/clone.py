@@ -194,7 +194,7 @@ class Clone:
         damping = d.get("damping", {})
         if not isinstance(damping, dict):
             raise InputError(f"field 'damping' must be a mapping, got {kind_of(damping)}", source=source)
-        _no_unknown(damping, ("kind", "ratio", "modes"), "damping.", source)
+        _no_unknown(damping, ("kind", "ratio", "modes", "ratio2"), "damping.", source)
         if "kind" in damping and not isinstance(damping["kind"], str):
             raise InputError(f"damping.kind must be a string, got {kind_of(damping['kind'])}", source=source)
         if "ratio" in damping:
@@ -274,7 +274,7 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dic
 
 
 _EVENT_KEYS = ("name", "source", "sha256", "ground_sha256", "pga_g", "duration_s", "dt", "n_floors", "recorded",
-               "start", "prequential", "peak_drift",
+               "start", "prequential", "peak_drift", "replay",
                "ground_profile")  # the ground record's RMS in equal windows (hlaid.measurement.ground_profile)
 
 

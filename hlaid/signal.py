@@ -35,7 +35,17 @@ DESIGN_GUARD = 0.95
 """Fraction of the Nyquist frequency above which a corner cannot be designed and is lowered to it."""
 
 __all__ = ["MAX_CORNER_RATIO", "MIN_CORNER_HZ", "min_corner", "max_corner", "cap_corner", "butter_sos", "bandpass",
-           "lowpass", "highpass", "integrate_twice"]
+           "lowpass", "highpass", "integrate_twice", "content_corner"]
+
+ABOVE_NOISE_DB = 10.0
+""":func:`content_corner`: a frequency holds the record's content where its spectrum is at least
+this far above the noise floor (the spectrum's level near the Nyquist frequency, where a sensor
+records its own noise)."""
+
+BELOW_PEAK_DB = 40.0
+""":func:`content_corner`: and no further below the spectrum's peak than this (content 10^4 times
+weaker in power than the peak moves no peak response; a record low-passed before it was stored
+has a stop band far below its peak, not sensor noise, above its filter's corner)."""
 
 
 def max_corner(dt: float) -> float:
@@ -129,3 +139,35 @@ def arias_window(acc: np.ndarray, dt: float, arias, tail_s: float = 2.0, lead_s:
     i0 = max(0, int(np.searchsorted(e, arias[0] * e[-1])) - round(lead_s / dt))
     i1 = min(acc.shape[0], int(np.searchsorted(e, arias[1] * e[-1])) + round(tail_s / dt) + 1)
     return i0, i1
+
+
+def content_corner(x: np.ndarray, dt: float, *, above_noise_db: float = ABOVE_NOISE_DB,
+                   below_peak_db: float = BELOW_PEAK_DB) -> float:
+    """The highest frequency [Hz] at which the channels ``x`` ``(time,)`` or ``(time, channel)``
+    still hold their content: where some channel's spectrum (Welch, segments of about 8 s, the
+    log spectrum smoothed by a running median over a sixth of an octave so that one spectral
+    line, mains hum say, counts as nothing) stays above both its noise floor by
+    ``above_noise_db`` and its peak less ``below_peak_db``. The noise floor of a channel is the
+    median of its spectrum over the top eighth of the frequencies below Nyquist. Capped by
+    :func:`cap_corner`; 0 where no channel moves."""
+    sig = _scipy_signal()
+    x = np.asarray(x, dtype=float)
+    x = x[:, None] if x.ndim == 1 else x
+    n = x.shape[0]
+    nper = int(min(n, 2 ** int(np.round(np.log2(max(8.0 / dt, 16.0))))))
+    f, P = sig.welch(x - x.mean(axis=0), fs=1.0 / dt, nperseg=nper, axis=0)
+    corner = 0.0
+    for j in range(P.shape[1]):
+        p = P[1:, j]
+        fj = f[1:]
+        if not np.any(p > 0):
+            continue
+        logp = np.log10(np.maximum(p, 1e-300 * p.max()))
+        smooth = np.array([np.median(logp[(fj >= fk * 2 ** (-1 / 12)) & (fj <= fk * 2 ** (1 / 12))]) for fk in fj])
+        noise = float(np.median(smooth[fj >= 0.875 * fj[-1]]))
+        level = max(noise + above_noise_db / 10.0, float(smooth.max()) - below_peak_db / 10.0)
+        above = np.flatnonzero(smooth >= level)
+        if above.size:
+            corner = max(corner, float(fj[above[-1]]))
+    return cap_corner(corner, dt) if corner > 0 else 0.0
+

@@ -72,10 +72,15 @@ def time_order(names: list[str]) -> list[str]:
     return sorted(names, key=int) if all(n.isdigit() for n in names) else names
 
 
-def prediction_row(p, k: int, names: list[str], how: str, seconds: float, start: str) -> dict:
-    """One prediction; ``start`` as asked (``auto`` resolves to ``p.start``, kept as ``resolved``)."""
+def prediction_row(p, k: int, names: list[str], how: str, seconds: float, start: str, wide=None) -> dict:
+    """One prediction; ``start`` as asked (``auto`` resolves to ``p.start``, kept as ``resolved``);
+    ``wide``: the same clone's prediction in the band the event's records hold (its story-drift
+    figures kept as ``wide``)."""
     d = p.to_dict()
-    return {"how": how, "k": k, "identified_on": names[:k], "event": p.event, "start": start,
+    w = None if wide is None else {k: wide.to_dict()[k] for k in (
+        "band_hz", "r_mean", "drift_r", "drift_r_mean", "peak_drift_error", "peak_drift_error_mean_abs",
+        "residual_drift_error")}
+    return {"how": how, "k": k, "identified_on": names[:k], "event": p.event, "start": start, "wide": w,
             "resolved": p.start, "start_reason": p.start_reason, "r": d["r"], "r_mean": d["r_mean"],
             "drift_r": d["drift_r"], "drift_r_mean": d["drift_r_mean"], "peak_drift_error": d["peak_drift_error"],
             "peak_drift_error_mean_abs": d["peak_drift_error_mean_abs"], "roof_error": d["roof_error"],
@@ -113,7 +118,8 @@ def real_part(cfg, spec, part: dict, n_ensemble: int, folder: Path, log) -> dict
         for start in START_STATES:
             p = predict_event(clone, meas[k], band_hz=band, hla_config=icfg.hla, start=start,
                               n_ensemble=n_ensemble if start == "carried" else 0)
-            out.append(prediction_row(p, k, names, how, seconds, start))
+            wide = predict_event(clone, meas[k], hla_config=icfg.hla, start=start)  # the band the records hold
+            out.append(prediction_row(p, k, names, how, seconds, start, wide))
             log(f"{spec.name}: {how} clone of {names[0]}..{names[k - 1]} -> {names[k]} ({start}): "
                 f"R {np.round(p.r, 3)}, mean {p.r_mean:.3f}")
             if start == "carried":
@@ -271,6 +277,14 @@ def _mean(x) -> float | None:
     return None if not x else float(np.mean(x))
 
 
+def _wide(w) -> str:
+    """A prediction's wide-band figures, one cell."""
+    if not w:
+        return "-"
+    lo, hi = w["band_hz"]
+    return f"{lo:g}-{hi:g} Hz, {w['drift_r_mean']:.3f}, {_pde(w['peak_drift_error'])}"
+
+
 def _abs_pde(e) -> float:
     return float(np.mean(np.abs(e))) if e else float("nan")
 
@@ -284,8 +298,11 @@ def real_tables(res: dict, peer: dict, command: str) -> list[str]:
            "story's peak drift in the band; coverage: share of the measurement inside the "
            f"{res['n_ensemble']}-clone 90 % band (carried start). The peer: the linear peer (self-fit) identified on "
            "the same events.", "",
+           "Wide band: the same clone's replay in the band the event's floor records hold (its band in Hz, "
+           "mean drift R, peak-drift error per story).", "",
            "| clone | on | predicts | start | R per floor | R mean | drift R mean | peak-drift error [%] "
-           "| mean abs [%] | coverage | clone [s] | peer R | peer peak-drift error [%] |", "|" + "---|" * 13]
+           "| mean abs [%] | wide band: band, drift R, peak-drift error [%] | coverage | clone [s] | peer R "
+           "| peer peak-drift error [%] |", "|" + "---|" * 14]
     for p in res["predictions"]:
         pr = peer.get((name, tuple(p["identified_on"]), p["event"]))
         on = p["identified_on"]
@@ -293,12 +310,12 @@ def real_tables(res: dict, peer: dict, command: str) -> list[str]:
         out.append(f"| {p['how']} | {on[0] if len(on) == 1 else f'{on[0]}..{on[-1]}'} | {p['event']} | {start} | "
                    + " / ".join(f"{r:.3f}" for r in p["r"]) + f" | **{p['r_mean']:.3f}** | "
                    f"{_f(p.get('drift_r_mean'))} | {_pde(p['peak_drift_error'])} | "
-                   f"{100 * _abs_pde(p['peak_drift_error']):.1f} | "
+                   f"{100 * _abs_pde(p['peak_drift_error']):.1f} | {_wide(p.get('wide'))} | "
                    f"{_f(p['coverage_mean'], '{:.2f}')} | {p['clone_seconds']:.0f} | "
                    f"{_f(pr and pr['r_mean'])} | {_pde(pr and pr.get('peak_drift_error'))} |")
     out += ["", "| clone | start | n | mean R | worst R | mean drift R | mean abs peak-drift error [%] | worst story "
-            "[%] | mean coverage | peer mean R | peer worst R | peer mean abs peak-drift error [%] | peer worst story "
-            "[%] |", "|" + "---|" * 13]
+            "[%] | wide band: mean drift R, mean abs / worst story peak-drift error [%] | mean coverage | peer mean R "
+            "| peer worst R | peer mean abs peak-drift error [%] | peer worst story [%] |", "|" + "---|" * 14]
     for how in dict.fromkeys(p["how"] for p in res["predictions"]):
         for start in START_STATES:
             ps = [p for p in res["predictions"] if p["how"] == how and p["start"] == start]
@@ -311,8 +328,13 @@ def real_tables(res: dict, peer: dict, command: str) -> list[str]:
             full = len(prs) == len(ps)
             peer_pde = f"{100 * np.mean(ppde):.1f} | {100 * np.max(ppde):.1f}" if full and ppde.size else "- | -"
             dr = [p["drift_r_mean"] for p in ps if p.get("drift_r_mean") is not None]
+            ws = [p["wide"] for p in ps if p.get("wide")]
+            wpde = np.abs([e for w in ws for e in w["peak_drift_error"]])
+            wide = (f"{np.mean([w['drift_r_mean'] for w in ws]):.3f}, {100 * np.mean(wpde):.1f} / "
+                    f"{100 * np.max(wpde):.1f}" if ws and wpde.size else "-")
             out.append(f"| {how} | {start} | {len(ps)} | {_summary([p['r_mean'] for p in ps])} | "
                        f"{_f(np.mean(dr) if dr else None)} | {100 * np.mean(pde):.1f} | {100 * np.max(pde):.1f} | "
+                       f"{wide} | "
                        f"{_f(np.mean(cov) if cov else None, '{:.2f}')} | "
                        f"{_summary([q['r_mean'] for q in prs]) if full else '- | -'} | "
                        f"{peer_pde} |")

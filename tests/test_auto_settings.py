@@ -27,7 +27,7 @@ from hlaid.hla import analysis as hla_analysis
 from hlaid.hla.auto import shear_frequencies
 from hlaid.hla.config import PreprocessConfig, auto_hla_config
 from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig
-from hlaid.identify.auto import Resolution, damping_ran_away, held_damping, resolve_like, resolve_settings
+from hlaid.identify.auto import Resolution, damping_ran_away, held_damping, records_band, resolve_like, resolve_settings
 from hlaid.measurement import Measurement
 from hlaid.model import Damping
 from hlaid.motions import load_builtin
@@ -110,7 +110,9 @@ def test_a_frame_not_shear_above_its_first_mode_gets_a_first_mode_band(frame):
     assert lo == pytest.approx(0.25 * f[0], rel=0.1)
     assert hi == pytest.approx(np.sqrt(f[0] * f[1]), rel=0.1)
     assert hi < 3 * f[0] and got["hla.stiffness.yield_ratio"] == 0.8  # the low-pass cuts the third harmonic
-    assert got["refine.method"] == "least_squares" and got["refine.band_hz"] == [lo, hi]
+    # the replay is fitted on every mode the records hold, not in HLA's band: above the frame's modes
+    assert got["refine.method"] == "least_squares" and got["refine.band_hz"] == list(records_band(meas))
+    assert got["refine.band_hz"][0] == 0.1 and got["refine.band_hz"][1] > max(f)
     assert r.config.hla.preprocess.band_hz == (lo, hi) and not r.config.unresolved()
     assert "not a shear building above its first mode" in r.choices[0].reason
 

@@ -73,7 +73,7 @@ class KnownPart:
         k0 = values["k0"]
         mass = torch.tensor(self.mass, dtype=k0.dtype).expand_as(k0)
         d = self.damping
-        a0, a1 = S.rayleigh_coefficients(k0, mass, d.kind, d.ratio, d.modes)
+        a0, a1 = S.rayleigh_coefficients(k0, mass, d.kind, d.ratio, d.modes, d.ratio2)
         kg = torch.tensor(self.kg, dtype=k0.dtype).expand_as(k0)
         return BuildingTensors(mass=mass, k0=k0, alpha=values["alpha"], p=values["p"], dy=values["dy"],
                                delta_eta=values["delta_eta"], kg=kg, damping=S.damping_matrix(k0, mass, a0, a1))

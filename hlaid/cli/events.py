@@ -32,7 +32,8 @@ def register(sub) -> None:
     q.add_argument("measurement", help="the event (ground and floor records of the clone's building)")
     q.add_argument("-o", "--out", required=True, help="output folder: prediction.json, prediction.npz, prediction.png")
     q.add_argument("--band", nargs=2, type=float, metavar=("LO", "HI"),
-                   help="band of the compared displacements [Hz] (default: HLA's band of the event)")
+                   help="band of the compared displacements [Hz] (default: the band the event's floor records hold, "
+                        "with HLA's band of the event beside it)")
     add_read(q)
     q.add_argument("--start", choices=["auto", "carried", "undamaged"], default=None,
                    help="carried: from the state the clone's last event left it in; undamaged: at rest; auto "
@@ -122,6 +123,8 @@ def run_predict(args) -> int:
     n = (N_ENSEMBLE if args.ensemble is None else args.ensemble) if clone.uncertainty is not None else 0
     if args.ensemble and clone.uncertainty is None:
         _progress.warn("the clone has no uncertainty: no predictive band")
+    import numpy as np
+
     from .._fileio import write_json, write_npz  # the heavy libraries, once the inputs are good
     from ..events.predict import predict_event
 
@@ -139,11 +142,19 @@ def run_predict(args) -> int:
         f", {100 * float(p.band.coverage.mean()):.0f} % inside the {n}-clone band (its width "
         f"{float(p.band.width.mean()):.2f} x twice the measured RMS)")
     pde = (100 * p.peak_drift_error).round(1).tolist()
-    _progress.info(f"{meas.name or args.measurement}: R {p.r.round(3).tolist()} (mean {p.r_mean:.3f}), story drift "
+    which = {"records": "the band the records hold", "given": "the band given"}.get(p.band_name, p.band_name)
+    res = p.residual_drift_error
+    resid = "" if res is None else f", residual drift error {np.round(res, 1).tolist()} mm"
+    _progress.info(f"{meas.name or args.measurement} in {which} {p.band_hz[0]:.2g}-{p.band_hz[1]:.3g} Hz: R "
+                   f"{p.r.round(3).tolist()} (mean {p.r_mean:.3f}), story drift "
                    f"R {p.drift_r.round(3).tolist()}, peak drift error {pde} % "
                    f"(mean |error| {100 * p.peak_drift_error_mean_abs:.1f} %, roof {100 * p.roof_error:+.1f} %; "
-                   f"drifts compared in {p.band_hz[0]:g}-{p.band_hz[1]:g} Hz, hlaid demands gives the full replay's)"
-                   f"{cov}; "
-                   f"from the {p.start} state ({p.start_reason})")
+                   f"drifts compared in {p.band_hz[0]:.2g}-{p.band_hz[1]:.3g} Hz, hlaid demands gives the full "
+                   f"replay's){resid}{cov}; from the {p.start} state ({p.start_reason})")
+    for name, f in p.other_bands.items():
+        what = {"hla": "HLA's band", "records": "the band the records hold"}.get(name, name)
+        _progress.info(f"  in {what} {f.band_hz[0]:.2g}-{f.band_hz[1]:.3g} Hz (same replay): R {f.r.round(3).tolist()} "
+                       f"(mean {float(np.mean(f.r)):.3f}), story drift R {f.drift_r.round(3).tolist()}, peak drift "
+                       f"error {(100 * f.peak_drift_error).round(1).tolist()} %")
     _progress.info(f"wrote {args.out}")
     return 0

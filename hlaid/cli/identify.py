@@ -211,6 +211,11 @@ def print_summary(clone, seconds: float | None = None, before=None) -> None:
             f"{e.get('name') or 'event'} " + "/".join(f"{v:.3f}" for v in e["r_measured"]) for e in events))
     if not events and isinstance(d.get("replay"), dict):
         lines.append(f"replay: R {np.round(d['replay']['r_measured'], 3).tolist()}")
+    from ..events.replay import summary_line
+
+    full = summary_line(clone.events)
+    if full:
+        lines.append(full)
     if clone.state is not None:
         drift, eta = np.round(clone.state.drift, 2).tolist(), np.round(clone.state.eta(b), 3).tolist()
         lines.append(f"state after {len(clone.events)} event(s): residual drift {drift} mm, eta {eta}")

@@ -67,18 +67,39 @@ def register(sub) -> None:
 
 
 def _own_motion(path: str, options: dict):
-    """The ground motion of a record file, or the ground channel of a measurement file."""
-
+    """The ground motion of a record file, or the ground channel of a measurement file, and the
+    measurement (None for a record)."""
     from ..io import read
     from ..measurement import Measurement
     from ..motions import GroundMotion
 
     obj = read(path, **options)
     if isinstance(obj, Measurement):
-        return obj.ground_motion(name=Path(path).stem, source=path)
+        return obj.ground_motion(name=Path(path).stem, source=path), obj
     if isinstance(obj, GroundMotion):
-        return obj
+        return obj, None
     raise InputError("expected one ground motion (a record or a measurement file), not a record set", source=path)
+
+
+RESIDUAL_WINDOW_S = 1.0
+"""A measured residual drift: the mean drift over the record's last second less its first's."""
+
+
+def measured_drift_ratios(meas, heights) -> tuple | None:
+    """``(peak, residual)`` ``(story,)`` drift ratios the measurement's floor displacements held
+    (the largest |story drift| and the drift left at its end, each over the story's height);
+    None without floor displacements, heights or two seconds of record."""
+    import numpy as np
+
+    if meas is None or meas.floor_disp is None or heights is None:
+        return None
+    h = np.asarray(heights, dtype=float)
+    u = np.asarray(meas.floor_disp, dtype=float)
+    n = max(int(round(RESIDUAL_WINDOW_S / meas.dt)), 1)
+    if h.shape != (u.shape[1],) or 2 * n > u.shape[0]:
+        return None
+    drift = np.diff(u, axis=1, prepend=0.0)
+    return np.nanmax(np.abs(drift), axis=0) / h, np.abs(drift[-n:].mean(axis=0) - drift[:n].mean(axis=0)) / h
 
 
 def run_demands(args) -> int:
@@ -110,7 +131,7 @@ def run_demands(args) -> int:
     options = reader_options(args)
     if options and not args.motion:
         raise InputError("--read is for the measurement (--motion); records are read as they are")
-    records = _own_motion(args.motion, options) if args.motion else args.records
+    records, meas = _own_motion(args.motion, options) if args.motion else (args.records, None)
     check_output_file(args.out, force=args.force, inputs=inputs)  # and the files they named (a columns YAML's table)
     d = clone_demands(clone, records, level=args.level, n_ensemble=n_ens, seed=args.seed or 0, ida_config=cfg)
     from ..ida.basis import decision_basis
@@ -131,6 +152,14 @@ def run_demands(args) -> int:
                    f"{max(s['rid_median'] or [0]):.2%}, {d.im_label} {float(d.im.max()):.3g} g"
                    + (" (the clones' full replay, unfiltered; hlaid predict compares drifts in a band, so its "
                       "errors differ)" if args.motion else ""))
+    heights = cfg.heights_mm if cfg.heights_mm is not None else clone.building.height
+    measured = measured_drift_ratios(meas, heights)
+    if measured is not None:
+        pct = lambda a: " / ".join(f"{100 * v:.2f}" for v in a)  # noqa: E731
+        _progress.info(f"measured (the record's floor displacements): peak drift ratio {pct(measured[0])} %, "
+                       f"residual {pct(measured[1])} % per story; the nominal clone: {pct(d.pid[0])} %, "
+                       f"{pct(d.rid[0])} %" + ("; the median over the realizations: " + pct(s["pid_median"]) + " %"
+                                               if s["pid_median"] and d.n_realizations > 1 else ""))
     for note in d.notes:
         _progress.debug(f"note: {note}")
     for flag in d.flags:

@@ -13,6 +13,7 @@ among searches from several starts and :func:`flags` says where each parameter c
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import time
 from collections.abc import Sequence
@@ -31,7 +32,7 @@ from ..model import Building
 from ..model.uncertainty import ParameterUncertainty
 from .laws import with_laws
 from .priors import StructuralPrior
-from .series import EventSeries, at_replay_rate, event_series
+from .series import REPLAY_RATE_RATIO, WIDE_RATE_RATIO, EventSeries, at_replay_rate, event_series
 from .state import BuildingState
 from .vector import GaussianPrior, PosteriorResiduals, PriorVector, SystemPrior
 
@@ -127,7 +128,8 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
                damping: bool = True, y0: np.ndarray | None = None, names: Sequence[str] = (),
                max_iterations: int = 40, ftol: float = 1e-8, substeps: int = 4, jac_substeps: int = 2,
                tangent_max_mb: float | None = None, compare: str = "acc", laws: Sequence[str] | None = None,
-               rounds: int = WEIGHT_ROUNDS, series: EventSeries | None = None, warm: bool = False) -> JointFit:
+               rounds: int = WEIGHT_ROUNDS, series: EventSeries | None = None, warm: bool = False,
+               masses: bool = False, rate_ratio: float = REPLAY_RATE_RATIO) -> JointFit:
     """Maximum a posteriori parameters of one building from its events in time order.
 
     Parameters
@@ -153,11 +155,15 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
         one tangent for all); None: built here
     warm : ``start`` is an earlier search's optimum: every round stops at :data:`LATER_FTOL`
         (else only the rounds after the first)
+    masses : the floor-mass ratios are fitted too (the masses unknown; equal under the prior,
+        :data:`hlaid.events.vector.MASS_BETA`)
+    rate_ratio : the replays' samples per period of the band's upper corner
+        (:func:`hlaid.events.series.at_replay_rate`)
     """
     t0 = time.perf_counter()
     if prior is None and system is None:
         raise InputError("map_refine needs a prior or a structural system")
-    vector = PriorVector(start, damping=damping, laws=laws)
+    vector = PriorVector(start, damping=damping, laws=laws, masses=masses)
     if prior is None:
         assert system is not None
         prior = SystemPrior(system, vector, start.k0)
@@ -168,7 +174,7 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
     weights: np.ndarray | None = None
     fits = 0
     if series is None:
-        events = [at_replay_rate(m, hi) for m in measurements]
+        events = [at_replay_rate(m, hi, rate_ratio) for m in measurements]
         series = event_series(start, events, band_hz, ground_noise, substeps, jac_substeps, y0, tangent_max_mb,
                               compare=compare)
     with _progress.stage(f"[identify] joint fit over {len(series.events)} event(s)", unit="rounds") as st:
@@ -246,6 +252,10 @@ def flags(fit: JointFit, prior: str = "prior") -> list[dict]:
     for (name, i), inf in zip(fit.vector.slots, informed):
         if name == "damping":
             value = b.damping.ratio
+        elif name == "damping2":
+            value = float(b.damping.ratio2 if b.damping.ratio2 is not None else b.damping.ratio)
+        elif name == "mass":
+            value = float(b.mass[i])
         elif name == "cy":
             value, name = float(b.dy[i]), "dy"
         else:
@@ -259,26 +269,55 @@ def flags(fit: JointFit, prior: str = "prior") -> list[dict]:
 
 def joint_fit(start: Building, measurements: Sequence[Measurement], prior, cfg: IdentifyConfig, *, y0=None,
               names: Sequence[str] = (), k0_ref: np.ndarray | None = None, laws: Sequence[str] | None = None,
-              rounds: int = WEIGHT_ROUNDS, max_iterations: int | None = None, warm: bool = False) -> JointFit:
+              rounds: int = WEIGHT_ROUNDS, max_iterations: int | None = None, warm: bool = False,
+              masses: bool | None = None) -> JointFit:
     """:func:`map_refine` with the settings of ``cfg.refine`` (errors in variables per event for
     ``method: eiv`` where the accelerations alone are compared, least squares otherwise), the
     stories following ``laws`` (None: every entry free; with a structural system's prior the
     start's fixed entries are set by the laws). A numerical failure of the errors-in-variables
     weighting falls back to least squares, with a note
-    (:func:`hlaid.identify.refiners.fit_or_fall_back`)."""
+    (:func:`hlaid.identify.refiners.fit_or_fall_back`). ``masses``: the floor-mass ratios are
+    fitted (None: :func:`masses_free`). Where the band reaches the higher modes
+    (:func:`wide_band`) and the damping is fitted, the second mode's Rayleigh ratio is fitted
+    apart from the first's (:attr:`hlaid.model.Damping.ratio2`, from the first's)."""
     rc = cfg.refine
     damping = fixed(rc.damping, "refine.damping")
     compare = fixed(rc.compare, "refine.compare")
+    masses = masses_free(measurements, cfg) if masses is None else masses
+    if damping and wide_band(cfg) and start.damping.kind == "rayleigh" and start.damping.ratio2 is None:
+        start = start.replace(damping=dataclasses.replace(start.damping, ratio2=start.damping.ratio))
     if laws is not None and isinstance(prior, StructuralPrior):
         start = with_laws(start, laws, prior)
     if isinstance(prior, StructuralPrior):
-        prior = SystemPrior(prior, PriorVector(start, damping=damping, laws=laws),
+        prior = SystemPrior(prior, PriorVector(start, damping=damping, laws=laws, masses=masses),
                             start.k0 if k0_ref is None else k0_ref)
     fit = functools.partial(map_refine, start, measurements, prior, band_hz=fixed(rc.band_hz, "refine.band_hz"),
                             damping=damping, y0=y0, names=names, max_iterations=max_iterations or rc.max_iterations,
-                            tangent_max_mb=rc.tangent_max_mb, compare=compare, laws=laws, rounds=rounds, warm=warm)
+                            tangent_max_mb=rc.tangent_max_mb, compare=compare, laws=laws, rounds=rounds, warm=warm,
+                            masses=masses, rate_ratio=WIDE_RATE_RATIO if wide_band(cfg) else REPLAY_RATE_RATIO)
     eiv = fixed(rc.method, "refine.method") == "eiv" and compare == "acc"
     return fit_or_fall_back(fit, "tangent" if eiv else "ignore")
+
+
+def wide_band(cfg: IdentifyConfig) -> bool:
+    """Whether the replay fit's band reaches above HLA's (a first-mode band): the records'
+    higher modes are compared, so what sets them (the floor masses, the higher modes' damping)
+    can be fitted."""
+    hla, rb = cfg.hla.preprocess.band_hz, cfg.refine.band_hz
+    if not isinstance(hla, (tuple, list)) or not isinstance(rb, (tuple, list)):
+        return False
+    return float(rb[1]) > 1.5 * float(hla[1])
+
+
+def masses_free(measurements: Sequence[Measurement], cfg: IdentifyConfig) -> bool:
+    """The floor-mass ratios are fitted where no record gives masses, no mass ratios are given,
+    the band reaches the higher modes (:func:`wide_band`) and the fit compares the floor
+    accelerations (their higher-mode content is what informs the masses: on the steel frame a fit
+    of displacements and drifts left them at the prior's equal masses, the posterior's standard
+    deviation 50-70 % of the prior's); equal masses are the prior."""
+    compare = cfg.refine.compare
+    return (all(m.mass is None for m in measurements) and cfg.hla.force.mass_ratios is None and wide_band(cfg)
+            and isinstance(compare, str) and "acc" in compare)
 
 
 def best_fit(fits: Sequence[JointFit]) -> JointFit:

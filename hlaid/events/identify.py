@@ -47,8 +47,10 @@ from .fit import WEIGHT_ROUNDS, JointFit, best_fit, flags, joint_fit, posterior_
 from .laws import NO_DEGRADATION, TIE_LOG_UNITS, candidates, choose_laws, default_laws, with_laws
 from .prequential import HISTORY, predicted, with_history
 from .priors import StructuralPrior, elf_profile, get_prior, weight_above
+from .replay import with_replays
 from .screen import SCREEN_MARGIN, Screened, prefix_point, screen_laws
 from .series import state_after
+from .state import BuildingState
 from .vector import PriorVector, SystemPrior
 
 
@@ -102,6 +104,9 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
         m = events[best].measurement
         state = state_after(single.clone.building, [m], cfg.refine.band_hz, [m.name or "event 1"])
         record = event_record(m, hla=events[best].hla)
+        if len(meas) == 1 and cfg.system is None:  # this clone is the result: its full replay of its event
+            record = with_replays((record,), single.clone.building, [m], [None],
+                                  mass_normalised=single.clone.mass_normalised)[0]
         single = dataclasses.replace(single, clone=dataclasses.replace(single.clone, events=(record,), state=state))
     if len(meas) == 1 and single is not None and cfg.system is None:  # no system named: the paper's method
         timings["total"] = time.perf_counter() - t_all
@@ -302,7 +307,7 @@ def isolation_start(events: Sequence[Event], meas: Measurement, system: Structur
     alpha, p, dys, de = (np.array(getattr(b, k), dtype=float) for k in ("alpha", "p", "dy", "delta_eta"))
     alpha[0], p[0], dys[0], de[0] = ISOLATION["alpha"], ISOLATION["p"], dy, NO_DEGRADATION
     return b.replace(alpha=alpha, p=p, dy=dys, delta_eta=de,
-                     damping=Damping(kind=b.damping.kind, ratio=ISOLATION["damping"], modes=b.damping.modes))
+                     damping=dataclasses.replace(b.damping, ratio=ISOLATION["damping"]))
 
 
 PREFIX_ROUNDS = 1
@@ -492,10 +497,13 @@ def result_of_joint(events: Sequence[Event], meas: Sequence[Measurement], fit: J
                    "parameters": flags(fit, "earlier events" if history else "prior"), "replay": checks[-1].to_dict(),
                    "single_event": None if single is None else single.clone.diagnostics}
     prov = provenance(cfg, timings, sources=[m.source or None for m in meas])
+    records = (tuple(history) + tuple(event_record(m, hla=ev.hla) for m, ev in zip(meas[:-1], events))
+               + (event_record(meas[-1], start=last_start, hla=events[-1].hla),))
+    befores = [None if y0 is None else BuildingState.from_vector(y0)] + list(fit.states[:-1])
+    records = with_replays(records, fit.building, meas, befores, mass_normalised=events[-1].hla.mass_normalised)
     clone = Clone(building=fit.building, mass_normalised=events[-1].hla.mass_normalised, diagnostics=diagnostics,
                   provenance=prov, uncertainty=posterior_uncertainty(fit), system=system.name,
-                  events=tuple(history) + tuple(event_record(m, hla=ev.hla) for m, ev in zip(meas[:-1], events))
-                  + (event_record(meas[-1], start=last_start, hla=events[-1].hla),), state=fit.states[-1])
+                  events=records, state=fit.states[-1])
     return IdentificationResult(clone=clone, hla=events[-1].hla,
                                 paper_estimate=start if single is None else single.paper_estimate,
                                 passes=[] if single is None else single.passes,

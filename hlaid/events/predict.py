@@ -9,6 +9,12 @@ clone's uncertainty, an ensemble of clones drawn from it gives a predictive band
 the measured response inside it (:class:`PredictiveBand`); against HLA of the event, the clone's
 elastic stiffness along the record (:class:`HLACheck`, the validation study's comparison).
 
+The default band is the one the records hold (:func:`hlaid.identify.auto.records_band`: the
+clone is used under the whole ground motion, so it is judged on every frequency the event holds,
+its higher modes with its first); the figures in HLA's band of the event (its first-mode band on
+a frame) are given beside them (:attr:`Prediction.other_bands`), from the same replay, and where
+the record's floor displacements hold it, the residual drift each story is left with.
+
 The measured displacements go through HLA's own preprocessing
 (:func:`hlaid.hla.analysis.floor_motion`: the file's displacements band-passed where it has them,
 else the accelerations integrated), and the clone's response through the same path, so a clone
@@ -85,6 +91,52 @@ class HLACheck:
 
 
 @dataclass(frozen=True, eq=False)
+class BandFigures:
+    """A prediction's figures in one band.
+
+    Attributes
+    ----------
+    band_hz : the band [Hz]
+    r : (floor,) correlation of predicted and measured displacement relative to the ground
+    drift_r : (story,) correlation of predicted and measured story drift
+    peak_drift_measured, peak_drift_predicted : (story,) peak story drift in the band [mm]
+    peak_drift_error : (story,) ``predicted / measured - 1``
+    """
+
+    band_hz: tuple[float, float]
+    r: np.ndarray
+    drift_r: np.ndarray
+    peak_drift_measured: np.ndarray
+    peak_drift_predicted: np.ndarray
+    peak_drift_error: np.ndarray
+
+    @classmethod
+    def of(cls, band, measured: np.ndarray, predicted: np.ndarray) -> BandFigures:
+        """The figures of ``(time, floor)`` measured and predicted displacements in ``band``."""
+        from ..hla import preprocess as pp
+        from ..identify.replaycheck import corrcoef
+
+        xm, xp = pp.story_drift(measured), pp.story_drift(predicted)
+        pm, pk = np.max(np.abs(xm), axis=0), np.max(np.abs(xp), axis=0)
+        return cls(band_hz=(float(band[0]), float(band[1])), r=corrcoef(predicted, measured), drift_r=corrcoef(xp, xm),
+                   peak_drift_measured=pm, peak_drift_predicted=pk, peak_drift_error=pk / pm - 1.0)
+
+    def to_dict(self) -> dict:
+        e = self.peak_drift_error
+        return {"band_hz": list(self.band_hz), "r": self.r.tolist(), "r_mean": float(np.mean(self.r)),
+                "drift_r": self.drift_r.tolist(), "drift_r_mean": float(np.mean(self.drift_r)),
+                "peak_drift_measured": self.peak_drift_measured.tolist(),
+                "peak_drift_predicted": self.peak_drift_predicted.tolist(), "peak_drift_error": e.tolist(),
+                "peak_drift_error_mean_abs": float(np.mean(np.abs(e))),
+                "peak_drift_error_worst": float(e[int(np.argmax(np.abs(e)))])}
+
+
+BAND_NAMES = {"records": "the band the event's floor records hold (the default)", "given": "the band given",
+              "hla": "HLA's band of the event (its first-mode band on a frame)"}
+"""The bands a prediction names (``prediction.json``'s ``band`` and ``other_bands``)."""
+
+
+@dataclass(frozen=True, eq=False)
 class Prediction:
     """A clone replayed under one event, against what was measured.
 
@@ -104,6 +156,13 @@ class Prediction:
     time : (time,) [s]; disp_measured, disp_predicted : (time, floor) [mm]
     band : the ensemble's predictive band (None without one)
     hla_check : the replay against HLA of the event (None unless asked for)
+    band_name : which band ``band_hz`` is (:data:`BAND_NAMES`)
+    other_bands : the same replay's figures in other bands, by name (``"hla"``: HLA's band of
+        the event, where it differs from ``band_hz``)
+    residual_drift_measured, residual_drift_predicted : (story,) the change of each story's drift
+        over the event [mm], from its first to its last second (the measured floor displacements
+        and the replay low-passed at the band's upper corner, not high-passed); None where the
+        record has no floor displacements
     """
 
     event: str
@@ -124,6 +183,17 @@ class Prediction:
     disp_predicted: np.ndarray = field(repr=False)
     band: PredictiveBand | None = None
     hla_check: HLACheck | None = None
+    band_name: str = "given"
+    other_bands: dict = field(default_factory=dict)
+    residual_drift_measured: np.ndarray | None = None
+    residual_drift_predicted: np.ndarray | None = None
+
+    @property
+    def residual_drift_error(self) -> np.ndarray | None:
+        """(story,) predicted less measured residual drift [mm] (None without floor displacements)."""
+        if self.residual_drift_measured is None or self.residual_drift_predicted is None:
+            return None
+        return self.residual_drift_predicted - self.residual_drift_measured
 
     @property
     def r_mean(self) -> float:
@@ -166,7 +236,13 @@ class Prediction:
                 "n_ensemble": 0 if b is None else b.n_ensemble, "band_level": None if b is None else b.level,
                 "coverage": None if b is None else b.coverage.tolist(),
                 "coverage_mean": None if b is None else float(np.mean(b.coverage)),
-                "band_width": None if b is None else b.width.tolist(), "status": self.status}
+                "band_width": None if b is None else b.width.tolist(), "status": self.status,
+                "band": self.band_name, "band_meaning": BAND_NAMES.get(self.band_name, self.band_name),
+                "other_bands": {k: {**v.to_dict(), "meaning": BAND_NAMES.get(k, k)}
+                                for k, v in self.other_bands.items()},
+                "residual_drift_measured": _list(self.residual_drift_measured),
+                "residual_drift_predicted": _list(self.residual_drift_predicted),
+                "residual_drift_error": _list(self.residual_drift_error)}
 
     def arrays(self) -> dict[str, np.ndarray]:
         """``prediction.npz``'s content: ``time`` and the ``(time, floor)`` displacements [mm]
@@ -175,6 +251,10 @@ class Prediction:
         if self.band is not None:
             out.update(band_lower=self.band.lower, band_upper=self.band.upper)
         return out
+
+
+def _list(x) -> list | None:
+    return None if x is None else np.asarray(x, dtype=float).tolist()
 
 
 def _finite(x: float) -> float | None:
@@ -205,9 +285,12 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
     ----------
     clone : the clone (its stories must match the measurement's floors)
     meas : the event
-    band_hz : band of the comparison [Hz] (None: HLA's band of ``meas`` under ``hla_config``:
-        the band the clone was identified in where it was one band, a first-mode band say, else
-        the record's own from its spectrum)
+    band_hz : band of the comparison [Hz] (None: the band ``meas``'s floor records hold,
+        :func:`hlaid.identify.auto.records_band`, its low corner HLA's where the displacements
+        compared are integrated accelerations, whose drift HLA's high-pass removes; the figures
+        in HLA's band of ``meas`` under ``hla_config``, the band the clone was identified in
+        where it was one band, a first-mode band say, else the record's own from its spectrum,
+        are given beside them)
     start : ``"carried"``, ``"undamaged"`` or ``"auto"`` (:func:`~hlaid.events.start.resolve_start`)
     n_ensemble : clones drawn from ``clone.uncertainty`` for the predictive band (0: none), those
         that collapse under the clone's own events rejected (:func:`hlaid.events.evidence.survivors`). The
@@ -235,8 +318,15 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
     cfg = hla_config or clone_hla_config(clone) or HLAConfig()
     if cfg.unresolved():  # "auto" settings: as the clone was identified, else from this record
         cfg = clone_hla_config(clone) or resolve_hla(meas, cfg).config
-    if band_hz is None:
-        band_hz = resolved_band(meas, cfg)
+    from ..identify.auto import records_band
+
+    hla_band = resolved_band(meas, cfg)
+    band_name = "given"
+    if band_hz is None:  # with check_hla, HLA's band of the event, as HLA of it is compared
+        band_hz, band_name = (hla_band, "hla") if check_hla else (records_band(meas), "records")
+        p = cfg.preprocess
+        if band_name == "records" and (p.displacement == "integrate" or meas.floor_disp is None):
+            band_hz = (max(float(band_hz[0]), float(hla_band[0])), band_hz[1])  # integrated: HLA's high-pass
     lo, hi = float(band_hz[0]), sg.cap_corner(float(band_hz[1]), meas.dt)
     if not 0 <= lo < hi:
         raise InputError(f"band {lo:g}-{band_hz[1]:g} Hz; expected low < high, below the Nyquist frequency",
@@ -266,6 +356,18 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
 
     xm, xp = pp.story_drift(measured), pp.story_drift(predicted[0])
     pm, pk = np.max(np.abs(xm), axis=0), np.max(np.abs(xp), axis=0)
+    others = {}
+    h_lo, h_hi = float(hla_band[0]), sg.cap_corner(float(hla_band[1]), meas.dt)
+    if band_name != "hla" and (h_lo, h_hi) != tuple(band) and 0 <= h_lo < h_hi:
+        m2, p2 = compare((h_lo, h_hi))
+        others["hla"] = BandFigures.of((h_lo, h_hi), m2, p2[0])
+    if band_name != "records":  # the whole ground motion's replay, in the band the records hold
+        w = predict_event(clone, meas, start=start, hla_config=cfg, misfit=misfit)
+        others["records"] = BandFigures(band_hz=w.band_hz, r=w.r, drift_r=w.drift_r,
+                                        peak_drift_measured=w.peak_drift_measured,
+                                        peak_drift_predicted=w.peak_drift_predicted,
+                                        peak_drift_error=w.peak_drift_error)
+    res_m, res_p = _residual_drift(meas, sim, resolved, hi_in)
     r_true = None if meas.truth is None else corrcoef(np.nan_to_num(sim.disp[0]), meas.truth.disp)
     pband = None if not n_ensemble else _band(clone, measured, predicted, misfit, len(buildings) - 1)
     check = None if not check_hla else _hla_check(clone, res, sim, compare, band, xp)
@@ -274,7 +376,30 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
                       r=corrcoef(predicted[0], measured), drift_r=corrcoef(xp, xm), peak_drift_measured=pm,
                       peak_drift_predicted=pk, peak_drift_error=pk / pm - 1.0, r_true=r_true,
                       status=int(sim.status[0]), time=meas.time, disp_measured=measured, disp_predicted=predicted[0],
-                      band=pband, hla_check=check)
+                      band=pband, hla_check=check, band_name=band_name, other_bands=others,
+                      residual_drift_measured=res_m, residual_drift_predicted=res_p)
+
+
+RESIDUAL_WINDOW_S = 1.0
+"""The residual drift of an event: the mean drift over its last second less that over its first."""
+
+
+def _residual_drift(meas: Measurement, sim, start, hi_hz: float) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """``(story,)`` measured and replayed change of each story's drift over the event [mm] (the
+    measured floor displacements and the replay low-passed at ``hi_hz``; the replay's from the
+    drift it starts with, the record's from its first second); None where the record has no
+    floor displacements or is shorter than two windows."""
+    if meas.floor_disp is None or sim.disp is None:
+        return None, None
+    n = max(int(round(RESIDUAL_WINDOW_S / meas.dt)), 1)
+    if 2 * n > meas.n_samples:
+        return None, None
+    dm = np.diff(sg.lowpass(np.asarray(meas.floor_disp, dtype=float), meas.dt, hi_hz), axis=1, prepend=0.0)
+    dp = np.diff(sg.lowpass(np.nan_to_num(np.asarray(sim.disp[0], dtype=float)), meas.dt, hi_hz), axis=1, prepend=0.0)
+    x0 = np.zeros(meas.n_floors) if start.state is None else np.asarray(start.state.drift, dtype=float)
+    measured = dm[-n:].mean(axis=0) - dm[:n].mean(axis=0)
+    predicted = dp[-n:].mean(axis=0) - x0
+    return measured, predicted
 
 
 def clone_hla_config(clone: Clone) -> HLAConfig | None:
@@ -364,4 +489,5 @@ def _hla_check(clone: Clone, res: HLAResult | None, sim, compare: _Comparison, b
                     force=np.nan_to_num(cast(np.ndarray, sim.force)[0]), ke=ke)
 
 
-__all__ = ["BAND_LEVEL", "HLACheck", "Prediction", "PredictiveBand", "identification_misfit", "predict_event"]
+__all__ = ["BAND_LEVEL", "BAND_NAMES", "BandFigures",
+           "HLACheck", "Prediction", "PredictiveBand", "identification_misfit", "predict_event"]

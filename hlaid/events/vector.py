@@ -1,7 +1,8 @@
 """A building's parameters in prior units, and the priors over them.
 
 Per story ``log k0, logit(alpha / 0.95), log(p - 1), log Cy, log delta_eta`` (``Cy = k0 dy /
-W_above``, :mod:`hlaid.events.priors`) and ``log zeta``: the vector a MAP search moves
+W_above``, :mod:`hlaid.events.priors`) and ``log zeta`` (and ``log zeta2``, the second Rayleigh
+ratio, where the building has one: :attr:`hlaid.model.Damping.ratio2`): the vector a MAP search moves
 (:class:`PriorVector`, which owns this layout and its map onto the clone's own parameters), the
 structural system's prior over it (:class:`SystemPrior`), an earlier clone's posterior
 (:class:`GaussianPrior`) and the posterior residuals a search minimises
@@ -10,11 +11,12 @@ structural system's prior over it (:class:`SystemPrior`), an earlier clone's pos
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
 
-from ..model import Building, Damping
+from ..model import Building
 from ..model.schema import STORY_BOUNDS
 from ..model.uncertainty import ParameterUncertainty
 from .priors import ALPHA_MAX, StructuralPrior, elf_profile, prior_record, system_residuals, weight_above
@@ -47,9 +49,18 @@ def from_units(base, u: np.ndarray, log_zeta: float | None = None):
         dy = _clip("dy", e[:, 3] * weight_above(base) / k0)
         delta_eta = _clip("delta_eta", e[:, 4])
     d = base.damping
-    ratio = d.ratio if log_zeta is None else float(min(np.exp(min(log_zeta, 0.0)), 0.5))
+    ratio = d.ratio if log_zeta is None else _ratio_of(log_zeta)
     return base.replace(k0=k0, alpha=alpha, p=p, dy=dy, delta_eta=delta_eta,
-                        damping=Damping(kind=d.kind, ratio=max(ratio, 1e-6), modes=d.modes))
+                        damping=dataclasses.replace(d, ratio=ratio))
+
+
+def _ratio_of(log_zeta: float) -> float:
+    """A damping ratio of its log, within (1e-6, 0.5)."""
+    return max(float(min(np.exp(min(log_zeta, 0.0)), 0.5)), 1e-6)
+
+
+def _log_ratio(ratio: float | None) -> float:
+    return float(np.log(max(float(ratio or 0.0), 1e-5)))
 
 
 def _clip(name: str, v: np.ndarray) -> np.ndarray:
@@ -65,7 +76,10 @@ class PriorVector:
     ----------
     building : the start (its other properties are kept; with ``laws``, its entries that the
         laws hold fixed are kept too: :func:`hlaid.events.laws.with_laws` sets them)
-    damping : the damping ratio moves too
+    damping : the damping ratio moves too (and the second Rayleigh ratio where the building
+        has one)
+    masses : the floor-mass ratios move too (where the masses are unknown): ``log(m_i / m_top)``
+        of every floor below the top, the total mass kept
     laws : each story's law (:data:`hlaid.events.laws.LAWS`; None: every entry free, the
         degrading law): only the entries a story's law leaves free are in the vector
 
@@ -79,24 +93,42 @@ class PriorVector:
 
     NAMES = ("k0", "alpha", "p", "cy", "delta_eta")
 
-    def __init__(self, building: Building, *, damping: bool = True, laws: Sequence[str] | None = None):
+    def __init__(self, building: Building, *, damping: bool = True, laws: Sequence[str] | None = None,
+                 masses: bool = False):
         from .laws import check_laws, law_mask
 
         self.building = building
         self.damping = damping
+        self.damping2 = bool(damping and building.damping.ratio2 is not None)
+        self.masses = bool(masses and building.n_stories > 1)
         self.n = building.n_stories
         self.laws = None if laws is None else check_laws(laws, self.n)
-        u, lz = to_units(building)
-        self.base = np.append(u.ravel(), lz) if damping else u.ravel().copy()
         mask = np.ones((self.n, 5), dtype=bool) if self.laws is None else law_mask(self.laws)
         self.mask = mask
-        self.free = np.append(mask.ravel(), True) if damping else mask.ravel()
-        every = [(name, i) for i in range(self.n) for name in self.NAMES] + ([("damping", -1)] if damping else [])
+        self.base = self._full(building)
+        self.free = np.concatenate([mask.ravel(), np.ones(self.base.size - mask.size, dtype=bool)])
+        every = ([(name, i) for i in range(self.n) for name in self.NAMES] + ([("damping", -1)] if damping else [])
+                 + ([("damping2", -1)] if self.damping2 else [])
+                 + ([("mass", i) for i in range(self.n - 1)] if self.masses else []))
         self.slots = [s for s, f in zip(every, self.free) if f]
         self.x0 = self.base[self.free].copy()
         self.lower = np.full(self.x0.size, -np.inf)
         self.upper = np.full(self.x0.size, np.inf)
         self.scale = np.ones(self.x0.size)
+
+    def _full(self, building: Building) -> np.ndarray:
+        """The full layout of ``building``: every story's five entries, ``log zeta`` where the
+        damping moves and ``log zeta2`` where its second ratio does."""
+        u, lz = to_units(building)
+        extra = ([lz] if self.damping else []) + ([_log_ratio(building.damping.ratio2)] if self.damping2 else [])
+        if self.masses:
+            m = np.asarray(building.mass, dtype=float)
+            extra += list(np.log(m[:-1] / m[-1]))
+        return np.append(u.ravel(), extra)
+
+    def log_mass_ratios(self, x: np.ndarray) -> np.ndarray | None:
+        """``(story - 1,)`` the ``log(m_i / m_top)`` of ``x`` (None where the masses do not move)."""
+        return self.expand(x)[-(self.n - 1):] if self.masses else None
 
     def expand(self, x: np.ndarray) -> np.ndarray:
         """The full layout (every story's five entries, and ``log zeta``) of ``x``, the fixed
@@ -108,19 +140,32 @@ class PriorVector:
     def split(self, x: np.ndarray) -> tuple[np.ndarray, float | None]:
         """``x`` as ``(story, 5)`` prior units (fixed entries included) and ``log zeta``."""
         full = self.expand(x)
-        return full[: 5 * self.n].reshape(self.n, 5), (float(full[-1]) if self.damping else None)
+        return full[: 5 * self.n].reshape(self.n, 5), (float(full[5 * self.n]) if self.damping else None)
+
+    def log_zeta2(self, x: np.ndarray) -> float | None:
+        """``log`` of the second Rayleigh ratio in ``x`` (None where it does not move)."""
+        return float(self.expand(x)[5 * self.n + 1]) if self.damping2 else None
 
     def building_at(self, x: np.ndarray) -> Building:
-        u, lz = self.split(np.asarray(x, dtype=float))
-        return from_units(self.building, u, lz)
+        x = np.asarray(x, dtype=float)
+        u, lz = self.split(x)
+        base = self.building
+        lm = self.log_mass_ratios(x)
+        if lm is not None:
+            r = np.exp(np.clip(np.append(lm, 0.0), -5.0, 5.0))
+            base = base.replace(mass=float(np.sum(base.mass)) * r / r.sum())
+        b = from_units(base, u, lz)
+        lz2 = self.log_zeta2(x)
+        if lz2 is None:
+            return b
+        return b.replace(damping=dataclasses.replace(b.damping, ratio2=_ratio_of(lz2)))
 
     def of(self, building: Building) -> np.ndarray:
         """The vector of ``building`` (the inverse of :meth:`building_at`)."""
-        u, lz = to_units(building)
-        full = np.append(u.ravel(), lz) if self.damping else u.ravel()
-        return full[self.free]
+        return self._full(building)[self.free]
 
-    CLONE_TRANSFORMS = {"k0": "log", "alpha": "logit", "p": "log1", "cy": "log", "delta_eta": "log", "damping": "log"}
+    CLONE_TRANSFORMS = {"k0": "log", "alpha": "logit", "p": "log1", "cy": "log", "delta_eta": "log", "damping": "log",
+                        "damping2": "log"}
     """Per entry the transform of the clone's own parameter (:class:`ParameterUncertainty`)."""
 
     def clone_units(self, building: Building) -> tuple[np.ndarray, np.ndarray]:
@@ -135,12 +180,20 @@ class PriorVector:
             if ("cy", i) in where:
                 A[where["cy", i], where["k0", i]] = -1.0
                 offset[where["cy", i]] = log_w[i]
-        return A, offset
+        keep = [j for j, (name, _) in enumerate(self.slots) if name != "mass"]  # the masses: not a clone slot
+        return A[keep], offset[keep]
 
     def clone_slots(self) -> tuple[tuple[tuple[str, int], ...], tuple[str, ...]]:
         """The clone's ``(name, story)`` per entry (``dy`` for ``cy``) and each one's transform."""
-        return (tuple(("dy" if name == "cy" else name, i) for name, i in self.slots),
-                tuple(self.CLONE_TRANSFORMS[name] for name, _ in self.slots))
+        slots = [s for s in self.slots if s[0] != "mass"]
+        return (tuple(("dy" if name == "cy" else name, i) for name, i in slots),
+                tuple(self.CLONE_TRANSFORMS[name] for name, _ in slots))
+
+
+MASS_BETA = 0.3
+"""Log standard deviation of a floor's mass over the top floor's under the prior, around equal
+masses (the masses are unknown where they move): floors of one building carry similar loads,
+a roof or a plant floor a third lighter or heavier."""
 
 
 class SystemPrior:
@@ -157,8 +210,16 @@ class SystemPrior:
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         u, lz = self.vector.split(x)
-        return system_residuals(self.prior, u, lz, self.k0_ref, self.elf,
-                                free=None if self.vector.laws is None else self.vector.mask)
+        out = system_residuals(self.prior, u, lz, self.k0_ref, self.elf,
+                               free=None if self.vector.laws is None else self.vector.mask)
+        lz2 = self.vector.log_zeta2(x)
+        if lz2 is not None:
+            d = self.prior.damping  # the second ratio: the system's damping too, as widely
+            out = np.append(out, (lz2 - np.log(d.median)) / d.beta)
+        lm = self.vector.log_mass_ratios(x)
+        if lm is not None:  # the floor masses: equal (the start's) unless the records say otherwise
+            out = np.append(out, lm / MASS_BETA)
+        return out
 
     def to_dict(self) -> dict:
         return {"kind": "system", **prior_record(self.prior), "k0_ref": self.k0_ref.tolist()}
@@ -208,7 +269,8 @@ def prior_of_clone(unc: ParameterUncertainty | None, building: Building, vector:
     a building that changed move)."""
     if unc is None or len(unc.slots) < len(vector.slots):
         return SystemPrior(fallback, vector, building.k0)
-    if unc.method == "laplace-posterior" and tuple(unc.slots) == vector.clone_slots()[0]:
+    if (unc.method == "laplace-posterior" and tuple(unc.slots) == vector.clone_slots()[0]
+            and len(unc.slots) == len(vector.slots)):
         A, offset = vector.clone_units(building)
         Ai = np.linalg.inv(A)
         return GaussianPrior(Ai @ (np.asarray(unc.centre, dtype=float) - offset), widen**2 * Ai @ unc.covariance @ Ai.T)

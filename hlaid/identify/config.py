@@ -197,15 +197,16 @@ class RefineConfig:
         the comparison baseline, ``configs/identify_leastsquares.yaml``; the steel frame's
         clones, whose misfit is model error, not sensor noise). ``"none"``: keep the
         regressions' and classifiers' estimate. ``"auto"``: ``least_squares`` where HLA chose a
-        first-mode band (a shear-building clone cannot follow the record above it: the misfit is
-        model error), else ``eiv``
+        first-mode band (the records are not a shear building's above it: the misfit is model
+        error), else ``eiv``
     parameters : which story parameters are refined (without ``k0``: no k0 stage). ``"auto"``:
         all five, without ``k0`` where the floor masses are unknown and no mass ratios are given
         (the replay fit of k0 is then ill-conditioned: docs/validation.md)
     damping : also refine the Rayleigh damping ratio. ``"auto"``: where HLA found the assumed
         damping over-corrects (``force.damping`` chosen ``regression``)
-    band_hz : band of the compared accelerations [Hz]. ``"auto"``: HLA's band where it is one for
-        every record (a first-mode band, or one given), else 0.1-20 Hz
+    band_hz : band of the compared accelerations [Hz]. ``"auto"``: the band the records hold
+        (:func:`hlaid.identify.auto.records_band`) where HLA chose a first-mode band, HLA's band
+        where one is given, else 0.1-20 Hz
     max_iterations : evaluations of the residuals per fit
     tangent_max_mb : the errors-in-variables weighting is used only where the tangent (and its
         step Jacobians) takes at most this many MiB; above it, least squares (said in the clone's
@@ -216,9 +217,10 @@ class RefineConfig:
         also the story drifts of the measured floor displacements, ``"disp+drift"`` floor
         displacements and story drifts (least squares: the errors-in-variables weighting models
         accelerations only). ``"auto"``: ``acc+drift`` where the records' floor displacements
-        resolve every story's drift (HLA's ``preprocess.displacement`` chosen ``measured``), else
-        ``acc``. On the steel frame the drifts put the next event's peak drift in the right story
-        (worst story error 23 -> 16 %)
+        resolve every story's drift (HLA's ``preprocess.displacement`` chosen ``measured``;
+        ``disp+drift`` there where the band is the records' band of a first-mode-band building),
+        else ``acc``. On the steel frame the drifts put the next event's peak drift in the right
+        story (worst story error 23 -> 16 %)
     restart_ratio : when the least-squares cost exceeds this multiple of ``0.5 N sigma^2`` (N
         residuals, sigma the measurement's noise level), the fit misses the data by more than its
         noise: it runs again, every story's parameters, from a neutral start (alpha 0.2, p 2,

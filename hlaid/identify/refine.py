@@ -11,6 +11,7 @@ model (:mod:`hlaid.simulate.sensitivity`), or full replays differenced (see :fun
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import inspect
 import time
@@ -25,7 +26,7 @@ from .. import _progress
 from .._threads import blas_threads
 from ..errors import InputError
 from ..measurement import Measurement
-from ..model import Building, Damping
+from ..model import Building
 from ..simulate.sensitivity import linearised
 from .residuals import ReplayResiduals
 
@@ -205,7 +206,7 @@ class ParameterVector:
                 ratio = float(v)
             else:
                 fields[name][i] = v
-        return b.replace(**fields, damping=Damping(kind=b.damping.kind, ratio=ratio, modes=b.damping.modes))
+        return b.replace(**fields, damping=dataclasses.replace(b.damping, ratio=ratio))
 
 
 class SearchVector(Protocol):

@@ -37,27 +37,33 @@ def natural_frequencies(k: torch.Tensor, mass: torch.Tensor) -> torch.Tensor:
     return lam.clamp_min(0.0).sqrt()
 
 
-def _rayleigh(k, mass, ratio, modes):
+def _rayleigh(k, mass, ratio, modes, ratio2=None):
     w = natural_frequencies(k, mass)
     n = w.shape[-1]
     i, j = (min(m, n) - 1 for m in modes)
     wi, wj = w[..., i], w[..., j]
-    a0 = 2.0 * ratio * wi * wj / (wi + wj)
-    a1 = 2.0 * ratio / (wi + wj)
+    if ratio2 is None or i == j:
+        a0 = 2.0 * ratio * wi * wj / (wi + wj)
+        a1 = 2.0 * ratio / (wi + wj)
+        return a0, a1
+    # zeta(w) = a0 / (2 w) + a1 w / 2 through (wi, ratio) and (wj, ratio2)
+    d = wj * wj - wi * wi
+    a0 = 2.0 * wi * wj * (ratio * wj - ratio2 * wi) / d
+    a1 = 2.0 * (ratio2 * wj - ratio * wi) / d
     return a0, a1
 
 
-def _stiffness_proportional(k, mass, ratio, modes):
+def _stiffness_proportional(k, mass, ratio, modes, ratio2=None):
     w1 = natural_frequencies(k, mass)[..., min(modes[0], k.shape[-1]) - 1]
     return torch.zeros_like(w1), 2.0 * ratio / w1
 
 
-def _mass_proportional(k, mass, ratio, modes):
+def _mass_proportional(k, mass, ratio, modes, ratio2=None):
     w1 = natural_frequencies(k, mass)[..., min(modes[0], k.shape[-1]) - 1]
     return 2.0 * ratio * w1, torch.zeros_like(w1)
 
 
-def _no_damping(k, mass, ratio, modes):
+def _no_damping(k, mass, ratio, modes, ratio2=None):
     z = torch.zeros(k.shape[:-1], dtype=k.dtype, device=k.device)
     return z, z
 
@@ -71,17 +77,20 @@ DAMPING_KINDS: dict[str, Callable] = {
 """Named damping models -> function returning Rayleigh coefficients ``(a0, a1)``, each ``(batch,)``."""
 
 
-def rayleigh_coefficients(k0, mass, kind="rayleigh", ratio=0.05, modes=(1, 2)):
+def rayleigh_coefficients(k0, mass, kind="rayleigh", ratio=0.05, modes=(1, 2), ratio2=None):
     """Coefficients ``(a0, a1)`` of ``C = a0 M + a1 K0`` for a named damping model.
 
     ``K0`` is the initial (elastic) spring stiffness matrix; geometric (P-Delta) stiffness is
     not included. A building with fewer stories than a named mode uses its highest mode.
+    ``ratio2`` (``rayleigh``): the ratio of the second mode named, independent of ``ratio``
+    (None: ``ratio``). A ratio2 far above ratio can make ``a0`` negative: the Rayleigh curve
+    then dips below zero between the modes only where they are far apart (not checked here).
     """
     try:
         fn = DAMPING_KINDS[kind]
     except KeyError:
         raise ValueError(f"unknown damping kind {kind!r}; expected one of {sorted(DAMPING_KINDS)}") from None
-    return fn(k0, mass, ratio, modes)
+    return fn(k0, mass, ratio, modes, ratio2)
 
 
 def damping_matrix(k0, mass, a0, a1):

@@ -209,7 +209,7 @@ class Building:
         """Damping coefficients ``(a0, a1)`` of ``C = a0 M + a1 K0``."""
         from . import _structure as S
         a0, a1 = S.rayleigh_coefficients(self._t("k0"), self._t("mass"), self.damping.kind,
-                                         self.damping.ratio, self.damping.modes)
+                                         self.damping.ratio, self.damping.modes, self.damping.ratio2)
         return float(a0[0]), float(a1[0])
 
     def damping_matrix(self) -> np.ndarray:

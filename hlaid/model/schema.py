@@ -150,16 +150,21 @@ class Damping:
 
     Attributes
     ----------
-    kind : ``"rayleigh"`` (``ratio`` on the two ``modes``), ``"stiffness"`` or ``"mass"``
-        (proportional, ``ratio`` on ``modes[0]``), or ``"none"``.
+    kind : ``"rayleigh"`` (``ratio`` on the two ``modes``, or ``ratio`` on ``modes[0]`` and
+        ``ratio2`` on ``modes[1]``), ``"stiffness"`` or ``"mass"`` (proportional, ``ratio`` on
+        ``modes[0]``), or ``"none"``.
     ratio : damping ratio (0.05 is 5 %).
     modes : the two modes (1-based) that get ``ratio``; none beyond the building's stories
         (a one-story building keeps the default ``[1, 2]``: its only mode).
+    ratio2 : ``rayleigh`` only: the damping ratio of ``modes[1]``, independent of ``ratio``
+        (None: ``ratio``): the higher modes' damping is then the records', not the first
+        mode's. ``C = a0 M + a1 K0`` still, with ``a0, a1`` solving the two ratios.
     """
 
     kind: str = "rayleigh"
     ratio: float = bounded(0.05, lo=0.0, hi=1.0, hi_open=True)
     modes: tuple[int, int] = bounded((1, 2), lo=1, hi="STORIES")
+    ratio2: float | None = bounded(None, lo=0.0, hi=1.0, hi_open=True)
 
     def __post_init__(self):
         if self.kind not in DAMPING_KINDS:
@@ -172,6 +177,11 @@ class Damping:
             raise InputError(f"damping.modes = {list(modes)}; expected two mode numbers such as [1, 2]")
         check_bounds(self, prefix="damping.")
         object.__setattr__(self, "modes", modes)
+        if self.ratio2 is not None and self.kind != "rayleigh":
+            raise InputError(f"damping.ratio2 = {self.ratio2!r} with kind {self.kind!r}; a second ratio is for "
+                             "kind 'rayleigh' only")
+        if self.ratio2 is not None and modes[0] == modes[1]:
+            raise InputError(f"damping.ratio2 with damping.modes = {list(modes)}; expected two different modes")
 
     def check_modes(self, n_stories: int) -> None:
         """Refuse a mode beyond the building's ``n_stories`` (a one-story building keeps ``[1, 2]``)."""
@@ -181,7 +191,8 @@ class Damping:
                              f"1..{n_stories}")
 
     def to_dict(self) -> dict:
-        return {"kind": self.kind, "ratio": self.ratio, "modes": list(self.modes)}
+        return {"kind": self.kind, "ratio": self.ratio, "modes": list(self.modes),
+                **({"ratio2": self.ratio2} if self.ratio2 is not None else {})}
 
 
 __all__ = ["STORY_BOUNDS", "DAMPING_RATIO_MAX", "WEIGHT_KN", "DAMPING_KINDS", "Damping", "check_story_value"]

@@ -1,7 +1,8 @@
 """Parameter uncertainty of an identified clone: a Gaussian in transformed parameters.
 
 Each uncertain parameter is a slot ``(name, story)`` (story 0-based; ``("damping", -1)`` is the
-Rayleigh ratio). Positive parameters are carried as ``theta = log(x)`` (``transform "log"``),
+Rayleigh ratio, ``("damping2", -1)`` the second one where the clone has one). Positive
+parameters are carried as ``theta = log(x)`` (``transform "log"``),
 a parameter at a zero lower bound (``delta_eta = 0``) as ``theta = x`` (``"linear"``). The
 uncertainty is ``theta ~ N(centre, covariance)``; intervals and ensemble draws map back
 through the transform and are clipped to the parameter's physical bounds. Parameters that
@@ -14,6 +15,7 @@ This module imports only numpy and the model (scipy when an interval is asked fo
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -21,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from .params import Building, Damping
+from .params import Building
 from .schema import DAMPING_RATIO_MAX, STORY_BOUNDS
 
 TRANSFORMS = ("log", "linear", "logit", "log1")
@@ -59,7 +61,8 @@ def from_theta(transform: str, theta):
         return 1.0 + np.exp(np.minimum(theta, 700.0))
     return theta
 BOUNDS = {n: (STORY_BOUNDS[n].lo, min(float(STORY_BOUNDS[n].upper()), ALPHA_SCALE if n == "alpha" else math.inf))
-          for n in ("k0", "alpha", "p", "dy", "delta_eta")} | {"damping": (0.0, DAMPING_RATIO_MAX)}
+          for n in ("k0", "alpha", "p", "dy", "delta_eta")} | {"damping": (0.0, DAMPING_RATIO_MAX),
+                                                                  "damping2": (0.0, DAMPING_RATIO_MAX)}
 """Range of each parameter: the building's own (:data:`hlaid.model.schema.STORY_BOUNDS`; alpha
 within the identification's 0.95, damping ratio within :data:`~hlaid.model.schema.DAMPING_RATIO_MAX`).
 Draws and intervals are clipped to it, so every member of an ensemble is a building a clone file may hold."""
@@ -164,17 +167,19 @@ class ParameterUncertainty:
     def apply(self, building: Building, x) -> Building:
         """``building`` with the slots set to the values ``x`` ``(P,)``."""
         fields = {n: np.array(getattr(building, n), dtype=float) for n in ("k0", "alpha", "p", "dy", "delta_eta")}
-        ratio = building.damping.ratio
+        ratio, ratio2 = building.damping.ratio, building.damping.ratio2
         for (n, i), v in zip(self.slots, np.asarray(x, dtype=float)):
             if n == "damping":
                 ratio = float(v)
+            elif n == "damping2":
+                ratio2 = float(v)
             else:
                 if i >= building.n_stories:
                     raise InputError(f"uncertainty slot {n}[{i + 1}] is beyond the building's "
                                      f"{building.n_stories} stories")
                 fields[n][i] = v
         d = building.damping
-        return building.replace(**fields, damping=Damping(kind=d.kind, ratio=ratio, modes=d.modes))
+        return building.replace(**fields, damping=dataclasses.replace(d, ratio=ratio, ratio2=ratio2))
 
     # ------------------------------------------------------------------ I/O
     def to_dict(self, level: float = 0.9) -> dict:
@@ -213,7 +218,7 @@ class ParameterUncertainty:
             name, story, t, v = p.get("name"), p.get("story"), p.get("transform"), p.get("value")
             if name not in BOUNDS:
                 raise bad(f"parameters[{j}].name must be one of {', '.join(BOUNDS)}")
-            if name == "damping":
+            if name in ("damping", "damping2"):
                 story = 0
             elif isinstance(story, bool) or not isinstance(story, int) or story < 1:
                 raise bad(f"parameters[{j}].story must be a story number >= 1")

@@ -153,7 +153,13 @@ def identification_flags(clone: Clone, stiffness_error: Sequence[float] | None =
                    "and identify from more events or with the structural system (--system)")
     out += parameter_flags(clone)
     out += plausibility_flags(clone)
-    if clone.mass_normalised:
+    fitted = any(f.get("name") == "mass" for f in (clone.diagnostics or {}).get("parameters") or ())
+    if clone.mass_normalised and fitted:
+        ratios = " / ".join(f"{v:.2f}" for v in np.asarray(clone.building.mass) / np.sum(clone.building.mass))
+        out.append(f"floor masses unknown: their ratios fitted to the records' higher modes ({ratios} of the total, "
+                   "equal the prior), the clone is mass-normalised (stiffness per unit mass; losses take floor areas "
+                   "from the config)")
+    elif clone.mass_normalised:
         out.append("floor masses unknown: equal (or the given ratios) assumed, the clone is mass-normalised "
                    "(stiffness per unit mass; losses take floor areas from the config); give the floor masses where "
                    "known (measurement.mass_t in a run config)")

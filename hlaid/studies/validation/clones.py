@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -118,7 +119,7 @@ def _fit_scale_damping(b: Building, meas: Measurement, band_hz, max_iterations: 
     d = b.damping
 
     def make(x):
-        return b.replace(k0=b.k0 * np.exp(x[0]), damping=Damping(kind=d.kind, ratio=float(x[1]), modes=d.modes))
+        return b.replace(k0=b.k0 * np.exp(x[0]), damping=dataclasses.replace(d, ratio=float(x[1])))
 
     def fun(x):
         r = simulate_response(make(x), ground)

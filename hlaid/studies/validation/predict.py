@@ -59,6 +59,11 @@ class StudyPrediction:
         return self.prediction.hla_check.stiffness_error
 
     @property
+    def status(self) -> int:
+        """The replay's simulator status (0 ok)."""
+        return self.prediction.status
+
+    @property
     def hla(self) -> HLAResult | None:
         return None if self.prediction.hla_check is None else self.prediction.hla_check.hla
 
@@ -71,7 +76,8 @@ class StudyPrediction:
                  ("r_broadband", self.r_broadband),
                  ("peak_drift_measured", p.peak_drift_measured), ("peak_drift_predicted", p.peak_drift_predicted),
                  ("peak_drift_error", p.peak_drift_error), ("stiffness_error", self.stiffness_error),
-                 ("stiffness_error_mean", nanmean(self.stiffness_error)), ("status", p.status))}
+                 ("stiffness_error_mean", nanmean(self.stiffness_error)), ("status", p.status),
+                 ("wide", p.other_bands["records"].to_dict() if "records" in p.other_bands else None))}
 
 
 def nanmean(x) -> float | None:
