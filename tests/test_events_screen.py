@@ -113,3 +113,18 @@ def test_an_update_is_refitted_only_where_the_earlier_events_no_longer_replay_we
     check = moved.clone.diagnostics["update_check"]
     assert check["refit"] and check.get("refitted") is True
     assert check["misfit_change"] > check["gaussian"] + check["limit"]
+
+
+def test_an_entry_held_at_its_bound_leaves_the_evidence_finite():
+    """A zero column of the posterior Jacobian (an entry at a bound of its transform, such as a
+    damping ratio at its cap) is held there: the log-determinants are those of the other entries,
+    not NaN from a singular matrix."""
+    from hlaid.events.fit import _logdet, log_dets
+
+    rng = np.random.default_rng(0)
+    J, Jp = rng.normal(size=(30, 3)), np.eye(3)
+    held = np.hstack([J, np.zeros((30, 1))])
+    held_p = np.hstack([np.vstack([Jp, np.zeros((1, 3))]), np.zeros((4, 1))])
+    assert np.isnan(_logdet(held.T @ held))
+    d = log_dets(held, held_p)
+    assert d["log_det_hessian"] == pytest.approx(_logdet(J.T @ J)) and d["log_det_prior"] == pytest.approx(0.0)

@@ -980,7 +980,8 @@ def test_the_errors_in_variables_stage_falls_back_when_it_fails_numerically(monk
         return Fit(events=[{"n_eff": 10.0}, {"n_eff": 12.0}])
     monkeypatch.setattr(events, "map_refine", fake_map_refine)
     cfg = SimpleNamespace(refine=SimpleNamespace(method="eiv", damping=False, band_hz=(0.1, 20.0), max_iterations=5,
-                                                 tangent_max_mb=100.0, compare="acc"))
+                                                 tangent_max_mb=100.0, compare="acc"),
+                          hla=SimpleNamespace(preprocess=SimpleNamespace(band_hz=None)))
     with pytest.warns(HlaidWarning, match="errors-in-variables stage skipped .*not positive definite"):
         fit = events.joint_fit(object(), [], None, cfg, masses=False)
     assert calls == ["tangent", "ignore"]

@@ -208,7 +208,7 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
     prior_cost = 0.5 * float(np.sum(prior.residuals(np.asarray(rr.x)) ** 2))
     return JointFit(building=current, result=rr, vector=vector, covariance=cov, prior_sd=prior_sd, states=states,
                     events=info, rounds=fits, seconds=time.perf_counter() - t0, squares=squares,
-                    prior_cost=prior_cost, log_det_hessian=_logdet(H), log_det_prior=_logdet(P), compare=compare,
+                    prior_cost=prior_cost, **log_dets(J, Jp), compare=compare,
                     series=series, jac_weights=None if weights is None else weights.copy(),
                     prior=prior)
 
@@ -219,6 +219,17 @@ def _pinv(A: np.ndarray) -> np.ndarray:
         return np.linalg.pinv(A)
     except (np.linalg.LinAlgError, ValueError):
         return np.full_like(A, np.nan)
+
+
+def log_dets(J: np.ndarray, Jp: np.ndarray) -> dict[str, float]:
+    """``log_det_hessian`` and ``log_det_prior`` of a fit whose posterior Jacobian is ``J`` and
+    prior Jacobian ``Jp`` (both ``(rows, P)``), over the entries that move the residuals: an entry
+    held at a bound of its transform (a zero column of ``J``, e.g. a damping ratio at its cap) is
+    fixed there, in the Hessian and the prior alike, instead of making both singular."""
+    J, Jp = np.asarray(J, dtype=float), np.asarray(Jp, dtype=float)
+    keep = np.any(J != 0.0, axis=0)
+    Jk, Jpk = J[:, keep], Jp[:, keep]
+    return {"log_det_hessian": _logdet(Jk.T @ Jk), "log_det_prior": _logdet(Jpk.T @ Jpk)}
 
 
 def _logdet(A: np.ndarray) -> float:

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model import Building
-from .fit import JointFit, _logdet, _prior_jacobian
+from .fit import JointFit, _prior_jacobian, log_dets
 from .laws import with_laws
 from .priors import StructuralPrior
 from .series import effective_samples
@@ -207,8 +207,7 @@ def screen_laws(fit: JointFit, laws_list: Sequence[tuple[str, ...]], system: Str
         n_eff = np.array([effective_samples(p.reshape(-1, ev.channels)) for p, ev in zip(c.parts, series.events)])
         out[c.laws] = Screened(laws=c.laws, building=c.vector.building_at(c.x),
                                squares=np.array([float(np.sum(p**2)) for p in c.parts]), n_eff=n_eff,
-                               prior_cost=0.5 * float(np.sum(rp**2)), log_det_hessian=_logdet(J.T @ J),
-                               log_det_prior=_logdet(Jp.T @ Jp), steps=c.steps)
+                               prior_cost=0.5 * float(np.sum(rp**2)), **log_dets(J, Jp), steps=c.steps)
     return out
 
 
