@@ -241,7 +241,7 @@ class DecisionBasis:
 
 def _band(band) -> str:
     lo, hi = band
-    return "band not recorded" if not (math.isfinite(lo) and math.isfinite(hi)) else f"{lo:g}-{hi:g} Hz"
+    return "band not recorded" if not (math.isfinite(lo) and math.isfinite(hi)) else f"{lo:.2g}-{hi:.3g} Hz"
 
 
 def decision_basis(clone, *, events: Iterable[AtEvent | Mapping] = (), heights=None, heights_assumed: bool = False,
