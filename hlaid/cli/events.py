@@ -83,8 +83,9 @@ def run_update(args) -> int:
 
     res = update_clone(clone, meas, cfg, widen=args.widen)
     res.clone.save(out, force=args.force)
-    print_summary(res.clone, res.timings.get("total"), before=clone)
-    _progress.info(f"wrote {out}")
+    print_summary(res.clone, before=clone)
+    seconds = res.timings.get("total")
+    _progress.info(f"wrote {out}" + (f" (updated in {seconds:.1f} s)" if seconds is not None else ""))
     return 0
 
 

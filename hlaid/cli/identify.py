@@ -104,10 +104,12 @@ def run_identify(args) -> int:
             shutil.rmtree(tb, ignore_errors=True)
         raise
     if args.method == "hlasvm":
-        print_summary(est.result_.clone, est.result_.timings.get("total"))
+        print_summary(est.result_.clone)
+        seconds = est.result_.timings.get("total")
+        _progress.info(f"wrote {out}" + (f" (identified in {seconds:.1f} s)" if seconds is not None else ""))
     else:
         print_parameters(est, records[0])
-    _progress.info(f"wrote {out}")
+        _progress.info(f"wrote {out}")
     return 0
 
 
@@ -169,7 +171,7 @@ MOVED = 0.10
 labelled as the earlier events' or the prior's)."""
 
 
-def print_summary(clone, seconds: float | None = None, before=None) -> None:
+def print_summary(clone, before=None) -> None:
     """The clone's story parameters, where each comes from, its replay of its events and its
     state; ``before``: the clone an update started from (parameters that moved are said so)."""
     import numpy as np
@@ -219,11 +221,12 @@ def print_summary(clone, seconds: float | None = None, before=None) -> None:
     if clone.state is not None:
         drift, eta = np.round(clone.state.drift, 2).tolist(), np.round(clone.state.eta(b), 3).tolist()
         lines.append(f"state after {len(clone.events)} event(s): residual drift {drift} mm, eta {eta}")
-    if clone.system:
-        lines.append(f"structural system: {clone.system}")
     laws = d.get("laws") or {}
+    system = f" ({clone.system})" if clone.system else ""
     if laws.get("chosen"):
-        lines.append(f"story laws: {' / '.join(laws['chosen'])} ({laws.get('kept') or laws.get('reason', '')})")
+        lines.append(f"story laws{system}: {' / '.join(laws['chosen'])} ({laws.get('kept') or laws.get('reason', '')})")
+    elif clone.system:
+        lines.append(f"structural system: {clone.system}")
     rule = d.get("start_rule") or {}
     if rule.get("choice"):
         where = "from the carried state" if rule["choice"] == "carried" else "from rest"
@@ -240,8 +243,6 @@ def print_summary(clone, seconds: float | None = None, before=None) -> None:
     from ..run.decision import identification_flags
 
     lines += [f"flag: {f}" for f in identification_flags(clone)]
-    if seconds is not None:
-        lines.append(f"wall time {seconds:.1f} s")
     for line in lines:
         _progress.info(line)
 
