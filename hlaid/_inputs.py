@@ -457,6 +457,17 @@ def _npy_header(member: IO[bytes], name: str, size: int, source: str):
     return shape, fortran, dtype
 
 
+_MEMBER_ERRORS = (zipfile.BadZipFile, OSError, EOFError, RuntimeError, NotImplementedError)
+"""What opening or reading one member of a zip archive may raise on a damaged or hostile file."""
+
+
+def _npy_members(zf: zipfile.ZipFile):
+    """``(info, name)`` of each array (``NAME.npy``) an NPZ archive holds, in its order."""
+    for info in zf.infolist():
+        if info.filename.endswith(".npy"):
+            yield info, info.filename[:-4]
+
+
 def _check_rows(zf: zipfile.ZipFile, source: str, max_rows: int | str) -> None:
     """Refuse an NPZ whose array headers claim more than ``max_rows`` rows, reading headers only."""
     if max_rows == DATA_LINES:
@@ -465,14 +476,11 @@ def _check_rows(zf: zipfile.ZipFile, source: str, max_rows: int | str) -> None:
         top, why = int(limit("SAMPLES")), "set HLAID_MAX_SAMPLES to raise the limit"
     else:
         top, why = int(max_rows), "more than hlaid reads"
-    for info in zf.infolist():
-        if not info.filename.endswith(".npy"):
-            continue
-        name = info.filename[:-4]
+    for info, name in _npy_members(zf):
         try:
             with zf.open(info) as member:
                 shape, _, _ = _npy_header(member, name, info.file_size, source)
-        except (zipfile.BadZipFile, OSError, EOFError, RuntimeError, NotImplementedError):
+        except _MEMBER_ERRORS:
             continue  # the reading below says what is wrong with it
         if shape and int(shape[0]) > top:
             raise InputError(f"array {name!r} claims {int(shape[0]):,} samples; a record holds at most {top:,} "
@@ -497,15 +505,12 @@ def load_npz(path: str | os.PathLike, *, not_npz: str = "not an NPZ file (a zip 
             if max_rows is not None:
                 _check_rows(zf, source, max_rows)
             out = {}
-            for info in zf.infolist():
-                if not info.filename.endswith(".npy"):
-                    continue
-                name = info.filename[:-4]
+            for info, name in _npy_members(zf):
                 try:
                     with zf.open(info) as member:
                         shape, fortran, dtype = _npy_header(member, name, info.file_size, source)
                         data = member.read()
-                except (zipfile.BadZipFile, OSError, EOFError, RuntimeError, NotImplementedError) as err:
+                except _MEMBER_ERRORS as err:
                     raise InputError(f"array {name!r} cannot be read ({one_line(err, 80)})",
                                      source=source) from None
                 a = np.frombuffer(data, dtype=dtype)
