@@ -35,7 +35,8 @@ _LAZY: dict[str, tuple[str, ...]] = {
     ".svm": ("KernelSVC",),
     ".clone": ("Clone", "load_clone"),
     # a building's events
-    ".events": ("identify_clone", "update_clone", "predict_event", "Prediction", "BuildingState"),
+    ".events": ("identify_clone", "update_clone", "predict_event", "Prediction"),
+    ".model.state": ("BuildingState",),
     # risk
     ".ida": ("run_ida", "IDAConfig", "IDAResult"),
     # pipeline and errors

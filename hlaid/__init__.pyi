@@ -11,7 +11,6 @@ from .errors import NotIdentifiableError as NotIdentifiableError
 from .estimators import BaseIdentifier as BaseIdentifier
 from .estimators import HLASVMIdentifier as HLASVMIdentifier
 from .estimators import NotFittedError as NotFittedError
-from .events import BuildingState as BuildingState
 from .events import Prediction as Prediction
 from .events import identify_clone as identify_clone
 from .events import predict_event as predict_event
@@ -32,6 +31,7 @@ from .model import BoucWenBuilding as BoucWenBuilding
 from .model import Building as Building
 from .model import BuildingTensors as BuildingTensors
 from .model import Damping as Damping
+from .model.state import BuildingState as BuildingState
 from .motions import GroundMotion as GroundMotion
 from .motions import builtin_records as builtin_records
 from .run import RunConfig as RunConfig

@@ -26,8 +26,8 @@ Version 2 adds the optional ``uncertainty`` block: the identified
 parameters' Gaussian in log space (per parameter: name, story, transform, value, std and a
 90 % interval; the covariance), see :class:`hlaid.uncertainty.ParameterUncertainty`.
 Version 3 adds what the clone learnt from: its structural ``system`` (the prior of
-:mod:`hlaid.events.priors`), the ``events`` it was identified from in time order, and the
-``state`` the last of them left the building in (:class:`hlaid.events.state.BuildingState`;
+:mod:`hlaid.joint.priors`), the ``events`` it was identified from in time order, and the
+``state`` the last of them left the building in (:class:`hlaid.model.state.BuildingState`;
 null: undamaged). Version 1 and 2 files (none of these) are still read, as undamaged clones.
 
 With ``mass_normalised`` true the masses are relative (ratios) and every stiffness is per
@@ -52,9 +52,9 @@ import numpy as np
 from ._fileio import write_json
 from ._inputs import read_json
 from .errors import InputError, escape_controls, kind_of
-from .events.state import BuildingState
 from .model import Building, Damping
 from .model.schema import STATE_BOUNDS, check_event, check_state
+from .model.state import BuildingState
 from .systems import SYSTEMS
 from .units import UNITS_JSON
 

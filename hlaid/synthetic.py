@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .events.state import BuildingState, at_rest, settle_time
 from .measurement import Measurement, Truth
 from .model import Building
+from .model.state import BuildingState, at_rest, settle_time
 from .motions import GroundMotion
 from .simulate import simulate_response
 from .specs import MeasurementSpec, SimulationConfig, load_simulation_config
@@ -38,7 +38,7 @@ def simulate_measurement(building: Building, motion: GroundMotion, *, rate_hz: f
     seed : seed of the noise generator
     substeps : RK4 sub-steps per sample
     y0 : ``(4*story,)`` the state the building starts in (:meth:`BuildingState.vector
-        <hlaid.events.state.BuildingState.vector>`; None: at rest)
+        <hlaid.model.state.BuildingState.vector>`; None: at rest)
 
     Returns
     -------
@@ -66,7 +66,7 @@ def simulate_events(building: Building, motions: Sequence[GroundMotion], *, rate
                     noise_rms: float = 0.10, seed: int = 0, substeps: int = 4
                     ) -> tuple[list[Measurement], list[BuildingState]]:
     """Records of one building's successive earthquakes: each event starts in the state the
-    previous one left the building in, once it came to rest (:func:`~hlaid.events.state.settle_time`
+    previous one left the building in, once it came to rest (:func:`~hlaid.model.state.settle_time`
     of free vibration).
 
     Returns the measurements (noise seeds ``seed, seed + 1, ...``) and the true state after each.

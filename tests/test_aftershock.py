@@ -9,8 +9,8 @@ from conftest import paper_record, window
 
 from hlaid.clone import Clone
 from hlaid.errors import InputError
-from hlaid.events.state import BuildingState
 from hlaid.ida import IDAConfig, prepare_building, run_ida
+from hlaid.model.state import BuildingState
 
 
 @pytest.fixture(scope="module")

@@ -71,7 +71,7 @@ def test_numerical_failures_are_defined_once():
     found = _failure_definitions()
     assert len(found) == 1 and found[0].startswith("hlaid/errors.py:"), found
     from hlaid.errors import NUMERICAL_FAILURES, TangentTooLargeError, UnstableTangentError
-    from hlaid.events import fallback
+    from hlaid.joint import fallback
     from hlaid.identify import refiners
 
     assert refiners.NUMERICAL_FAILURES is NUMERICAL_FAILURES is fallback.NUMERICAL_FAILURES
@@ -80,7 +80,7 @@ def test_numerical_failures_are_defined_once():
 
 
 def test_a_numerical_failure_falls_back_and_a_bug_is_raised():
-    from hlaid.events.fallback import run_stage
+    from hlaid.joint.fallback import run_stage
 
     notes: list[dict] = []
     with pytest.warns(HlaidWarning, match="a stage failed numerically"):

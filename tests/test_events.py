@@ -13,17 +13,17 @@ from reference_systems import ShearBuildingRef
 
 from hlaid.clone import Clone
 from hlaid.errors import InputError
-from hlaid.events.fit import map_refine, posterior_uncertainty
 from hlaid.events.identify import identify_clone
 from hlaid.events.predict import predict_event
-from hlaid.events.priors import PRIORS, get_prior
-from hlaid.events.series import effective_samples
 from hlaid.events.start import resolve_start
-from hlaid.events.state import BuildingState, settle_time
 from hlaid.events.update import update_clone
-from hlaid.events.vector import PriorVector, from_units, prior_of_clone, to_units
 from hlaid.identify import IdentifyConfig
+from hlaid.joint.fit import map_refine, posterior_uncertainty
+from hlaid.joint.priors import PRIORS, get_prior
+from hlaid.joint.series import effective_samples
+from hlaid.joint.vector import PriorVector, from_units, prior_of_clone, to_units
 from hlaid.measurement import check_series
+from hlaid.model.state import BuildingState, settle_time
 from hlaid.simulate import simulate_response
 from hlaid.synthetic import simulate_events, simulate_measurement
 

@@ -11,13 +11,13 @@ import pytest
 from conftest import paper_record, window
 
 from hlaid.clone import Clone
-from hlaid.events.fit import joint_fit, map_refine, posterior_uncertainty
-from hlaid.events.laws import candidates, choose_laws, default_laws, with_laws
-from hlaid.events.priors import get_prior
-from hlaid.events.screen import data_jacobian, prefix_point, screen_laws
 from hlaid.events.update import update_clone
 from hlaid.identify.auto import resolve_settings
 from hlaid.identify.config import IdentifyConfig
+from hlaid.joint.fit import joint_fit, map_refine, posterior_uncertainty
+from hlaid.joint.laws import candidates, choose_laws, default_laws, with_laws
+from hlaid.joint.priors import get_prior
+from hlaid.joint.screen import data_jacobian, prefix_point, screen_laws
 from hlaid.model import Building
 from hlaid.synthetic import simulate_events
 
@@ -119,7 +119,7 @@ def test_an_entry_held_at_its_bound_leaves_the_evidence_finite():
     """A zero column of the posterior Jacobian (an entry at a bound of its transform, such as a
     damping ratio at its cap) is held there: the log-determinants are those of the other entries,
     not NaN from a singular matrix."""
-    from hlaid.events.fit import _logdet, log_dets
+    from hlaid.joint.fit import _logdet, log_dets
 
     rng = np.random.default_rng(0)
     J, Jp = rng.normal(size=(30, 3)), np.eye(3)

@@ -10,7 +10,11 @@ import pytest
 from conftest import paper_record, window
 
 from hlaid.clone import Clone
-from hlaid.events.laws import (
+from hlaid.events.prequential import MARGIN, start_rule
+from hlaid.events.start import resolve_start
+from hlaid.hla.auto import DRIFT_AGREEMENT
+from hlaid.hla.preprocess import drift_agreement, first_mode
+from hlaid.joint.laws import (
     ELASTIC_CY,
     NO_DEGRADATION,
     candidates,
@@ -20,14 +24,10 @@ from hlaid.events.laws import (
     laws_of,
     with_laws,
 )
-from hlaid.events.prequential import MARGIN, start_rule
-from hlaid.events.priors import get_prior, weight_above
-from hlaid.events.start import resolve_start
-from hlaid.events.state import BuildingState
-from hlaid.events.vector import PriorVector, SystemPrior, from_units, to_units
-from hlaid.hla.auto import DRIFT_AGREEMENT
-from hlaid.hla.preprocess import drift_agreement, first_mode
+from hlaid.joint.priors import get_prior, weight_above
+from hlaid.joint.vector import PriorVector, SystemPrior, from_units, to_units
 from hlaid.model.schema import STORY_BOUNDS
+from hlaid.model.state import BuildingState
 from hlaid.simulate import simulate_response
 from hlaid.synthetic import simulate_events
 
@@ -206,7 +206,7 @@ def test_the_check_of_an_update_flags_one_that_forgot_the_earlier_events(table1)
     the parameters within the posterior is kept; one that moved a well-determined parameter far
     (the earlier event's misfit grows by much more than a wide posterior predicts) is refitted."""
     from hlaid.events.guard import EXCESS_MIN, check_update, load_earlier
-    from hlaid.events.vector import GaussianPrior
+    from hlaid.joint.vector import GaussianPrior
 
     gm = window(paper_record("elcentro-1940-ns"), 6.0).scaled(0.5)
     (m,), _ = simulate_events(table1, [gm], noise_rms=0.02, seed=5)

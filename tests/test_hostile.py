@@ -957,7 +957,7 @@ def test_the_errors_in_variables_stage_falls_back_when_it_fails_numerically(monk
 
     import scipy.linalg
 
-    import hlaid.events.fit as events
+    import hlaid.joint.fit as events
     from hlaid.errors import UnstableTangentError
     from hlaid.identify.eiv import TangentWhitener
 

@@ -127,5 +127,5 @@ def test_every_dotted_name_of_the_package_exists():
 
 def test_a_missing_module_is_seen():
     assert missing_reference("hlaid.identify.joint.map_refine") == "hlaid.identify has no 'joint'"
-    assert missing_reference("hlaid.events.fit.map_refine") is None
+    assert missing_reference("hlaid.joint.fit.map_refine") is None
     assert missing_reference("hlaid.errors.one_line") is None

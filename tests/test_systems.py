@@ -7,8 +7,8 @@ import dataclasses
 import pytest
 
 from hlaid.errors import InputError
-from hlaid.events.laws import LAWS, SYSTEM_LAWS
-from hlaid.events.priors import PRIORS, get_prior
+from hlaid.joint.laws import LAWS, SYSTEM_LAWS
+from hlaid.joint.priors import PRIORS, get_prior
 from hlaid.loss.inventory import INVENTORIES, get_inventory
 from hlaid.model.collapse import COLLAPSE_MODELS
 from hlaid.systems import SYSTEMS, StructuralPrior, StructuralSystem, get_system
@@ -65,7 +65,7 @@ def test_a_system_whose_parts_name_another_is_refused():
 
 
 def test_a_clone_records_its_prior_with_its_system():
-    from hlaid.events.priors import prior_record
+    from hlaid.joint.priors import prior_record
 
     rec = prior_record(PRIORS["rc-frame"])
     assert list(rec) == ["name", "title", "collapse", "story_spread", "k0_beta", "cy", "alpha", "p", "delta_eta",

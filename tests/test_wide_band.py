@@ -172,8 +172,8 @@ def test_the_prior_vector_moves_masses_and_a_second_ratio_and_the_clone_keeps_th
     """With masses and a second Rayleigh ratio in the vector: the building comes back from its
     vector, the total mass is kept, the prior holds the masses equal and the clone file and the
     posterior's slots keep the second ratio."""
-    from hlaid.events.priors import PRIORS
-    from hlaid.events.vector import MASS_BETA, PriorVector, SystemPrior
+    from hlaid.joint.priors import PRIORS
+    from hlaid.joint.vector import MASS_BETA, PriorVector, SystemPrior
 
     b = table1.replace(mass=np.full(3, 1.0 / 3.0), damping=Damping(ratio=0.03, ratio2=0.05))
     v = PriorVector(b, damping=True, masses=True)

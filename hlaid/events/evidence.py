@@ -35,8 +35,8 @@ import numpy as np
 from .. import _progress
 from ..errors import InputError, escape_controls, one_line
 from ..model import Building
+from ..model.state import at_rest, settle_time
 from ..motions import GroundMotion
-from .state import at_rest, settle_time
 
 if TYPE_CHECKING:
     from ..clone import Clone

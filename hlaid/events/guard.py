@@ -21,10 +21,10 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .. import _progress
+from ..joint.series import at_replay_rate, effective_samples, event_series
+from ..joint.vector import GaussianPrior, PriorVector
 from ..measurement import Measurement, ground_digest
 from ..model import Building
-from .series import at_replay_rate, effective_samples, event_series
-from .vector import GaussianPrior, PriorVector
 
 EXCESS_MIN = 5.0
 """The earlier events' log-misfit change may exceed the Gaussian's prediction by this much (or

@@ -7,7 +7,7 @@
                            one (one yielding record and no system: the
                            clone), or the prior's median building where
                            none yielded
-                        -> one set of parameters for all of them, the     hlaid.events.fit.joint_fit
+                        -> one set of parameters for all of them, the     hlaid.joint.fit.joint_fit
                            state carried from each event into the next,
                            the structural system's prior where the data say little
                         -> the clone, left in the state its last event left it
@@ -38,20 +38,20 @@ from ..identify.replaycheck import replay_check
 from ..identify.result import IdentificationResult, file_digest, provenance
 from ..identify.stages import Event, analyse
 from ..identify.tb import TBLogger
+from ..joint.fallback import run_stage
+from ..joint.fit import WEIGHT_ROUNDS, JointFit, best_fit, flags, joint_fit, posterior_uncertainty
+from ..joint.laws import NO_DEGRADATION, TIE_LOG_UNITS, candidates, choose_laws, default_laws, with_laws
+from ..joint.priors import StructuralPrior, elf_profile, get_prior, weight_above
+from ..joint.screen import SCREEN_MARGIN, Screened, prefix_point, screen_laws
+from ..joint.series import state_after
+from ..joint.vector import PriorVector, SystemPrior
 from ..measurement import Measurement, building_name, check_series, ground_digest, ground_profile
 from ..model import Building, Damping
+from ..model.state import BuildingState
 from ..units import G_MM_S2
 from .evidence import measured_peak_drift
-from .fallback import run_stage
-from .fit import WEIGHT_ROUNDS, JointFit, best_fit, flags, joint_fit, posterior_uncertainty
-from .laws import NO_DEGRADATION, TIE_LOG_UNITS, candidates, choose_laws, default_laws, with_laws
 from .prequential import HISTORY, predicted, with_history
-from .priors import StructuralPrior, elf_profile, get_prior, weight_above
 from .replay import with_replays
-from .screen import SCREEN_MARGIN, Screened, prefix_point, screen_laws
-from .series import state_after
-from .state import BuildingState
-from .vector import PriorVector, SystemPrior
 
 
 def identify_clone(measurements: Measurement | Sequence[Measurement], config: IdentifyConfig | None = None, *,
@@ -64,7 +64,7 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     elastic, or a ``system`` named: the paper's method on the most informative record (where one
     yielded) gives the start, and one set of parameters is then fitted to every record, the state
     carried from each into the next and the system's prior holding what the data say little about
-    (:mod:`hlaid.events.fit`): the posterior (intervals, ensemble draws) is never wider than the
+    (:mod:`hlaid.joint.fit`): the posterior (intervals, ensemble draws) is never wider than the
     system's prior.
     The clone is left in the state its last record left the building in (``clone.state``).
 
@@ -187,12 +187,12 @@ short fit (the best first)."""
 def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPrior, cfg: IdentifyConfig, *,
                 names: Sequence[str], k0_ref: np.ndarray, isolation: Building | None = None,
                 notes: list[dict] | None = None, y0: np.ndarray | None = None) -> tuple[JointFit, dict]:
-    """The laws the stories follow (:mod:`hlaid.events.laws`), chosen by the Laplace evidence of
-    the joint fit of ``meas`` under each candidate (:func:`~hlaid.events.laws.candidates`), ties to
+    """The laws the stories follow (:mod:`hlaid.joint.laws`), chosen by the Laplace evidence of
+    the joint fit of ``meas`` under each candidate (:func:`~hlaid.joint.laws.candidates`), ties to
     the system's law. Every candidate nested in ``fit``'s laws (the fit under the system's laws)
-    is judged from ``fit`` itself (:func:`hlaid.events.screen.screen_laws`: no fit of its own);
+    is judged from ``fit`` itself (:func:`hlaid.joint.screen.screen_laws`: no fit of its own);
     one the screen finds better than the system's law by more than the tie and
-    :data:`~hlaid.events.screen.SCREEN_MARGIN` wins on the screen (the screen errs against a
+    :data:`~hlaid.joint.screen.SCREEN_MARGIN` wins on the screen (the screen errs against a
     candidate); else those within the margin of beating it get a short fit (one weighting round
     from the screen's point) before they are compared (at most :data:`MAX_CONTENDERS`). The law
     chosen, where it is not the system's, is fitted in full from its point.
@@ -322,7 +322,7 @@ def prefix_history(fit: JointFit, meas: Sequence[Measurement], system: Structura
     """How the clones of the prefixes of ``meas`` (the last :data:`~hlaid.events.prequential.HISTORY`)
     predict the record after them, from their carried state and from rest: per record index its
     prequential record. Each prefix's clone is ``fit``'s optimum moved by one Newton step of the
-    prefix's posterior (:func:`hlaid.events.screen.prefix_point`: no fit of its own); where the
+    prefix's posterior (:func:`hlaid.joint.screen.prefix_point`: no fit of its own); where the
     replay does not bear the step out, or it goes beyond the Gaussian's reach (or ``refit``), the
     prefix is fitted (:data:`PREFIX_ROUNDS` weighting rounds from ``fit``'s building under its laws)."""
     out: dict[int, dict] = {}

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..measurement import Measurement
 from ..model import Building
-from .state import BuildingState
+from ..model.state import BuildingState
 
 
 def own_replay(building: Building, meas: Measurement, before: BuildingState | None = None, *,

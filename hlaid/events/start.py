@@ -1,6 +1,6 @@
 """Where a replay of a clone starts: the one place a ``start`` is resolved.
 
-A clone carries the state its last event left the building in (:class:`~hlaid.events.state.BuildingState`).
+A clone carries the state its last event left the building in (:class:`~hlaid.model.state.BuildingState`).
 A prediction, an IDA or a demand replay starts from it (``"carried"``), at rest (``"undamaged"``),
 or as the clone itself says (``"auto"``): its prequential start rule's choice
 (:mod:`hlaid.events.prequential`: carried only where the carried state predicted the events
@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import InputError
-from .state import BuildingState
+from ..model.state import BuildingState
 
 if TYPE_CHECKING:
     from ..clone import Clone

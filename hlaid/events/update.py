@@ -1,6 +1,6 @@
 """Sequential updating: one more event added to a clone.
 
-The clone's posterior is the prior (:func:`~hlaid.events.vector.prior_of_clone`, over the
+The clone's posterior is the prior (:func:`~hlaid.joint.vector.prior_of_clone`, over the
 entries its stories' laws leave free), the state its last event left the building in is where the
 new event's replay starts, and the new event's record is the data; the earlier events' records
 check that the Gaussian posterior did not forget them (:mod:`hlaid.events.guard`). On the same
@@ -23,16 +23,16 @@ from ..identify.auto import resolve_like
 from ..identify.config import IdentifyConfig
 from ..identify.result import IdentificationResult
 from ..identify.stages import analyse
+from ..joint.fallback import run_stage
+from ..joint.fit import JointFit, best_fit, joint_fit
+from ..joint.laws import laws_of
+from ..joint.priors import get_prior
+from ..joint.vector import GaussianPrior, PriorVector, prior_of_clone
 from ..measurement import Measurement, check_not_learnt
 from ..model import Building
-from .fallback import run_stage
-from .fit import JointFit, best_fit, joint_fit
 from .guard import check_update, load_earlier
 from .identify import announce, result_of_joint, with_choices
-from .laws import laws_of
 from .prequential import predicted, with_history
-from .priors import get_prior
-from .vector import GaussianPrior, PriorVector, prior_of_clone
 
 
 def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig | None = None, *,

@@ -43,9 +43,9 @@ from .. import _progress
 from ..clone import Clone
 from ..errors import InputError
 from ..events.start import Start, resolve_start
-from ..events.state import BuildingState
 from ..io.records import as_motions
 from ..model import Building
+from ..model.state import BuildingState
 from ..motions import GroundMotion
 from ..simulate import simulate_response
 from .config import DEFAULT_EXCEEDANCE, IDAConfig, check_levels

@@ -18,7 +18,7 @@ from ..systems import get_system
 from .refiners import REFINERS
 
 COMPARES = ("acc", "acc+drift", "disp+drift")
-"""What a joint fit may compare (``refine.compare``; :mod:`hlaid.events.compare`)."""
+"""What a joint fit may compare (``refine.compare``; :mod:`hlaid.joint.compare`)."""
 
 KERNEL_NAMES = ("linear", "poly", "rbf", "sigmoid")
 """The kernels of :data:`hlaid.svm.KERNELS`, kept here so that loading a config imports no torch
@@ -213,7 +213,7 @@ class RefineConfig:
         diagnostics). Its time grows alike: a 20-story building under El Centro (54 s) would need
         1.3 GiB and minutes of whitening; Table 1 (3 stories) 0.1 GiB
     compare : what a joint fit of several records (or of one that stays elastic) compares
-        (:data:`hlaid.events.compare.COMPARES`): ``"acc"`` the floor accelerations, ``"acc+drift"``
+        (:data:`hlaid.joint.compare.COMPARES`): ``"acc"`` the floor accelerations, ``"acc+drift"``
         also the story drifts of the measured floor displacements, ``"disp+drift"`` floor
         displacements and story drifts (least squares: the errors-in-variables weighting models
         accelerations only). ``"auto"``: ``acc+drift`` where the records' floor displacements
@@ -284,7 +284,7 @@ class IdentifyConfig:
         samples are drawn
     system : the structural system (:data:`hlaid.systems.SYSTEMS`: ``steel-moment-frame``,
         ``rc-frame``, ``generic``). Its prior holds the parameters the data say little about
-        (maximum a posteriori over all of a clone's events, :mod:`hlaid.events.fit`), and its
+        (maximum a posteriori over all of a clone's events, :mod:`hlaid.joint.fit`), and its
         collapse law is the assessment's. null: ``generic`` where a prior is needed (several
         events, a record that stays elastic) and a single yielding record identified by its data
         alone

@@ -211,7 +211,7 @@ class ParameterVector:
 
 class SearchVector(Protocol):
     """The parameters a search moves (:class:`ParameterVector`, or the prior units of
-    :class:`hlaid.events.vector.PriorVector`)."""
+    :class:`hlaid.joint.vector.PriorVector`)."""
 
     slots: list
     x0: np.ndarray
@@ -224,7 +224,7 @@ class SearchVector(Protocol):
 
 class Residuals(Protocol):
     """Buildings to residuals (:class:`~hlaid.identify.residuals.ReplayResiduals`, or the
-    posterior's of :class:`hlaid.events.vector.PosteriorResiduals`)."""
+    posterior's of :class:`hlaid.joint.vector.PosteriorResiduals`)."""
 
     substeps: int
     channels: int

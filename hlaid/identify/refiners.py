@@ -236,7 +236,7 @@ class ErrorsInVariables(LeastSquares):
 
 
 def fit_or_fall_back(fit: Callable[..., Any], ground_noise: str) -> Any:
-    """``fit(ground_noise=ground_noise)`` (a joint fit, :func:`hlaid.events.fit.map_refine`
+    """``fit(ground_noise=ground_noise)`` (a joint fit, :func:`hlaid.joint.fit.map_refine`
     with its other arguments bound); where the errors-in-variables weighting (``"tangent"``)
     fails numerically (:data:`hlaid.errors.NUMERICAL_FAILURES`), least squares instead, with a warning and a
     note in each event's record of the fit (``errors_in_variables``, kept in the clone's

@@ -31,7 +31,7 @@ class IdentificationResult:
     timings : seconds per step
     refinement : the refinement's final fit (its Jacobian and residuals at the solution give
         ``clone.uncertainty``), None without refinement
-    joint : the fit over all events (:class:`hlaid.events.fit.JointFit`: several records, or an
+    joint : the fit over all events (:class:`hlaid.joint.fit.JointFit`: several records, or an
         elastic one), else None
     """
 

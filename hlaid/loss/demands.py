@@ -41,7 +41,7 @@ import numpy as np
 from .. import _progress
 from ..clone import Clone
 from ..errors import InputError
-from ..events.state import settle_time
+from ..model.state import settle_time
 from ..units import G_MM_S2
 
 SETTLE_DECAY = 100.0
@@ -232,7 +232,7 @@ def _replays(buildings, motions, scale: np.ndarray, cfg, tail: float, window: fl
 
 def residual_window(buildings) -> tuple[float, float]:
     """``(tail [s], window [s])``: the free-vibration tail after which an elastic oscillation has
-    decayed by :data:`SETTLE_DECAY` in every building (:func:`~hlaid.events.state.settle_time`,
+    decayed by :data:`SETTLE_DECAY` in every building (:func:`~hlaid.model.state.settle_time`,
     at least :data:`MIN_TAIL_S`), and the averaging window, the longest first period."""
     tail = max(settle_time(b, math.log(SETTLE_DECAY), (MIN_TAIL_S, math.inf)) for b in buildings)
     return tail, max(float(b.periods()[0]) for b in buildings)

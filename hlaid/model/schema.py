@@ -37,7 +37,7 @@ STATE_BOUNDS: dict[str, Bounds] = {
     "peak_positive": Bounds(0.0, 1e6, unit="mm"),
     "peak_negative": Bounds(0.0, 1e6, unit="mm"),
 }
-"""Bounds of a carried state's per-story values (:class:`hlaid.events.state.BuildingState`):
+"""Bounds of a carried state's per-story values (:class:`hlaid.model.state.BuildingState`):
 a drift beyond the largest story height, or a hysteretic work beyond the largest ``dy`` times
 that drift, is no state of a building."""
 

@@ -89,7 +89,7 @@ yield at drift ratios of about 0.5-1 % (a building that stays linear gets a "yie
 
 PRIOR_SIGMAS = 2.0
 """A story's ``alpha`` or ``p`` more than this many of the structural system's prior standard
-deviations (in prior units, :mod:`hlaid.events.priors`) from its median is flagged implausible."""
+deviations (in prior units, :mod:`hlaid.joint.priors`) from its median is flagged implausible."""
 
 
 def plausibility_flags(clone: Clone) -> list[str]:
@@ -97,7 +97,7 @@ def plausibility_flags(clone: Clone) -> list[str]:
     is named) makes plausible, each with its evidence and what to do: a yield drift under
     :data:`YIELD_DRIFT_MIN` of the story height, ``alpha`` or ``p`` beyond :data:`PRIOR_SIGMAS` of the
     system's prior."""
-    from ..events.priors import ALPHA_MAX, PRIORS
+    from ..joint.priors import ALPHA_MAX, PRIORS
 
     b = clone.building
     from ..systems import get_system

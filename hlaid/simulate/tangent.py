@@ -108,7 +108,7 @@ def ground_tangent(building: Building, motion: GroundMotion, *, lags: int, shape
         the tangent and its step Jacobians would take more than this many MiB (a budget, below
         the hard limit ``HLAID_MAX_TANGENT_MB`` on four copies)
     y0 : ``(4*story,)`` the state the replay starts from (a building an earlier event left;
-        :class:`~hlaid.events.state.BuildingState`); None: at rest
+        :class:`~hlaid.model.state.BuildingState`); None: at rest
 
     Returns
     -------

@@ -2,7 +2,7 @@
 
 Plain frozen data (no numpy): each system of :data:`hlaid.systems.SYSTEMS` is one
 :class:`StructuralSystem` in a module of its own beside this one. The code that acts on the parts
-lives where it acts: the prior's residuals in :mod:`hlaid.events.priors`, the inventory's CSV and
+lives where it acts: the prior's residuals in :mod:`hlaid.joint.priors`, the inventory's CSV and
 its checks in :mod:`hlaid.loss.inventory`, the collapse laws in :mod:`hlaid.model.collapse`.
 """
 
@@ -22,8 +22,8 @@ class Median:
 
 @dataclass(frozen=True, kw_only=True)
 class StructuralPrior:
-    """Prior of one structural system (:mod:`hlaid.events.priors` says how it is used, and
-    :func:`hlaid.events.priors.prior_record` how a clone records it).
+    """Prior of one structural system (:mod:`hlaid.joint.priors` says how it is used, and
+    :func:`hlaid.joint.priors.prior_record` how a clone records it).
 
     Attributes
     ----------
@@ -137,7 +137,7 @@ class StructuralSystem:
         Bouc-Wen law alone, no strength loss)
     prior : the identification's prior (:class:`StructuralPrior`)
     law : the story law its stories follow unless the records say otherwise (a name of
-        :data:`hlaid.events.laws.LAWS`)
+        :data:`hlaid.joint.laws.LAWS`)
     inventory : the loss assessment's default component inventory, or None (the user gives one)
     """
 

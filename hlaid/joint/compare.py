@@ -12,7 +12,7 @@ too (``refine.compare``, :data:`COMPARES`):
 - ``disp+drift``: floor displacements relative to the ground and story drifts.
 
 Every channel is band-passed like the replay's and normalised by its RMS (the joint fit's
-weighting, :func:`hlaid.events.series.effective_samples`, counts channels that move as one once).
+weighting, :func:`hlaid.joint.series.effective_samples`, counts channels that move as one once).
 
 Whether the measured drifts are usable (:func:`hlaid.hla.preprocess.drift_agreement`):
 displacement sensors whose noise scales with a floor's whole motion bury a small story drift (a
@@ -47,7 +47,7 @@ def parts(compare: str) -> tuple[str, ...]:
 class StoryResiduals:
     """Normalised residuals of replays against one measurement's floor accelerations and/or
     floor displacements and story drifts (``compare``, :data:`COMPARES`): the residual unit of an
-    :class:`~hlaid.events.series.EventSeries` with the interface of
+    :class:`~hlaid.joint.series.EventSeries` with the interface of
     :class:`~hlaid.identify.residuals.ReplayResiduals` (least squares, no ground-noise weighting).
 
     Parameters

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..model import Building, equations
-from ..model.schema import STATE_BOUNDS
+from .schema import STATE_BOUNDS
 
 SETTLE_LIMITS_S = (2.0, 10.0)
 """Free vibration after an event before the next one: four first-mode decay times of the

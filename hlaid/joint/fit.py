@@ -1,8 +1,8 @@
 """One set of story parameters fitted to a building's events in time order, the state carried.
 
-The events are one history of one building (:class:`~hlaid.events.series.EventSeries`: each
+The events are one history of one building (:class:`~hlaid.joint.series.EventSeries`: each
 replay starts where the previous one left the building), so one set of parameters explains them
-all. The search is maximum a posteriori in prior units (:mod:`hlaid.events.vector`): every story
+all. The search is maximum a posteriori in prior units (:mod:`hlaid.joint.vector`): every story
 parameter and the damping ratio move, and the prior holds those the data say little about.
 Each event's residuals are weighted by the information they hold; the weights are estimated
 again at the optimum and the search repeated from there until they settle (:func:`map_refine`), so a misfit
@@ -29,11 +29,11 @@ from ..identify.refine import RefineResult, fit_residuals
 from ..identify.refiners import fit_or_fall_back
 from ..measurement import Measurement
 from ..model import Building
+from ..model.state import BuildingState
 from ..model.uncertainty import ParameterUncertainty
 from .laws import with_laws
 from .priors import StructuralPrior
 from .series import REPLAY_RATE_RATIO, WIDE_RATE_RATIO, EventSeries, at_replay_rate, event_series
-from .state import BuildingState
 from .vector import GaussianPrior, PosteriorResiduals, PriorVector, SystemPrior
 
 WEIGHT_ROUNDS = 3
@@ -67,7 +67,7 @@ class JointFit:
     prior_cost : half the prior's squared residuals at the optimum
     log_det_hessian : ``log det`` of the Gauss-Newton matrix of the posterior at the optimum
     log_det_prior : ``log det`` of the prior's precision over the free entries
-    compare : what the events' residuals compared (:data:`hlaid.events.compare.COMPARES`)
+    compare : what the events' residuals compared (:data:`hlaid.joint.compare.COMPARES`)
     series : the events' residuals the search ran (for screens from this fit: the candidate
         laws, the prefixes; None where not kept)
     jac_weights : ``(event,)`` the events' weights ``result.jacobian``'s data rows carry
@@ -136,7 +136,7 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
     ----------
     start : the search's start (the paper's estimate of the most informative event, an earlier
         clone, or the prior's median building; with ``laws``, its fixed entries set by
-        :func:`hlaid.events.laws.with_laws`)
+        :func:`hlaid.joint.laws.with_laws`)
     measurements : the events, oldest first
     prior : the prior over the prior-unit vector (None: ``system``'s, with k0 around ``start``'s)
     system : the structural system (with ``prior`` None)
@@ -148,17 +148,17 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
     damping : the damping ratio is fitted (else held at ``start``'s)
     y0 : the state before the first event (``(4*story,)``; None: at rest)
     names : the events' labels (for the states)
-    compare : what the residuals compare (:data:`hlaid.events.compare.COMPARES`)
-    laws : each story's law (:data:`hlaid.events.laws.LAWS`; None: every entry free)
+    compare : what the residuals compare (:data:`hlaid.joint.compare.COMPARES`)
+    laws : each story's law (:data:`hlaid.joint.laws.LAWS`; None: every entry free)
     rounds : at most this many searches, each with the weights of the last one's optimum
     series : the events' residuals already built (for fits of the same events under other laws:
         one tangent for all); None: built here
     warm : ``start`` is an earlier search's optimum: every round stops at :data:`LATER_FTOL`
         (else only the rounds after the first)
     masses : the floor-mass ratios are fitted too (the masses unknown; equal under the prior,
-        :data:`hlaid.events.vector.MASS_BETA`)
+        :data:`hlaid.joint.vector.MASS_BETA`)
     rate_ratio : the replays' samples per period of the band's upper corner
-        (:func:`hlaid.events.series.at_replay_rate`)
+        (:func:`hlaid.joint.series.at_replay_rate`)
     """
     t0 = time.perf_counter()
     if prior is None and system is None:

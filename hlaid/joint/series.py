@@ -20,8 +20,8 @@ from ..errors import InputError
 from ..identify.residuals import ReplayResiduals
 from ..measurement import Measurement
 from ..model import Building
+from ..model.state import BuildingState, at_rest, settle_time
 from ..signal import lowpass
-from .state import BuildingState, at_rest, settle_time
 
 REPLAY_RATE_RATIO = 16.0
 """Replays of a fit run at least this many samples per period of the fitted band's upper corner:
@@ -30,7 +30,7 @@ and decimated first (:func:`at_replay_rate`), a sixth of the work with the same 
 
 WIDE_RATE_RATIO = 4.0
 """Samples per period of the upper corner of a band that reaches the higher modes (the records'
-band, :func:`hlaid.events.fit.wide_band`), at least :data:`WIDE_RATE_HZ`: the band is represented
+band, :func:`hlaid.joint.fit.wide_band`), at least :data:`WIDE_RATE_HZ`: the band is represented
 up to its corner (Nyquist at twice it; the ground's linear interpolation between samples loses
 0.3 dB at 0.4 of the corner, the frame's second mode, 0.9 dB at 0.7, its third, 1.8 dB at the
 corner, where the band's filter has already halved it) and the clone's modes up to 10 Hz are
@@ -175,7 +175,7 @@ def event_series(at: Building, events: Sequence[Measurement], band_hz, ground_no
                  jac_substeps: int, y0, max_mb, compare: str = "acc") -> EventSeries:
     """The event series with each event's residuals (for ``"tangent"`` whitened along ``at``'s
     replay from the state carried into that event); ``compare``: what each event's residuals
-    compare (:data:`hlaid.events.compare.COMPARES`; other than ``"acc"``, least squares)."""
+    compare (:data:`hlaid.joint.compare.COMPARES`; other than ``"acc"``, least squares)."""
     from .compare import StoryResiduals
 
     units: list = []

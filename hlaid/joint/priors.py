@@ -3,8 +3,8 @@
 A record that stays nearly elastic says much about a building's stiffness and damping and little
 about its yield strength, loop shape or degradation; a first-mode-dominated record constrains a
 few combinations of a story's five parameters. Where the data say little, the refinement falls
-back on the structural system (maximum a posteriori; :mod:`hlaid.events.fit`): a Gaussian in
-transformed parameters ("prior units", :mod:`hlaid.events.vector`), each structural system's own
+back on the structural system (maximum a posteriori; :mod:`hlaid.joint.fit`): a Gaussian in
+transformed parameters ("prior units", :mod:`hlaid.joint.vector`), each structural system's own
 (:attr:`hlaid.systems.StructuralSystem.prior`; :data:`PRIORS` by name).
 
 Per story ``i`` the transformed parameters are ::

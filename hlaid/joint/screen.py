@@ -1,17 +1,17 @@
 """Candidate story laws and prefix clones judged from one joint fit, without a fit of their own.
 
-The story laws are nested (:mod:`hlaid.events.laws`): an elastic or non-degrading story is a
+The story laws are nested (:mod:`hlaid.joint.laws`): an elastic or non-degrading story is a
 degrading one with entries held at fixed values. The joint fit under the system's law already
 holds what a candidate's fit would start from: its optimum and the Jacobian of its weighted
 residuals there. :func:`screen_laws` judges every candidate from it:
 
 1. each candidate's start is the joint optimum with the entries its law holds set
-   (:func:`~hlaid.events.laws.with_laws`);
+   (:func:`~hlaid.joint.laws.with_laws`);
 2. a few Levenberg-Marquardt steps over the entries the law leaves free, the data's Jacobian
    frozen at the joint optimum (its columns for those entries: the same prior units), the
    prior's residuals and Jacobian exact, every step of every candidate replayed in one batch;
    a step is kept only where the replayed cost fell;
-3. the Laplace evidence at the best point reached, as :meth:`~hlaid.events.fit.JointFit.log_evidence`
+3. the Laplace evidence at the best point reached, as :meth:`~hlaid.joint.fit.JointFit.log_evidence`
    computes it (profiled misfit variances, ``log det`` of the Gauss-Newton matrix with the frozen
    columns).
 
@@ -36,11 +36,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model import Building
+from ..model.state import BuildingState
 from .fit import JointFit, _prior_jacobian, log_dets
 from .laws import with_laws
 from .priors import StructuralPrior
 from .series import effective_samples
-from .state import BuildingState
 from .vector import PriorVector, SystemPrior
 
 SCREEN_STEPS = 4
@@ -49,7 +49,7 @@ candidate through every event)."""
 
 SCREEN_MARGIN = 5.0
 """A candidate whose screened log evidence comes within this much of beating the system's law
-(by :data:`~hlaid.events.laws.TIE_LOG_UNITS`) is fitted in full before the laws are chosen."""
+(by :data:`~hlaid.joint.laws.TIE_LOG_UNITS`) is fitted in full before the laws are chosen."""
 
 NEWTON_AGREEMENT = 0.25
 """A prefix's Newton step is kept where the replayed cost fell by at least this fraction of the
@@ -75,7 +75,7 @@ class Screened:
     squares : ``(event,)`` each event's sum of squared residuals there
     n_eff : ``(event,)`` their effective sample counts
     prior_cost : half the prior's squared residuals there
-    log_det_hessian, log_det_prior : as :class:`~hlaid.events.fit.JointFit`'s (frozen data columns)
+    log_det_hessian, log_det_prior : as :class:`~hlaid.joint.fit.JointFit`'s (frozen data columns)
     steps : steps kept
     """
 
@@ -89,7 +89,7 @@ class Screened:
     steps: int
 
     def log_evidence(self, n_eff: np.ndarray) -> float:
-        """As :meth:`hlaid.events.fit.JointFit.log_evidence`, with ``n_eff`` common to the fits compared."""
+        """As :meth:`hlaid.joint.fit.JointFit.log_evidence`, with ``n_eff`` common to the fits compared."""
         score = float(np.sum(0.5 * np.asarray(n_eff) * np.log(np.maximum(self.squares, 1e-300))) + self.prior_cost)
         return float(-score + 0.5 * self.log_det_prior - 0.5 * self.log_det_hessian)
 

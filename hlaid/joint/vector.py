@@ -1,7 +1,7 @@
 """A building's parameters in prior units, and the priors over them.
 
 Per story ``log k0, logit(alpha / 0.95), log(p - 1), log Cy, log delta_eta`` (``Cy = k0 dy /
-W_above``, :mod:`hlaid.events.priors`) and ``log zeta`` (and ``log zeta2``, the second Rayleigh
+W_above``, :mod:`hlaid.joint.priors`) and ``log zeta`` (and ``log zeta2``, the second Rayleigh
 ratio, where the building has one: :attr:`hlaid.model.Damping.ratio2`): the vector a MAP search moves
 (:class:`PriorVector`, which owns this layout and its map onto the clone's own parameters), the
 structural system's prior over it (:class:`SystemPrior`), an earlier clone's posterior
@@ -75,12 +75,12 @@ class PriorVector:
     Parameters
     ----------
     building : the start (its other properties are kept; with ``laws``, its entries that the
-        laws hold fixed are kept too: :func:`hlaid.events.laws.with_laws` sets them)
+        laws hold fixed are kept too: :func:`hlaid.joint.laws.with_laws` sets them)
     damping : the damping ratio moves too (and the second Rayleigh ratio where the building
         has one)
     masses : the floor-mass ratios move too (where the masses are unknown): ``log(m_i / m_top)``
         of every floor below the top, the total mass kept
-    laws : each story's law (:data:`hlaid.events.laws.LAWS`; None: every entry free, the
+    laws : each story's law (:data:`hlaid.joint.laws.LAWS`; None: every entry free, the
         degrading law): only the entries a story's law leaves free are in the vector
 
     Attributes
@@ -263,7 +263,7 @@ class PosteriorResiduals:
 def prior_of_clone(unc: ParameterUncertainty | None, building: Building, vector: PriorVector,
                    fallback: StructuralPrior, widen: float = 1.0) -> GaussianPrior | SystemPrior:
     """A clone's posterior as the prior of its update, in ``vector``'s prior units: exact where
-    the clone stores the joint fit's posterior (:func:`hlaid.events.fit.posterior_uncertainty`), else from 4000
+    the clone stores the joint fit's posterior (:func:`hlaid.joint.fit.posterior_uncertainty`), else from 4000
     draws of its uncertainty; the structural system's prior around the clone where it has none
     (or it does not cover every parameter). ``widen``: its standard deviations multiplied (to let
     a building that changed move)."""

@@ -1,6 +1,6 @@
 """Which law each story follows: elastic, non-degrading or degrading Bouc-Wen.
 
-A story's law says which of its entries in prior units (:mod:`hlaid.events.vector`: ``log k0,
+A story's law says which of its entries in prior units (:mod:`hlaid.joint.vector`: ``log k0,
 logit(alpha / 0.95), log(p - 1), log Cy, log delta_eta``) the records may move; the others are
 held at fixed values:
 
