@@ -11,7 +11,7 @@ folder of the config file. Example (``configs/fleet_example.yaml``)::
     seed: 0
     identify: {training: {samples: 800}}        # any key of configs/identify.yaml
     ida: {n_levels: 10, drift_limit: 0.10}      # any key of configs/ida.yaml except records
-    loss: {system: steel-mrf}                   # optional: FEMA P-58 losses at each event (hlaid[loss])
+    loss: {system: steel-moment-frame}          # optional: FEMA P-58 losses at each event (hlaid[loss])
     cluster: {n_workers: 2, threads_per_worker: 1}
     buildings:
       - name: B001

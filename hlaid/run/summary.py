@@ -175,7 +175,7 @@ class Survival(Block):
 # ------------------------------------------------------------------ ensemble assessment
 @dataclass(frozen=True, kw_only=True)
 class Assessment(Block):
-    """The ensemble of clones drawn from the identification uncertainty (:func:`hlaid.uncertainty.assess`):
+    """The ensemble of clones drawn from the identification uncertainty (:func:`hlaid.ida.assess`):
     collapse fragility and its band, P(collapse) and drift exceedance at the measured record's
     intensity ``own_im`` with their bands, the re-occupancy indicator and why."""
 
