@@ -117,8 +117,8 @@ def registries() -> dict[str, set[str]]:
     """The names each kind of value may take."""
     from hlaid.baselines.registry import IDENTIFIERS
     from hlaid.hla.config import AUTO
-    from hlaid.identify.refiners import REFINERS
     from hlaid.ida.measures import INTENSITY_MEASURES
+    from hlaid.identify.refiners import REFINERS
     from hlaid.loss.inventory import INVENTORIES
     from hlaid.model.collapse import COLLAPSE_MODELS
     from hlaid.simulate.odeint import SOLVERS
