@@ -91,7 +91,7 @@ def missing_name(dotted: str) -> str | None:
                 return f"importing {'.'.join(parts[:i])} needs {e.name}"
             continue
         for j, name in enumerate(parts[i:], start=i):
-            fields = {f.name for f in dataclasses.fields(obj)} if dataclasses.is_dataclass(obj) else set()
+            fields: set[str] = {f.name for f in dataclasses.fields(obj)} if dataclasses.is_dataclass(obj) else set()
             if name in fields:
                 return None if j == len(parts) - 1 else f"{'.'.join(parts[:j + 1])} is a field"
             if not hasattr(obj, name):
@@ -102,7 +102,7 @@ def missing_name(dotted: str) -> str | None:
 
 
 def dotted_names(spans: list[tuple[str, str]]) -> set[str]:
-    names = set()
+    names: set[str] = set()
     for lang, code in spans:
         names.update(n.rstrip(".") for n in DOTTED.findall(code))
         if lang in ("python", ""):
