@@ -1,13 +1,13 @@
 """What README.md and docs/*.md name is there, and docs/ describes the product, not its history.
 
 Read from the code spans of the pages (inline backquotes and fenced blocks; ``\\|`` in a table
-cell is ``|``):
+cell is ``|``), and from the running text where a word says what a name is:
 
 - every dotted ``hlaid.x.y`` name, and every ``from hlaid.x import y`` of a Python block, resolves:
   the longest importable module, then attributes (a dataclass's fields count);
-- every structural system (``--system X``, ``system: X``, ``system="X"``; the loss's
-  ``hlaid loss --system`` and ``loss: {system: X}`` in the loss inventories), collapse law
-  (``--collapse``, ``collapse:``), intensity measure (``--im``, ``im:``) and method
+- every structural system (``--system X``, ``system: X``, ``system="X"``, "the `X` prior"), loss
+  system (``hlaid loss --system X``, ``loss: {system: X}``, "the X inventory"), collapse law
+  (``--collapse``, ``collapse:``, "the `X` law"), intensity measure (``--im``, ``im:``) and method
   (``method:``: a refiner, an identifier, a torchdiffeq solver) is in its registry;
 - every ``hlaid COMMAND ... --flag`` names a command of the command line and a flag that command
   takes (its argparse parser, :func:`hlaid.cli.app.build_parser`), and a literal value of a flag
@@ -43,6 +43,12 @@ COMMAND = re.compile(r"(?:^|(?<=[\s(`]))(?:python -m )?hlaid ((?:[a-z][\w-]*(?=\
 NAME = r"[\"']?([a-z][\w.|-]*)"
 CONFIG_VALUE = {kind: re.compile(rf"(?<![\w-]){kind}\s*[:=]\s*{NAME}")
                 for kind in ("system", "collapse", "im", "method")}
+
+PROSE = {  # a name in the running text, by the word beside it
+    "loss system": re.compile(r"`?\b([a-z]+(?:-[a-z]+)+)`? inventor(?:y|ies)\b"),
+    "system": re.compile(r"(?:\bsystem `([a-z][\w-]*)`|`([a-z][\w-]*)` (?:prior|system)\b)"),
+    "collapse": re.compile(r"(?:\bcollapse (?:law|model) `([a-z][\w-]*)`|`([a-z][\w-]*)` (?:collapse )?law\b)"),
+}
 
 HASH = re.compile(r"(?<![\w@/.-])(?<!@ )(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])[0-9a-f]{7,40}(?![\w-])")
 HISTORY = {
@@ -156,6 +162,14 @@ def unknown_values(spans: list[tuple[str, str]]) -> list[str]:
     return wrong
 
 
+def unknown_prose_names(text: str) -> list[str]:
+    """``KIND X`` for each name the running text gives a kind to (``the `generic` prior``, ``the
+    steel-moment-frame inventory``, ``collapse law `steel-mrf` ``) that its registry lacks."""
+    known, text = registries(), re.sub(r"\s+", " ", text)
+    return [f"{kind} {name!r} (in the text)" for kind, pattern in PROSE.items() for m in pattern.finditer(text)
+            for name in m.groups() if name and name not in known[kind]]
+
+
 # ------------------------------------------------------------------------------ command lines
 @cache
 def commands() -> dict[str, argparse.ArgumentParser]:
@@ -217,9 +231,11 @@ def bad_command_lines(spans: list[tuple[str, str]]) -> list[str]:
 # ------------------------------------------------------------------------------ the tests
 @pytest.mark.parametrize("page", PAGES, ids=_rel)
 def test_every_name_a_page_gives_is_there(page):
-    spans = code_spans(page.read_text(encoding="utf-8"))
+    text = page.read_text(encoding="utf-8")
+    spans = code_spans(text)
     wrong = [f"{n} ({why})" for n in sorted(dotted_names(spans)) if (why := missing_name(n))]
     wrong += unknown_values(spans)
+    wrong += unknown_prose_names(text)
     wrong += bad_command_lines(spans)
     assert wrong == [], f"{_rel(page)} names what hlaid does not have: {wrong}"
 
@@ -260,6 +276,10 @@ def test_the_checks_see_what_they_look_for():
     assert any("--im 'sa'" in w for w in lines) and any("--method 'svm'" in w for w in lines), lines
     assert any("no command 'identity'" in w for w in lines), lines
     assert len(lines) == 4, lines
+    prose = unknown_prose_names("the default steel-mrf inventory, the `generic` prior, the `rc-frame` law,\n"
+                                "the `rc` prior and collapse law `steel`")
+    assert prose == ["loss system 'steel-mrf' (in the text)", "system 'rc' (in the text)",
+                     "collapse 'steel' (in the text)"], prose
     assert history_in("figures at 5f769b0, load average 2.3; the code before: 3 s; /work/x") != []
     assert len(history_in("at 5f769b0; load average 2.3; the code before; /tmp/run; session 12")) == 5
     assert history_in("github.com/x/y @ c73b9f5; 1048576 bytes; dt 0.00390625 s; -o run/x") == []
