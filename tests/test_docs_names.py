@@ -196,8 +196,9 @@ def _tokens(command: str) -> list[str]:
 
 def bad_command_lines(spans: list[tuple[str, str]]) -> list[str]:
     """What is wrong with each ``hlaid COMMAND ...`` of the spans (the lines of shell blocks, the
-    inline spans that start with ``hlaid``): an unknown command, a flag the
-    command does not take, a value outside a flag's choices."""
+    inline spans that start with ``hlaid``): an unknown command, a flag the command does not take,
+    a value outside a flag's choices, a required option missing from a command given its
+    arguments (``hlaid identify M1 M2 ...``, a sketch, may leave it out)."""
     parsers, wrong = commands(), []
     lines = [*_lines(spans, SHELLS), *(c for lang, c in spans if not lang and re.match(r"(python -m )?hlaid ", c))]
     for line in lines:
@@ -213,6 +214,11 @@ def bad_command_lines(spans: list[tuple[str, str]]) -> list[str]:
                 wrong.append(f"no command {name!r} (in: {segment.strip()})")
                 continue
             options = {o: a for a in parsers[name]._actions for o in a.option_strings}
+            given = {t.lstrip("[(").split("=", 1)[0] for t in tokens[1:]}
+            if any(not t.startswith(("-", "[", "(")) for t in tokens[1:]) and not re.search(r"\.\.|\bN\b", segment):
+                wrong += [f"hlaid {name} needs {a.option_strings[-1]} (in: {segment.strip()})"
+                          for a in parsers[name]._actions if a.required and a.option_strings
+                          and not given & set(a.option_strings)]
             for k, token in enumerate(tokens[1:], start=1):
                 flag = token.lstrip("[(").rstrip("]),.:").split("=", 1)[0]
                 if not re.fullmatch(r"--?[A-Za-z][\w-]*", flag):
@@ -262,7 +268,8 @@ def test_the_checks_see_what_they_look_for():
     assert missing_name("hlaid.errors.HlaidWarning") is None
     spans = code_spans("| `hlaid loss RUN [--system steel-mrf\\|rc-frame]` |\n"
                        "```bash\nhlaid identify m.npz --system steel-frame --methd ukf && hlaid ida c.json --im sa \\\n"
-                       "  --collapse steel\nhlaid identify m.npz --method hlasvm\\|svm\nhlaid identity m.npz\n```\n"
+                       "  --collapse steel\nhlaid identify m.npz -o c.json --method hlasvm\\|svm\n"
+                       "hlaid identity m.npz\nhlaid predict c.json m.npz\nhlaid identify M1 M2 ...\n```\n"
                        "```python\nfrom hlaid.ida import assess, nothing\n```\n"
                        "```yaml\nrefine: {method: lsq}\nloss: {system: generic}\n```\n")
     assert {missing_name(n) for n in dotted_names(spans)} == {None, "hlaid.ida has no 'nothing'"}
@@ -275,7 +282,8 @@ def test_the_checks_see_what_they_look_for():
     assert any("takes no --methd" in w for w in lines), lines
     assert any("--im 'sa'" in w for w in lines) and any("--method 'svm'" in w for w in lines), lines
     assert any("no command 'identity'" in w for w in lines), lines
-    assert len(lines) == 4, lines
+    assert any("hlaid predict needs --out" in w for w in lines), lines
+    assert len(lines) == 7, lines
     prose = unknown_prose_names("the default steel-mrf inventory, the `generic` prior, the `rc-frame` law,\n"
                                 "the `rc` prior and collapse law `steel`")
     assert prose == ["loss system 'steel-mrf' (in the text)", "system 'rc' (in the text)",
