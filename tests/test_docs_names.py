@@ -87,14 +87,15 @@ SHELLS = {"bash", "sh", "shell", "console"}
 # ------------------------------------------------------------------------------ dotted names
 def missing_name(dotted: str) -> str | None:
     """Why ``hlaid.a.b`` names nothing (None where it resolves): import its longest module, then
-    read the rest as attributes (a dataclass's fields count as attributes)."""
+    read the rest as attributes (a dataclass's fields count as attributes); a module that needs an
+    optional package this environment lacks is read as text."""
     parts = dotted.split(".")
     for i in range(len(parts), 0, -1):
         try:
             obj = importlib.import_module(".".join(parts[:i]))
         except ModuleNotFoundError as e:
             if e.name and not ".".join(parts[:i]).startswith(e.name) and e.name.split(".")[0] != "hlaid":
-                return f"importing {'.'.join(parts[:i])} needs {e.name}"
+                return _missing_in_source(parts, i)  # it needs an optional package: read its source
             continue
         for j, name in enumerate(parts[i:], start=i):
             fields: set[str] = {f.name for f in dataclasses.fields(obj)} if dataclasses.is_dataclass(obj) else set()
@@ -105,6 +106,18 @@ def missing_name(dotted: str) -> str | None:
             obj = getattr(obj, name)
         return None
     return "no such module"
+
+
+def _missing_in_source(parts: list[str], i: int) -> str | None:
+    """:func:`missing_name` for a module that imports an optional package this environment lacks:
+    its file must exist and define or import the next name (read as text)."""
+    path = REPO.joinpath(*parts[:i])
+    source = next((f for f in (path / "__init__.py", path.with_suffix(".py")) if f.is_file()), None)
+    if source is None:
+        return "no such module"
+    if i == len(parts) or re.search(rf"\b{re.escape(parts[i])}\b", source.read_text(encoding="utf-8")):
+        return None
+    return f"{'.'.join(parts[:i])} has no {parts[i]!r}"
 
 
 def dotted_names(spans: list[tuple[str, str]]) -> set[str]:
@@ -266,6 +279,8 @@ def test_the_checks_see_what_they_look_for():
     assert missing_name("hlaid.identify.joint") == "hlaid.identify has no 'joint'"
     assert missing_name("hlaid.ida.assess") is None and missing_name("hlaid.IdentifyConfig.system") is None
     assert missing_name("hlaid.errors.HlaidWarning") is None
+    assert _missing_in_source(["hlaid", "loss", "fema_p58", "nothing"], 3) == "hlaid.loss.fema_p58 has no 'nothing'"
+    assert _missing_in_source(["hlaid", "loss", "assess", "assess_losses"], 3) is None
     spans = code_spans("| `hlaid loss RUN [--system steel-mrf\\|rc-frame]` |\n"
                        "```bash\nhlaid identify m.npz --system steel-frame --methd ukf && hlaid ida c.json --im sa \\\n"
                        "  --collapse steel\nhlaid identify m.npz -o c.json --method hlasvm\\|svm\n"
