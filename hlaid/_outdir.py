@@ -290,7 +290,7 @@ def not_ours(folder: str | os.PathLike, skip: tuple[str, ...] = ()) -> str | Non
     own = _own_marker(folder)
     if own is None:
         if d.get("signature") is None and isinstance(d.get("unsigned"), str):
-            return (f"is not an output hlaid can tell from one made by hand: its {MARKER} is unsigned (when it was "
+            return (f"is not an output hlaid may replace: its {MARKER} is unsigned (no key could be used when it was "
                     f"written: {d['unsigned'][:200]})")
         why = "made by hand, copied from another folder, edited, or written by an older hlaid"
         if signing_key(create=False) is None:

@@ -1,0 +1,235 @@
+"""Hostile inputs, fourth round: a clone hlaid wrote is always readable, outputs are hlaid's only by
+their content (hashes and permissions, never size and time), the signing key is used only when it
+is private, only the temporary names hlaid tagged are swept, checks come before the work, readers
+are bounded by bytes, and absurd values are refused. Each refusal is exit 2 with one line and
+leaves the sandbox (``tmp_path``) as it was."""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_bad_input import _run_folder
+from test_hostile import HEIGHTS, _measurement, deadline, refused, tree
+
+from hlaid import _outdir, _outkey
+from hlaid._fileio import MARKER, atomic_directory, is_hlaid_output
+from hlaid.cli.app import main
+from hlaid.clone import Clone
+
+POSIX = pytest.mark.skipif(os.name != "posix", reason="FIFOs, permissions and signals of POSIX")
+
+
+@pytest.fixture()
+def clone_file(table1, tmp_path) -> Path:
+    return Clone(building=table1.replace(height=HEIGHTS)).save(tmp_path / "clone.json")
+
+
+@pytest.fixture()
+def state(tmp_path_factory, monkeypatch) -> Path:
+    """A key folder of this test's own (outside the sandbox the refusals check)."""
+    d = tmp_path_factory.mktemp("state")
+    monkeypatch.setenv("HLAID_STATE_DIR", str(d))
+    return d
+
+
+# ----------------------------------------------------------------------------- hlaid reads its own clone
+def test_a_clone_with_an_unidentified_parameter_is_written_readable_and_flagged(tmp_path, table1, capsys):
+    """Identification can leave a parameter unidentified (a standard deviation of 11.6 in its log
+    scale on a record that hardly drove that story): the clone file holds it capped at the reader's
+    bound and named, and every command reads it."""
+    from hlaid.model.uncertainty import MAX_THETA_STD, ParameterUncertainty
+    u = ParameterUncertainty(slots=(("k0", 0), ("p", 2), ("damping", -1)), transform=("log", "log1", "log"),
+                             centre=np.log([1e4, 1.5, 0.02]),
+                             covariance=np.array([[0.01, 0.05, 0.0], [0.05, 11.6**2, 1.0], [0.0, 1.0, 1e6]]))
+    clone = Clone(building=table1.replace(height=HEIGHTS), uncertainty=u)
+    path = clone.save(tmp_path / "c3.json")
+    d = json.loads(path.read_text())["uncertainty"]
+    assert max(p["std"] for p in d["parameters"]) == pytest.approx(MAX_THETA_STD)
+    assert d["info"]["unidentified"] == ["damping", "p[3]"]
+    back = Clone.load(path)
+    assert back.uncertainty.unidentified == ["damping", "p[3]"]
+    assert np.allclose(back.uncertainty.std, [0.1, MAX_THETA_STD, MAX_THETA_STD])
+    assert np.linalg.eigvalsh(back.uncertainty.covariance).min() > -1e-9  # still a covariance
+    assert back.uncertainty.covariance[0, 1] == pytest.approx(0.05 * MAX_THETA_STD / 11.6)  # correlations kept
+    assert main(["export-opensees", str(path), "-o", str(tmp_path / "m.py")]) == 0
+    capsys.readouterr()
+    bad = json.loads(path.read_text())  # beyond the bound hlaid writes: a file hlaid did not write
+    bad["uncertainty"]["covariance"][1][1] = 11.6**2
+    path.write_text(json.dumps(bad))
+    line = refused(capsys, ["export-opensees", path, "-o", tmp_path / "m2.py"], ["standard deviation of 11.6"],
+                   root=tmp_path, within=60)
+    assert "hlaid writes at most 10" in line
+
+
+# ----------------------------------------------------------------------------- ownership by content
+def _hlaid_run(path: Path) -> Path:
+    """A run folder as hlaid writes it: signed, its files recorded."""
+    src = _run_folder(path.with_name(path.name + "-src"))
+    (src / "report.html").write_text("<p>the report hlaid wrote</p>")
+    with atomic_directory(path, what="hlaid run") as tmp:
+        for p in sorted(src.rglob("*")):
+            rel = p.relative_to(src)
+            if p.is_dir():
+                (tmp / rel).mkdir()
+            else:
+                (tmp / rel).write_bytes(p.read_bytes())
+    for p in sorted(src.rglob("*"), reverse=True):
+        p.rmdir() if p.is_dir() else p.unlink()
+    src.rmdir()
+    return path
+
+
+@POSIX
+@pytest.mark.parametrize("edit", ["notes", "key", "readonly", "added"])
+def test_report_and_loss_never_rewrite_a_run_folder_the_user_changed(tmp_path, capsys, edit):
+    """Notes appended to report.html, a key added to summary.json, a file made read-only, a file
+    added: ``hlaid report RUN`` and ``hlaid loss RUN`` (also with --force) refuse before writing
+    anything, and the user's files keep their hashes and permissions."""
+    run = _hlaid_run(tmp_path / "run")
+    assert main(["report", str(run)]) == 0  # hlaid's own rewrite: recorded, the folder stays hlaid's
+    capsys.readouterr()
+    assert _outdir.not_ours(run) is None
+    if edit == "notes":
+        with open(run / "report.html", "a") as fh:
+            fh.write("<p>my notes</p>")
+        name = "report.html (changed)"
+    elif edit == "key":
+        s = json.loads((run / "summary.json").read_text())
+        (run / "summary.json").write_text(json.dumps({**s, "my_key": 1}))
+        name = "summary.json (changed)"
+    elif edit == "readonly":
+        os.chmod(run / "summary.json", 0o444)
+        name = "summary.json (changed)"
+    else:
+        (run / "notes.txt").write_text("mine")
+        name = "notes.txt"
+    modes = {p: stat.S_IMODE(p.stat().st_mode) for p in run.rglob("*")}
+    for argv in (["report", run], ["loss", run, "--floor-area", "100", "--no-curve"],
+                 ["loss", run, "--floor-area", "100", "--no-curve", "--force"]):
+        line = refused(capsys, argv, [name], root=tmp_path, within=60)
+        assert "nothing was changed" in line
+    assert {p: stat.S_IMODE(p.stat().st_mode) for p in run.rglob("*")} == modes
+
+
+def test_a_same_size_edit_with_its_time_put_back_is_the_users(tmp_path, capsys, table1):
+    out = tmp_path / "hout"
+    with atomic_directory(out, what="hlaid hla") as tmp:
+        (tmp / "hla.json").write_text('{"k0": 1}')
+    st = (out / "hla.json").stat()
+    (out / "hla.json").write_text('{"k0": 2}')  # same size
+    os.utime(out / "hla.json", ns=(st.st_atime_ns, st.st_mtime_ns))  # touch -r
+    assert (out / "hla.json").stat().st_mtime_ns == st.st_mtime_ns
+    refused(capsys, ["hla", _measurement(tmp_path / "m.npz", table1), "-o", out, "--force"], ["hla.json (changed)"],
+            root=tmp_path, within=60)
+
+
+@POSIX
+def test_a_file_made_read_only_makes_the_output_the_users(tmp_path, capsys, table1):
+    out = tmp_path / "hout"
+    with atomic_directory(out, what="hlaid hla") as tmp:
+        (tmp / "hla.json").write_text('{"k0": 1}')
+    os.chmod(out / "hla.json", 0o444)
+    refused(capsys, ["hla", _measurement(tmp_path / "m.npz", table1), "-o", out, "--force"], ["hla.json (changed)"],
+            root=tmp_path, within=60)
+
+
+# ----------------------------------------------------------------------------- the key
+@POSIX
+@pytest.mark.parametrize("kind", ["world-readable", "group-writable", "symlink", "fifo", "folder"])
+def test_a_key_file_unsafe_to_use_is_refused_before_the_work(tmp_path, capsys, state, clone_file, kind):
+    """A key others may read (so they can forge a marker that lets root's --force delete a thesis),
+    a link, a FIFO (whose read would block forever) or a folder: one line saying how to fix it."""
+    key = state / "output-key"
+    key.unlink(missing_ok=True)  # made while the clone was written
+    if kind in ("world-readable", "group-writable"):
+        key.write_text("ab" * 32 + "\n")
+        os.chmod(key, 0o644 if kind == "world-readable" else 0o620)
+    elif kind == "symlink":
+        (state / "elsewhere").write_text("ab" * 32 + "\n")
+        key.symlink_to(state / "elsewhere")
+    elif kind == "fifo":
+        os.mkfifo(key)
+    else:
+        key.mkdir()
+    fix = ["rm ", "rmdir "]
+    with deadline(60):
+        line = refused(capsys, ["export-opensees", clone_file, "-o", tmp_path / "model.py"], fix, root=tmp_path)
+        assert "output key" in line
+        refused(capsys, ["ida", clone_file, "-o", tmp_path / "new", "--levels", "0.1"], fix, root=tmp_path)
+
+
+def test_a_forged_marker_with_a_world_readable_key_opens_nothing(tmp_path, capsys, state, table1):
+    """Another user read the key and signed a marker for a folder holding thesis.tex."""
+    out = tmp_path / "forged"
+    with atomic_directory(out, what="hlaid hla") as tmp:
+        (tmp / "thesis.tex").write_text("four years")
+    os.chmod(state / "output-key", 0o644)
+    refused(capsys, ["hla", _measurement(tmp_path / "m.npz", table1), "-o", out, "--force"], ["output key"],
+            root=tmp_path, within=60)
+    assert (out / "thesis.tex").read_text() == "four years"
+
+
+def test_an_output_that_cannot_be_signed_says_so_when_written_and_after(tmp_path, capsys, monkeypatch, clone_file):
+    from hlaid.errors import HlaidWarning
+    monkeypatch.setenv("HLAID_STATE_DIR", str(tmp_path / "no" / "such"))
+    monkeypatch.setattr(_outkey, "_make", lambda root, path: setattr(_outkey, "_problem", f"{root} is not writable"))
+    out = tmp_path / "i"
+    with pytest.warns(HlaidWarning, match=f"{out}: its {MARKER} is unsigned .*is not writable"), \
+            atomic_directory(out, what="hlaid ida") as tmp:
+        (tmp / "summary.json").write_text("{}")
+    line = refused(capsys, ["ida", clone_file, "-o", out, "--levels", "0.05", "--force"], ["is unsigned"],
+                   root=tmp_path, within=60)
+    assert "made by hand" not in line and "HOME" not in line and "is not writable" in line
+
+
+# ----------------------------------------------------------------------------- sweeping leftovers
+def _dead_pid() -> int:
+    pid = 999_999
+    while True:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return pid
+        except OSError:
+            pass
+        pid -= 1
+
+
+def _aged(path: Path, seconds: float) -> Path:
+    t = time.time() - seconds
+    os.utime(path, (t, t))
+    return path
+
+
+def test_only_temporary_names_hlaid_tagged_are_swept(tmp_path, capsys, clone_file):
+    """A user's ``.run1.old-2024/notes.txt`` (2 days old) and ``.model.py.1234-draft.tmp`` (3 hours)
+    stay; a leftover hlaid tagged, whose process is gone, is removed."""
+    (tmp_path / ".run1.old-2024").mkdir()
+    (tmp_path / ".run1.old-2024" / "notes.txt").write_text("mine")
+    _aged(tmp_path / ".run1.old-2024" / "notes.txt", 2 * 86400)
+    _aged(tmp_path / ".run1.old-2024", 2 * 86400)
+    _aged(tmp_path / ".model.py.1234-draft.tmp", 3 * 3600) if (tmp_path / ".model.py.1234-draft.tmp").write_text(
+        "draft") else None
+    for name in (".model.py.99999-abcdefgh.tmp", ".model.py.99999-0123456789abcdef01234567.tmp"):
+        _aged(tmp_path / name, 3 * 3600) if (tmp_path / name).write_text("also mine") else None
+    pid, token = _dead_pid(), "0123abcd"
+    ours = f".model.py.{pid}-{token}{_outkey._tag('model.py', pid, token, _outkey.signing_key())}.tmp"
+    _aged(tmp_path / ours, 3 * 3600) if (tmp_path / ours).write_text("left by a killed run") else None
+    before = tree(tmp_path)
+    assert main(["export-opensees", str(clone_file), "-o", str(tmp_path / "model.py")]) == 0
+    after = tree(tmp_path)
+    assert {k: v for k, v in before.items() if k != ours} == {k: v for k, v in after.items() if k != "model.py"}
+    assert ours not in after
+    with atomic_directory(tmp_path / "run1") as tmp:
+        (tmp / "a").write_text("1")
+    with atomic_directory(tmp_path / "run1", force=True) as tmp:
+        (tmp / "a").write_text("2")
+    assert (tmp_path / ".run1.old-2024" / "notes.txt").read_text() == "mine"
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".run1")) == [".run1.old-2024"]
+    assert is_hlaid_output(tmp_path / "run1")
