@@ -233,3 +233,45 @@ def test_only_temporary_names_hlaid_tagged_are_swept(tmp_path, capsys, clone_fil
     assert (tmp_path / ".run1.old-2024" / "notes.txt").read_text() == "mine"
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".run1")) == [".run1.old-2024"]
     assert is_hlaid_output(tmp_path / "run1")
+
+
+# ----------------------------------------------------------------------------- Ctrl-C in the compiled batches
+@POSIX
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_a_large_compiled_batch_stops_within_seconds_of_a_signal(tmp_path, sig):
+    """A batch of the compiled simulator that runs for a minute (the ensemble of ``hlaid demands
+    --ensemble 20000`` is one) stops within a second or two of Ctrl-C or SIGTERM: it runs in chunks."""
+    import signal
+    import subprocess
+    import sys
+    code = ("import sys, numpy as np\nsys.path.insert(0, 'tests')\n"
+            "from reference_systems import table1_stories\nfrom hlaid._interrupt import sticky_sigint\n"
+            "from hlaid.model import Building\nfrom hlaid.motions import GroundMotion\n"
+            "from hlaid.simulate import simulate_response\n"
+            "b = Building.from_stories(table1_stories(), name='t', pdelta=False)\n"
+            "t = np.arange(8000) * 0.01\n"
+            "m = GroundMotion(acc=3000 * np.sin(2 * np.pi * t) * np.exp(-0.1 * t), dt=0.01, name='x')\n"
+            "simulate_response([b], [m], outputs='peaks')\n"
+            "print('READY', flush=True)\n"
+            "with sticky_sigint():\n"
+            "    try:\n"
+            "        simulate_response([b] * 2000, [m], outputs='peaks')\n"
+            "    except KeyboardInterrupt as e:\n"
+            "        print('STOPPED', type(e).__name__, flush=True)\n"
+            "        sys.exit(130)\n")
+    repo = Path(__file__).resolve().parents[1]
+    p = subprocess.Popen([sys.executable, "-c", code], cwd=repo, stdout=subprocess.PIPE, text=True,
+                         env={**os.environ, "PYTHONPATH": str(repo)})
+    try:
+        assert p.stdout.readline().strip() == "READY"
+        time.sleep(3.0)  # the batch is being prepared (0.1 s), then runs in the compiled kernel (a minute)
+        t0 = time.monotonic()
+        p.send_signal(getattr(signal, sig))
+        out = p.stdout.readline()
+        waited = time.monotonic() - t0
+        p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == 130 and "STOPPED" in out, out
+    assert waited < 5.0, waited  # the whole batch: a minute
