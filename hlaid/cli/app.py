@@ -255,8 +255,12 @@ def build_parser() -> Parser:
 def main(argv: list[str] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``); returns the exit status.
     A Ctrl-C that Python drops (inside a finaliser) is raised again (:mod:`hlaid._interrupt`)."""
-    with _progress.cli_warnings(), _interrupt.sticky_sigint():
-        return _main(argv)
+    try:
+        with _progress.cli_warnings(), _interrupt.sticky_sigint():
+            return _main(argv)
+    finally:
+        if argv is None:  # the program itself: a signal while the interpreter shuts down is said too
+            _interrupt.said_until_exit()
 
 
 def _main(argv: list[str] | None) -> int:
