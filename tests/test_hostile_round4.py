@@ -275,3 +275,127 @@ def test_a_large_compiled_batch_stops_within_seconds_of_a_signal(tmp_path, sig):
             p.kill()
     assert p.returncode == 130 and "STOPPED" in out, out
     assert waited < 5.0, waited  # the whole batch: a minute
+
+
+# ----------------------------------------------------------------------------- bounded by bytes, checked first
+def test_a_data_line_of_many_megabytes_is_refused_while_read(tmp_path, capsys):
+    import tracemalloc
+    csv = tmp_path / "line.csv"
+    with open(csv, "wb") as fh:
+        fh.write(b"# dt_s: 0.01\ntime_s,ground_acc,floor_acc_1\n")
+        fh.write(b"1," * (32 * 2**20 // 2) + b"\n")  # one line of 32 MiB
+    tracemalloc.start()
+    try:
+        refused(capsys, ["hla", csv, "-o", tmp_path / "o"], ["holds a line of more than 1 MiB"], root=tmp_path,
+                within=60)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 20 * 2**20  # a block of 4 MiB and the readers' imports, not the file
+
+
+def test_an_npz_of_100000_members_is_refused_from_its_end_record(tmp_path, capsys):
+    import zipfile
+    m = tmp_path / "members.npz"
+    with zipfile.ZipFile(m, "w") as z:
+        for i in range(100_000):
+            z.writestr(f"a{i}.npy", b"")
+    t0 = time.perf_counter()
+    refused(capsys, ["hla", m, "-o", tmp_path / "o"], ["100,000 members"], root=tmp_path, within=60)
+    assert time.perf_counter() - t0 < 5.0  # its directory alone takes seconds to read
+    small = tmp_path / "small.npz"
+    np.savez(small, a=np.zeros(3), b=np.ones(2))
+    from hlaid._inputs import _member_count, load_npz
+    with open(small, "rb") as fh:
+        assert _member_count(fh) == 2
+    assert sorted(load_npz(small)) == ["a", "b"]
+
+
+@pytest.mark.parametrize("argv,expect", [
+    (["demands", "{c}", "--motion", "m.npz", "--ensemble", "100001", "-o", "d.csv"], "100001 clones; expected 0"),
+    (["demands", "{c}", "--motion", "m.npz", "--ensemble", "-1", "-o", "d.csv"], "-1 clones; expected 0"),
+    (["predict", "{c}", "m.npz", "--ensemble", "200000", "-o", "p"], "200000 clones; expected 0"),
+    (["ida", "{c}", "--heights", "1,1,1", "-o", "i"], "1 mm looks like metres (1 m = 1000 mm)"),
+    (["ida", "{c}", "--heights", "3.0,3.0,3.0", "-o", "i"], "story heights are in mm; 3 mm looks like metres"),
+    (["ida", "{c}", "--heights", "1000000,1000000,1000000", "-o", "i"], "a story height of 1e+06 mm"),
+    (["demands", "{c}", "--motion", "m.npz", "--heights", "3,3,3", "-o", "d.csv"], "looks like metres"),
+    (["export-opensees", "{c}", "--heights", "3,3,3", "-o", "m.py"], "looks like metres"),
+    (["ida", "{c}", "--drift-limit", "5", "-o", "i"], "5 is 500%"),
+    (["loss", "d.csv", "--drift-limit", "5", "--floor-area", "100", "-o", "l"], "a drift limit is a ratio"),
+])
+def test_absurd_arguments_are_refused_as_they_are_parsed(tmp_path, clone_file, argv, expect):
+    """Before the clone is read or torch loads: a refusal in a fresh interpreter that never imports
+    torch (``predict --ensemble`` did; ``demands --ensemble 100001`` took 3 s and 400 MB)."""
+    from test_hostile_round3 import _cli
+    (tmp_path / "m.npz").write_bytes(b"a measurement")
+    (tmp_path / "d.csv").write_text(",1-PID-1-1\nUnits,rad\n0,0.01\n")
+    before = tree(tmp_path)
+    rc, err, torch_loaded = _cli(tmp_path, [a.replace("{c}", str(clone_file)) for a in argv],
+                                 env={"HLAID_MAX_BOOTSTRAP": "1000000"})
+    assert rc == 2 and len(err) == 1 and expect in err[0], err
+    assert "HLAID_MAX" not in err[0]  # no advice a later check refuses
+    assert not torch_loaded
+    assert tree(tmp_path) == before
+
+
+def test_a_clone_with_a_damping_ratio_of_099_is_refused(tmp_path, capsys, table1):
+    from test_hostile import _clone_dict
+    d = _clone_dict(table1)
+    d["damping"]["ratio"] = 0.99
+    c = tmp_path / "c.json"
+    c.write_text(json.dumps(d))
+    refused(capsys, ["export-opensees", c, "-o", tmp_path / "m.py"], ["damping.ratio = 0.99"], root=tmp_path)
+
+
+# ----------------------------------------------------------------------------- absurd records
+@pytest.mark.parametrize("how", ["x1000", "one floor", "one sample"])
+def test_a_floor_channel_out_of_scale_with_the_ground_is_refused_naming_it(tmp_path, capsys, table1, how):
+    m = _measurement(tmp_path / "m.npz", table1)
+    d = dict(np.load(m))
+    f = d["floor_acc"].copy()
+    if how == "x1000":
+        f *= 1000.0
+    elif how == "one floor":
+        f[:, 1] *= 1000.0
+    else:
+        f[700, 2] = 1e12
+    np.savez(m, **{**d, "floor_acc": f})
+    line = refused(capsys, ["hla", m, "-o", tmp_path / "o"], ["times the ground's peak"], root=tmp_path)
+    assert str(m) in line and f"floor {3 if how == 'one sample' else 2}" in line or how == "x1000"
+
+
+# ----------------------------------------------------------------------------- messages
+def test_long_values_are_echoed_clipped(tmp_path, capsys, table1):
+    """A YAML ``!!binary`` value of 60,000 characters, 100 negative masses: the line stays readable."""
+    import base64
+    cfg = tmp_path / "b.yaml"
+    cfg.write_text("preprocess:\n  order: !!binary " + base64.b64encode(os.urandom(45_000)).decode() + "\n")
+    line = refused(capsys, ["hla", _measurement(tmp_path / "m.npz", table1), "-o", tmp_path / "o", "--config", cfg],
+                   ["order", "preprocess"], root=tmp_path)
+    assert len(line) < 1200
+    m = tmp_path / "neg.npz"
+    t = np.arange(2000) * 0.01
+    g = 2000.0 * np.sin(2 * np.pi * 1.3 * t)
+    np.savez(m, dt=0.01, ground_acc=g, floor_acc=np.outer(g, np.linspace(1, 2, 100)), mass=-np.ones(100))
+    line = refused(capsys, ["hla", m, "-o", tmp_path / "o"], ["mass[0] = -1 (and 99 more)"], root=tmp_path)
+    assert len(line) < 300
+
+
+@POSIX
+@pytest.mark.parametrize("sig,code,word", [("SIGINT", 130, "interrupted"), ("SIGTERM", 143, "terminated")])
+def test_a_signal_just_after_the_command_ended_is_said(tmp_path, clone_file, sig, code, word):
+    """SIGINT or SIGTERM while the interpreter shuts down (after "wrote ..."): one line, not a traceback
+    or a silent death."""
+    import subprocess
+    import sys
+    repo = Path(__file__).resolve().parents[1]
+    code_text = (f"import os, signal, sys, time\nsys.argv = ['hlaid', 'export-opensees', {str(clone_file)!r}, '-o', "
+                 f"'m.py']\nimport atexit\natexit.register(lambda: (os.kill(os.getpid(), signal.{sig}), "
+                 "time.sleep(5)))\nfrom hlaid.cli import main\nsys.exit(main())\n")
+    r = subprocess.run([sys.executable, "-c", code_text], capture_output=True, text=True, cwd=tmp_path, timeout=120,
+                       env={**os.environ, "PYTHONPATH": str(repo)})
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == code, r.stderr
+    assert "wrote" in lines[0] and lines[-1].startswith(f"hlaid: {word} after the command ended"), lines
+    assert "Traceback" not in r.stderr
+    assert (tmp_path / "m.py").is_file()
