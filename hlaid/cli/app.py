@@ -90,23 +90,9 @@ def add_ensemble(p: argparse.ArgumentParser, what: str) -> None:
     """``--ensemble N``: clones drawn from the clone's identification uncertainty."""
     from ..uncertainty.config import N_ENSEMBLE
     what = f" {what}" if what else ""
-    p.add_argument("--ensemble", type=_ensemble, default=None, metavar="N",
+    p.add_argument("--ensemble", type=int, default=None, metavar="N",
                    help=f"clones drawn from the clone's identification uncertainty{what} (default {N_ENSEMBLE} "
                         "when the clone has it, else 0; 0: the identified clone alone)")
-
-
-def _ensemble(text: str) -> int:
-    """An ``--ensemble`` value: a whole number of clones in 0..:data:`hlaid.uncertainty.config.MAX_ENSEMBLE`,
-    checked as it is parsed (before the clone is read or a heavy library loads)."""
-    from ..uncertainty.config import MAX_ENSEMBLE
-
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number of clones, got {text[:40]!r}") from None
-    if not 0 <= value <= MAX_ENSEMBLE:
-        raise argparse.ArgumentTypeError(f"{value} clones; expected 0 (the identified clone alone) to {MAX_ENSEMBLE:,}")
-    return value
 
 
 STORY_HEIGHT_MM = (500.0, 50_000.0)
@@ -117,35 +103,38 @@ DRIFT_LIMIT_MAX = 0.5
 """The largest collapse drift ratio ``--drift-limit`` accepts (50 % of the story height)."""
 
 
-def _heights(text: str) -> str:
-    """A ``--heights`` value, checked as it is parsed: story heights in mm within
-    :data:`STORY_HEIGHT_MM` (the text is returned; a value that is no number is left to the command)."""
+def check_values(args) -> None:
+    """Refuse absurd values of the options several commands share, right after the arguments are
+    parsed (before a file is read or a heavy library loads): ``--ensemble`` outside 0..
+    :data:`~hlaid.uncertainty.config.MAX_ENSEMBLE`, ``--heights`` outside :data:`STORY_HEIGHT_MM`
+    (a few units: metres, said so), ``--drift-limit`` outside (0, :data:`DRIFT_LIMIT_MAX`]."""
+    from ..uncertainty.config import MAX_ENSEMBLE
+
+    n = getattr(args, "ensemble", None)
+    if n is not None and not 0 <= n <= MAX_ENSEMBLE:
+        raise InputError(f"--ensemble {n}: {n} clones; expected 0 (the identified clone alone) to {MAX_ENSEMBLE:,}")
+    text = getattr(args, "heights", None)
+    if text:
+        _check_heights(str(text))
+    d = getattr(args, "drift_limit", None)
+    if d is not None and not 0 < d <= DRIFT_LIMIT_MAX:
+        raise InputError(f"--drift-limit {d:g}: a drift limit is a ratio of the story height (0.10 is 10 %), above 0 "
+                         f"and at most {DRIFT_LIMIT_MAX:g}" + (f"; {d:g} is {d:.0%}" if d > DRIFT_LIMIT_MAX else ""))
+
+
+def _check_heights(text: str) -> None:
     lo, hi = STORY_HEIGHT_MM
     try:
         values = [float(v) for v in text.replace(",", " ").split()]
     except ValueError:
-        return text
+        return  # not numbers: the command says so
     for v in values:
         if 0 < v <= 50:
-            raise argparse.ArgumentTypeError(f"story heights are in mm; {v:g} mm looks like metres ({v:g} m = "
-                                             f"{v * 1000:g} mm)")
+            raise InputError(f"--heights {one_line(text, 60)}: story heights are in mm; {v:g} mm looks like metres "
+                             f"({v:g} m = {v * 1000:g} mm)")
         if not lo <= v <= hi:
-            raise argparse.ArgumentTypeError(f"a story height of {v:g} mm; expected {lo:g} to {hi:g} mm "
-                                             "(0.5 to 50 m) per story")
-    return text
-
-
-def drift_ratio(text: str) -> float:
-    """A ``--drift-limit`` value: a drift ratio in (0, :data:`DRIFT_LIMIT_MAX`], checked as it is parsed."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a drift ratio such as 0.10, got {text[:40]!r}") from None
-    if not 0 < value <= DRIFT_LIMIT_MAX:
-        raise argparse.ArgumentTypeError(f"{value:g}; a drift limit is a ratio of the story height (0.10 is 10 %), "
-                                         f"above 0 and at most {DRIFT_LIMIT_MAX:g}"
-                                         + (f": {value:g} is {value:.0%}" if value > DRIFT_LIMIT_MAX else ""))
-    return value
+            raise InputError(f"--heights {one_line(text, 60)}: a story height of {v:g} mm; expected {lo:g} to {hi:g} "
+                             "mm (0.5 to 50 m) per story")
 
 
 def _seed(text: str) -> int:
@@ -174,7 +163,7 @@ def add_building(p: argparse.ArgumentParser, *, pdelta_default: str = "when stor
     g.add_argument("--pdelta", dest="pdelta", action="store_true", default=None,
                    help=f"include P-Delta (default: {pdelta_default})")
     g.add_argument("--no-pdelta", dest="pdelta", action="store_false", help="leave P-Delta out")
-    p.add_argument("--heights", metavar="MM", type=_heights,
+    p.add_argument("--heights", metavar="MM",
                    help="story heights [mm], bottom to top, e.g. 3000,3000,3000 (default: the clone's)")
     p.add_argument("--gravity-kN", metavar="KN", help="floor gravity loads [kN] for P-Delta, bottom to top "
                                                      "(default: the floor weights)")
@@ -275,6 +264,7 @@ def _main(argv: list[str] | None) -> int:
             parser.print_help()
             return 2
         prog = f"hlaid {args.command}"
+        check_values(args)
         for name in check_environment():  # a bad HLAID_MAX_* is exit 2 before any work
             _progress.warn(f"environment variable {name} is no limit of hlaid (a typo?); it is ignored")
         from .. import _fileio, _inputs

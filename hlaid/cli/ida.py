@@ -8,7 +8,7 @@ from pathlib import Path
 from .. import _progress
 from ..errors import InputError
 from ..limits import check_count
-from .app import add_building, add_plots, add_seed, drift_ratio, subcommand
+from .app import add_building, add_plots, add_seed, subcommand
 
 
 def _numbers(text: str, what: str) -> list[float]:
@@ -41,7 +41,7 @@ def register(sub) -> None:
     p.add_argument("--levels", nargs="+", metavar="G",
                    help="IM levels [g], strictly increasing: 0.2 0.4 ..., 0.2,0.4,... or start:stop:step")
     p.add_argument("--n-levels", type=int, help="number of automatic levels (default 20)")
-    p.add_argument("--drift-limit", type=drift_ratio, help="collapse drift ratio (default 0.10)")
+    p.add_argument("--drift-limit", type=float, help="collapse drift ratio (default 0.10)")
     p.add_argument("--no-refine", action="store_true", help="skip the hunt-and-fill refinement of collapse")
     add_building(p)
     p.add_argument("--units", help="acceleration units of text records: g, m/s^2, cm/s^2, mm/s^2")

@@ -8,7 +8,7 @@ from pathlib import Path
 from .. import _progress
 from ..errors import InputError
 from ..uncertainty.config import N_ENSEMBLE
-from .app import add_building, add_ensemble, add_read, add_seed, deprecated, drift_ratio, reader_options, subcommand
+from .app import add_building, add_ensemble, add_read, add_seed, deprecated, reader_options, subcommand
 from .ida import _numbers
 
 
@@ -60,7 +60,7 @@ def register(sub) -> None:
     p.add_argument("--collapse-from", metavar="IDA_DIR",
                    help="the collapse fragility of an hlaid ida output folder (the clone's own; demand CSV), instead "
                         "of --collapse-median/--collapse-beta")
-    p.add_argument("--drift-limit", type=drift_ratio,
+    p.add_argument("--drift-limit", type=float,
                    help="peak drift ratio above which a realization of a demand CSV is a collapse (default 0.10)")
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
     p.set_defaults(func=run_loss)
