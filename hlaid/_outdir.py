@@ -116,7 +116,7 @@ def remove_stale(parent: Path, name: str) -> list[str]:
 
 def live(name: str) -> bool:
     """Whether ``name`` is a temporary output of this process (being written now)."""
-    made = _outkey.made_here(name)
+    made = _outkey.made_here(name, own=True)
     return made is not None and made[0] == os.getpid()
 
 

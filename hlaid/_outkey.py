@@ -154,24 +154,30 @@ def temp_name(stem: str, *, old: bool = False, suffix: str = ".tmp") -> str:
         key = signing_key()
     except InputError:
         key = None  # refused before the work by the output checks; here the name merely stays unswept
-    tag = _tag(stem, os.getpid(), token, key) or "untagged0000"
+    tag = _tag(stem, os.getpid(), token, key) or UNTAGGED
     if old:
         return f".{stem}.old-{os.getpid()}-{token}{tag}"
     return f".{stem}.{os.getpid()}-{token}{tag}{suffix}"
 
 
-_NAME = re.compile(r"\.(?P<stem>.+)\.(?:(?P<pid>\d+)-(?P<tok>[0-9a-f]{8})(?P<tag>[0-9a-f]{12})\.tmp.*|"
-                   r"old-(?P<opid>\d+)-(?P<otok>[0-9a-f]{8})(?P<otag>[0-9a-f]{12}))\Z", re.S)
+UNTAGGED = "untagged0000"
+"""The tag of a temporary name made without a key: never swept, skipped only by its own process."""
+
+_NAME = re.compile(r"\.(?P<stem>.+)\.(?:(?P<pid>\d+)-(?P<tok>[0-9a-f]{8})(?P<tag>[0-9a-f]{12}|untagged0000)\.tmp.*|"
+                   r"old-(?P<opid>\d+)-(?P<otok>[0-9a-f]{8})(?P<otag>[0-9a-f]{12}|untagged0000))\Z", re.S)
 
 
-def made_here(name: str, stem: str | None = None) -> tuple[int, bool] | None:
+def made_here(name: str, stem: str | None = None, *, own: bool = False) -> tuple[int, bool] | None:
     """``(pid, is_old)`` of a temporary name hlaid made (:func:`temp_name`, its tag valid under this
-    user's key; of ``stem`` where given), else None: a name of the user's, however it looks."""
+    user's key; of ``stem`` where given), else None: a name of the user's, however it looks. With
+    ``own``, also an untagged name of this process (made without a key)."""
     m = _NAME.match(name)
     if m is None or (stem is not None and m["stem"] != stem):
         return None
     old = m["opid"] is not None
     pid, tok, tag = (m["opid"], m["otok"], m["otag"]) if old else (m["pid"], m["tok"], m["tag"])
+    if tag == UNTAGGED:
+        return (int(pid), old) if own and int(pid) == os.getpid() else None
     try:
         key = signing_key(create=False)
     except InputError:

@@ -399,3 +399,24 @@ def test_a_signal_just_after_the_command_ended_is_said(tmp_path, clone_file, sig
     assert "wrote" in lines[0] and lines[-1].startswith(f"hlaid: {word} after the command ended"), lines
     assert "Traceback" not in r.stderr
     assert (tmp_path / "m.py").is_file()
+
+
+@pytest.mark.parametrize("key", [True, False])
+def test_a_folder_replaced_in_place_skips_only_its_own_temporary(tmp_path, monkeypatch, key):
+    """A folder that cannot be renamed (a mount point) is built inside itself: its own temporary
+    folder there (tagged, or untagged where there is no key) is not taken for the user's; a
+    look-alike the user made is."""
+    if not key:
+        monkeypatch.setenv("HLAID_STATE_DIR", str(tmp_path / "none"))
+        monkeypatch.setattr(_outkey, "_make", lambda root, path: None)
+    out = tmp_path / "mnt"
+    out.mkdir()
+    monkeypatch.setattr(_outdir, "cannot_rename", lambda p: Path(p) == out)
+    with atomic_directory(out, force=True, what="hlaid test") as tmp:
+        assert tmp.parent == out
+        (tmp / "a.json").write_text("{}")
+    assert (out / "a.json").read_text() == "{}" and [p.name for p in out.iterdir() if p.name.startswith(".")] \
+        == [MARKER]
+    if key:
+        (out / f".mnt.{os.getpid()}-0123abcd{'0' * 12}.tmp").mkdir()  # a look-alike, not tagged
+        assert "mnt.%d-" % os.getpid() in (_outdir.not_ours(out) or "")
