@@ -419,4 +419,4 @@ def test_a_folder_replaced_in_place_skips_only_its_own_temporary(tmp_path, monke
         == [MARKER]
     if key:
         (out / f".mnt.{os.getpid()}-0123abcd{'0' * 12}.tmp").mkdir()  # a look-alike, not tagged
-        assert "mnt.%d-" % os.getpid() in (_outdir.not_ours(out) or "")
+        assert f"mnt.{os.getpid()}-" in (_outdir.not_ours(out) or "")
