@@ -85,7 +85,6 @@ def test_the_ida_folder_gives_the_losses_its_fragility(written, capsys, tmp_path
     assert median > 0 and beta > 0
 
 
-@pytest.mark.slow
 def test_update_reads_the_clone_and_writes_one_every_command_reads(written, capsys, tmp_path):
     clone, meas = written["clone"], written["meas"]
     _ok(capsys, ["update", clone, meas, "-o", tmp_path / "c2.json"])
