@@ -19,11 +19,10 @@ import json
 import os
 import shutil
 import stat
-import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
-from . import _outdir
+from . import _outdir, _outkey
 from ._inputs import input_named, read_text, run_inputs
 from ._outdir import MARKER, remove_stale
 from ._outdir import STALE_AFTER_S as STALE_AFTER_S  # where it was defined before
@@ -234,7 +233,9 @@ def check_output_file(path: str | os.PathLike, *, force: bool = False,
         if not path.is_symlink() and _locked(path):
             raise InputError("is immutable or append-only (chattr +i/+a): it cannot be replaced; remove the "
                              "attribute or choose another output name", source=str(path))
+        _outdir.check_rewrite(path)  # a file of an output folder of hlaid that the user changed: theirs
     check_parent(path)
+    _outdir.signing_key()  # a key file unsafe to use is refused now, not after the work
     return path
 
 
@@ -249,10 +250,7 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], object], *, fo
     remove_stale(parent, path.name)
     tmp, placing = None, False
     try:
-        fd, name = tempfile.mkstemp(prefix=f".{_stem(path.name)}.{os.getpid()}-", suffix=".tmp" + path.suffix[:16],
-                                    dir=parent)
-        os.close(fd)
-        tmp = Path(name)
+        tmp = _outdir.make_temp(parent, path.name, suffix=".tmp" + path.suffix[:16])
         write(tmp)
         os.chmod(tmp, _creation_mode())
         check_output_file(path, force=force)  # a file read by the work since (a record of a folder) stays
@@ -308,9 +306,8 @@ class Staged:
     def __call__(self, path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
         path = check_output_file(path, force=True)
         parent = path.parent if str(path.parent) else Path(".")
-        fd, name = tempfile.mkstemp(prefix=f".{_stem(path.name)}.{os.getpid()}-", suffix=".tmp", dir=parent)
-        os.close(fd)
-        self.files.append((Path(name), path))
+        name = _outdir.make_temp(parent, path.name)
+        self.files.append((name, path))
         try:
             write(Path(name))
             os.chmod(name, _creation_mode())
@@ -389,9 +386,7 @@ def _keep(path: Path) -> Path | None:
     if not os.path.lexists(path):
         return None
     parent = path.parent if str(path.parent) else Path(".")
-    fd, name = tempfile.mkstemp(prefix=f".{_stem(path.name)}.{os.getpid()}-", suffix=".tmp", dir=parent)
-    os.close(fd)
-    old = Path(name)
+    old = _outdir.make_temp(parent, path.name)
     try:  # a copy, not a hard link: a file whose rename is refused is rewritten in place (its inode)
         if os.path.islink(path):
             old.unlink()
@@ -458,8 +453,7 @@ def check_output_folder(path: str | os.PathLike, *, force: bool = False,
                                  "replaces an input)", source=str(path))
         if _inside(_real("."), real):
             raise InputError("holds the current folder; choose another output folder", source=str(path))
-        own = f".{_stem(path.name)}.{os.getpid()}-"  # this run's temporary folder inside a mount point
-        skip = tuple(e.name for e in os.scandir(path) if e.name.startswith(own) and e.name.endswith(".tmp"))
+        skip = tuple(e.name for e in os.scandir(path) if _outdir.live(e.name))  # this run's, inside a mount point
         if any(e.name not in skip for e in os.scandir(path)):
             if not force:
                 raise InputError("output folder exists and is not empty; use --force to replace it", source=str(path))
@@ -477,8 +471,10 @@ def check_output_folder(path: str | os.PathLike, *, force: bool = False,
         if _outdir.cannot_rename(path):
             if not os.access(path, os.W_OK | os.X_OK):
                 raise InputError("folder is not writable", source=str(path))
+            _outdir.signing_key()
             return path
     check_parent(path)
+    _outdir.signing_key()  # a key file unsafe to use is refused now, not after the work
     return path
 
 
@@ -510,15 +506,17 @@ def atomic_directory(path: str | os.PathLike, *, force: bool = False,
     remove_stale(home, path.name)
     tmp, placing = None, False
     try:
-        tmp = Path(tempfile.mkdtemp(prefix=f".{_stem(path.name)}.{os.getpid()}-", suffix=".tmp", dir=home))
+        tmp = _outdir.make_temp(home, path.name, directory=True)
         yield tmp
         os.chmod(tmp, _creation_mode(directory=True))
         check_output_folder(path, force=force, inputs=inputs)  # what is there now may differ from before
         placing, files = True, _outdir.listing(tmp)
-        if in_place or not _renamed(tmp, path, _outdir.marker(what or command, files, tmp), with_files):
+        body = _outdir.marker(what or command, files, tmp)
+        if in_place or not _renamed(tmp, path, body, with_files):
             _outdir.replace_contents(path, tmp)
-            write_json(path / MARKER, _outdir.marker(what or command, files, path))
+            write_json(path / MARKER, body := _outdir.marker(what or command, files, path))
         tmp = None
+        _outdir.warn_unsigned(body, path)
     except BaseException as err:  # Ctrl-C too: nothing is left behind
         full = no_space_error(err, path, parent)
         if tmp is not None:
@@ -536,7 +534,7 @@ def _renamed(tmp: Path, path: Path, body: dict, with_files: Staged | None = None
     write_json(tmp / MARKER, body)
     old = None
     if os.path.lexists(path):
-        old = path.with_name(f".{_stem(path.name)}.old-{os.getpid()}")
+        old = path.with_name(_outkey.temp_name(_stem(path.name), old=True))
         try:
             os.replace(path, old)
         except OSError as err:
@@ -563,7 +561,7 @@ def _renamed(tmp: Path, path: Path, body: dict, with_files: Staged | None = None
         return True
 
     def undo() -> None:  # the new folder out, the old one back
-        gone = path.with_name(f".{_stem(path.name)}.{os.getpid()}-undone.tmp")
+        gone = path.with_name(_outkey.temp_name(_stem(path.name)))
         os.replace(path, gone)
         if old is not None:
             os.replace(old, path)

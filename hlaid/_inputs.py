@@ -222,6 +222,10 @@ DATA_LINES = "data"
 HEADER_LINES = 1000
 """Lines a data file may hold beyond ``HLAID_MAX_SAMPLES`` (headers, comments)."""
 
+MAX_LINE_BYTES = 1 << 20
+"""Bytes one line of a data file may hold (a row of 10,000 channels of 100 characters): a longer one
+is refused as it is read, after a few MiB, not once the whole file is in memory."""
+
 
 def _line_limit(max_lines: int | str | None) -> tuple[int | None, str]:
     if max_lines is None:
@@ -240,14 +244,33 @@ class _Lines:
 
     def __init__(self, max_lines, source: str):
         self.top, self.why = _line_limit(max_lines)
-        self.n, self.source = 0, source
+        self.n, self.source, self.run = 0, source, 0
 
     def add(self, block: bytes) -> None:
         if self.top is None:
             return
-        self.n += block.count(b"\n")
+        k = block.count(b"\n")
+        self.n += k
         if self.n > self.top:
             raise InputError(f"holds more than {self.top:,} lines; {self.why}", source=self.source)
+        last = block.rfind(b"\n")  # the bytes of the line still open at the block's end
+        self.run = len(block) - last - 1 if k else self.run + len(block)
+        longest = max(self.run, _longest_line(block) if k else 0)
+        if longest > MAX_LINE_BYTES:
+            raise InputError(f"holds a line of more than {MAX_LINE_BYTES // 2**20} MiB ({longest / 2**20:.3g} MiB read "
+                             "of it); a data file holds one sample a line", source=self.source)
+
+
+def _longest_line(block: bytes) -> int:
+    """Bytes of the longest complete line within ``block`` (cheap: a scan only when the block is
+    longer than :data:`MAX_LINE_BYTES`)."""
+    if len(block) <= MAX_LINE_BYTES:
+        return 0
+    longest, start = 0, 0
+    while (end := block.find(b"\n", start)) >= 0:
+        longest = max(longest, end - start)
+        start = end + 1
+    return longest
 
 
 def read_bytes(path: str | os.PathLike, *, max_lines: int | str | None = None) -> bytes:
@@ -420,12 +443,56 @@ def _inflated_total(zf: zipfile.ZipFile, source: str) -> None:
         raise InputError(f"inflates to {total / 2**20:.3g} MiB, over {file_limit_text()}", source=source)
 
 
-def check_archive(path: str | os.PathLike) -> None:
-    """Refuse a zip archive (an NPZ) whose members inflate past ``HLAID_MAX_FILE_MB``, before
-    inflating any; an unreadable archive is left to the reader's own message."""
+MAX_MEMBERS = 10_000
+"""Members a zip archive hlaid reads (an NPZ of named arrays) may hold: a measurement has a few, an
+NPZ of 100,000 tiny members is refused from the count its end record gives, before its
+directory is read (which alone takes seconds)."""
+
+
+def _member_count(fh: IO[bytes]) -> int | None:
+    """The number of members the end record of the zip archive open in ``fh`` declares (zip64
+    too), or None where there is no such record (the reader then says what the file is)."""
+    import struct
     try:
-        with open_input(path) as fh, zipfile.ZipFile(fh) as zf:
-            _inflated_total(zf, str(path))
+        fh.seek(0, os.SEEK_END)
+        size = fh.tell()
+        fh.seek(max(size - (22 + 65535), 0))
+        tail = fh.read()
+    except OSError:
+        return None
+    at = tail.rfind(b"PK\x05\x06")
+    if at < 0 or at + 22 > len(tail):
+        return None
+    n = struct.unpack("<H", tail[at + 10:at + 12])[0]
+    loc = at - 20
+    if n == 0xFFFF and loc >= 0 and tail[loc:loc + 4] == b"PK\x06\x07":
+        try:
+            fh.seek(struct.unpack("<Q", tail[loc + 8:loc + 16])[0])
+            rec = fh.read(56)
+        except (OSError, OverflowError, ValueError):
+            return None
+        if rec[:4] == b"PK\x06\x06" and len(rec) == 56:
+            n = struct.unpack("<Q", rec[32:40])[0]
+    fh.seek(0)
+    return int(n)
+
+
+def _check_members(fh: IO[bytes], source: str) -> None:
+    n = _member_count(fh)
+    if n is not None and n > MAX_MEMBERS:
+        raise InputError(f"is a zip archive of {n:,} members; an NPZ hlaid reads holds at most {MAX_MEMBERS:,} arrays",
+                         source=source)
+
+
+def check_archive(path: str | os.PathLike) -> None:
+    """Refuse a zip archive (an NPZ) of more than :data:`MAX_MEMBERS` members or whose members
+    inflate past ``HLAID_MAX_FILE_MB``, before inflating any; an unreadable archive is left to the
+    reader's own message."""
+    try:
+        with open_input(path) as fh:
+            _check_members(fh, str(path))
+            with zipfile.ZipFile(fh) as zf:
+                _inflated_total(zf, str(path))
     except (zipfile.BadZipFile, OSError, ValueError) as err:
         if isinstance(err, InputError):
             raise
@@ -496,6 +563,7 @@ def load_npz(path: str | os.PathLike, *, not_npz: str = "not an NPZ file (a zip 
     import numpy as np
     source = str(path)
     with open_input(path) as fh:
+        _check_members(fh, source)
         try:
             zf = zipfile.ZipFile(fh)
         except (zipfile.BadZipFile, OSError, ValueError):

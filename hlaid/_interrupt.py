@@ -78,3 +78,28 @@ def sticky_sigint() -> Iterator[None]:
             signal.signal(term, signal.SIG_DFL)
         sys.unraisablehook = old_hook
         _pending = None
+
+
+def said_until_exit(prog: str = "hlaid") -> None:
+    """From now until the process exits (the command has ended; the interpreter is shutting down,
+    which takes a second with torch loaded), SIGINT and SIGTERM print one line, ``PROG: interrupted``
+    (``terminated``), and exit at once with 130 (143), instead of a traceback or a silent death.
+    For the command line run as a program only (a process-wide handler that ends the process)."""
+    import os
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def ended(signum, frame) -> None:
+        term = signum == getattr(signal, "SIGTERM", None)
+        with contextlib.suppress(OSError, ValueError):
+            sys.stderr.write(f"{prog}: {'terminated' if term else 'interrupted'} after the command ended (what it "
+                             "wrote is complete)\n")
+            sys.stderr.flush()
+        os._exit(143 if term else 130)
+
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, ended)
+    term = getattr(signal, "SIGTERM", None)
+    if term is not None and signal.getsignal(term) == signal.SIG_DFL:
+        signal.signal(term, ended)

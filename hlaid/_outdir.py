@@ -12,8 +12,15 @@ the user put into the folder or a file the user changed stops it (:func:`not_our
 
 A folder that cannot be renamed (a mount point, a bind-mounted folder of a container) is replaced
 in place instead (:func:`replace_contents`): what hlaid wrote there is removed and the new entries
-are moved in, one by one. What killed runs left (``.NAME.PID-*.tmp``) is removed by the next write
-(:func:`remove_stale`).
+are moved in, one by one. What killed runs left (``.NAME.PID-TOKEN.tmp``, named by
+:func:`hlaid._outkey.temp_name`) is removed by the next write (:func:`remove_stale`): only names
+whose token hlaid tagged, never a user's file that merely looks like one.
+
+Every file is compared by its SHA-256 and its permissions, always (never skipped on size and
+modification time): a same-size edit with its time put back, or a file made read-only, is the
+user's. A file that hlaid rewrites inside one of its output folders (``hlaid loss RUN`` and
+``hlaid report RUN`` rewrite ``summary.json`` and ``report.html``) is rewritten only while the
+whole folder still holds what hlaid wrote (:func:`check_rewrite`).
 """
 
 from __future__ import annotations
@@ -22,24 +29,23 @@ import hashlib
 import hmac
 import json
 import os
-import re
-import secrets
 import shutil
 import stat
 import time
 from pathlib import Path
 
-from . import _progress
+from . import _outkey, _progress
 from ._inputs import own_files, read_json
+from ._outkey import signing_key
 from ._version import __version__
 from .errors import InputError
 
 MARKER = ".hlaid-output.json"
 """The file that makes a folder an output of hlaid (``--force`` may replace it)."""
 
-VERSION = 3
+VERSION = 4
 """Version of :data:`MARKER`'s content (1: no list of files, no folder identity; 2: no contents,
-no signature)."""
+no signature; 3: no permissions, contents compared by size and time first)."""
 
 SHOWN = 3
 """Entries named in a refusal (the rest are counted)."""
@@ -56,8 +62,8 @@ def stem(name: str) -> str:
 
 
 STALE_AFTER_S = 3600.0
-"""A temporary output (``.NAME.PID-*.tmp``) older than this whose process is gone was left by a
-killed run; the next write of ``NAME`` removes it."""
+"""A temporary output of hlaid's (:func:`hlaid._outkey.temp_name`) older than this whose process is
+gone was left by a killed run; the next write of its output removes it."""
 
 
 def _pid_alive(pid: int) -> bool:
@@ -75,24 +81,26 @@ def _pid_alive(pid: int) -> bool:
 def remove_stale(parent: Path, name: str) -> list[str]:
     """Remove what killed runs left while writing ``parent/name``; returns the names removed.
 
-    That is ``.NAME.PID-*.tmp*`` (a temporary file or folder) and, when ``NAME`` itself exists,
-    ``.NAME.old-PID`` (a replaced folder), each only when older than :data:`STALE_AFTER_S` and
-    its process ``PID`` is no longer running.
+    That is a temporary file or folder and, when ``NAME`` itself exists, a replaced folder kept
+    aside, each only when hlaid named it (its token's tag is valid, :func:`hlaid._outkey.made_here`),
+    it is older than :data:`STALE_AFTER_S` and its process is no longer running.
     """
-    pat = re.compile(re.escape(f".{stem(name)}.") + r"(?:(\d+)-\w+\.tmp.*|old-(\d+))\Z", re.S)
     try:
         entries = list(os.scandir(parent))
     except OSError:
         return []
     removed = []
     now = time.time()
+    base = stem(name)
     for e in entries:
-        m = pat.match(e.name)
-        if not m or (m.group(2) and not (parent / name).exists()):  # an old- folder may be the only copy
+        if not e.name.startswith(f".{base}."):
+            continue
+        made = _outkey.made_here(e.name, base)
+        if made is None or (made[1] and not (parent / name).exists()):  # an old- folder may be the only copy
             continue
         try:
             young = now - e.stat(follow_symlinks=False).st_mtime < STALE_AFTER_S
-            if young or _pid_alive(int(m.group(1) or m.group(2))):
+            if young or _pid_alive(made[0]):
                 continue
             if e.is_dir(follow_symlinks=False):
                 shutil.rmtree(e.path)
@@ -104,6 +112,28 @@ def remove_stale(parent: Path, name: str) -> list[str]:
     if removed:
         _progress.debug(f"removed {len(removed)} stale temporary output(s) in {parent}: {', '.join(removed)}")
     return removed
+
+
+def live(name: str) -> bool:
+    """Whether ``name`` is a temporary output of this process (being written now)."""
+    made = _outkey.made_here(name, own=True)
+    return made is not None and made[0] == os.getpid()
+
+
+def make_temp(parent: Path, name: str, *, directory: bool = False, suffix: str = ".tmp") -> Path:
+    """Create a private temporary file (or folder) for the output ``parent/name``, under a name of
+    :func:`hlaid._outkey.temp_name`; returns its path."""
+    for _ in range(100):
+        p = parent / _outkey.temp_name(stem(name), suffix=suffix)
+        try:
+            if directory:
+                os.mkdir(p, 0o700)
+            else:
+                os.close(os.open(p, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0), 0o600))
+        except FileExistsError:
+            continue
+        return p
+    raise FileExistsError(f"no free temporary name in {parent}")
 
 
 def identity(folder: str | os.PathLike) -> dict:
@@ -126,50 +156,8 @@ def listing(folder: str | os.PathLike, skip: tuple[str, ...] = ()) -> list[str]:
     return sorted(out)
 
 
-def signing_key(create: bool = True) -> bytes | None:
-    """The key that signs output markers: ``output-key`` in :func:`hlaid._userdirs.state_root`
-    (32 random bytes, hex; created with mode 0600 on first use), or None where there is no such
-    folder (no home) or it cannot be read or written: markers are then unsigned and ``--force``
-    does not replace what they mark."""
-    from ._userdirs import state_root
-
-    root = state_root()
-    if root is None:
-        return None
-    path = root / "output-key"
-    for _ in range(2):
-        try:
-            with open(path, "rb") as fh:
-                raw = fh.read(200).strip()
-            if len(raw) == 64 and all(c in b"0123456789abcdef" for c in raw):
-                return raw
-            return None
-        except FileNotFoundError:
-            if not create:
-                return None
-        except OSError:
-            return None
-        tmp = root / f".output-key.{os.getpid()}.tmp"
-        try:
-            root.mkdir(parents=True, exist_ok=True, mode=0o700)
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-            try:
-                os.write(fd, secrets.token_hex(32).encode() + b"\n")
-            finally:
-                os.close(fd)
-            os.link(tmp, path)  # complete or absent: another process never reads half a key
-        except FileExistsError:
-            pass  # another process made it meanwhile: read that one
-        except OSError:
-            tmp.unlink(missing_ok=True)
-            return None
-        tmp.unlink(missing_ok=True)
-    return None
-
-
 def _sign(body: dict, key: bytes) -> str:
-    text = json.dumps({k: v for k, v in body.items() if k != "signature"}, sort_keys=True, separators=(",", ":"))
-    return hmac.new(key, text.encode(), hashlib.sha256).hexdigest()
+    return _outkey.sign(body, key)
 
 
 def _sha256(path: str | os.PathLike) -> str:
@@ -181,24 +169,27 @@ def _sha256(path: str | os.PathLike) -> str:
 
 
 def content(path: str | os.PathLike) -> dict | None:
-    """What ``path`` holds now, as :data:`MARKER` records it: ``{"size", "mtime_ns", "sha256"}`` of a
-    regular file, ``{"link": target}`` of a symbolic link, ``{"folder": true}`` of a folder; None
-    for anything else or what cannot be read."""
+    """What ``path`` holds now, as :data:`MARKER` records it: ``{"size", "mtime_ns", "sha256", "mode"}``
+    of a regular file, ``{"link": target}`` of a symbolic link, ``{"folder": true, "mode"}`` of a
+    folder (``mode``: its permission bits); None for anything else or what cannot be read."""
     try:
         st = os.lstat(path)
         if stat.S_ISLNK(st.st_mode):
             return {"link": os.readlink(os.fspath(path))}
         if stat.S_ISDIR(st.st_mode):
-            return {"folder": True}
+            return {"folder": True, "mode": stat.S_IMODE(st.st_mode)}
         if stat.S_ISREG(st.st_mode):
-            return {"size": int(st.st_size), "mtime_ns": int(st.st_mtime_ns), "sha256": _sha256(path)}
+            return {"size": int(st.st_size), "mtime_ns": int(st.st_mtime_ns), "sha256": _sha256(path),
+                    "mode": stat.S_IMODE(st.st_mode)}
     except OSError:
         return None
     return None
 
 
 def _unchanged(path: str | os.PathLike, rec: object) -> bool:
-    """Whether ``path`` still holds what ``rec`` (see :func:`content`) says hlaid wrote."""
+    """Whether ``path`` still holds what ``rec`` (see :func:`content`) says hlaid wrote: the same kind,
+    permissions and, for a file, the same SHA-256 (always computed: a same-size edit with its
+    modification time put back is a change)."""
     if not isinstance(rec, dict):
         return False
     try:
@@ -207,13 +198,14 @@ def _unchanged(path: str | os.PathLike, rec: object) -> bool:
         return False
     if "link" in rec:
         return stat.S_ISLNK(st.st_mode) and os.readlink(os.fspath(path)) == rec["link"]
+    if "mode" in rec and stat.S_IMODE(st.st_mode) != rec["mode"]:
+        return False
     if rec.get("folder") is True:
         return stat.S_ISDIR(st.st_mode)
     if not stat.S_ISREG(st.st_mode) or st.st_size != rec.get("size"):
         return False
     try:
-        return st.st_mtime_ns == rec.get("mtime_ns") and len(str(rec.get("sha256"))) == 64 or \
-            _sha256(path) == rec.get("sha256")
+        return _sha256(path) == rec.get("sha256")
     except OSError:
         return False
 
@@ -236,8 +228,17 @@ def marker(what: str, files: list[str], folder: str | os.PathLike, *, pending: t
             "written": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "folder": identity(folder), "files": list(files),
             "contents": recs}
     key = signing_key()
+    if key is None:
+        body["unsigned"] = _outkey.problem()  # said when written (:func:`warn_unsigned`), and by later refusals
     body["signature"] = _sign(body, key) if key is not None else None
     return body
+
+
+def warn_unsigned(body: dict, where: str | os.PathLike) -> None:
+    """Say, when an output is written, that its marker ``body`` could not be signed."""
+    if body.get("signature") is None:
+        _progress.warn(f"{where}: its {MARKER} is unsigned ({body.get('unsigned') or _outkey.problem()}); "
+                       "--force will not replace this output")
 
 
 def read_marker(folder: str | os.PathLike) -> dict | None:
@@ -288,8 +289,12 @@ def not_ours(folder: str | os.PathLike, skip: tuple[str, ...] = ()) -> str | Non
         return f"is not an output folder of hlaid (it has no {MARKER})"
     own = _own_marker(folder)
     if own is None:
-        why = "no key to check it with (HOME names no folder)" if signing_key(create=False) is None else \
-            "made by hand, copied from another folder, edited, or written by an older hlaid"
+        if d.get("signature") is None and isinstance(d.get("unsigned"), str):
+            return (f"is not an output hlaid may replace: its {MARKER} is unsigned (no key could be used when it was "
+                    f"written: {d['unsigned'][:200]})")
+        why = "made by hand, copied from another folder, edited, or written by an older hlaid"
+        if signing_key(create=False) is None:
+            why = f"no key to check it with: {_outkey.problem()}"
         return f"is not an output folder of hlaid: its {MARKER} was not written there by hlaid ({why})"
     files = {f for f in own["files"] if isinstance(f, str)}
     foreign = _foreign(Path(folder), files, own["contents"], skip)
@@ -312,7 +317,7 @@ def _foreign(root: Path, files: set[str], recs: dict, skip: tuple[str, ...]) -> 
             continue
         for e in entries:
             name = (rel / e.name).as_posix()
-            if rel == Path(".") and (e.name in skip or e.name == MARKER):
+            if rel == Path(".") and (e.name in skip or e.name == MARKER) or live(e.name):
                 continue
             is_dir = e.is_dir(follow_symlinks=False)
             if name in files:
@@ -359,18 +364,42 @@ def rerecord(path: str | os.PathLike, levels: int = 4) -> None:
 
 def _write_marker(folder: Path, body: dict) -> None:
     """Replace ``folder``'s :data:`MARKER` by ``body`` atomically (a temporary file renamed over it)."""
-    import tempfile
-
-    fd, name = tempfile.mkstemp(prefix=f".{MARKER}.{os.getpid()}-", suffix=".tmp", dir=folder)
+    name = make_temp(folder, MARKER)
     try:
-        with os.fdopen(fd, "w") as fh:
+        with open(name, "w") as fh:
             fh.write(json.dumps(body, indent=2) + "\n")
         mode = os.stat(folder / MARKER).st_mode & 0o777 if os.path.exists(folder / MARKER) else 0o644
         os.chmod(name, mode)
         os.replace(name, folder / MARKER)
     except BaseException:
-        Path(name).unlink(missing_ok=True)
+        name.unlink(missing_ok=True)
         raise
+
+
+def check_rewrite(path: str | os.PathLike, levels: int = 4) -> None:
+    """Refuse to rewrite the existing file ``path`` inside an output folder of hlaid (a folder up to
+    ``levels`` above with a :data:`MARKER` listing it) unless that folder still holds only what hlaid
+    wrote (:func:`not_ours`): the user's edit to one of its files, a file added or made read-only
+    makes the folder the user's, and nothing in it is touched."""
+    path = Path(os.path.abspath(path))
+    if not os.path.lexists(path) or path.name == MARKER:
+        return
+    folder = path.parent
+    for _ in range(levels):
+        rel = os.path.relpath(path, folder).replace(os.sep, "/")
+        if os.path.lexists(folder / MARKER):
+            d = read_marker(folder)
+            if d is None or rel not in (d.get("files") or []):
+                return
+            why = not_ours(folder)
+            if why is not None:
+                raise InputError(f"{why}: hlaid rewrites a file of its output folder only while the folder holds what "
+                                 f"hlaid wrote; nothing was changed (copy the folder and work on the copy, or "
+                                 "move your changes out)", source=str(folder))
+            return
+        if folder.parent == folder:
+            return
+        folder = folder.parent
 
 
 def cannot_rename(path: Path) -> bool:
@@ -422,6 +451,6 @@ def _remove(p: Path) -> None:
         p.unlink()
 
 
-__all__ = ["MARKER", "VERSION", "STALE_AFTER_S", "stem", "remove_stale", "identity", "listing", "marker",
-           "signing_key", "content", "rerecord",
+__all__ = ["MARKER", "VERSION", "STALE_AFTER_S", "stem", "remove_stale", "live", "make_temp", "identity", "listing",
+           "marker", "warn_unsigned", "signing_key", "content", "rerecord", "check_rewrite",
            "read_marker", "written_here", "not_ours", "cannot_rename", "replace_contents"]

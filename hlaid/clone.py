@@ -53,7 +53,7 @@ from ._fileio import write_json
 from ._inputs import read_json
 from .errors import InputError, escape_controls, kind_of
 from .model import Building, Damping
-from .model.schema import STATE_BOUNDS, check_event, check_state
+from .model.schema import STATE_BOUNDS, check_damping_ratios, check_event, check_state
 from .model.state import BuildingState
 from .systems import SYSTEMS
 from .units import UNITS_JSON
@@ -199,6 +199,7 @@ class Clone:
             raise InputError(f"damping.kind must be a string, got {kind_of(damping['kind'])}", source=source)
         if "ratio" in damping:
             _number(damping["ratio"], "damping.ratio", source)
+        check_damping_ratios(damping, source)
         modes = damping.get("modes", [1, 2])
         if not (isinstance(modes, list) and all(isinstance(m, int) and not isinstance(m, bool) for m in modes)):
             raise InputError("damping.modes must be a list of two mode numbers such as [1, 2]", source=source)

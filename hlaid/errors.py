@@ -40,6 +40,21 @@ def one_line(text, limit: int | None = None) -> str:
     return escape_controls(" ".join(str(text).split())[:limit])
 
 
+MESSAGE_MAX = 800
+"""Characters of an error message (beyond its source): a longer one (a value of 60,000 characters, a
+list of 100 masses echoed) keeps its beginning and its end (:func:`clipped`)."""
+
+
+def clipped(text: str, limit: int = MESSAGE_MAX) -> str:
+    """``text`` within ``limit`` characters: its beginning and its last 200 (where the advice is), the
+    characters between counted."""
+    if len(text) <= limit:
+        return text
+    tail = min(200, limit // 4)
+    head = limit - tail - 40
+    return f"{text[:head]} ... ({len(text) - head - tail:,} characters left out) ... {text[-tail:]}"
+
+
 def failure_text(err: BaseException) -> str:
     """An error in one line of at most 200 characters (its type's name where it says nothing)."""
     return one_line(err, 200) or type(err).__name__
@@ -50,7 +65,7 @@ class InputError(ValueError):
     (control characters escaped: it may quote a hostile file name)."""
 
     def __init__(self, message: str, *, source: str | None = None):
-        message = one_line(message)  # always one line
+        message = clipped(one_line(message))  # always one line, of a readable length
         self.source = source
         self.detail = message
         """The message without the source."""

@@ -145,8 +145,11 @@ class Measurement:
             if a.shape[0] != f.shape[1]:
                 raise InputError(f"{name} has {a.shape[0]} values but there are {f.shape[1]} floor channels",
                                  source=src)
-            if not np.all(np.isfinite(a) & (a > 0)):
-                raise InputError(f"{name} must be positive numbers, got {a.tolist()}", source=src)
+            wrong = np.flatnonzero(~(np.isfinite(a) & (a > 0)))
+            if wrong.size:
+                more = f" (and {wrong.size - 1} more)" if wrong.size > 1 else ""
+                raise InputError(f"{name} must be positive numbers: {name}[{wrong[0]}] = {a[wrong[0]]:g}{more}",
+                                 source=src)
             bad = STORY_BOUNDS[name].offending(a)
             if bad is not None:
                 raise InputError(STORY_BOUNDS[name].message(f"{name}[{bad[0]}]", bad[1]), source=src)
@@ -343,6 +346,20 @@ def check_moving(meas: Measurement) -> None:
         v = float(f[0, still[0] - 1])
         raise InputError(f"floor_acc of floor {still[0]} is constant ({v:g} mm/s^2 at every sample): no floor of a "
                          "shaken building keeps still; check the channel", source=src)
+    pga = float(np.abs(g).max())
+    peaks = np.abs(f).max(axis=0)
+    worst = int(np.argmax(peaks))
+    if peaks[worst] > FLOOR_AMPLIFICATION_MAX * pga:
+        raise InputError(f"floor_acc of floor {worst + 1} peaks at {peaks[worst]:.3g} mm/s^2, {peaks[worst] / pga:.3g} "
+                         f"times the ground's peak ({pga:.3g} mm/s^2): no building amplifies the ground more than "
+                         f"{FLOOR_AMPLIFICATION_MAX:g} times; check that channel's units and scale (and a spike in it)",
+                         source=src)
+
+
+FLOOR_AMPLIFICATION_MAX = 50.0
+"""Largest ratio of a floor's peak acceleration to the ground's that :func:`check_moving` accepts:
+buildings amplify the ground a few times (10-20 at resonance under a weak record); a floor 1000x
+the ground is a channel in other units, scaled, or a spike."""
 
 
 def ground_digest(meas: Measurement) -> str:

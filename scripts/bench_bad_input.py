@@ -100,7 +100,22 @@ def data_cases(d: Path) -> list[tuple[str, list[str], dict]]:
     (d / "run-root.yaml").write_text(f"measurement: {{file: {three}}}\nida: {{records: /}}\n")
     (d / "fl1.yaml").write_text("records: builtin:elcentro-1940-ns\nbuildings:\n"
                                 "  - {name: B1, measurements: {ev1: {file: three.npz}}}\n")
+    with open(d / "line.csv", "wb") as fh:  # one line of 200 MB
+        fh.write(b"# dt_s: 0.01\ntime_s,ground_acc,floor_acc_1\n")
+        chunk = b"1," * (2**20 // 2)
+        for _ in range(200):
+            fh.write(chunk)
+        fh.write(b"\n")
+    with zipfile.ZipFile(d / "members.npz", "w") as z:  # 100,000 tiny members
+        for i in range(100_000):
+            z.writestr(f"a{i}.npy", b"")
+    t = np.arange(2000) * 0.01
+    g = 2000.0 * np.sin(2 * np.pi * 1.3 * t) * np.exp(-0.1 * t)
+    np.savez(d / "x1000.npz", dt=np.float64(0.01), ground_acc=g, floor_acc=g[:, None] * [1.5, 1800.0, 2.0])
     return [
+        ("hla: CSV with one line of 200 MB", ["hla", "line.csv", "-o", "h"], {}),
+        ("hla: NPZ of 100,000 members", ["hla", "members.npz", "-o", "h"], {}),
+        ("hla: a floor channel 1000x the ground", ["hla", "x1000.npz", "-o", "h"], {}),
         ("hla: CSV of 3 million rows", ["hla", "rows.csv", "-o", "h"], {}),
         ("hla: nested zip of 600 MiB (CSMIP)", ["hla", "nested.zip", "-o", "h"], {}),
         ("run: ida.records /", ["run", "run-root.yaml", "-o", "r"], {}),
@@ -157,7 +172,40 @@ def cases(d: Path) -> list[tuple[str, list[str], dict]]:
     with open(d / "huge.yaml", "wb") as fh:
         fh.truncate(100 * 2**20)  # sparse
     (d / "demands.csv").write_text(",1-PID-1-1\nUnits,rad\n0,0.01\n")
+    keys = {}
+    for kind in ("readable", "fifo"):  # key files unsafe to use
+        keys[kind] = d / f"state-{kind}"
+        keys[kind].mkdir()
+        if kind == "fifo":
+            os.mkfifo(keys[kind] / "output-key")
+        else:
+            (keys[kind] / "output-key").write_text("ab" * 32 + "\n")
+            os.chmod(keys[kind] / "output-key", 0o644)
+    from hlaid._fileio import atomic_directory  # outputs of hlaid, then changed by their user
+    with atomic_directory(d / "hout", what="hlaid hla") as tmp:
+        (tmp / "hla.json").write_text('{"k0": 1}')
+    mtime = os.stat(d / "hout" / "hla.json").st_mtime_ns
+    (d / "hout" / "hla.json").write_text('{"k0": 2}')
+    os.utime(d / "hout" / "hla.json", ns=(mtime, mtime))
+    with atomic_directory(d / "myrun", what="hlaid run") as tmp:
+        (tmp / "summary.json").write_text("{}")
+        (tmp / "report.html").write_text("<p>hlaid's</p>")
+    with open(d / "myrun" / "report.html", "a") as fh:
+        fh.write("<p>my notes</p>")
     return [
+        ("ida: --heights 3.0,3.0,3.0 (metres)", ["ida", good, "-o", "i", "--heights", "3.0,3.0,3.0"], {}),
+        ("ida: --heights 1e6 mm", ["ida", good, "-o", "i", "--heights", "1e6,3000,3000"], {}),
+        ("ida: --drift-limit 5", ["ida", good, "-o", "i", "--drift-limit", "5"], {}),
+        ("demands: --ensemble 100001", ["demands", good, "--motion", "meas.npz", "--ensemble", "100001", "-o", "d.csv"],
+         {}),
+        ("demands: --ensemble -1", ["demands", good, "--motion", "meas.npz", "--ensemble", "-1", "-o", "d.csv"], {}),
+        ("export-opensees: damping.ratio 0.99",
+         ["export-opensees", _clone(d, "damp.json", lambda c: c["damping"].update(ratio=0.99)), "-o", "m.py"], {}),
+        ("export-opensees: output key 0644", ["export-opensees", good, "-o", "m.py"],
+         {"HLAID_STATE_DIR": str(keys["readable"])}),
+        ("hla: output key a FIFO", ["hla", "meas.npz", "-o", "new"], {"HLAID_STATE_DIR": str(keys["fifo"])}),
+        ("hla: --force, a same-size edit, time kept", ["hla", "meas.npz", "-o", "hout", "--force"], {}),
+        ("report: a run folder its user edited", ["report", "myrun"], {}),
         ("ida: clone without story heights", ["ida", noh, "-o", "i"], {}),
         ("ida: --heights 3000 for 3 stories", ["ida", good, "-o", "i", "--heights", "3000"], {}),
         ("ida: --records missing", ["ida", good, "-o", "i", "--records", "missing"], {}),

@@ -177,10 +177,10 @@ def test_the_marker_records_what_each_file_holds(tmp_path):
         (tmp / "sub").mkdir()
         (tmp / "sub" / "link").symlink_to("../a.json")
     mark = json.loads((out / MARKER).read_text())
-    assert mark["version"] == 3 and len(mark["signature"]) == 64
+    assert mark["version"] == _outdir.VERSION == 4 and len(mark["signature"]) == 64
     assert mark["contents"]["a.json"]["size"] == 2
     assert mark["contents"]["a.json"]["sha256"] == "44136fa355b3678a1146ad16f7e8649e94fb4fc21fe77e8310c060f61caaff8a"
-    assert mark["contents"]["sub/link"] == {"link": "../a.json"} and mark["contents"]["sub"] == {"folder": True}
+    assert mark["contents"]["sub/link"] == {"link": "../a.json"} and mark["contents"]["sub"]["folder"] is True
     mark["command"] = "hlaid edited"  # any edit breaks the signature
     (out / MARKER).write_text(json.dumps(mark))
     assert not is_hlaid_output(out)
@@ -194,7 +194,7 @@ def test_without_a_home_markers_are_unsigned_and_open_nothing(tmp_path, monkeypa
     with atomic_directory(out, what="hlaid test") as tmp:
         (tmp / "a.json").write_text("{}")
     assert json.loads((out / MARKER).read_text())["signature"] is None
-    refused(capsys, ["hla", _measurement(tmp_path), "-o", out, "--force"], ["no key to check it with"],
+    refused(capsys, ["hla", _measurement(tmp_path), "-o", out, "--force"], ["its .hlaid-output.json is unsigned"],
             root=tmp_path, within=30)
 
 

@@ -245,13 +245,17 @@ def test_interrupted_writers_leave_nothing(tmp_path):
 
 
 def test_stale_temporary_outputs_are_removed_on_the_next_write(tmp_path):
+    from hlaid import _outkey
     dead, alive = _dead_pid(), os.getpid()
-    stale_file = tmp_path / f".c.json.{dead}-abc123_x.tmp.json"
-    stale_dir = tmp_path / f".out.{dead}-k2j4h5.tmp"
-    recent = tmp_path / f".c.json.{dead}-recent.tmp.json"
-    running = tmp_path / f".c.json.{alive}-mine.tmp.json"
-    other = tmp_path / f".other.json.{dead}-zzz.tmp.json"
-    old_copy = tmp_path / f".out.old-{dead}"
+
+    def tagged(stem: str, pid: int, token: str) -> str:  # a name hlaid made (see hlaid._outkey.temp_name)
+        return f"{pid}-{token}{_outkey._tag(stem, pid, token, _outkey.signing_key())}"
+    stale_file = tmp_path / f".c.json.{tagged('c.json', dead, 'abc12300')}.tmp.json"
+    stale_dir = tmp_path / f".out.{tagged('out', dead, '0f2a4b5c')}.tmp"
+    recent = tmp_path / f".c.json.{tagged('c.json', dead, 'dddd0000')}.tmp.json"
+    running = tmp_path / f".c.json.{tagged('c.json', alive, 'eeee0000')}.tmp.json"
+    other = tmp_path / f".other.json.{tagged('other.json', dead, 'ffff0000')}.tmp.json"
+    old_copy = tmp_path / f".out.old-{tagged('out', dead, '01234567')}"
     for p in (stale_file, recent, running, other):
         p.write_text("partial")
     for d in (stale_dir, old_copy):

@@ -95,6 +95,48 @@ def add_ensemble(p: argparse.ArgumentParser, what: str) -> None:
                         "when the clone has it, else 0; 0: the identified clone alone)")
 
 
+STORY_HEIGHT_MM = (500.0, 50_000.0)
+"""Story heights ``--heights`` accepts [mm]: 0.5 m (a crawl space) to 50 m (a hangar's story); a
+value of a few units is a height in metres."""
+
+DRIFT_LIMIT_MAX = 0.5
+"""The largest collapse drift ratio ``--drift-limit`` accepts (50 % of the story height)."""
+
+
+def check_values(args) -> None:
+    """Refuse absurd values of the options several commands share, right after the arguments are
+    parsed (before a file is read or a heavy library loads): ``--ensemble`` outside 0..
+    :data:`~hlaid.uncertainty.config.MAX_ENSEMBLE`, ``--heights`` outside :data:`STORY_HEIGHT_MM`
+    (a few units: metres, said so), ``--drift-limit`` outside (0, :data:`DRIFT_LIMIT_MAX`]."""
+    from ..uncertainty.config import MAX_ENSEMBLE
+
+    n = getattr(args, "ensemble", None)
+    if n is not None and not 0 <= n <= MAX_ENSEMBLE:
+        raise InputError(f"--ensemble {n}: {n} clones; expected 0 (the identified clone alone) to {MAX_ENSEMBLE:,}")
+    text = getattr(args, "heights", None)
+    if text:
+        _check_heights(str(text))
+    d = getattr(args, "drift_limit", None)
+    if d is not None and not 0 < d <= DRIFT_LIMIT_MAX:
+        raise InputError(f"--drift-limit {d:g}: a drift limit is a ratio of the story height (0.10 is 10 %), above 0 "
+                         f"and at most {DRIFT_LIMIT_MAX:g}" + (f"; {d:g} is {d:.0%}" if d > DRIFT_LIMIT_MAX else ""))
+
+
+def _check_heights(text: str) -> None:
+    lo, hi = STORY_HEIGHT_MM
+    try:
+        values = [float(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        return  # not numbers: the command says so
+    for v in values:
+        if 0 < v <= 50:
+            raise InputError(f"--heights {one_line(text, 60)}: story heights are in mm; {v:g} mm looks like metres "
+                             f"({v:g} m = {v * 1000:g} mm)")
+        if not lo <= v <= hi:
+            raise InputError(f"--heights {one_line(text, 60)}: a story height of {v:g} mm; expected {lo:g} to {hi:g} "
+                             "mm (0.5 to 50 m) per story")
+
+
 def _seed(text: str) -> int:
     """A ``--seed`` value: an integer within :data:`hlaid.bounds.SEED`, checked as it is parsed."""
     from ..bounds import SEED
@@ -121,8 +163,8 @@ def add_building(p: argparse.ArgumentParser, *, pdelta_default: str = "when stor
     g.add_argument("--pdelta", dest="pdelta", action="store_true", default=None,
                    help=f"include P-Delta (default: {pdelta_default})")
     g.add_argument("--no-pdelta", dest="pdelta", action="store_false", help="leave P-Delta out")
-    p.add_argument("--heights", metavar="MM", help="story heights [mm], bottom to top, e.g. 3000,3000,3000 "
-                                                  "(default: the clone's)")
+    p.add_argument("--heights", metavar="MM",
+                   help="story heights [mm], bottom to top, e.g. 3000,3000,3000 (default: the clone's)")
     p.add_argument("--gravity-kN", metavar="KN", help="floor gravity loads [kN] for P-Delta, bottom to top "
                                                      "(default: the floor weights)")
 
@@ -202,8 +244,12 @@ def build_parser() -> Parser:
 def main(argv: list[str] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``); returns the exit status.
     A Ctrl-C that Python drops (inside a finaliser) is raised again (:mod:`hlaid._interrupt`)."""
-    with _progress.cli_warnings(), _interrupt.sticky_sigint():
-        return _main(argv)
+    try:
+        with _progress.cli_warnings(), _interrupt.sticky_sigint():
+            return _main(argv)
+    finally:
+        if argv is None:  # the program itself: a signal while the interpreter shuts down is said too
+            _interrupt.said_until_exit()
 
 
 def _main(argv: list[str] | None) -> int:
@@ -218,6 +264,7 @@ def _main(argv: list[str] | None) -> int:
             parser.print_help()
             return 2
         prog = f"hlaid {args.command}"
+        check_values(args)
         for name in check_environment():  # a bad HLAID_MAX_* is exit 2 before any work
             _progress.warn(f"environment variable {name} is no limit of hlaid (a typo?); it is ignored")
         from .. import _fileio, _inputs

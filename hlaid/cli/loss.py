@@ -253,9 +253,10 @@ def ida_fragility(folder: str, demands: Path) -> tuple[float, float]:
                          "capacities.median_g, beta); raise the IDA's levels", source=str(path)) from None
     df = read_demand_csv(demands)
     want = "PGA" if im == "pga" else f"SA_{period:.3g}" if period else None
-    if df.im_type is None or want is None or df.im_type != want:
+    have = df.im_type or "PGA"  # no SA column: the PGA is PFA-0 (hlaid demands writes no other; as the losses read it)
+    if want is None or have != want:
         raise InputError(f"--collapse-from: the IDA's intensity ({want or im}) is not the demand file's "
-                         f"({df.im_type or 'none'}); run hlaid ida and hlaid demands on the same clone with the same "
+                         f"({have}); run hlaid ida and hlaid demands on the same clone with the same "
                          "settings", source=str(path))
     return median, beta
 

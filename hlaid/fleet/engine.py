@@ -29,7 +29,7 @@ from .._fileio import MARKER as OUTPUT_MARKER
 from .._fileio import write_json
 from .._inputs import own_files, read_json
 from .._outdir import marker as output_marker
-from .._outdir import written_here
+from .._outdir import warn_unsigned, written_here
 from .._version import __version__
 from ..errors import InputError, one_line
 from ..io import read
@@ -134,7 +134,10 @@ def mark_output(out: Path, jobs: list[UnitJob] | tuple = (), *, pending: bool = 
     if pending:
         todo = set(FLEET_FILES) - {"buildings"} | {f"buildings/{j.unit}.json" for j in jobs}
         todo -= {f for f in files if f.startswith("buildings/") and _finished(out / f, jobs)}
-    write_json(out / OUTPUT_MARKER, output_marker("hlaid fleet", sorted(files), out, pending=todo))
+    body = output_marker("hlaid fleet", sorted(files), out, pending=todo)
+    write_json(out / OUTPUT_MARKER, body)
+    if not pending:
+        warn_unsigned(body, out)  # said once, when the fleet's output is complete
 
 
 def _finished(path: Path, jobs) -> bool:

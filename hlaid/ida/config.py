@@ -61,7 +61,7 @@ class IDAConfig:
     im: Literal["sa_t1", "pga"] = "sa_t1"
     levels: list[float] | None = bounded(None, lo=1e-6, hi=100.0, unit="g")
     n_levels: int = bounded(20, lo=2, hi="IDA_LEVELS")
-    drift_limit: float = bounded(0.10, lo=1e-4, hi=10.0, hi_open=True)
+    drift_limit: float = bounded(0.10, lo=1e-4, hi=0.5)
     slope_ratio: float = bounded(0.20, lo=1e-3, hi=1.0, hi_open=True)
     exceedance_limits: list[float] | None = bounded(None, lo=1e-5, hi=10.0, hi_open=True)
     refine: bool = True

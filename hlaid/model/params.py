@@ -13,7 +13,7 @@ from ..bounds import with_bounds
 from ..errors import InputError, escape_controls
 from ..units import G_MM_S2, kn_to_n, n_to_kn, weight_kn_to_mass_t
 from .collapse import CollapseModel, get_collapse_model, no_collapse
-from .schema import STORY_BOUNDS, Damping, check_story_value
+from .schema import STORY_BOUNDS, Damping, check_damping_ratios, check_story_value
 
 if TYPE_CHECKING:  # torch is imported where a building is simulated, not where one is checked
     import torch
@@ -150,6 +150,7 @@ class Building:
         """Inverse of :meth:`to_dict`."""
         d = dict(d)
         stories = d.pop("stories")
+        check_damping_ratios(d.get("damping", {}), source)
         damping = Damping(**d.pop("damping", {}))
         return cls.from_stories(stories, damping=damping, source=source, **d)
 

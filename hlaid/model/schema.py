@@ -27,8 +27,8 @@ STORY_BOUNDS: dict[str, Bounds] = {
 """Bounds of the per-story parameters of a building (units N, mm, t, s)."""
 
 DAMPING_RATIO_MAX = 0.5
-"""Largest damping ratio an identification gives or an ensemble draws (a clone file may state up
-to 1): more than half the critical damping is no building's."""
+"""Largest damping ratio an identification gives, an ensemble draws or a building file (a clone, a
+config) may state: more than half the critical damping is no building's."""
 
 STATE_BOUNDS: dict[str, Bounds] = {
     "drift": Bounds(-1e6, 1e6, unit="mm"),
@@ -195,4 +195,17 @@ class Damping:
                 **({"ratio2": self.ratio2} if self.ratio2 is not None else {})}
 
 
-__all__ = ["STORY_BOUNDS", "DAMPING_RATIO_MAX", "WEIGHT_KN", "DAMPING_KINDS", "Damping", "check_story_value"]
+def check_damping_ratios(damping: object, source: str | None = None) -> None:
+    """Refuse a file's ``damping`` block (a mapping) whose ratio or ratio2 exceeds
+    :data:`DAMPING_RATIO_MAX` (0.99 is no building's: a percent typed as a ratio?)."""
+    if not isinstance(damping, dict):
+        return
+    for key in ("ratio", "ratio2"):
+        r = damping.get(key)
+        if isinstance(r, (int, float)) and not isinstance(r, bool) and r > DAMPING_RATIO_MAX:
+            raise InputError(f"damping.{key} = {r:g}; a building's damping ratio is at most {DAMPING_RATIO_MAX:g} "
+                             "(0.05 is 5 %)", source=source)
+
+
+__all__ = ["check_damping_ratios", "STORY_BOUNDS", "DAMPING_RATIO_MAX", "WEIGHT_KN", "DAMPING_KINDS", "Damping",
+           "check_story_value"]

@@ -113,18 +113,49 @@ class ParameterUncertainty:
         object.__setattr__(self, "slots", tuple((str(n), int(i)) for n, i in self.slots))
         object.__setattr__(self, "transform", tuple(self.transform))
 
-    def check_spread(self, source: str | None = None) -> None:
-        """Refuse a parameter whose standard deviation exceeds :data:`MAX_THETA_STD` in its scale
-        (its bounds' width for a linear one): no identification from a record gives one."""
-        S = self.covariance
-        for j, ((n, i), t) in enumerate(zip(self.slots, self.transform)):
+    def _tops(self) -> np.ndarray:
+        """(P,) the largest standard deviation each slot may have in its scale: :data:`MAX_THETA_STD`
+        (log, logit), its bounds' width (linear; infinite where they are)."""
+        out = []
+        for (n, _), t in zip(self.slots, self.transform):
             lo, hi = BOUNDS[n] if n in BOUNDS else (0.0, 1.0)
-            top = MAX_THETA_STD if t != "linear" else float(hi - lo) if math.isfinite(hi - lo) else math.inf
-            if S[j, j] > top**2:
+            out.append(MAX_THETA_STD if t != "linear" else float(hi - lo) if math.isfinite(hi - lo) else math.inf)
+        return np.array(out, dtype=float)
+
+    def capped(self) -> ParameterUncertainty:
+        """This uncertainty with the spread of every parameter the record did not identify (a standard
+        deviation above its bound, :meth:`_tops`) shrunk to that bound, its correlations kept (the
+        covariance scaled by ``D S D``, ``D`` diagonal <= 1: still positive semi-definite), and such
+        parameters named in ``info["unidentified"]``: what a clone file holds, so that every command
+        reads what identification wrote. Itself when none is."""
+        sd = self.std
+        tops = self._tops()
+        over = sd > tops
+        if not over.any():
+            return self
+        f = np.where(over, tops / np.maximum(sd, 1e-300), 1.0)
+        names = [k for k, o in zip(self.names, over) if o]
+        info = {**dict(self.info or {}), "unidentified": sorted({*(self.info or {}).get("unidentified", []), *names})}
+        return dataclasses.replace(self, covariance=self.covariance * np.outer(f, f), info=info)
+
+    @property
+    def unidentified(self) -> list[str]:
+        """The parameters whose spread reached its bound (:meth:`capped`): the record did not identify them."""
+        u = (self.info or {}).get("unidentified", [])
+        return [str(k) for k in u] if isinstance(u, list) else []
+
+    def check_spread(self, source: str | None = None) -> None:
+        """Refuse a parameter whose standard deviation exceeds its bound (:data:`MAX_THETA_STD` in its
+        scale, its bounds' width for a linear one), the same bound that :meth:`capped` gives what
+        identification writes: a wider one was not written by hlaid."""
+        S = self.covariance
+        for j, ((n, i), t, top) in enumerate(zip(self.slots, self.transform, self._tops())):
+            if S[j, j] > (top * (1 + 1e-9))**2:
                 name = n if int(i) < 0 else f"{n}[{int(i) + 1}]"
                 raise InputError(f"uncertainty: {name} has a standard deviation of {math.sqrt(S[j, j]):.3g} in its "
-                                 f"{t} scale; at most {top:.3g} describes an identified parameter: such a covariance "
-                                 "was not computed from a record", source=source)
+                                 f"{t} scale; hlaid writes at most {top:.3g} (an unidentified parameter is capped "
+                                 "there and flagged): such a covariance was not written by hlaid identify; "
+                                 "identify the clone again", source=source)
 
     # ------------------------------------------------------------------ values
     @property
@@ -183,7 +214,11 @@ class ParameterUncertainty:
 
     # ------------------------------------------------------------------ I/O
     def to_dict(self, level: float = 0.9) -> dict:
-        """JSON-able: per parameter its slot, transform, value and ``level`` interval, and the covariance."""
+        """JSON-able: per parameter its slot, transform, value and ``level`` interval, and the covariance
+        (of :meth:`capped`: a parameter the record did not identify is written with its spread at the
+        bound the reader allows, and named in ``info["unidentified"]``)."""
+        if self is not self.capped():
+            return self.capped().to_dict(level)
         iv = self.interval(level)
         vals = self.values(self.centre)
         params = [{"name": n, "story": i + 1 if i >= 0 else None, "transform": t, "value": float(v),

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from .. import _interrupt
 from ..errors import InputError
 from ..model import BoucWenBuilding, Building, BuildingTensors
 from ..motions import GroundMotion
@@ -139,6 +140,28 @@ def _stop_array(stop_drift, bi, n, nb) -> np.ndarray:
     return np.ascontiguousarray(s[bi])
 
 
+CHUNK_STEPS = 400_000
+"""Story-steps (samples x sub-steps x stories) per thread in one call of the compiled kernel: a
+call cannot be interrupted, so a large batch is run in chunks of about this much work (0.1-0.5 s
+each), between which Ctrl-C and SIGTERM stop the run."""
+
+
+def _chunks(steps: np.ndarray, per_sample: int) -> list[tuple[int, int]]:
+    """``(start, stop)`` slices of the batch, each about :data:`CHUNK_STEPS` per numba thread of work
+    (``steps`` samples of each element, ``per_sample`` story-steps per sample), at least one element."""
+    import numba
+
+    work = np.cumsum(np.maximum(np.asarray(steps, dtype=np.float64), 1.0) * max(per_sample, 1))
+    budget = float(CHUNK_STEPS) * max(int(numba.get_num_threads()), 1)
+    out, a = [], 0
+    while a < work.size:
+        base = work[a - 1] if a else 0.0
+        b = max(int(np.searchsorted(work, base + budget, side="right")), a + 1)
+        out.append((a, min(b, work.size)))
+        a = b
+    return out
+
+
 def _run_numba(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, outputs):
     B, n = bi.size, P["mass"].shape[1]
     S = y0.shape[1]
@@ -151,9 +174,13 @@ def _run_numba(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, outputs):
     n_done = np.zeros(B, dtype=np.int64)
     status = np.zeros(B, dtype=np.int64)
     kernel = _kernel.integrate_collapse if S == 6 * n else _kernel.integrate
-    kernel(ag, dt, nt, mi, bi, sc, int(nsub), P["mass"], P["k0"], P["alpha"], P["p"], P["dy"],
-           P["delta_eta"], P["kg"], P["damping"], _kernel.damping_bandwidth(P["damping"]), P["collapse"], y0, stop,
-           save, states, save_acc, acc, peak_drift, peak_acc, final, n_done, status)
+    bw = _kernel.damping_bandwidth(P["damping"])
+    for a, b in _chunks(nt[mi], int(nsub) * n):  # Ctrl-C and SIGTERM are honoured between chunks
+        _interrupt.check()
+        kernel(ag, dt, nt, mi[a:b], bi[a:b], sc[a:b], int(nsub), P["mass"], P["k0"], P["alpha"], P["p"], P["dy"],
+               P["delta_eta"], P["kg"], P["damping"], bw, P["collapse"], y0[a:b], stop[a:b], save,
+               states[a:b] if save else states, save_acc, acc[a:b] if save_acc else acc, peak_drift[a:b],
+               peak_acc[a:b], final[a:b], n_done[a:b], status[a:b])
     return (states if save else None), (acc if save_acc else None), peak_drift, peak_acc, final, n_done, status
 
 

@@ -36,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ..model.uncertainty import BOUNDS, ParameterUncertainty
+from ..model.uncertainty import BOUNDS, MAX_THETA_STD, ParameterUncertainty
 from ..signal import cap_corner
 
 METHODS = ("sandwich", "neff", "naive")
@@ -144,8 +144,14 @@ def from_refinement(refinement, n_floors: int, *, method: str = "sandwich", scal
                            method=method, max_lag=max_lag)
     info["scale"] = float(scale)
     centre = np.where(np.array([t == "log" for t in tr]), np.log(np.maximum(x, 1e-300)), x)
-    return ParameterUncertainty(slots=tuple(slots), transform=tr, centre=centre, covariance=cov * scale**2,
-                                method=f"laplace-{method}", info=info)
+    u = ParameterUncertainty(slots=tuple(slots), transform=tr, centre=centre, covariance=cov * scale**2,
+                             method=f"laplace-{method}", info=info).capped()
+    if u.unidentified:  # what a clone file holds, and what every command reads back
+        from .. import _progress
+        _progress.warn(f"flag: the record did not identify {', '.join(u.unidentified[:6])}"
+                       + (f" and {len(u.unidentified) - 6} more" if len(u.unidentified) > 6 else "")
+                       + f": its spread is capped at a standard deviation of {MAX_THETA_STD:g} in its scale")
+    return u
 
 
 CALIBRATION = 2.06
