@@ -147,7 +147,7 @@ def test_the_events_are_read_back_only_when_unchanged(event, tmp_path):
     np.testing.assert_array_equal(em.motions[0].acc, meas.ground_acc)
     copy = tmp_path / "event.npz"
     simulate_measurement(b, load_builtin("elcentro-1940-ns").scaled_to_pga(0.3), rate_hz=100.0, seed=1).save(copy)
-    moved = dataclasses.replace(c, events=({**c.events[0], "source": str(copy)},))
+    moved = dataclasses.replace(c, events=(dataclasses.replace(c.events[0], source=str(copy)),))
     em = event_motions(moved)
     assert em.motions == (None,) and "changed since the clone was identified" in em.missing[0]
     em = event_motions(moved, [GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc))])  # passed in: matched
@@ -158,7 +158,8 @@ def test_the_events_are_read_back_only_when_unchanged(event, tmp_path):
 
 def test_a_survived_drift_at_the_drift_limit_is_refused(event):
     b, meas, _ = event
-    c = dataclasses.replace(_clone_of(b, meas), events=({**event_record(meas), "peak_drift": [400.0, 20.0, 10.0]},))
+    c = dataclasses.replace(_clone_of(b, meas),
+                            events=(dataclasses.replace(event_record(meas), peak_drift=(400.0, 20.0, 10.0)),))
     prep = member_preparer(IDAConfig(collapse="none"))
     with pytest.raises(InputError, match=r"survived drifts of 400\.0, 20\.0, 10\.0 mm .*13\.3% of its height 3000 mm"):
         survivors(c, 2, prepare=prep, drift_limit=0.10)

@@ -266,11 +266,7 @@ def identification_misfit(clone: Clone) -> np.ndarray | float:
     floor a fraction of their RMS: ``sqrt(2 (1 - R))`` of the replay's correlation ``R`` (the
     relative RMS difference of two signals of equal RMS), the mean over its events; 0 where the
     clone does not say."""
-    d = clone.diagnostics or {}
-    found = [e.get("r_measured") for e in ((d.get("joint") or {}).get("events") or []) if isinstance(e, dict)]
-    if not found and isinstance(d.get("replay"), dict):
-        found = [d["replay"].get("r_measured")]
-    rs = [np.asarray(r, dtype=float) for r in found if isinstance(r, list) and r]
+    rs = [np.asarray(r.r_measured, dtype=float) for r in clone.fit_replays if r.r_measured]
     if not rs or len({r.shape for r in rs}) != 1:
         return 0.0
     return np.mean([np.sqrt(np.clip(2.0 * (1.0 - r), 0.0, None)) for r in rs], axis=0)
@@ -403,13 +399,13 @@ def _residual_drift(meas: Measurement, sim, start, hi_hz: float) -> tuple[np.nda
 
 
 def clone_hla_config(clone: Clone) -> HLAConfig | None:
-    """The HLA settings ``clone`` was identified with (its ``provenance["config"]["hla"]``, as
+    """The HLA settings ``clone`` was identified with (its ``settings``' ``hla`` section, as
     chosen from its records), None where it does not keep them or they are not a valid config."""
     from ..config import config_from_dict
     from ..errors import ConfigError
     from ..hla import HLAConfig
 
-    d = ((clone.provenance or {}).get("config") or {}).get("hla")
+    d = None if clone.settings is None else clone.settings.value("hla")
     if not isinstance(d, dict):
         return None
     try:

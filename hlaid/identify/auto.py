@@ -3,7 +3,7 @@
 
 :func:`resolve_settings` takes the record(s) of one building and the config and returns the
 concrete config and one :class:`~hlaid.hla.Choice` per setting it chose, with the evidence
-(printed by ``hlaid identify``, kept in the clone as ``provenance["choices"]``). A value given in
+(printed by ``hlaid identify``, kept in the clone as ``clone.settings``). A value given in
 the config is kept as it is. Several records get one set of choices (the evidence of all of them).
 
 - ``hla.*``: the band, the displacement source, the damping handling and the yield ratio
@@ -33,7 +33,7 @@ gives the settings the identification used before they were chosen from the data
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, cast
 
@@ -42,6 +42,7 @@ import numpy as np
 from ..hla.auto import Choice, HLAResolution, resolve_hla
 from ..hla.config import AUTO
 from ..measurement import Measurement
+from ..record import SettingChoice, Settings
 from .config import PARAMETERS, IdentifyConfig
 
 BROAD_BAND_HZ = (0.1, 20.0)
@@ -78,8 +79,15 @@ class Resolution:
         return [c.line() for c in self.choices]
 
     def to_list(self) -> list[dict]:
-        """The choices as the clone keeps them (``provenance["choices"]``)."""
+        """The choices as mappings (those of :meth:`record`)."""
         return [c.to_dict() for c in self.choices]
+
+    def record(self) -> Settings:
+        """What a clone keeps of them (:attr:`hlaid.clone.Clone.settings`)."""
+        from ..config import config_to_dict
+
+        return Settings(config=config_to_dict(self.config),
+                        choices=tuple(SettingChoice(c.setting, c.value, c.reason) for c in self.choices))
 
 
 def resolve_settings(measurements: Measurement | Sequence[Measurement], cfg: IdentifyConfig) -> Resolution:
@@ -182,14 +190,13 @@ def held_damping(settings: Resolution, fitted: float, held: float) -> Resolution
     return Resolution(config=cfg, choices=choices + (Choice("refine.damping", False, why),))
 
 
-def resolve_like(provenance: dict | None, measurements: Measurement | Sequence[Measurement],
+def resolve_like(settings: Settings | None, measurements: Measurement | Sequence[Measurement],
                  cfg: IdentifyConfig) -> Resolution:
-    """The ``"auto"`` settings of ``cfg`` as a clone was identified with them (its
-    ``provenance["config"]``), so that more records of the same building are analysed alike; a
-    clone that does not say (made before the settings were chosen from the data) has them chosen
-    from ``measurements``. Values given in ``cfg`` are kept."""
-    stored = (provenance or {}).get("config") or {}
-    known = {c["setting"]: c for c in (provenance or {}).get("choices") or []}
+    """The ``"auto"`` settings of ``cfg`` as a clone was identified with them (its ``settings``),
+    so that more records of the same building are analysed alike; a clone that does not say (made
+    before the settings were chosen from the data) has them chosen from ``measurements``. Values
+    given in ``cfg`` are kept."""
+    stored: Mapping = {} if settings is None else settings.config
     todo = cfg.unresolved()
     fixed: dict[str, object] = {}
     for key in todo:
@@ -200,7 +207,8 @@ def resolve_like(provenance: dict | None, measurements: Measurement | Sequence[M
         return resolve_settings(measurements, cfg)
     cfg = _with(cfg, fixed)
     rest = resolve_settings(measurements, cfg)
-    kept = [Choice(k, _plain(v), "as the clone was identified" + (f" ({known[k]['reason']})" if k in known else ""))
+    known = {} if settings is None else {c.setting: c for c in settings.choices}
+    kept = [Choice(k, _plain(v), "as the clone was identified" + (f" ({known[k].reason})" if k in known else ""))
             for k, v in fixed.items()]
     return Resolution(config=rest.config, choices=tuple(kept) + rest.choices)
 
@@ -208,9 +216,9 @@ def resolve_like(provenance: dict | None, measurements: Measurement | Sequence[M
 _MISSING = object()
 
 
-def _lookup(d: dict, key: str):
+def _lookup(d: Mapping, key: str):
     for part in key.split("."):
-        if not isinstance(d, dict) or part not in d:
+        if not isinstance(d, Mapping) or part not in d:
             return _MISSING
         d = d[part]
     return d

@@ -31,10 +31,11 @@ from ..measurement import Measurement
 from ..model import Building
 from ..model.state import BuildingState
 from ..model.uncertainty import ParameterUncertainty
+from ..record import ParameterFlag
 from .laws import with_laws
 from .priors import StructuralPrior
 from .series import REPLAY_RATE_RATIO, WIDE_RATE_RATIO, EventSeries, at_replay_rate, event_series
-from .vector import GaussianPrior, PosteriorResiduals, PriorVector, SystemPrior
+from .vector import GaussianPrior, PosteriorResiduals, PriorVector, SystemPrior, at_limit
 
 WEIGHT_ROUNDS = 3
 """At most this many searches, each with the weights of the last one's optimum."""
@@ -253,11 +254,11 @@ INFORMED = 0.5
 is flagged as coming from the prior: the data narrowed it by less than half."""
 
 
-def flags(fit: JointFit, prior: str = "prior") -> list[dict]:
+def flags(fit: JointFit, prior: str = "prior") -> tuple[ParameterFlag, ...]:
     """Per fitted parameter: value, where it comes from (``"data"``, or ``prior`` where the data
     narrowed it by less than :data:`INFORMED`: ``"prior"`` for the structural system's,
-    ``"earlier events"`` for an update's), and whether it sits at a limit of the model
-    (alpha at 0 or 0.95, p at 1, delta_eta below 1e-6: a value the search could only approach)."""
+    ``"earlier events"`` for an update's), and whether it sits at a bound of the search
+    (:func:`hlaid.joint.vector.at_limit`: a value the search could only approach)."""
     b, informed = fit.building, fit.informed()
     out = []
     for (name, i), inf in zip(fit.vector.slots, informed):
@@ -271,11 +272,10 @@ def flags(fit: JointFit, prior: str = "prior") -> list[dict]:
             value, name = float(b.dy[i]), "dy"
         else:
             value = float(getattr(b, name)[i])
-        at = ((name == "alpha" and not 1e-3 < value < 0.949) or (name == "p" and value < 1.005)
-              or (name == "delta_eta" and value < 1e-6))
-        out.append({"name": name, "story": i + 1 if i >= 0 else None, "value": value,
-                    "source": "data" if inf >= INFORMED else prior, "informed": float(inf), "at_limit": bool(at)})
-    return out
+        out.append(ParameterFlag(name=name, story=i + 1 if i >= 0 else None, value=float(value),
+                                 source="data" if inf >= INFORMED else prior, informed=float(inf),
+                                 at_limit=at_limit(name, value)))
+    return tuple(out)
 
 
 def joint_fit(start: Building, measurements: Sequence[Measurement], prior, cfg: IdentifyConfig, *, y0=None,

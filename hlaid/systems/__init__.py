@@ -9,8 +9,7 @@ loss assessment's default component inventory (:attr:`~StructuralSystem.inventor
 sources of its numbers. Each system is a module of this package (``steel_moment_frame.py``,
 ``rc_frame.py``, ``generic.py``): adding a system is adding one such module and naming it in
 :data:`SYSTEMS`. The tables by name that other parts read (:data:`hlaid.joint.priors.PRIORS`,
-:data:`hlaid.joint.laws.SYSTEM_LAWS`, :data:`hlaid.loss.inventory.INVENTORIES`) are views of
-this registry. Light: reading it imports nothing heavy.
+:data:`hlaid.loss.inventory.INVENTORIES`) are views of this registry. Light: reading it imports nothing heavy.
 """
 
 from __future__ import annotations

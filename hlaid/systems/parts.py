@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..record import STORY_LAWS, StoryLaw
+
 
 # ----------------------------------------------------------------------------- the prior
 @dataclass(frozen=True, kw_only=True)
@@ -136,8 +138,8 @@ class StructuralSystem:
     collapse : its collapse law, a name of :data:`hlaid.model.COLLAPSE_MODELS` (``"none"``: the
         Bouc-Wen law alone, no strength loss)
     prior : the identification's prior (:class:`StructuralPrior`)
-    law : the story law its stories follow unless the records say otherwise (a name of
-        :data:`hlaid.joint.laws.LAWS`)
+    law : the story law its stories follow unless the records say otherwise (one of
+        :data:`hlaid.record.STORY_LAWS`)
     inventory : the loss assessment's default component inventory, or None (the user gives one)
     """
 
@@ -145,7 +147,7 @@ class StructuralSystem:
     title: str
     collapse: str
     prior: StructuralPrior
-    law: str = "degrading"
+    law: StoryLaw = STORY_LAWS["degrading"]
     inventory: Inventory | None = None
 
     def __post_init__(self):
