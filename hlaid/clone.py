@@ -325,7 +325,7 @@ def _typed(d: dict, version: int, events: tuple[EventRecord, ...], state: Buildi
             out = _records(block, block.get("fit_replays") or (), block.get("paper"))
             out["settings"] = None if st is None else Settings.from_dict(_mapping(st, "settings"))
         else:
-            out = _records(diag, _old_fit_replays(diag), _old_paper(diag))
+            out = _records(diag, _old_fit_replays(diag), _old_paper(diag), strict=False)
             out["settings"] = (Settings.from_dict(prov) if isinstance(prov.get("config"), dict) or prov.get("choices")
                                else None)
             if out["start_rule"] is None and state is not None and events and events[-1].start == "undamaged":
@@ -349,14 +349,16 @@ def _mapping(v, name: str) -> dict:
     return v
 
 
-def _records(block: dict, fit_replays, paper) -> dict:
-    """The typed records of a block holding ``laws``, ``start_rule``, ``parameters`` and ``update_check``."""
+def _records(block: dict, fit_replays, paper, *, strict: bool = True) -> dict:
+    """The typed records of a block holding ``laws``, ``start_rule``, ``parameters`` and ``update_check``
+    (not ``strict``: a version-3 start rule of no known choice is none, as it was read then)."""
     rule = block.get("start_rule")
+    if not strict and not (isinstance(rule, dict) and rule.get("choice") in ("carried", "rest")):
+        rule = None
     rows = block.get("parameters")
     laws, check = block.get("laws"), block.get("update_check")
     return {"laws": LawChoice.from_dict(laws) if isinstance(laws, dict) else None,
-            "start_rule": (StartRule.from_dict(rule) if isinstance(rule, dict)
-                           and rule.get("choice") in ("carried", "undamaged", "rest") else None),
+            "start_rule": None if rule is None else StartRule.from_dict(_mapping(rule, "start_rule")),
             "parameters": (None if not isinstance(rows, list) else
                            tuple(ParameterFlag.from_dict(r) for r in rows if isinstance(r, dict))),
             "fit_replays": tuple(FitReplay.from_dict(_mapping(r, "fit_replays[]")) for r in fit_replays),
