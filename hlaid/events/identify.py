@@ -31,7 +31,6 @@ from ..clone import Clone
 from ..config import config_to_dict
 from ..errors import InputError, NotIdentifiableError
 from ..hla import HLAResult
-from ..hla.config import fixed
 from ..identify.auto import Resolution, damping_ran_away, held_damping, resolve_settings
 from ..identify.config import IdentifyConfig
 from ..identify.pipeline import identify_event, open_cache
@@ -471,7 +470,7 @@ def plausible_starts(single: IdentificationResult | None, event: Event, meas: Me
     if single is None:
         return [median]
     b = single.clone.building
-    prior = SystemPrior(system, PriorVector(b, damping=fixed(cfg.refine.damping, "refine.damping")), event.hla.k0)
+    prior = SystemPrior(system, PriorVector(b, damping=cfg.resolved().damping), event.hla.k0)
     if np.max(np.abs(prior.residuals(prior.vector.x0))) <= PLAUSIBLE_SD:
         return [b]
     return [median, b]

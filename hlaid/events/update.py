@@ -18,7 +18,6 @@ from collections.abc import Sequence
 from .. import _progress
 from ..clone import Clone
 from ..errors import InputError, NotIdentifiableError
-from ..hla.config import fixed
 from ..identify.auto import resolve_like
 from ..identify.config import IdentifyConfig
 from ..identify.result import IdentificationResult
@@ -71,7 +70,7 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
     b = clone.building.replace(collapse=None)
     system = get_prior(cfg.system or clone.system or "generic")
     laws = clone.story_laws()
-    vector = PriorVector(b, damping=fixed(cfg.refine.damping, "refine.damping"), laws=laws)
+    vector = PriorVector(b, damping=cfg.resolved().damping, laws=laws)
     prior = prior_of_clone(clone.uncertainty, b, vector, system, widen)
     y0 = None if clone.state is None else clone.state.vector()
     earlier_names = [e.label(k) for k, e in enumerate(clone.events)]
@@ -155,8 +154,8 @@ def _check(clone: Clone, before: Building, fit: JointFit, prior, vector: PriorVe
         return UpdateCheck(events=n, missing=tuple(missing),
                            note="the earlier events' records are not all at hand: the update is kept unchecked"), None
     check = run_stage("the check of the update against the earlier events", functools.partial(
-        check_update, before, fit.building, stored, prior, vector, band_hz=fixed(cfg.refine.band_hz, "refine.band_hz"),
-        compare=fixed(cfg.refine.compare, "refine.compare")), None, notes, used="the update is kept unchecked")
+        check_update, before, fit.building, stored, prior, vector, band_hz=cfg.resolved().band_hz,
+        compare=cfg.resolved().compare), None, notes, used="the update is kept unchecked")
     if check is None:
         return UpdateCheck(events=n, note="the check failed numerically: the update is kept"), None
     return check, (stored if check.refit else None)

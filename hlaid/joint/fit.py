@@ -23,7 +23,6 @@ import numpy as np
 
 from .. import _progress
 from ..errors import InputError
-from ..hla.config import fixed
 from ..identify.config import IdentifyConfig
 from ..identify.refine import RefineResult, fit_residuals
 from ..identify.refiners import fit_or_fall_back
@@ -291,9 +290,8 @@ def joint_fit(start: Building, measurements: Sequence[Measurement], prior, cfg: 
     fitted (None: :func:`masses_free`). Where the band reaches the higher modes
     (:func:`wide_band`) and the damping is fitted, the second mode's Rayleigh ratio is fitted
     apart from the first's (:attr:`hlaid.model.Damping.ratio2`, from the first's)."""
-    rc = cfg.refine
-    damping = fixed(rc.damping, "refine.damping")
-    compare = fixed(rc.compare, "refine.compare")
+    rc, settings = cfg.refine, cfg.resolved()
+    damping, compare = settings.damping, settings.compare
     masses = masses_free(measurements, cfg) if masses is None else masses
     if damping and wide_band(cfg) and start.damping.kind == "rayleigh" and start.damping.ratio2 is None:
         start = start.replace(damping=dataclasses.replace(start.damping, ratio2=start.damping.ratio))
@@ -302,11 +300,11 @@ def joint_fit(start: Building, measurements: Sequence[Measurement], prior, cfg: 
     if isinstance(prior, StructuralPrior):
         prior = SystemPrior(prior, PriorVector(start, damping=damping, laws=laws, masses=masses),
                             start.k0 if k0_ref is None else k0_ref)
-    fit = functools.partial(map_refine, start, measurements, prior, band_hz=fixed(rc.band_hz, "refine.band_hz"),
+    fit = functools.partial(map_refine, start, measurements, prior, band_hz=settings.band_hz,
                             damping=damping, y0=y0, names=names, max_iterations=max_iterations or rc.max_iterations,
                             tangent_max_mb=rc.tangent_max_mb, compare=compare, laws=laws, rounds=rounds, warm=warm,
                             masses=masses, rate_ratio=WIDE_RATE_RATIO if wide_band(cfg) else REPLAY_RATE_RATIO)
-    eiv = fixed(rc.method, "refine.method") == "eiv" and compare == "acc"
+    eiv = settings.method == "eiv" and compare == "acc"
     return fit_or_fall_back(fit, "tangent" if eiv else "ignore")
 
 
