@@ -9,7 +9,7 @@ from .parts import Median, StructuralPrior, StructuralSystem
 NAME = "generic"
 
 SYSTEM = StructuralSystem(
-    name=NAME, title="unknown structural system", collapse="none", law=STORY_LAWS["degrading"],
+    name=NAME, title="unknown structural system", collapse=None, law=STORY_LAWS["degrading"],
     prior=StructuralPrior(
         name=NAME,
         cy=Median(median=0.3, beta=1.0), alpha=Median(median=0.1, beta=1.0), p=Median(median=2.0, beta=1.0),
