@@ -98,17 +98,8 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
                                                           unit="record(s)")]
     timings["hla"] = time.perf_counter() - t_all
     best = most_informative(events)
-    single = None
-    if best is not None:
-        with _progress.stage(f"[identify] the paper's method on {events[best].measurement.name or 'the record'}"):
-            single = identify_event(events[best], cfg, cache, tb, timings)
-        m = events[best].measurement
-        state = state_after(single.clone.building, [m], cfg.refine.band_hz, [m.name or "event 1"])
-        record = event_record(m, hla=events[best].hla)
-        if len(meas) == 1 and cfg.system is None:  # this clone is the result: its full replay of its event
-            record = with_replays((record,), single.clone.building, [m], [None],
-                                  mass_normalised=single.clone.mass_normalised)[0]
-        single = dataclasses.replace(single, clone=dataclasses.replace(single.clone, events=(record,), state=state))
+    single = None if best is None else paper_clone(events[best], cfg, cache, tb, timings,
+                                                   alone=len(meas) == 1 and cfg.system is None)
     if len(meas) == 1 and single is not None and cfg.system is None:  # no system named: the paper's method
         timings["total"] = time.perf_counter() - t_all
         tb.close()
@@ -139,6 +130,22 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     timings["total"] = time.perf_counter() - t_all
     tb.close()
     return with_choices(with_history(result, history, laws=laws, notes=notes), settings)
+
+
+def paper_clone(event: Event, cfg: IdentifyConfig, cache, tb: TBLogger, timings: dict, *,
+                alone: bool) -> IdentificationResult:
+    """The paper's method on ``event`` (:func:`hlaid.identify.identify_event`): its clone left in
+    the state the event left it, the event its record (``alone``: this clone is the result, with
+    its full replay of its event)."""
+    with _progress.stage(f"[identify] the paper's method on {event.measurement.name or 'the record'}"):
+        single = identify_event(event, cfg, cache, tb, timings)
+    m = event.measurement
+    state = state_after(single.clone.building, [m], cfg.refine.band_hz, [m.name or "event 1"])
+    record = event_record(m, hla=event.hla)
+    if alone:
+        record = with_replays((record,), single.clone.building, [m], [None],
+                              mass_normalised=single.clone.mass_normalised)[0]
+    return dataclasses.replace(single, clone=dataclasses.replace(single.clone, events=(record,), state=state))
 
 
 def _main_fit(starts: Sequence[Building], meas: Sequence[Measurement], system: StructuralPrior, settings: Resolution, *,
@@ -185,6 +192,25 @@ MAX_CONTENDERS = 2
 short fit (the best first)."""
 
 
+def _short_fits(fit: JointFit, laws: tuple[str, ...], starts: Sequence[Building], fit_short, tried: dict,
+                seconds: dict, how: dict, notes: list[dict] | None) -> None:
+    """The short fits of the candidate ``laws`` from ``starts`` (``fit_short``: :func:`joint_fit`
+    of one weighting round, its ``start`` and ``laws`` to give): the best kept in ``tried`` where it
+    beats what is there, its time added to ``seconds``."""
+    found = []
+    for b in starts:
+        f = run_stage(f"the fit under the laws {'/'.join(laws)}", functools.partial(fit_short, b, laws=laws), None,
+                      notes, used="the candidate is left out", extra=(NotIdentifiableError,))
+        if f is not None:
+            found.append(f)
+    if found:
+        best_found = best_fit(found)
+        n_eff = np.mean([fit.n_eff, best_found.n_eff], axis=0)
+        if laws not in tried or best_found.log_evidence(n_eff) > tried[laws].log_evidence(n_eff):
+            tried[laws], how[laws] = best_found, "short fit"
+        seconds[laws] = seconds.get(laws, 0.0) + float(sum(f.seconds for f in found))
+
+
 def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPrior, cfg: IdentifyConfig, *,
                 names: Sequence[str], k0_ref: np.ndarray, isolation: Building | None = None,
                 notes: list[dict] | None = None, y0: np.ndarray | None = None) -> tuple[JointFit, LawChoice]:
@@ -215,23 +241,12 @@ def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPr
         for laws, sc in screened.items():
             tried[laws], seconds[laws], how[laws] = sc, dt, "screened from the joint fit"
     iterations = min(cfg.refine.max_iterations, CANDIDATE_ITERATIONS)
+    fit_short = functools.partial(joint_fit, measurements=meas, prior=system, cfg=cfg, names=names, k0_ref=k0_ref,
+                                  rounds=1, max_iterations=iterations, y0=y0)
     for laws in others:
         starts = ([] if laws in screened else [fit.building]) + (
             [isolation] if isolation is not None and len(set(laws)) > 1 else [])
-        found = []
-        for b in starts:
-            f = run_stage(f"the fit under the laws {'/'.join(laws)}",
-                          functools.partial(joint_fit, with_laws(b, laws, system), meas, system, cfg, names=names,
-                                            k0_ref=k0_ref, laws=laws, rounds=1, max_iterations=iterations, y0=y0),
-                          None, notes, used="the candidate is left out", extra=(NotIdentifiableError,))
-            if f is not None:
-                found.append(f)
-        if found:
-            best_found = best_fit(found)
-            n_eff = np.mean([fit.n_eff, best_found.n_eff], axis=0)
-            if laws not in tried or best_found.log_evidence(n_eff) > tried[laws].log_evidence(n_eff):
-                tried[laws], how[laws] = best_found, "short fit"
-            seconds[laws] = seconds.get(laws, 0.0) + float(sum(f.seconds for f in found))
+        _short_fits(fit, laws, [with_laws(b, laws, system) for b in starts], fit_short, tried, seconds, how, notes)
 
     def evidence_of() -> list[tuple[tuple[str, ...], float]]:
         n_eff = np.mean([f.n_eff for f in tried.values()], axis=0)

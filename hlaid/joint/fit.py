@@ -167,33 +167,13 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
     if prior is None:
         assert system is not None
         prior = SystemPrior(system, vector, start.k0)
-    hi = float(band_hz[1])
-    info: list[dict] = []
-    current = start
-    rr: RefineResult | None = None
-    weights: np.ndarray | None = None
-    fits = 0
     if series is None:
-        events = [at_replay_rate(m, hi, rate_ratio) for m in measurements]
+        events = [at_replay_rate(m, float(band_hz[1]), rate_ratio) for m in measurements]
         series = event_series(start, events, band_hz, ground_noise, substeps, jac_substeps, y0, tangent_max_mb,
                               compare=compare)
-    with _progress.stage(f"[identify] joint fit over {len(series.events)} event(s)", unit="rounds") as st:
-        for _ in range(max(int(rounds), 1)):
-            info = series.reweigh(current)
-            if weights is not None and bool(np.all(np.abs(np.log(series.weights / weights)) < np.log(1.2))):
-                break
-            weights = series.weights.copy()
-            fits += 1
-            _progress.step(f"[identify] joint fit over {len(series.events)} event(s), round {fits}: effective "
-                           "samples " + ", ".join(f"{d['n_eff']:.0f}" for d in info))
-            tol = max(ftol, LATER_FTOL) if (warm or fits > 1) else ftol
-            if fits > 1:
-                vector.x0 = vector.of(current)  # each round from the last one's optimum
-            rr = fit_residuals(vector, PosteriorResiduals(series, vector, prior), max_iterations=max_iterations,
-                               ftol=tol, jac_substeps=jac_substeps)
-            current = rr.building
-            st.update(1, note=f"cost {rr.cost_initial:.4g} -> {rr.cost_final:.4g}")
-    assert rr is not None
+    rr, info, fits, weights = _weighted_rounds(series, vector, prior, start, rounds=rounds, warm=warm, ftol=ftol,
+                                               max_iterations=max_iterations, jac_substeps=jac_substeps)
+    current = rr.building
     for d, w in zip(info, series.weights):
         d["weight"] = float(w)
     J = np.asarray(rr.jacobian)
@@ -211,6 +191,37 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
                     prior_cost=prior_cost, **log_dets(J, Jp), compare=compare,
                     series=series, jac_weights=None if weights is None else weights.copy(),
                     prior=prior)
+
+
+def _weighted_rounds(series: EventSeries, vector: PriorVector, prior, start: Building, *, rounds: int, warm: bool,
+                     ftol: float, max_iterations: int, jac_substeps: int
+                     ) -> tuple[RefineResult, list[dict], int, np.ndarray | None]:
+    """The searches of :func:`map_refine`: each with the events' weights at the last one's optimum,
+    until the weights settle or ``rounds`` are done. Returns the last search, the events' weights
+    record, the searches made and the weights of the last one."""
+    info: list[dict] = []
+    current = start
+    rr: RefineResult | None = None
+    weights: np.ndarray | None = None
+    fits = 0
+    with _progress.stage(f"[identify] joint fit over {len(series.events)} event(s)", unit="rounds") as st:
+        for _ in range(max(int(rounds), 1)):
+            info = series.reweigh(current)
+            if weights is not None and bool(np.all(np.abs(np.log(series.weights / weights)) < np.log(1.2))):
+                break
+            weights = series.weights.copy()
+            fits += 1
+            _progress.step(f"[identify] joint fit over {len(series.events)} event(s), round {fits}: effective "
+                           "samples " + ", ".join(f"{d['n_eff']:.0f}" for d in info))
+            tol = max(ftol, LATER_FTOL) if (warm or fits > 1) else ftol
+            if fits > 1:
+                vector.x0 = vector.of(current)  # each round from the last one's optimum
+            rr = fit_residuals(vector, PosteriorResiduals(series, vector, prior), max_iterations=max_iterations,
+                               ftol=tol, jac_substeps=jac_substeps)
+            current = rr.building
+            st.update(1, note=f"cost {rr.cost_initial:.4g} -> {rr.cost_final:.4g}")
+    assert rr is not None
+    return rr, info, fits, weights
 
 
 def _pinv(A: np.ndarray) -> np.ndarray:
