@@ -494,10 +494,12 @@ def plausible_starts(single: IdentificationResult | None, event: Event, meas: Me
 def result_of_joint(events: Sequence[Event], meas: Sequence[Measurement], fit: JointFit, cfg: IdentifyConfig, *,
                     system: StructuralPrior, start: Building, single: IdentificationResult | None = None,
                     history: Sequence[EventRecord] = (), y0: np.ndarray | None = None,
-                    timings: dict | None = None, last_start: str | None = None) -> IdentificationResult:
+                    timings: dict | None = None, last_start: str | None = None,
+                    settings: Resolution | None = None) -> IdentificationResult:
     """The identification result of a joint fit over ``events``: the clone left in the last
     event's state, its posterior, per event the replay from the state carried into it
-    (``last_start``: the start of the last event, recorded with it, where one was chosen)."""
+    (``last_start``: the start of the last event, recorded with it, where one was chosen), the
+    settings used (``settings``: with the choices made from the data; None: ``cfg`` alone)."""
     timings = {} if timings is None else timings
     checks = []
     y = y0
@@ -520,7 +522,8 @@ def result_of_joint(events: Sequence[Event], meas: Sequence[Measurement], fit: J
     clone = Clone(building=fit.building, mass_normalised=events[-1].hla.mass_normalised, diagnostics=diagnostics,
                   provenance=prov, uncertainty=posterior_uncertainty(fit), system=system.name,
                   events=records, state=fit.states[-1], parameters=flags(fit, "earlier events" if history else "prior"),
-                  fit_replays=replays, settings=Settings(config=config_to_dict(cfg)))
+                  fit_replays=replays,
+                  settings=Settings(config=config_to_dict(cfg)) if settings is None else settings.record())
     return IdentificationResult(clone=clone, hla=events[-1].hla,
                                 paper_estimate=start if single is None else single.paper_estimate,
                                 passes=[] if single is None else single.passes,

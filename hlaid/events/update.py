@@ -30,7 +30,7 @@ from ..measurement import Measurement, check_not_learnt
 from ..model import Building
 from ..record import LawChoice, UpdateCheck
 from .guard import check_update, load_earlier
-from .identify import announce, result_of_joint, with_choices
+from .identify import announce, result_of_joint
 from .prequential import predicted, with_history
 
 
@@ -67,9 +67,10 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
     announce(settings)
     cfg = settings.config
     _check_inputs(clone, measurement, widen, earlier)
+    laws = clone.story_laws()
+    kept = _kept_laws(clone, laws)
     b = clone.building.replace(collapse=None)
     system = get_prior(cfg.system or clone.system or "generic")
-    laws = clone.story_laws()
     vector = PriorVector(b, damping=cfg.resolved().damping, laws=laws)
     prior = prior_of_clone(clone.uncertainty, b, vector, system, widen)
     y0 = None if clone.state is None else clone.state.vector()
@@ -93,7 +94,7 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
                                            for s in fit.states])
     check, stored = _check(clone, b, fit, prior, vector, cfg, earlier, notes)
     history = {len(clone.events): foretold} if foretold is not None else {}
-    kept = _kept_laws(clone, laws)
+    result = None
     if stored is not None:  # the update forgot the earlier events: all of them fitted jointly again
         meas_all, names = [*stored, measurement], [*earlier_names, name]
         evs = [analyse(m, cfg) for m in stored] + [event]
@@ -102,14 +103,14 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
             notes, used="the update is kept", extra=(NotIdentifiableError,))
         if joint is not None:
             check = dataclasses.replace(check, refitted=True)
-            result = result_of_joint(evs, meas_all, joint, cfg, system=system, start=fit.building)
-            events = (*clone.events, result.clone.events[-1])
-            result = dataclasses.replace(result, clone=dataclasses.replace(result.clone, events=events))
-            return with_choices(with_history(result, history, laws=kept, notes=notes, update_check=check), settings)
-    result = result_of_joint([event], [measurement], fit, cfg, system=system, start=b, history=clone.events,
-                             y0=y0 if carried else None, last_start="carried" if carried else "undamaged")
-    return with_choices(with_history(result, history, laws=kept, notes=notes, update_check=check), settings)
-
+            result = result_of_joint(evs, meas_all, joint, cfg, system=system, start=fit.building, settings=settings)
+            result = dataclasses.replace(result, clone=dataclasses.replace(  # the earlier events as the clone kept them
+                result.clone, events=(*clone.events, result.clone.events[-1])))
+    if result is None:
+        result = result_of_joint([event], [measurement], fit, cfg, system=system, start=b, history=clone.events,
+                                 y0=y0 if carried else None, last_start="carried" if carried else "undamaged",
+                                 settings=settings)
+    return with_history(result, history, laws=kept, notes=notes, update_check=check)
 
 
 def _check_inputs(clone: Clone, measurement: Measurement, widen: float, earlier) -> None:
