@@ -375,7 +375,7 @@ def prefix_history(fit: JointFit, meas: Sequence[Measurement], system: Structura
 
 CHOICE_WIDTH = 100
 """A chosen setting's line is cut to this many characters (its whole evidence with ``--verbose``
-and in the clone's ``provenance["choices"]``)."""
+and in the clone's ``settings``)."""
 
 
 def announce(settings: Resolution) -> None:

@@ -275,7 +275,7 @@ class IdentifyConfig:
         ``"auto"`` by default (``hla``: the band, the damping handling and the yield ratio,
         :func:`hlaid.hla.auto.resolve_hla`; ``refine``: method, parameters, damping and band):
         :func:`hlaid.identify.auto.resolve_settings` chooses them from the record(s), and the
-        clone keeps the choices (``provenance["choices"]``). A value given overrides.
+        clone keeps the choices (``clone.settings``). A value given overrides.
     aggregate : how the votes of a story's half cycles are combined: ``"mean"`` (vote-weighted
         mean of the bin centres) or ``"majority"`` (the paper's most voted bin)
     damping_ratio : Rayleigh damping of the clone (modes 1 and 2), as assumed by HLA

@@ -132,10 +132,11 @@ def _clone(event: Event, est: Estimate, paper: Building, refined: Refinement, hi
     rr = refined.result
     unc = None if rr is None else uncertainty_of_refinement(rr, rr.channels or meas.n_floors, noise_rms=event.noise,
                                                             band_hz=cfg.refine.band_hz, dt=meas.dt)
-    diagnostics = _diagnostics(event, est, paper, history, passes, check, refined.info)
+    stories = _stories(event, est, paper, check)
+    diagnostics = _diagnostics(event, stories, history, passes, check, refined.info)
     return Clone(building=refined.building, mass_normalised=event.hla.mass_normalised, diagnostics=diagnostics,
                  provenance=prov, uncertainty=unc, fit_replays=(check.record(meas.name),),
-                 paper=PaperMethod(paper_stories(diagnostics["stories"], passes), refine=refined.info),
+                 paper=PaperMethod(paper_stories(stories, passes), refine=refined.info),
                  settings=Settings(config=config_to_dict(cfg)))
 
 
@@ -151,8 +152,8 @@ def paper_stories(stories: list[dict], passes: list) -> tuple[PaperStory, ...]:
                             reason=s.get("reason", ""), svm_test_accuracy=last.get(i)) for i, s in enumerate(stories))
 
 
-def _diagnostics(event: Event, est: Estimate, paper: Building, history: list, passes: list, check: ReplayCheck,
-                 refine_info: dict | None) -> dict:
+def _stories(event: Event, est: Estimate, paper: Building, check: ReplayCheck) -> list[dict]:
+    """Per story what the paper's method found (the diagnostics' ``stories``)."""
     res = event.hla
     stories = []
     for i, s in enumerate(res.stories):
@@ -170,6 +171,13 @@ def _diagnostics(event: Event, est: Estimate, paper: Building, history: list, pa
                            "from the identified stories and dy is set above the largest drift reached; they "
                            "are assumptions, not identified")
         stories.append(d)
+    return stories
+
+
+def _diagnostics(event: Event, stories: list[dict], history: list, passes: list, check: ReplayCheck,
+                 refine_info: dict | None) -> dict:
+    """What the paper's method did, for the reader (the clone's ``diagnostics``)."""
+    res = event.hla
     return {"stories": stories, "outer_iterations": history, "passes": passes, "refine": refine_info,
             "hla": {"band_hz": list(res.band_hz), "damping": res.damping, "mass_normalised": res.mass_normalised},
             "replay": check.to_dict()}
