@@ -231,9 +231,10 @@ def test_an_event_file_read_again_is_named_on_one_line(tmp_path):
     """A clone's event whose name and file carry a newline and a terminal escape: the note that
     says why it was not read again shows them escaped, on one line."""
     from hlaid.events.evidence import read_event
+    from hlaid.record import EventRecord
 
     bad = tmp_path / "ev\n\x1b[31m.npz"
     bad.write_bytes(b"x")
-    meas, why = read_event({"name": "e\n\x1b[2J", "source": str(bad), "sha256": "0" * 64})
+    meas, why = read_event(EventRecord(name="e\n\x1b[2J", source=str(bad), sha256="0" * 64))
     assert meas is None and "\n" not in why and "\x1b" not in why
     assert "\\x0a" in why and "changed since the clone was identified" in why
