@@ -525,10 +525,12 @@ class Settings:
     config : the resolved identification config as written (:func:`hlaid.config.config_to_dict`:
         no ``"auto"`` left where it was resolved)
     choices : the settings chosen from the data, with their evidence
+    given : the config as it was given, its ``"auto"`` settings still so (None: not kept)
     """
 
     config: Mapping = field(default_factory=dict)
     choices: tuple[SettingChoice, ...] = ()
+    given: Mapping | None = None
 
     def value(self, key: str, default: Any = None) -> Any:
         """The setting ``key`` (dotted: ``"refine.band_hz"``), ``default`` where it is not kept."""
@@ -544,13 +546,15 @@ class Settings:
         return next((c for c in self.choices if c.setting == key), None)
 
     def to_dict(self) -> dict:
-        return {"config": dict(self.config), "choices": [c.to_dict() for c in self.choices]}
+        return {"config": dict(self.config), "choices": [c.to_dict() for c in self.choices],
+                "given": None if self.given is None else dict(self.given)}
 
     @classmethod
     def from_dict(cls, d: Mapping) -> Settings:
-        cfg = d.get("config")
+        cfg, given = d.get("config"), d.get("given")
         return cls(config=dict(cfg) if isinstance(cfg, Mapping) else {},
-                   choices=tuple(SettingChoice.from_dict(c) for c in d.get("choices") or () if isinstance(c, Mapping)))
+                   choices=tuple(SettingChoice.from_dict(c) for c in d.get("choices") or () if isinstance(c, Mapping)),
+                   given=dict(given) if isinstance(given, Mapping) else None)
 
 
 # ----------------------------------------------------------------------------- helpers

@@ -231,6 +231,7 @@ def test_the_clone_keeps_the_choices(table1, tmp_path):
     assert "refine.method" not in got  # given: not chosen
     assert all(c.reason for c in settings.choices)
     assert settings.value("hla.force.damping") == "rayleigh"
+    assert settings.given is not None and settings.given["hla"]["force"]["damping"] == "auto"  # as given
     assert all(settings.value(k) not in (None, "auto") for k in ResolvedSettings.KEYS if k != "refine.method")
 
 

@@ -69,11 +69,12 @@ def records_band(measurements: Measurement | Sequence[Measurement], lo_hz: float
 
 @dataclass(frozen=True, eq=False)
 class Resolution:
-    """The settings chosen: ``config`` (no ``"auto"`` left) and ``choices`` (one per setting that
-    was ``"auto"``, in the order of the config file)."""
+    """The settings chosen: ``config`` (no ``"auto"`` left), ``choices`` (one per setting that
+    was ``"auto"``, in the order of the config file) and the config as ``given`` (None: not said)."""
 
     config: IdentifyConfig
     choices: tuple[Choice, ...]
+    given: IdentifyConfig | None = None
 
     def lines(self) -> list[str]:
         return [c.line() for c in self.choices]
@@ -87,13 +88,15 @@ class Resolution:
         from ..config import config_to_dict
 
         return Settings(config=config_to_dict(self.config),
-                        choices=tuple(SettingChoice(c.setting, c.value, c.reason) for c in self.choices))
+                        choices=tuple(SettingChoice(c.setting, c.value, c.reason) for c in self.choices),
+                        given=None if self.given is None else config_to_dict(self.given))
 
 
 def resolve_settings(measurements: Measurement | Sequence[Measurement], cfg: IdentifyConfig) -> Resolution:
     """Every ``"auto"`` of ``cfg`` chosen from ``measurements`` (records of one building, one set
     of choices for all), with the evidence; values given in ``cfg`` are kept."""
     meas = [measurements] if isinstance(measurements, Measurement) else list(measurements)
+    given = cfg
     hla = resolve_hla(meas, cfg.hla, prefix="hla.")
     cfg = dataclasses.replace(cfg, hla=hla.config)
     choices = list(hla.choices)
@@ -165,7 +168,7 @@ def resolve_settings(measurements: Measurement | Sequence[Measurement], cfg: Ide
         choices.append(Choice("system", None, "not in the data (the records cannot tell a steel frame from a concrete "
                                               "one): the generic prior holds what they say little about (several "
                                               "records, or one that stays nearly elastic); name it where known"))
-    return Resolution(config=cfg, choices=tuple(choices))
+    return Resolution(config=cfg, choices=tuple(choices), given=given)
 
 
 DAMPING_RUNAWAY = 0.45
@@ -187,7 +190,7 @@ def held_damping(settings: Resolution, fitted: float, held: float) -> Resolution
     why = (f"fitted, the damping ratio ran to {fitted:.2f}, the model's bound: it took up model error, not the "
            f"building's damping; held at {held:.3g} and fitted again")
     choices = tuple(c for c in settings.choices if c.setting != "refine.damping")
-    return Resolution(config=cfg, choices=choices + (Choice("refine.damping", False, why),))
+    return Resolution(config=cfg, choices=choices + (Choice("refine.damping", False, why),), given=settings.given)
 
 
 def resolve_like(settings: Settings | None, measurements: Measurement | Sequence[Measurement],
@@ -197,6 +200,7 @@ def resolve_like(settings: Settings | None, measurements: Measurement | Sequence
     before the settings were chosen from the data) has them chosen from ``measurements``. Values
     given in ``cfg`` are kept."""
     stored: Mapping = {} if settings is None else settings.config
+    cfg_given = cfg
     todo = cfg.unresolved()
     fixed: dict[str, object] = {}
     for key in todo:
@@ -210,7 +214,7 @@ def resolve_like(settings: Settings | None, measurements: Measurement | Sequence
     known = {} if settings is None else {c.setting: c for c in settings.choices}
     kept = [Choice(k, _plain(v), "as the clone was identified" + (f" ({known[k].reason})" if k in known else ""))
             for k, v in fixed.items()]
-    return Resolution(config=rest.config, choices=tuple(kept) + rest.choices)
+    return Resolution(config=rest.config, choices=tuple(kept) + rest.choices, given=cfg_given)
 
 
 _MISSING = object()
