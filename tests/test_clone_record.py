@@ -113,3 +113,17 @@ def test_one_registry_of_story_laws():
     assert LawChoice(chosen=("elastic", "degrading")).laws(3) is None
     with pytest.raises(dataclasses.FrozenInstanceError):
         STORY_LAWS["elastic"].held = ()  # type: ignore[misc]
+
+
+def test_the_stages_read_resolved_settings_with_no_auto_left():
+    from hlaid.identify.config import IdentifyConfig, RefineConfig, ResolvedSettings
+
+    with pytest.raises(InputError, match=r"is 'auto': it is chosen from the record\(s\) first"):
+        IdentifyConfig().resolved()
+    cfg = IdentifyConfig(refine=RefineConfig(method="eiv", parameters=("k0", "alpha"), damping=False,
+                                             band_hz=(0.2, 15.0), compare="acc"))
+    cfg = dataclasses.replace(cfg, hla=dataclasses.replace(cfg.hla, stiffness=dataclasses.replace(
+        cfg.hla.stiffness, yield_ratio=0.6)))
+    r = cfg.resolved()
+    assert isinstance(r, ResolvedSettings) and r.band_hz == (0.2, 15.0) and r.damping is False
+    assert (r.method, r.parameters, r.compare, r.yield_ratio) == ("eiv", ("k0", "alpha"), "acc", 0.6)
