@@ -200,7 +200,7 @@ def test_clone_files_keep_the_state_and_read_older_versions(table1, tmp_path):
     np.testing.assert_allclose(resolve_start(back, "carried").vector(), st.vector())
     assert resolve_start(back, "undamaged").vector() is None
     d = c.to_dict()
-    for key in ("system", "events", "state"):
+    for key in ("system", "events", "state", "identification", "settings"):
         d.pop(key)
     old = Clone.from_dict({**d, "version": 2})
     assert old.state is None and resolve_start(old, "auto").vector() is None
