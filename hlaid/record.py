@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from .errors import InputError
@@ -120,6 +120,16 @@ class LawChoice:
         if c is not None and len(c) == n_stories and all(law in STORY_LAWS for law in c):
             return c
         return None
+
+    @classmethod
+    def kept_by_update(cls, old: LawChoice | None, n_stories: int) -> LawChoice:
+        """The laws record of a clone updated from one whose record is ``old``: its laws where they
+        are one known law per story (said to be kept), else none (every entry free)."""
+        old = old or cls(chosen=None)
+        laws = old.laws(n_stories)
+        if laws is None:
+            return replace(old, chosen=None, reason="the clone names no story laws: every entry free (degrading)")
+        return replace(old, chosen=laws, kept="an update keeps the laws its clone was identified with")
 
     def to_dict(self) -> dict:
         return {"chosen": _list(self.chosen), "default": _list(self.default), "reason": self.reason,

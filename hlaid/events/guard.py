@@ -16,11 +16,14 @@ the update. Where a file is missing or changed, the update is kept and the clone
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 
 import numpy as np
 
 from .. import _progress
+from ..identify.config import ResolvedSettings
+from ..joint.fallback import run_stage
 from ..joint.series import at_replay_rate, effective_samples, event_series
 from ..joint.vector import GaussianPrior, PriorVector
 from ..measurement import Measurement, ground_digest
@@ -82,4 +85,30 @@ def check_update(before: Building, after: Building, earlier: Sequence[Measuremen
                        excess=excess if np.isfinite(excess) else None, limit=limit, refit=refit)
 
 
-__all__ = ["EXCESS_MIN", "load_earlier", "check_update"]
+def check_against_earlier(events: Sequence[EventRecord], before: Building, after: Building, prior,
+                          vector: PriorVector, settings: ResolvedSettings, earlier: Sequence[Measurement] | None,
+                          notes: list[dict]) -> tuple[UpdateCheck, list[Measurement] | None]:
+    """The check of an update from ``before`` to ``after`` against the clone's earlier ``events``
+    (:func:`check_update`; their records ``earlier``, None: read again from their files) and those
+    records where it calls for a joint refit (else None). A stage that fails numerically is noted
+    in ``notes``."""
+    n = len(events)
+    if not events:
+        return UpdateCheck(events=0, note="the clone has no earlier events"), None
+    if not isinstance(prior, GaussianPrior):
+        return UpdateCheck(events=n, note="the clone keeps no posterior: the update is a fit from the structural "
+                                          "system's prior, nothing to forget"), None
+    stored, missing = load_earlier(events, earlier)
+    if missing:
+        _progress.warn("the update is not checked against the earlier events: " + "; ".join(missing[:3]))
+        return UpdateCheck(events=n, missing=tuple(missing),
+                           note="the earlier events' records are not all at hand: the update is kept unchecked"), None
+    check = run_stage("the check of the update against the earlier events", functools.partial(
+        check_update, before, after, stored, prior, vector, band_hz=settings.band_hz, compare=settings.compare), None,
+        notes, used="the update is kept unchecked")
+    if check is None:
+        return UpdateCheck(events=n, note="the check failed numerically: the update is kept"), None
+    return check, (stored if check.refit else None)
+
+
+__all__ = ["EXCESS_MIN", "load_earlier", "check_update", "check_against_earlier"]

@@ -23,13 +23,12 @@ from ..identify.config import IdentifyConfig
 from ..identify.result import IdentificationResult
 from ..identify.stages import analyse
 from ..joint.fallback import run_stage
-from ..joint.fit import JointFit, best_fit, joint_fit
+from ..joint.fit import best_fit, joint_fit
 from ..joint.priors import get_prior
-from ..joint.vector import GaussianPrior, PriorVector, prior_of_clone
+from ..joint.vector import PriorVector, prior_of_clone
 from ..measurement import Measurement, check_not_learnt
-from ..model import Building
-from ..record import LawChoice, UpdateCheck
-from .guard import check_update, load_earlier
+from ..record import LawChoice
+from .guard import check_against_earlier
 from .identify import announce, result_of_joint
 from .prequential import predicted, with_history
 
@@ -67,8 +66,8 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
     announce(settings)
     cfg = settings.config
     _check_inputs(clone, measurement, widen, earlier)
-    laws = clone.story_laws()
-    kept = _kept_laws(clone, laws)
+    kept = LawChoice.kept_by_update(clone.laws, clone.building.n_stories)
+    laws = kept.chosen
     b = clone.building.replace(collapse=None)
     system = get_prior(cfg.system or clone.system or "generic")
     vector = PriorVector(b, damping=cfg.resolved().damping, laws=laws)
@@ -92,7 +91,8 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
                        "left: the building recovered between them (softening that is not damage)")
     fit = dataclasses.replace(fit, states=[dataclasses.replace(s, events=tuple(earlier_names) + (name,))
                                            for s in fit.states])
-    check, stored = _check(clone, b, fit, prior, vector, cfg, earlier, notes)
+    check, stored = check_against_earlier(clone.events, b, fit.building, prior, vector, cfg.resolved(), earlier,
+                                          notes)
     history = {len(clone.events): foretold} if foretold is not None else {}
     result = None
     if stored is not None:  # the update forgot the earlier events: all of them fitted jointly again
@@ -130,33 +130,4 @@ def _check_inputs(clone: Clone, measurement: Measurement, widen: float, earlier)
     if earlier is not None and len(earlier) != len(clone.events):
         raise InputError(f"earlier: {len(earlier)} records given for the clone's {len(clone.events)} events")
 
-def _kept_laws(clone: Clone, laws: tuple[str, ...] | None) -> LawChoice:
-    """The clone's laws record, said to be kept by the update."""
-    old = clone.laws or LawChoice(chosen=None)
-    if laws is None:
-        return dataclasses.replace(old, chosen=None,
-                                   reason="the clone names no story laws: every entry free (degrading)")
-    return dataclasses.replace(old, chosen=laws, kept="an update keeps the laws its clone was identified with")
 
-
-def _check(clone: Clone, before: Building, fit: JointFit, prior, vector: PriorVector, cfg: IdentifyConfig,
-           earlier: Sequence[Measurement] | None, notes: list[dict]) -> tuple[UpdateCheck, list[Measurement] | None]:
-    """The check of the update against the earlier events (:func:`hlaid.events.guard.check_update`)
-    and the earlier events' records where it calls for a joint refit (else None)."""
-    n = len(clone.events)
-    if not clone.events:
-        return UpdateCheck(events=0, note="the clone has no earlier events"), None
-    if not isinstance(prior, GaussianPrior):
-        return UpdateCheck(events=n, note="the clone keeps no posterior: the update is a fit from the structural "
-                                          "system's prior, nothing to forget"), None
-    stored, missing = load_earlier(clone.events, earlier)
-    if missing:
-        _progress.warn("the update is not checked against the earlier events: " + "; ".join(missing[:3]))
-        return UpdateCheck(events=n, missing=tuple(missing),
-                           note="the earlier events' records are not all at hand: the update is kept unchecked"), None
-    check = run_stage("the check of the update against the earlier events", functools.partial(
-        check_update, before, fit.building, stored, prior, vector, band_hz=cfg.resolved().band_hz,
-        compare=cfg.resolved().compare), None, notes, used="the update is kept unchecked")
-    if check is None:
-        return UpdateCheck(events=n, note="the check failed numerically: the update is kept"), None
-    return check, (stored if check.refit else None)
