@@ -199,12 +199,12 @@ class Clone:
                 "uncertainty": None if self.uncertainty is None else jsonable(self.uncertainty.to_dict()),
                 "system": self.system, "events": jsonable([e.to_dict() for e in self.events]),
                 "state": None if self.state is None else self.state.to_dict(),
-                "identification": jsonable(self._identification()),
+                "identification": jsonable(self.identification_dict()),
                 "settings": None if self.settings is None else jsonable(self.settings.to_dict()),
                 **({"collapse": b.collapse.to_dict()} if b.collapse is not None else {})}
 
-    def _identification(self) -> dict:
-        """The ``identification`` block: the decisions later steps read (:mod:`hlaid.record`)."""
+    def identification_dict(self) -> dict:
+        """The file's ``identification`` block: the decisions later steps read (:mod:`hlaid.record`)."""
         return {"laws": None if self.laws is None else self.laws.to_dict(),
                 "start_rule": None if self.start_rule is None else self.start_rule.to_dict(),
                 "parameters": None if self.parameters is None else [f.to_dict() for f in self.parameters],
