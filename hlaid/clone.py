@@ -334,7 +334,7 @@ def _typed(d: dict, version: int, events: tuple[EventRecord, ...], state: Buildi
             prov = {k: v for k, v in prov.items() if k not in ("config", "choices")}
     except InputError as err:
         raise InputError(str(err), source=source) from None
-    except (TypeError, ValueError, KeyError, AttributeError) as err:
+    except (TypeError, ValueError, KeyError, AttributeError, OverflowError) as err:
         raise InputError(f"field '{where}' is not a clone's record ({err})", source=source) from None
     return {**out, "diagnostics": diag, "provenance": prov}
 
@@ -426,7 +426,7 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[Eve
         records = tuple(EventRecord.from_dict(e) for e in events)
     except InputError as err:
         raise InputError(str(err), source=source) from None
-    except (TypeError, ValueError) as err:
+    except (TypeError, ValueError, OverflowError) as err:
         raise InputError(f"field 'events' is not a list of event records ({err})", source=source) from None
     return system, records, state
 

@@ -127,3 +127,20 @@ def test_the_stages_read_resolved_settings_with_no_auto_left():
     r = cfg.resolved()
     assert isinstance(r, ResolvedSettings) and r.band_hz == (0.2, 15.0) and r.damping is False
     assert (r.method, r.parameters, r.compare, r.yield_ratio) == ("eiv", ("k0", "alpha"), "acc", 0.6)
+
+
+@pytest.mark.parametrize("bad, expect", [
+    ({"start_rule": {"choice": "carried", "n": float("inf")}}, "identification"),
+    ({"parameters": [{"name": "k0", "story": "one"}]}, "identification"),
+    ({"fit_replays": "abc"}, "fit_replays"),
+    ({"paper": [1]}, "paper"),
+    ({"laws": {"chosen": "degrading"}}, "identification"),
+])
+def test_a_broken_record_is_a_clear_error_naming_the_file(bad, expect, tmp_path):
+    d = Clone.load(V3).to_dict()
+    d["identification"] = {**d["identification"], **bad}
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps(d))
+    with pytest.raises(InputError, match=expect) as err:
+        Clone.load(path)
+    assert str(path) in str(err.value) and "\n" not in str(err.value)
