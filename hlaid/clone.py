@@ -65,6 +65,7 @@ from .model import Building, Damping
 from .model.schema import STATE_BOUNDS, check_event, check_state
 from .model.state import BuildingState
 from .record import (
+    STARTS,
     EventRecord,
     Fallback,
     FitReplay,
@@ -325,7 +326,8 @@ def _typed(d: dict, version: int, events: tuple[EventRecord, ...], state: Buildi
             out = _records(block, block.get("fit_replays") or (), block.get("paper"))
             out["settings"] = None if st is None else Settings.from_dict(_mapping(st, "settings"))
         else:
-            out = _records(diag, _old_fit_replays(diag), _old_paper(diag), strict=False)
+            out = _records({**diag, "start_rule": _old_rule(diag.get("start_rule"))}, _old_fit_replays(diag),
+                           _old_paper(diag), strict=False)
             out["settings"] = (Settings.from_dict(prov) if isinstance(prov.get("config"), dict) or prov.get("choices")
                                else None)
             if out["start_rule"] is None and state is not None and events and events[-1].start == "undamaged":
@@ -353,7 +355,7 @@ def _records(block: dict, fit_replays, paper, *, strict: bool = True) -> dict:
     """The typed records of a block holding ``laws``, ``start_rule``, ``parameters`` and ``update_check``
     (not ``strict``: a version-3 start rule of no known choice is none, as it was read then)."""
     rule = block.get("start_rule")
-    if not strict and not (isinstance(rule, dict) and rule.get("choice") in ("carried", "rest")):
+    if not strict and not (isinstance(rule, dict) and rule.get("choice") in STARTS):
         rule = None
     rows = block.get("parameters")
     laws, check = block.get("laws"), block.get("update_check")
@@ -365,6 +367,24 @@ def _records(block: dict, fit_replays, paper, *, strict: bool = True) -> dict:
             "paper": None if paper is None else PaperMethod.from_dict(_mapping(paper, "paper")),
             "update_check": UpdateCheck.from_dict(check) if isinstance(check, dict) else None,
             "fallbacks": tuple(Fallback.from_dict(f) for f in block.get("fallbacks") or () if isinstance(f, dict))}
+
+
+def _old_rule(rule):
+    """A version-3 start rule in version 4's words (``rest``: ``undamaged``)."""
+    if not isinstance(rule, dict):
+        return rule
+    out = {k: v for k, v in rule.items() if k != "carried_minus_rest"}
+    if "carried_minus_rest" in rule:
+        out["carried_minus_undamaged"] = rule["carried_minus_rest"]
+    return {**out, "choice": "undamaged"} if rule.get("choice") == "rest" else out
+
+
+def _old_event(e: dict) -> dict:
+    """A version-3 event record in version 4's words (its prequential record's ``rest``: ``undamaged``)."""
+    pq = e.get("prequential")
+    if not isinstance(pq, dict) or "rest" not in pq:
+        return e
+    return {**e, "prequential": {**{k: v for k, v in pq.items() if k != "rest"}, "undamaged": pq["rest"]}}
 
 
 def _old_fit_replays(diag: dict) -> list:
@@ -423,7 +443,8 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[Eve
         if state.n_stories != n:
             raise InputError(f"state has {state.n_stories} stories; the clone has {n}", source=source)
     try:
-        records = tuple(EventRecord.from_dict(e) for e in events)
+        old = d.get("version") in (1, 2, 3)
+        records = tuple(EventRecord.from_dict(_old_event(e) if old else e) for e in events)
     except InputError as err:
         raise InputError(str(err), source=source) from None
     except (TypeError, ValueError, OverflowError) as err:

@@ -183,10 +183,9 @@ class StartRule:
 
     @classmethod
     def from_dict(cls, d: Mapping) -> StartRule:
-        choice = {"rest": "undamaged"}.get(d.get("choice"), d.get("choice"))  # type: ignore[arg-type]
-        diff = d.get("carried_minus_undamaged", d.get("carried_minus_rest"))
-        return cls(choice=str(choice), reason=str(d.get("reason") or ""), rule=str(d.get("rule") or "prequential"),
-                   n=int(d.get("n") or 0), margin=_num(d.get("margin")), carried_minus_undamaged=_num(diff))
+        return cls(choice=str(d.get("choice")), reason=str(d.get("reason") or ""),
+                   rule=str(d.get("rule") or "prequential"), n=int(d.get("n") or 0), margin=_num(d.get("margin")),
+                   carried_minus_undamaged=_num(d.get("carried_minus_undamaged")))
 
 
 @dataclass(frozen=True)
@@ -241,8 +240,7 @@ class Prequential:
         def score(key: str) -> StartScore | None:
             v = d.get(key)
             return StartScore.from_dict(v) if isinstance(v, Mapping) else None
-        und = score("undamaged") or score("rest")
-        return cls(clone_of=_strs(d.get("clone_of")) or (), carried=score("carried"), undamaged=und,
+        return cls(clone_of=_strs(d.get("clone_of")) or (), carried=score("carried"), undamaged=score("undamaged"),
                    prefix=dict(d["prefix"]) if isinstance(d.get("prefix"), Mapping) else None)
 
 

@@ -54,7 +54,7 @@ def test_the_start_rule_carries_only_what_predicted_better_than_rest():
     assert r.choice == "undamaged" and r.carried_minus_undamaged == pytest.approx(0.005) and MARGIN == 0.01
     assert start_rule(_events((0.80, 0.93))).choice == "undamaged"
     broken = [EventRecord.from_dict(e.to_dict()) for e in _events((0.95, 0.90))]
-    broken[1] = EventRecord.from_dict({"name": "e2", "prequential": {"carried": {"r": 0.95}, "rest": {"r": None}}})
+    broken[1] = EventRecord.from_dict({"name": "e2", "prequential": {"carried": {"r": 0.95}, "undamaged": {"r": None}}})
     assert start_rule(broken).n == 0  # a record that cannot be read counts as none
 
 
