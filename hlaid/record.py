@@ -329,9 +329,6 @@ class EventRecord:
         """Its name, or ``event k+1``."""
         return self.name or f"event {k + 1}"
 
-    _ORDER = ("name", "source", "sha256", "ground_sha256", "pga_g", "duration_s", "dt", "n_floors", "ground_profile",
-              "recorded", "start", "peak_drift")
-
     def to_dict(self) -> dict:
         out: dict[str, Any] = {"name": self.name, "source": self.source, "sha256": self.sha256,
                                "ground_sha256": self.ground_sha256, "pga_g": self.pga_g, "duration_s": self.duration_s,
