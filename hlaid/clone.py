@@ -2,7 +2,7 @@
 
 Layout::
 
-    {"format": "hlaid-clone", "version": 3,
+    {"format": "hlaid-clone", "version": 4,
      "units": {"force": "N", "length": "mm", "mass": "t", "time": "s", ...},
      "stories": [{"k0": ..., "alpha": ..., "p": ..., "dy": ..., "delta_eta": ..., "mass": ...,
                   "height": ... (optional), "gravity_load": ... (optional, N)}, ...],
@@ -11,7 +11,13 @@ Layout::
      "mass_normalised": false,
      "collapse": {"name": ..., "theta_p": ..., "theta_pc": ..., "kappa": ..., "theta_u": ...}
                  (optional: the strength-loss model IDA uses, see hlaid.model.collapse),
-     "diagnostics": {...}, "provenance": {...},
+     "diagnostics": {...} (what the identification did, for the reader: hlaid never reads it back),
+     "provenance": {...} (input files and digests, hlaid version, timings),
+     "identification": {"laws": null | {...}, "start_rule": null | {...}, "parameters": null | [...],
+                        "fit_replays": [...], "paper": null | {...}, "update_check": null | {...},
+                        "fallbacks": [...]}
+                       (version 4: the decisions later steps read, see hlaid.record),
+     "settings": null | {"config": {...}, "choices": [...]}   (version 4, hlaid.record.Settings),
      "uncertainty": null | {...},                          (version 2 and later)
      "system": null | "steel-moment-frame" | ...,          (version 3)
      "events": [{"name": ..., "source": ..., "sha256": ..., "pga_g": ..., "duration_s": ...,
@@ -28,7 +34,10 @@ parameters' Gaussian in log space (per parameter: name, story, transform, value,
 Version 3 adds what the clone learnt from: its structural ``system`` (the prior of
 :mod:`hlaid.joint.priors`), the ``events`` it was identified from in time order, and the
 ``state`` the last of them left the building in (:class:`hlaid.model.state.BuildingState`;
-null: undamaged). Version 1 and 2 files (none of these) are still read, as undamaged clones.
+null: undamaged). Version 4 keeps the clone's decisions as types (:mod:`hlaid.record`): the
+``identification`` block and the ``settings``; a version-3 file's ``diagnostics`` and
+``provenance["config"]`` are converted into them on reading (:meth:`Clone.from_dict`, the one place
+that reads those keys). Version 1 and 2 files (none of these) are still read, as undamaged clones.
 
 With ``mass_normalised`` true the masses are relative (ratios) and every stiffness is per
 unit of that relative mass; responses (drifts, accelerations) are unaffected.
@@ -55,6 +64,18 @@ from .errors import InputError, escape_controls, kind_of
 from .model import Building, Damping
 from .model.schema import STATE_BOUNDS, check_damping_ratios, check_event, check_state
 from .model.state import BuildingState
+from .record import (
+    STARTS,
+    EventRecord,
+    Fallback,
+    FitReplay,
+    LawChoice,
+    PaperMethod,
+    ParameterFlag,
+    Settings,
+    StartRule,
+    UpdateCheck,
+)
 from .systems import SYSTEMS
 from .units import UNITS_JSON
 
@@ -62,8 +83,8 @@ if TYPE_CHECKING:
     from .model.uncertainty import ParameterUncertainty
 
 FORMAT = "hlaid-clone"
-VERSION = 3
-READS = (1, 2, 3)
+VERSION = 4
+READS = (1, 2, 3, 4)
 """Clone file versions this hlaid reads (it writes :data:`VERSION`)."""
 _STORY_KEYS = ("k0", "alpha", "p", "dy", "delta_eta", "mass")
 
@@ -76,13 +97,24 @@ class Clone:
     ----------
     building : the identified shear building
     mass_normalised : masses are relative (unknown absolute masses)
-    diagnostics : identification diagnostics (errors, iterations, R per story, ...)
-    provenance : input file hash, config, package version, timings
+    diagnostics : what the identification did (errors, iterations, passes, ...), written for the
+        reader; hlaid never reads it back (its decisions are the typed fields below)
+    provenance : input file hash, package version, timings
     uncertainty : the identified parameters' uncertainty (None: a point estimate only)
     system : the structural system whose prior the identification used (None: none)
-    events : the events the clone was identified from, oldest first (name, source, sha256,
-        pga_g, duration_s)
+    events : the events the clone was identified from, oldest first (:class:`~hlaid.record.EventRecord`;
+        mappings of its fields are converted)
     state : the state its last event left the building in (None: undamaged, at rest)
+    laws : the laws its stories follow (None: not chosen, every entry free)
+    start_rule : where its next replay starts under ``start="auto"`` (None: from the state it
+        carries, at rest where it carries none)
+    parameters : where each fitted parameter comes from (None: not said, a clone of the paper's
+        method alone)
+    fit_replays : the replay of each event its last fit saw (R per floor, stiffness error)
+    paper : per story what the paper's method found (a clone of one record without a system)
+    update_check : the check of its last update against the earlier events (None: not updated)
+    fallbacks : the stages of its identification that failed numerically, and what was used instead
+    settings : the settings its identification used (None: not kept)
     """
 
     building: Building
@@ -91,17 +123,36 @@ class Clone:
     provenance: dict = field(default_factory=dict)
     uncertainty: ParameterUncertainty | None = None
     system: str | None = None
-    events: tuple[dict, ...] = ()
+    events: tuple[EventRecord, ...] = ()
     state: BuildingState | None = None
+    laws: LawChoice | None = None
+    start_rule: StartRule | None = None
+    parameters: tuple[ParameterFlag, ...] | None = None
+    fit_replays: tuple[FitReplay, ...] = ()
+    paper: PaperMethod | None = None
+    update_check: UpdateCheck | None = None
+    fallbacks: tuple[Fallback, ...] = ()
+    settings: Settings | None = None
+
+    def __post_init__(self) -> None:
+        if any(not isinstance(e, EventRecord) for e in self.events):
+            object.__setattr__(self, "events", tuple(e if isinstance(e, EventRecord) else EventRecord.from_dict(e)
+                                                     for e in self.events))
+        elif not isinstance(self.events, tuple):
+            object.__setattr__(self, "events", tuple(self.events))
+
+    def story_laws(self) -> tuple[str, ...] | None:
+        """The law each story follows (None where the clone names none: every entry free)."""
+        return None if self.laws is None else self.laws.laws(self.building.n_stories)
 
     def survived_drift(self, *, measured_only: bool = False) -> np.ndarray | None:
         """``(story,)`` the largest drift of each story the building survived [mm]: the measured
-        peak of each event it was identified from (``events[k]["peak_drift"]``) and, unless
+        peak of each event it was identified from (``events[k].peak_drift``) and, unless
         ``measured_only``, the largest drifts of the state the clone carries (its replay of those
         events); None where neither is known."""
         n = self.building.n_stories
-        peaks = [np.asarray(e["peak_drift"], dtype=float) for e in self.events
-                 if isinstance(e.get("peak_drift"), list) and len(e["peak_drift"]) == n]
+        peaks = [np.asarray(e.peak_drift, dtype=float) for e in self.events
+                 if e.peak_drift is not None and len(e.peak_drift) == n]
         if self.state is not None and not measured_only:
             peaks.append(np.maximum(self.state.peak_positive, self.state.peak_negative))
         if not peaks:
@@ -115,14 +166,13 @@ class Clone:
         ``replay`` record kept with each event; None where no event holds one (not assessed)."""
         worst = None
         for k, e in enumerate(self.events):
-            r = e.get("replay")
-            if not isinstance(r, dict) or not r.get("peak_drift_error"):
+            r = e.replay
+            if r is None or not r.peak_drift_error:
                 continue
-            err = np.asarray(r["peak_drift_error"], dtype=float)
+            err = np.asarray(r.peak_drift_error, dtype=float)
             j = int(np.argmax(np.abs(err)))
             if worst is None or abs(err[j]) > abs(worst[0]):
-                lo, hi = (float(x) for x in (r.get("band_hz") or (float("nan"), float("nan"))))
-                worst = (float(err[j]), j, str(e.get("name") or f"event {k + 1}"), (lo, hi))
+                worst = (float(err[j]), j, e.label(k), (float(r.band_hz[0]), float(r.band_hz[1])))
         return worst
 
     def with_state(self, state: BuildingState | None) -> Clone:
@@ -148,9 +198,21 @@ class Clone:
                 "damping": b.damping.to_dict(), "pdelta": b.pdelta, "mass_normalised": self.mass_normalised,
                 "diagnostics": jsonable(self.diagnostics), "provenance": jsonable(self.provenance),
                 "uncertainty": None if self.uncertainty is None else jsonable(self.uncertainty.to_dict()),
-                "system": self.system, "events": jsonable(list(self.events)),
+                "system": self.system, "events": jsonable([e.to_dict() for e in self.events]),
                 "state": None if self.state is None else self.state.to_dict(),
+                "identification": jsonable(self.identification_dict()),
+                "settings": None if self.settings is None else jsonable(self.settings.to_dict()),
                 **({"collapse": b.collapse.to_dict()} if b.collapse is not None else {})}
+
+    def identification_dict(self) -> dict:
+        """The file's ``identification`` block: the decisions later steps read (:mod:`hlaid.record`)."""
+        return {"laws": None if self.laws is None else self.laws.to_dict(),
+                "start_rule": None if self.start_rule is None else self.start_rule.to_dict(),
+                "parameters": None if self.parameters is None else [f.to_dict() for f in self.parameters],
+                "fit_replays": [r.to_dict() for r in self.fit_replays],
+                "paper": None if self.paper is None else self.paper.to_dict(),
+                "update_check": None if self.update_check is None else self.update_check.to_dict(),
+                "fallbacks": [f.to_dict() for f in self.fallbacks]}
 
     def save(self, path: str | os.PathLike, *, force: bool = False) -> Path:
         """Write the clone JSON atomically (never a half-written file); an existing file is
@@ -168,7 +230,8 @@ class Clone:
             raise InputError(f"clone version {_show(version)} is not supported; this hlaid reads versions "
                              f"{', '.join(map(str, READS))}", source=source)
         _no_unknown(d, _TOP_KEYS + (("uncertainty",) if version >= 2 else ())
-                    + (("system", "events", "state") if version >= 3 else ()), "", source)
+                    + (("system", "events", "state") if version >= 3 else ())
+                    + (("identification", "settings") if version >= 4 else ()), "", source)
         _check_units(d.get("units"), source)
         stories = d.get("stories")
         if not isinstance(stories, list) or not stories:
@@ -229,9 +292,9 @@ class Clone:
         if state is not None:
             _checked(check_state, state.z, b.dy, drift=state.drift, height=b.height, source=source,
                      peaks=(("peak_positive", state.peak_positive), ("peak_negative", state.peak_negative)))
-        return cls(building=b, mass_normalised=d.get("mass_normalised", False),
-                   diagnostics=d.get("diagnostics") or {}, provenance=d.get("provenance") or {}, uncertainty=unc,
-                   system=system, events=events, state=state)
+        typed = _typed(d, version, events, state, source)
+        return cls(building=b, mass_normalised=d.get("mass_normalised", False), uncertainty=unc,
+                   system=system, events=events, state=state, **typed)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Clone:
@@ -239,7 +302,116 @@ class Clone:
         return cls.from_dict(read_json(path), source=str(path))
 
 
-def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dict, ...], BuildingState | None]:
+_TYPED = ("laws", "start_rule", "parameters", "update_check", "fallbacks")
+"""The keys of a version-3 ``diagnostics`` that are the clone's typed fields from version 4 on."""
+
+LAST_EVENT_UNDAMAGED = ("its last event was explained better from an undamaged start: the building recovered between "
+                        "its events")
+"""The start rule of a clone made before the prequential rule whose last update chose an undamaged start."""
+
+
+def _typed(d: dict, version: int, events: tuple[EventRecord, ...], state: BuildingState | None,
+           source: str | None) -> dict:
+    """The clone's typed fields (:mod:`hlaid.record`) and its write-only ``diagnostics`` and
+    ``provenance``: a version-4 file's ``identification`` and ``settings`` blocks, or converted
+    from the keys of an older file (``diagnostics``, ``provenance["config"]`` and ``["choices"]``)."""
+    diag, prov = dict(d.get("diagnostics") or {}), dict(d.get("provenance") or {})
+    where = "identification" if version >= 4 else "diagnostics"
+    try:
+        if version >= 4:
+            block = d.get("identification") or {}
+            if not isinstance(block, dict):
+                raise InputError(f"field 'identification' must be a mapping, got {kind_of(block)}")
+            _no_unknown(block, _BLOCK_KEYS, "identification.", None)
+            st = d.get("settings")
+            out = _records(block, block.get("fit_replays") or (), block.get("paper"))
+            out["settings"] = None if st is None else Settings.from_dict(_mapping(st, "settings"))
+        else:
+            out = _records({**diag, "start_rule": _old_rule(diag.get("start_rule"))}, _old_fit_replays(diag),
+                           _old_paper(diag), strict=False)
+            out["settings"] = (Settings.from_dict(prov) if isinstance(prov.get("config"), dict) or prov.get("choices")
+                               else None)
+            if out["start_rule"] is None and state is not None and events and events[-1].start == "undamaged":
+                out["start_rule"] = StartRule("undamaged", LAST_EVENT_UNDAMAGED, rule="last event")
+            diag = {k: v for k, v in diag.items() if k not in _TYPED}
+            prov = {k: v for k, v in prov.items() if k not in ("config", "choices")}
+    except InputError as err:
+        raise InputError(str(err), source=source) from None
+    except (TypeError, ValueError, KeyError, AttributeError, OverflowError) as err:
+        raise InputError(f"field '{where}' is not a clone's record ({err})", source=source) from None
+    return {**out, "diagnostics": diag, "provenance": prov}
+
+
+_BLOCK_KEYS = ("laws", "start_rule", "parameters", "fit_replays", "paper", "update_check", "fallbacks")
+"""The keys of a version-4 file's ``identification`` block."""
+
+
+def _mapping(v, name: str) -> dict:
+    if not isinstance(v, dict):
+        raise InputError(f"field '{name}' must be a mapping, got {kind_of(v)}")
+    return v
+
+
+def _records(block: dict, fit_replays, paper, *, strict: bool = True) -> dict:
+    """The typed records of a block holding ``laws``, ``start_rule``, ``parameters`` and ``update_check``
+    (not ``strict``: a version-3 start rule of no known choice is none, as it was read then)."""
+    rule = block.get("start_rule")
+    if not strict and not (isinstance(rule, dict) and rule.get("choice") in STARTS):
+        rule = None
+    rows = block.get("parameters")
+    laws, check = block.get("laws"), block.get("update_check")
+    return {"laws": LawChoice.from_dict(laws) if isinstance(laws, dict) else None,
+            "start_rule": None if rule is None else StartRule.from_dict(_mapping(rule, "start_rule")),
+            "parameters": (None if not isinstance(rows, list) else
+                           tuple(ParameterFlag.from_dict(r) for r in rows if isinstance(r, dict))),
+            "fit_replays": tuple(FitReplay.from_dict(_mapping(r, "fit_replays[]")) for r in fit_replays),
+            "paper": None if paper is None else PaperMethod.from_dict(_mapping(paper, "paper")),
+            "update_check": UpdateCheck.from_dict(check) if isinstance(check, dict) else None,
+            "fallbacks": tuple(Fallback.from_dict(f) for f in block.get("fallbacks") or () if isinstance(f, dict))}
+
+
+def _old_rule(rule):
+    """A version-3 start rule in version 4's words (``rest``: ``undamaged``)."""
+    if not isinstance(rule, dict):
+        return rule
+    out = {k: v for k, v in rule.items() if k != "carried_minus_rest"}
+    if "carried_minus_rest" in rule:
+        out["carried_minus_undamaged"] = rule["carried_minus_rest"]
+    return {**out, "choice": "undamaged"} if rule.get("choice") == "rest" else out
+
+
+def _old_event(e: dict) -> dict:
+    """A version-3 event record in version 4's words (its prequential record's ``rest``: ``undamaged``)."""
+    pq = e.get("prequential")
+    if not isinstance(pq, dict) or "rest" not in pq:
+        return e
+    return {**e, "prequential": {**{k: v for k, v in pq.items() if k != "rest"}, "undamaged": pq["rest"]}}
+
+
+def _old_fit_replays(diag: dict) -> list:
+    """A version-3 clone's replays of the events its last fit saw: the joint fit's per event, else
+    the paper's method's one."""
+    found = [e for e in ((diag.get("joint") or {}).get("events") or []) if isinstance(e, dict)]
+    if not found and isinstance(diag.get("replay"), dict):
+        found = [diag["replay"]]
+    return found
+
+
+def _old_paper(diag: dict) -> dict | None:
+    """A version-3 clone's stories of the paper's method (None: not a clone of it)."""
+    stories = diag.get("stories")
+    if not isinstance(stories, list) or not all(isinstance(s, dict) and "identifiable" in s for s in stories):
+        return None
+    last: dict[int, dict] = {}
+    for pas in diag.get("passes") or []:
+        for i, st in enumerate(pas.get("stories", []) if isinstance(pas, dict) else []):
+            if st:
+                last[i] = {k: v.get("test_accuracy") for k, v in st.items()}
+    return {"stories": [{**s, "story": s.get("story", i + 1), "svm_test_accuracy": last.get(i)}
+                        for i, s in enumerate(stories)], "refine": diag.get("refine")}
+
+
+def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[EventRecord, ...], BuildingState | None]:
     """The version-3 fields ``system``, ``events`` and ``state`` (absent: none, undamaged)."""
     system = d.get("system")
     if system is not None and system not in SYSTEMS:
@@ -271,7 +443,14 @@ def _history(d: dict, n: int, source: str | None) -> tuple[str | None, tuple[dic
             raise InputError(str(err), source=source) from None
         if state.n_stories != n:
             raise InputError(f"state has {state.n_stories} stories; the clone has {n}", source=source)
-    return system, tuple(events), state
+    try:
+        old = d.get("version") in (1, 2, 3)
+        records = tuple(EventRecord.from_dict(_old_event(e) if old else e) for e in events)
+    except InputError as err:
+        raise InputError(str(err), source=source) from None
+    except (TypeError, ValueError, OverflowError) as err:
+        raise InputError(f"field 'events' is not a list of event records ({err})", source=source) from None
+    return system, records, state
 
 
 _EVENT_KEYS = ("name", "source", "sha256", "ground_sha256", "pga_g", "duration_s", "dt", "n_floors", "recorded",

@@ -10,6 +10,7 @@ import hashlib
 import json
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,6 +22,7 @@ from .limits import check_count
 from .model import Building
 from .model.schema import STORY_BOUNDS
 from .motions.record import GroundMotion
+from .record import EventRecord
 from .units import G_MM_S2
 
 TRUTH_FIELDS = ("disp", "drift", "force", "z", "eta")
@@ -387,25 +389,25 @@ def ground_profile(meas: Measurement) -> list[float]:
             for a, b in zip(edges[:-1], edges[1:])]
 
 
-def _same_record(e: dict, meas: Measurement) -> bool:
+def _same_record(e: EventRecord, meas: Measurement) -> bool:
     """Whether ``meas`` holds the ground record of the clone's event ``e`` written differently: the
     same sample interval, a duration within 2 samples, a peak within 0.1 % and the same
     :func:`ground_profile` (a clone that kept none: not told this way)."""
-    prof = e.get("ground_profile")
-    if not isinstance(prof, list) or not all(isinstance(e.get(f), (int, float)) for f in ("pga_g", "dt", "duration_s")):
+    prof = e.ground_profile
+    if prof is None or e.pga_g is None or e.dt is None or e.duration_s is None:
         return False
-    if not math.isclose(e["dt"], meas.dt, rel_tol=1e-6):
+    if not math.isclose(e.dt, meas.dt, rel_tol=1e-6):
         return False
-    if abs(e["duration_s"] - meas.n_samples * meas.dt) > 2.01 * meas.dt:
+    if abs(e.duration_s - meas.n_samples * meas.dt) > 2.01 * meas.dt:
         return False
     pga = float(np.max(np.abs(meas.ground_acc)) / G_MM_S2)
-    if not math.isclose(e["pga_g"], pga, rel_tol=1e-3):
+    if not math.isclose(e.pga_g, pga, rel_tol=1e-3):
         return False
     mine = ground_profile(meas)
     return len(mine) == len(prof) and max(abs(a - b) for a, b in zip(mine, prof)) <= PROFILE_TOL
 
 
-def check_not_learnt(events, meas: Measurement | None = None, sha256: str | None = None,
+def check_not_learnt(events: Sequence[EventRecord], meas: Measurement | None = None, sha256: str | None = None,
                      source: str | None = None) -> None:
     """Refuse an event a clone has learnt from already (``events``: its ``events[]`` records): the
     same file (``sha256`` of the file at ``source``) or the same ground record (``meas``), also
@@ -413,15 +415,15 @@ def check_not_learnt(events, meas: Measurement | None = None, sha256: str | None
     :func:`ground_profile`), also in a clone that kept no digest of its ground record (same peak,
     duration and sample interval)."""
     for k, e in enumerate(events):
-        name = e.get("name") or f"event {k + 1}"
-        same = sha256 is not None and e.get("sha256") == sha256
+        name = e.label(k)
+        same = sha256 is not None and e.sha256 == sha256
         if meas is not None and not same:
-            if e.get("ground_sha256") is not None:
-                same = e["ground_sha256"] == ground_digest(meas) or _same_record(e, meas)
-            elif all(isinstance(e.get(f), (int, float)) for f in ("pga_g", "dt", "duration_s")):
+            if e.ground_sha256 is not None:
+                same = e.ground_sha256 == ground_digest(meas) or _same_record(e, meas)
+            elif e.pga_g is not None and e.dt is not None and e.duration_s is not None:
                 pga = float(np.max(np.abs(meas.ground_acc)) / G_MM_S2)
-                same = (math.isclose(e["pga_g"], pga, rel_tol=1e-9) and math.isclose(e["dt"], meas.dt, rel_tol=1e-9)
-                        and math.isclose(e["duration_s"], meas.n_samples * meas.dt, rel_tol=1e-9))
+                same = (math.isclose(e.pga_g, pga, rel_tol=1e-9) and math.isclose(e.dt, meas.dt, rel_tol=1e-9)
+                        and math.isclose(e.duration_s, meas.n_samples * meas.dt, rel_tol=1e-9))
         if same:
             raise InputError(f"the clone has learnt from this event already ({name}, its event {k + 1}): each event "
                              "once", source=source or (meas.source if meas is not None else None) or None)

@@ -323,12 +323,13 @@ def tall(n: int) -> int:
     b, meas = tall_measurement(n)
     t, res = run(meas, "")
     e = {k: np.abs(getattr(res.clone.building, k) / getattr(b, k) - 1) for k in ("k0", "alpha", "p", "dy", "delta_eta")}
-    ident = np.array([s["identifiable"] for s in res.clone.diagnostics["stories"]])
+    paper = res.clone.paper
+    ident = np.array([s.identifiable for s in paper.stories])
     allv = np.concatenate([e[k][ident] for k in ("alpha", "p", "dy", "delta_eta")])
     print(f"{n}-story identification from scratch: {t:.1f} s (target <= 180 s); {ident.sum()} of {n} stories "
           f"identifiable; alpha, p, dy, delta_eta median error {100 * np.median(allv):.1f} %")
     print({k: round(v, 1) for k, v in res.timings.items()})
-    info = res.clone.diagnostics["refine"] or {}
+    info = dict(paper.refine or {})
     restart = info.get("restart")
     ratio = info.get("noise_ratio")  # None without refinement
     print(f"refinement: cost {'n/a' if ratio is None else f'{ratio:.2f}'} x the noise's; restart: "

@@ -51,7 +51,7 @@ def one(truth: Building, gm, seed: int, cfg: IdentifyConfig, cache: str, noise: 
         res = identify_clone(meas, cfg, cache_dir=cache)
     except ValueError as err:
         return {"record": gm.name, "seed": seed, "failed": str(err)}
-    ident = [s["identifiable"] for s in res.clone.diagnostics["stories"]]
+    ident = [s.identifiable for s in res.clone.paper.stories]
     return {"record": gm.name, "seed": seed, "seconds": time.perf_counter() - t, "identifiable": ident,
             "paper": errors(res.paper_estimate, truth), "final": errors(res.clone.building, truth),
             "R_true": res.replay.r_true.tolist(), "R_measured": res.replay.r_measured.tolist(),

@@ -82,7 +82,7 @@ def main(argv=None) -> int:
             secs.append(time.perf_counter() - t)
             cpu.append(_cpu() - c)
             cls.append(sum(v for k, v in res.timings.items() if k.startswith("classifiers_")))
-            row = {"identifiable": [s["identifiable"] for s in res.clone.diagnostics["stories"]],
+            row = {"identifiable": [s.identifiable for s in res.clone.paper.stories],
                    "paper": errors(res.paper_estimate, truth), "final": errors(res.clone.building, truth)}
             paper.append(run_errors(row, "paper"))
             final.append(run_errors(row, "final"))

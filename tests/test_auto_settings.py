@@ -20,7 +20,7 @@ from scipy import linalg, signal
 
 from hlaid import identify_clone
 from hlaid.clone import Clone
-from hlaid.config import config_to_dict, load_config
+from hlaid.config import load_config
 from hlaid.errors import InputError
 from hlaid.hla import Choice, HLAConfig, resolve_hla, run_hla
 from hlaid.hla import analysis as hla_analysis
@@ -28,6 +28,7 @@ from hlaid.hla.auto import shear_frequencies
 from hlaid.hla.config import PreprocessConfig, auto_hla_config
 from hlaid.identify import IdentifyConfig, OuterConfig, RefineConfig, TrainingConfig
 from hlaid.identify.auto import Resolution, damping_ran_away, held_damping, records_band, resolve_like, resolve_settings
+from hlaid.identify.config import ResolvedSettings
 from hlaid.measurement import Measurement
 from hlaid.model import Damping
 from hlaid.motions import load_builtin
@@ -209,13 +210,12 @@ def test_hla_resolves_auto_and_its_analysis_refuses_it(shear):
 def test_more_records_of_a_clone_are_analysed_as_it_was(frame, shear):
     """An update (``resolve_like``) takes the clone's choices, not the new record's."""
     chosen = resolve_settings(frame[0], IdentifyConfig())
-    prov = {"config": config_to_dict(chosen.config), "choices": chosen.to_list()}
-    again = resolve_like(prov, shear[0], IdentifyConfig())
+    again = resolve_like(chosen.record(), shear[0], IdentifyConfig())
     assert again.config.hla.preprocess.band_hz == chosen.config.hla.preprocess.band_hz
     assert again.config.refine == chosen.config.refine
     kept = [c for c in again.choices if c.setting not in ("hla.preprocess.displacement", "system")]  # not kept
     assert len(kept) == 8 and all(c.reason.startswith("as the clone was identified") for c in kept)
-    assert resolve_like({}, shear[0], IdentifyConfig()).config.hla.preprocess.band_hz is None
+    assert resolve_like(None, shear[0], IdentifyConfig()).config.hla.preprocess.band_hz is None
 
 
 def test_the_clone_keeps_the_choices(table1, tmp_path):
@@ -224,12 +224,15 @@ def test_the_clone_keeps_the_choices(table1, tmp_path):
     cfg = IdentifyConfig(training=TrainingConfig(samples=60, n_segments=8), outer=OuterConfig(max_iterations=1),
                          refine=RefineConfig(method="none"))
     clone = identify_clone(meas, cfg, cache_dir="").clone
-    choices = Clone.load(clone.save(tmp_path / "c.json")).provenance["choices"]
-    got = {c["setting"]: c["value"] for c in choices}
+    settings = Clone.load(clone.save(tmp_path / "c.json")).settings
+    assert settings is not None
+    got = {c.setting: c.value for c in settings.choices}
     assert got["hla.preprocess.band_hz"] is None and got["hla.force.damping"] == "rayleigh"
     assert "refine.method" not in got  # given: not chosen
-    assert all(c["reason"] for c in choices)
-    assert clone.provenance["config"]["hla"]["force"]["damping"] == "rayleigh"
+    assert all(c.reason for c in settings.choices)
+    assert settings.value("hla.force.damping") == "rayleigh"
+    assert settings.given is not None and settings.given["hla"]["force"]["damping"] == "auto"  # as given
+    assert all(settings.value(k) not in (None, "auto") for k in ResolvedSettings.KEYS if k != "refine.method")
 
 
 def test_a_damping_ratio_fitted_to_its_bound_is_held(table1):

@@ -24,6 +24,7 @@ from hlaid.ida.basis import (
 )
 from hlaid.io import read
 from hlaid.motions import GroundMotion, load_builtin
+from hlaid.record import OwnReplay
 from hlaid.synthetic import simulate_measurement
 
 RECS = ["builtin:elcentro-1940-ns", "builtin:kocaeli-1999-dzc180"]
@@ -43,7 +44,7 @@ def event(table1, tmp_path_factory):
     meas = read(path, "measurement")
     u = np.asarray(meas.truth.disp, dtype=float)  # the drift the building went through (a simulation's truth)
     peak = np.max(np.abs(np.diff(np.concatenate([np.zeros((u.shape[0], 1)), u], axis=1), axis=1)), axis=0)
-    clone = Clone(building=b, events=({**event_record(meas), "peak_drift": peak.tolist()},))
+    clone = Clone(building=b, events=(dataclasses.replace(event_record(meas), peak_drift=tuple(peak.tolist())),))
     clone_path = folder / "clone.json"
     clone.save(clone_path)
     return clone, meas, clone_path
@@ -84,8 +85,7 @@ def test_the_replay_error_is_flagged_or_not_assessed(event):
     b = decision_basis(clone)
     assert b.replay_miss is None and b.replay_flagged is None
     assert any("replay of its own events: not assessed" in line for line in b.lines())
-    e = {**clone.events[0], "replay": {"band_hz": [0.3, 10.0], "peak_drift_error": [0.05, -0.22, 0.1],
-                                        "drift_r": [0.9, 0.9, 0.9]}}
+    e = dataclasses.replace(clone.events[0], replay=OwnReplay((0.3, 10.0), (0.05, -0.22, 0.1), (0.9, 0.9, 0.9)))
     bad = decision_basis(dataclasses.replace(clone, events=(e,)))
     assert bad.replay_flagged is True and abs(bad.replay_miss[0]) > REPLAY_MISS_FLAG
     assert any("story 2's peak drift by -22%" in f and "identify again" in f for f in bad.flags())

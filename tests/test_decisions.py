@@ -147,7 +147,7 @@ def test_the_events_are_read_back_only_when_unchanged(event, tmp_path):
     np.testing.assert_array_equal(em.motions[0].acc, meas.ground_acc)
     copy = tmp_path / "event.npz"
     simulate_measurement(b, load_builtin("elcentro-1940-ns").scaled_to_pga(0.3), rate_hz=100.0, seed=1).save(copy)
-    moved = dataclasses.replace(c, events=({**c.events[0], "source": str(copy)},))
+    moved = dataclasses.replace(c, events=(dataclasses.replace(c.events[0], source=str(copy)),))
     em = event_motions(moved)
     assert em.motions == (None,) and "changed since the clone was identified" in em.missing[0]
     em = event_motions(moved, [GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc))])  # passed in: matched
@@ -158,7 +158,8 @@ def test_the_events_are_read_back_only_when_unchanged(event, tmp_path):
 
 def test_a_survived_drift_at_the_drift_limit_is_refused(event):
     b, meas, _ = event
-    c = dataclasses.replace(_clone_of(b, meas), events=({**event_record(meas), "peak_drift": [400.0, 20.0, 10.0]},))
+    c = dataclasses.replace(_clone_of(b, meas),
+                            events=(dataclasses.replace(event_record(meas), peak_drift=(400.0, 20.0, 10.0)),))
     prep = member_preparer(IDAConfig(collapse="none"))
     with pytest.raises(InputError, match=r"survived drifts of 400\.0, 20\.0, 10\.0 mm .*13\.3% of its height 3000 mm"):
         survivors(c, 2, prepare=prep, drift_limit=0.10)
@@ -230,9 +231,10 @@ def test_an_event_file_read_again_is_named_on_one_line(tmp_path):
     """A clone's event whose name and file carry a newline and a terminal escape: the note that
     says why it was not read again shows them escaped, on one line."""
     from hlaid.events.evidence import read_event
+    from hlaid.record import EventRecord
 
     bad = tmp_path / "ev\n\x1b[31m.npz"
     bad.write_bytes(b"x")
-    meas, why = read_event({"name": "e\n\x1b[2J", "source": str(bad), "sha256": "0" * 64})
+    meas, why = read_event(EventRecord(name="e\n\x1b[2J", source=str(bad), sha256="0" * 64))
     assert meas is None and "\n" not in why and "\x1b" not in why
     assert "\\x0a" in why and "changed since the clone was identified" in why

@@ -24,6 +24,7 @@ from hlaid.joint.series import effective_samples
 from hlaid.joint.vector import PriorVector, from_units, prior_of_clone, to_units
 from hlaid.measurement import check_series
 from hlaid.model.state import BuildingState, settle_time
+from hlaid.record import FitReplay
 from hlaid.simulate import simulate_response
 from hlaid.synthetic import simulate_events, simulate_measurement
 
@@ -97,7 +98,7 @@ def test_prior_units_round_trip(table1):
     for name in PARAMS:
         np.testing.assert_allclose(getattr(back, name), getattr(table1, name), rtol=1e-10, err_msg=name)
     assert back.damping.ratio == pytest.approx(table1.damping.ratio)
-    with pytest.raises(InputError, match="'steel-moment-frame', 'rc-frame', 'generic'"):
+    with pytest.raises(InputError, match="'rc-frame', 'steel-moment-frame', 'generic'"):
         get_prior("masonry")
     for prior in PRIORS.values():  # every system names its sources
         assert prior.sources and 0 < prior.alpha.median < 0.95 and prior.p.median > 1
@@ -153,9 +154,9 @@ def test_update_agrees_with_the_joint_fit(table1, pieces):
     assert uj.slots == uu.slots and uj.transform == uu.transform
     z = np.abs(uj.centre - uu.centre) / np.sqrt(uj.std**2 + uu.std**2)
     assert np.all(z < 2.71) and np.median(z) < 1.0, dict(zip(uj.names, z.round(2)))
-    assert [e["name"] for e in upd.events] == ["one", meas[1].name]
+    assert [e.name for e in upd.events] == ["one", meas[1].name]
     assert upd.state is not None and upd.state.events[-1] == meas[1].name
-    assert upd.events[-1]["start"] == "carried"  # the damage was carried: the event says so
+    assert upd.events[-1].start == "carried"  # the damage was carried: the event says so
     assert resolve_start(upd, "auto").state is not None
 
 
@@ -172,7 +173,7 @@ def test_an_update_finds_a_building_that_recovered(table1, pieces):
                   system="generic", events=({"name": "one"},))
     second = simulate_measurement(table1, pieces[1], noise_rms=0.05, seed=9)  # from rest: recovered
     upd = update_clone(clone, second, cfg).clone
-    assert upd.events[-1]["start"] == "undamaged" and resolve_start(upd, "auto").state is None
+    assert upd.events[-1].start == "undamaged" and resolve_start(upd, "auto").state is None
     assert resolve_start(upd, "carried").state is not None
 
 
@@ -183,9 +184,9 @@ def test_an_elastic_record_gives_a_clone_from_the_prior(table1, pieces):
     res = identify_clone(meas, IdentifyConfig(system="steel-moment-frame"), cache_dir="")
     c = res.clone
     np.testing.assert_allclose(c.building.k0, table1.k0, rtol=0.1)
-    by = {(f["name"], f["story"]): f for f in c.diagnostics["parameters"]}
-    assert all(by[("alpha", i)]["source"] == "prior" for i in (1, 2, 3))
-    assert all(by[("k0", i)]["source"] == "data" for i in (1, 2, 3))
+    by = {(f.name, f.story): f for f in c.parameters or ()}
+    assert all(by[("alpha", i)].source == "prior" for i in (1, 2, 3))
+    assert all(by[("k0", i)].source == "data" for i in (1, 2, 3))
     assert c.system == "steel-moment-frame" and c.state is not None and len(c.events) == 1
 
 
@@ -199,7 +200,7 @@ def test_clone_files_keep_the_state_and_read_older_versions(table1, tmp_path):
     np.testing.assert_allclose(resolve_start(back, "carried").vector(), st.vector())
     assert resolve_start(back, "undamaged").vector() is None
     d = c.to_dict()
-    for key in ("system", "events", "state"):
+    for key in ("system", "events", "state", "identification", "settings"):
         d.pop(key)
     old = Clone.from_dict({**d, "version": 2})
     assert old.state is None and resolve_start(old, "auto").vector() is None
@@ -237,7 +238,7 @@ def test_the_predictive_band_holds_the_measurement(table1, pieces):
                      max_iterations=10)
     own = predict_event(Clone(building=fit.building), meas[0])  # its self-replay, in HLA's band
     c = Clone(building=fit.building, uncertainty=posterior_uncertainty(fit), state=fit.states[-1],
-              diagnostics={"joint": {"events": [{"r_measured": own.r.tolist()}]}})
+              fit_replays=(FitReplay(name=None, r_measured=tuple(own.r.tolist())),))
     p = predict_event(c, meas[1], n_ensemble=20)
     draws = predict_event(c, meas[1], n_ensemble=20, misfit=0.0)
     assert p.band is not None and draws.band is not None
@@ -292,12 +293,12 @@ def test_cli_identify_predict_update(table1, pieces, tmp_path, capsys):
     assert main(["identify", *files[:2], "-o", str(c1), "--config", str(cfg), "--no-cache", "-q"]) == 0
     assert main(["predict", str(c1), files[2], "-o", str(pred), "--ensemble", "5", "-q"]) == 0
     p = json.loads((pred / "prediction.json").read_text())
-    rule = Clone.load(c1).diagnostics["start_rule"]  # how the clone of e1 predicted e2 chose the start
-    assert rule["n"] == 1 and p["start"] == ("carried" if rule["choice"] == "carried" else "undamaged")
+    rule = Clone.load(c1).start_rule  # how the clone of e1 predicted e2 chose the start
+    assert rule is not None and rule.n == 1 and p["start"] == rule.choice
     assert len(p["r"]) == 3 and min(p["r"]) > 0.9
     assert 0.0 <= p["coverage_mean"] <= 1.0 and (pred / "prediction.png").is_file()
     assert main(["update", str(c1), files[2], "-o", str(c2), "--config", str(cfg), "-q"]) == 0
     c = Clone.load(c2)
-    assert [e["name"] for e in c.events] == ["e1", "e2", "e3"] and c.state is not None  # named by their files
+    assert [e.name for e in c.events] == ["e1", "e2", "e3"] and c.state is not None  # named by their files
     assert c.state.events[-1] == "e3"
     capsys.readouterr()

@@ -19,6 +19,7 @@ from hlaid.joint.laws import candidates, choose_laws, default_laws, with_laws
 from hlaid.joint.priors import get_prior
 from hlaid.joint.screen import data_jacobian, prefix_point, screen_laws
 from hlaid.model import Building
+from hlaid.record import EventRecord
 from hlaid.synthetic import simulate_events
 
 STORY = {"weight_kN": 171.85, "k0": 1.94e4, "alpha": 0.15, "p": 2.0, "dy": 7.0, "delta_eta": 1.0}
@@ -103,16 +104,17 @@ def test_an_update_is_refitted_only_where_the_earlier_events_no_longer_replay_we
     system = get_prior("steel-moment-frame")
     first = map_refine(b, meas[:1], system=system, damping=False, ground_noise="ignore", max_iterations=10)
     clone = Clone(building=first.building, uncertainty=posterior_uncertainty(first), state=first.states[-1],
-                  system="steel-moment-frame", events=({"name": meas[0].name},))
-    kept = update_clone(clone, meas[1], cfg, earlier=meas[:1]).clone.diagnostics["update_check"]
-    assert kept["events"] == 1 and not kept["refit"] and "refitted" not in kept
+                  system="steel-moment-frame", events=(EventRecord(name=meas[0].name),))
+    kept = update_clone(clone, meas[1], cfg, earlier=meas[:1]).clone.update_check
+    assert kept is not None and kept.events == 1 and not kept.refit and not kept.refitted
     soft = b.replace(k0=0.6 * b.k0)
     (other,), _ = simulate_events(soft, [window(paper_record("kocaeli-1999-dzc180"), 8.0).scaled(0.4)],
                                   noise_rms=0.05, seed=9)
     moved = update_clone(clone, dataclasses.replace(other, name="softer"), cfg, earlier=meas[:1], widen=30.0)
-    check = moved.clone.diagnostics["update_check"]
-    assert check["refit"] and check.get("refitted") is True
-    assert check["misfit_change"] > check["gaussian"] + check["limit"]
+    check = moved.clone.update_check
+    assert check is not None and check.refit and check.refitted
+    assert check.misfit_change is not None and check.gaussian is not None and check.limit is not None
+    assert check.misfit_change > check.gaussian + check.limit
 
 
 def test_an_entry_held_at_its_bound_leaves_the_evidence_finite():

@@ -21,13 +21,13 @@ from hlaid.joint.laws import (
     choose_laws,
     default_laws,
     law_mask,
-    laws_of,
     with_laws,
 )
 from hlaid.joint.priors import get_prior, weight_above
 from hlaid.joint.vector import PriorVector, SystemPrior, from_units, to_units
 from hlaid.model.schema import STORY_BOUNDS
 from hlaid.model.state import BuildingState
+from hlaid.record import EventRecord, LawChoice, Prequential, StartRule, StartScore
 from hlaid.simulate import simulate_response
 from hlaid.synthetic import simulate_events
 
@@ -38,30 +38,30 @@ def _corr(a: np.ndarray, b: np.ndarray) -> float:
 
 
 # ----------------------------------------------------------------------------- the start rule
-def _events(*pairs) -> list[dict]:
-    out: list[dict] = [{"name": "e1"}]
+def _events(*pairs) -> list[EventRecord]:
+    out = [EventRecord(name="e1")]
     for k, (c, r) in enumerate(pairs):
-        out.append({"name": f"e{k + 2}", "prequential": {"carried": {"r": c}, "rest": {"r": r}, "clone_of": ["e1"]}})
+        out.append(EventRecord(name=f"e{k + 2}", prequential=Prequential(
+            clone_of=("e1",), carried=StartScore(c), undamaged=StartScore(r))))
     return out
 
 
 def test_the_start_rule_carries_only_what_predicted_better_than_rest():
-    assert start_rule(_events())["choice"] == "rest"  # nothing predicted yet
+    assert start_rule(_events()).choice == "undamaged"  # nothing predicted yet
     r = start_rule(_events((0.95, 0.90), (0.97, 0.95)))  # carried better by 0.035 on the mean
-    assert r["choice"] == "carried" and r["n"] == 2 and r["carried_minus_rest"] == pytest.approx(0.035)
+    assert r.choice == "carried" and r.n == 2 and r.carried_minus_undamaged == pytest.approx(0.035)
     r = start_rule(_events((0.95, 0.90), (0.90, 0.94)))  # +0.005: within the margin
-    assert r["choice"] == "rest" and r["carried_minus_rest"] == pytest.approx(0.005) and MARGIN == 0.01
-    assert start_rule(_events((0.80, 0.93)))["choice"] == "rest"
-    broken = _events((0.95, 0.90))
-    broken[1]["prequential"]["rest"] = {"r": None}  # a record that cannot be read counts as none
-    assert start_rule(broken)["n"] == 0
+    assert r.choice == "undamaged" and r.carried_minus_undamaged == pytest.approx(0.005) and MARGIN == 0.01
+    assert start_rule(_events((0.80, 0.93))).choice == "undamaged"
+    broken = [EventRecord.from_dict(e.to_dict()) for e in _events((0.95, 0.90))]
+    broken[1] = EventRecord.from_dict({"name": "e2", "prequential": {"carried": {"r": 0.95}, "undamaged": {"r": None}}})
+    assert start_rule(broken).n == 0  # a record that cannot be read counts as none
 
 
 def test_auto_start_follows_the_clones_rule(table1):
     state = BuildingState.at_rest(3)
-    for choice, expect in (("carried", "carried"), ("rest", "undamaged")):
-        c = Clone(building=table1, state=state, diagnostics={"start_rule": {"rule": "prequential", "choice": choice,
-                                                                            "reason": "because"}})
+    for choice, expect in (("carried", "carried"), ("undamaged", "undamaged")):
+        c = Clone(building=table1, state=state, start_rule=StartRule(choice, "because"))
         s = resolve_start(c, "auto")
         assert s.name == expect and "because" in s.reason
         assert resolve_start(c, "carried").name == "carried"  # asked for: as asked
@@ -94,8 +94,9 @@ def test_laws_fix_the_entries_they_hold(table1):
     prior = SystemPrior(steel, v, b.k0)
     full = SystemPrior(steel, PriorVector(b, damping=True), b.k0)
     assert prior.residuals(v.x0).size < full.residuals(PriorVector(b, damping=True).x0).size
-    assert laws_of(Clone(building=b, diagnostics={"laws": {"chosen": list(laws)}})) == laws
-    assert laws_of(Clone(building=b)) is None
+    assert Clone(building=b, laws=LawChoice(chosen=laws)).story_laws() == laws
+    assert Clone(building=b).story_laws() is None
+    assert Clone(building=b, laws=LawChoice(chosen=laws[:2])).story_laws() is None  # not one per story
 
 
 def test_the_systems_law_stays_unless_another_is_clearly_better():
@@ -166,18 +167,20 @@ def test_identify_falls_back_chooses_and_predict_reports_story_drifts(table1, tm
     c12, pred = tmp_path / "c12.json", tmp_path / "pred"
     assert main(["identify", *files[:2], "-o", str(c12), "--config", str(cfg), "--no-cache", "-q"]) == 0
     c = Clone.load(c12)
-    d = c.diagnostics
+    d = c.diagnostics  # the reader's account of the fit
     assert all(e["errors_in_variables"]["fitted_by"] == "least squares" for e in d["joint"]["events"])
-    h = c.events[1]["prequential"]
-    assert h["clone_of"] == ["e1"] and set(h) >= {"carried", "rest"} and 0.5 < h["rest"]["r"] <= 1.0
-    rule = d["start_rule"]
-    assert rule["n"] == 1 and rule["carried_minus_rest"] == pytest.approx(h["carried"]["r"] - h["rest"]["r"])
-    assert rule["choice"] == ("carried" if rule["carried_minus_rest"] > MARGIN else "rest")
-    laws = d["laws"]
-    assert len(laws["chosen"]) == 3 and len(laws["candidates"]) >= 2
+    h = c.events[1].prequential
+    assert h is not None and h.carried is not None and h.undamaged is not None
+    assert h.clone_of == ("e1",) and 0.5 < h.undamaged.r <= 1.0
+    rule = c.start_rule
+    assert rule is not None and rule.n == 1
+    assert rule.carried_minus_undamaged == pytest.approx(h.carried.r - h.undamaged.r)
+    assert rule.choice == ("carried" if rule.carried_minus_undamaged > MARGIN else "undamaged")
+    laws = c.laws
+    assert laws is not None and laws.chosen is not None and len(laws.chosen) == 3 and len(laws.candidates) >= 2
     assert main(["predict", str(c12), files[2], "-o", str(pred), "-q"]) == 0
     p = json.loads((pred / "prediction.json").read_text())
-    assert p["start"] == ("carried" if rule["choice"] == "carried" else "undamaged")
+    assert p["start"] == rule.choice
     with np.load(pred / "prediction.npz") as z:
         t, dm, dp = z["time"], z["disp_measured"], z["disp_predicted"]
     assert dm.shape == dp.shape == (t.size, 3)
@@ -213,19 +216,20 @@ def test_the_check_of_an_update_flags_one_that_forgot_the_earlier_events(table1)
     v = PriorVector(table1, damping=False)
     band = (0.1, 20.0)
     same = check_update(table1, table1, [m], GaussianPrior(v.x0, np.eye(v.x0.size)), v, band_hz=band)
-    assert same["misfit_change"] == pytest.approx(0.0, abs=1e-9) and same["gaussian"] == pytest.approx(0.0)
-    assert not same["refit"] and same["limit"] == EXCESS_MIN
+    assert same.misfit_change == pytest.approx(0.0, abs=1e-9) and same.gaussian == pytest.approx(0.0)
+    assert not same.refit and same.limit == EXCESS_MIN
     x = v.x0.copy()
     x[v.slots.index(("k0", 0))] += np.log(1.3)  # story 1 30 % stiffer: the record says otherwise
     moved = v.building_at(x)
     wide = check_update(table1, moved, [m], GaussianPrior(v.x0, 100.0 * np.eye(v.x0.size)), v, band_hz=band)
-    assert wide["gaussian"] < 0.01 and wide["misfit_change"] > EXCESS_MIN and wide["refit"]
+    assert wide.gaussian is not None and wide.misfit_change is not None
+    assert wide.gaussian < 0.01 and wide.misfit_change > EXCESS_MIN and wide.refit
     # the same move, where the posterior said k0 was that uncertain: kept
     cov = 1e-6 * np.eye(v.x0.size)
     cov[v.slots.index(("k0", 0)), v.slots.index(("k0", 0))] = (np.log(1.3) / 100.0) ** 2
     tight = check_update(table1, moved, [m], GaussianPrior(v.x0, cov), v, band_hz=band)
-    assert tight["gaussian"] == pytest.approx(0.5 * 100.0**2, rel=1e-6) and not tight["refit"]
-    events = [{"name": "e1", "source": None, "ground_sha256": "0" * 64}]
+    assert tight.gaussian == pytest.approx(0.5 * 100.0**2, rel=1e-6) and not tight.refit
+    events = [EventRecord(name="e1", source=None, ground_sha256="0" * 64)]
     found, missing = load_earlier(events)
     assert found == [] and "not there" in missing[0]
     found, missing = load_earlier(events, [m])

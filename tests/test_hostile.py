@@ -979,9 +979,12 @@ def test_the_errors_in_variables_stage_falls_back_when_it_fails_numerically(monk
             raise np.linalg.LinAlgError("2-th leading minor not positive definite")
         return Fit(events=[{"n_eff": 10.0}, {"n_eff": 12.0}])
     monkeypatch.setattr(events, "map_refine", fake_map_refine)
-    cfg = SimpleNamespace(refine=SimpleNamespace(method="eiv", damping=False, band_hz=(0.1, 20.0), max_iterations=5,
-                                                 tangent_max_mb=100.0, compare="acc"),
-                          hla=SimpleNamespace(preprocess=SimpleNamespace(band_hz=None)))
+    from hlaid.identify.config import IdentifyConfig, RefineConfig
+
+    cfg = IdentifyConfig(refine=RefineConfig(method="eiv", parameters=("k0",), damping=False, band_hz=(0.1, 20.0),
+                                             max_iterations=5, tangent_max_mb=100.0, compare="acc"))
+    cfg = dataclasses.replace(cfg, hla=dataclasses.replace(cfg.hla, preprocess=dataclasses.replace(
+        cfg.hla.preprocess, band_hz=None), stiffness=dataclasses.replace(cfg.hla.stiffness, yield_ratio=0.6)))
     with pytest.warns(HlaidWarning, match="errors-in-variables stage skipped .*not positive definite"):
         fit = events.joint_fit(object(), [], None, cfg, masses=False)
     assert calls == ["tangent", "ignore"]

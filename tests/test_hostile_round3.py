@@ -19,6 +19,7 @@ from test_hostile import HEIGHTS, _clone_dict, _measurement, refused, tree
 
 from hlaid.clone import Clone
 from hlaid.errors import InputError
+from hlaid.record import EventRecord
 
 REPO = Path(__file__).resolve().parents[1]
 POSIX = pytest.mark.skipif(os.name != "posix", reason="FIFOs, rlimits and signals of POSIX")
@@ -326,7 +327,7 @@ def test_update_refuses_its_own_event_written_differently(tmp_path, capsys, tabl
     m = _measurement(tmp_path / "ev1.npz", table1)
     meas = read(m, "measurement")
     d = _clone_dict(table1)
-    d["events"] = [event_record(meas)]
+    d["events"] = [event_record(meas).to_dict()]
     clone = tmp_path / "clone.json"
     clone.write_text(json.dumps(d))
     g, f = np.asarray(meas.ground_acc), np.asarray(meas.floor_acc)
@@ -351,7 +352,7 @@ def test_update_refuses_its_own_event_written_differently(tmp_path, capsys, tabl
     scaled = Measurement(dt=o.dt, ground_acc=np.asarray(o.ground_acc)[::-1] * 1.0, floor_acc=o.floor_acc)
     scaled = Measurement(dt=o.dt, floor_acc=o.floor_acc, ground_acc=np.asarray(scaled.ground_acc)
                          * (np.abs(meas.ground_acc).max() / np.abs(scaled.ground_acc).max()))
-    check_not_learnt(d["events"], scaled)
+    check_not_learnt([EventRecord.from_dict(e) for e in d["events"]], scaled)
 
 
 # ----------------------------------------------------------------------------- messages
@@ -375,7 +376,7 @@ def test_an_empty_home_puts_no_cache_at_the_root(monkeypatch):
 
 def test_an_event_source_longer_than_a_file_name_is_said_not_raised():
     from hlaid.events.evidence import read_event
-    meas, why = read_event({"name": "e1", "source": "s" * 300 + ".npz"})
+    meas, why = read_event(EventRecord(name="e1", source="s" * 300 + ".npz"))
     assert meas is None and "cannot be looked up" in why and len(why) < 300
 
 

@@ -157,7 +157,7 @@ def test_identify_end_to_end_cached_and_logged(table1, record, tmp_path):
     assert d["provenance"]["hlaid_version"] and "timings" in d["provenance"]
     assert {"outer_iterations", "passes", "stories", "replay"} <= set(d["diagnostics"])
     # the refinement's Laplace uncertainty, stored in the file (version 2); a fit at the noise level
-    assert d["version"] == 3 and len(d["uncertainty"]["parameters"]) == len(u.slots) > 0
+    assert d["version"] == 4 and len(d["uncertainty"]["parameters"]) == len(u.slots) > 0
     assert u.info["fit_consistent"] and np.all(u.std > 0) and np.all(u.std < 0.5)
     assert any(p.name.startswith("events.out.tfevents") for p in (tmp_path / "tb").iterdir())
     cached = sorted((p.relative_to(tmp_path), p.stat().st_size) for p in (tmp_path / "cache").rglob("*"))
@@ -207,8 +207,9 @@ def test_elastic_story_marked_not_identifiable(table1, record):
     strong_top = table1.replace(dy=np.array([7.0, 6.0, 60.0]))  # the top story cannot yield
     meas = simulate_measurement(strong_top, record, noise_rms=0.02, seed=2)
     res = identify_clone(meas, _small_config(refine=RefineConfig(method="none")), cache_dir="")
-    top = res.clone.diagnostics["stories"][2]
-    assert not top["identifiable"] and "elastic" in top["reason"]
+    assert res.clone.paper is not None
+    top = res.clone.paper.stories[2]
+    assert not top.identifiable and "elastic" in top.reason
     assert res.clone.building.dy[2] >= np.max(np.abs(meas.truth.drift[:, 2]))
 
 

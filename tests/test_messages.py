@@ -14,6 +14,7 @@ import pytest
 from hlaid import _progress
 from hlaid.clone import Clone
 from hlaid.hla.auto import Choice
+from hlaid.record import ParameterFlag
 from hlaid.run.decision import identification_flags, parameter_flags, plausibility_flags
 
 
@@ -81,9 +82,9 @@ def test_a_replay_that_misses_its_noise_says_what_to_do(said, table1):
 
 
 def _with_rows(clone: Clone, source: str) -> Clone:
-    rows = [{"name": n, "story": i + 1, "value": float(getattr(clone.building, n)[i]), "source": source,
-             "informed": 0.1, "at_limit": False} for n in ("alpha", "p", "dy", "delta_eta") for i in range(3)]
-    return dataclasses.replace(clone, diagnostics={"parameters": rows})
+    rows = tuple(ParameterFlag(name=n, story=i + 1, value=float(getattr(clone.building, n)[i]), source=source,
+                               informed=0.1) for n in ("alpha", "p", "dy", "delta_eta") for i in range(3))
+    return dataclasses.replace(clone, parameters=rows)
 
 
 def test_after_an_update_a_parameter_that_moved_is_not_labelled_carried(said, table1):

@@ -177,8 +177,7 @@ def print_summary(clone, before=None) -> None:
     import numpy as np
 
     b = clone.building
-    d = clone.diagnostics or {}
-    flags = {(f["name"], f["story"]): f for f in d.get("parameters", [])}
+    flags = {(f.name, f.story): f for f in clone.parameters or ()}
     table = parameter_lines(b, bool(clone.mass_normalised))
     lines = table[:1]
 
@@ -191,7 +190,7 @@ def print_summary(clone, before=None) -> None:
         mark = ""
         for source in ("prior", "earlier events"):
             names = [n for n in ("alpha", "p", "dy", "delta_eta")
-                     if flags.get((n, i + 1), {}).get("source") == source and not moved(n, i)]
+                     if (n, i + 1) in flags and flags[(n, i + 1)].source == source and not moved(n, i)]
             if names:
                 mark += f"  (from the {source}: {', '.join(names)})" if source == "prior" else \
                     f"  (from {source}, little from this one: {', '.join(names)})"
@@ -199,20 +198,20 @@ def print_summary(clone, before=None) -> None:
                   for n in ("alpha", "p", "dy", "delta_eta") if moved(n, i)]
         if shifts:
             mark += f"  (moved by this event: {', '.join(shifts)})"
-        limit = [n for n in ("alpha", "p", "dy", "delta_eta") if flags.get((n, i + 1), {}).get("at_limit")]
+        limit = [n for n in ("alpha", "p", "dy", "delta_eta") if (n, i + 1) in flags and flags[(n, i + 1)].at_limit]
         if limit:
             mark += f"  (at a limit: {', '.join(limit)})"
-        if "stories" in d and not d["stories"][i]["identifiable"]:
+        if clone.paper is not None and i < len(clone.paper.stories) and not clone.paper.stories[i].identifiable:
             mark += "  (not identifiable: see diagnostics)"
         lines.append(table[i + 1] + mark)
-    stories = d.get("stories") or []
-    lines.append(modal_line(b, [s.get("k0_hla") for s in stories] if len(stories) == b.n_stories else None))
-    events = (d.get("joint") or {}).get("events") or []
-    if events:  # one line: R per floor of each event's replay
+    stories = () if clone.paper is None else clone.paper.stories
+    lines.append(modal_line(b, [s.k0_hla for s in stories] if len(stories) == b.n_stories else None))
+    fits = clone.fit_replays
+    if fits and clone.paper is None:  # one line: R per floor of each event's replay
         lines.append("replay R (floors bottom to top): " + "; ".join(
-            f"{e.get('name') or 'event'} " + "/".join(f"{v:.3f}" for v in e["r_measured"]) for e in events))
-    if not events and isinstance(d.get("replay"), dict):
-        lines.append(f"replay: R {np.round(d['replay']['r_measured'], 3).tolist()}")
+            f"{e.name or 'event'} " + "/".join(f"{v:.3f}" for v in e.r_measured) for e in fits))
+    elif fits:
+        lines.append(f"replay: R {np.round(fits[-1].r_measured, 3).tolist()}")
     from ..events.replay import summary_line
 
     full = summary_line(clone.events)
@@ -221,25 +220,26 @@ def print_summary(clone, before=None) -> None:
     if clone.state is not None:
         drift, eta = np.round(clone.state.drift, 2).tolist(), np.round(clone.state.eta(b), 3).tolist()
         lines.append(f"state after {len(clone.events)} event(s): residual drift {drift} mm, eta {eta}")
-    laws = d.get("laws") or {}
+    laws = clone.laws
     system = f" ({clone.system})" if clone.system else ""
-    if laws.get("chosen"):
-        lines.append(f"story laws{system}: {' / '.join(laws['chosen'])} ({laws.get('kept') or laws.get('reason', '')})")
+    if laws is not None and laws.chosen:
+        lines.append(f"story laws{system}: {' / '.join(laws.chosen)} ({laws.kept or laws.reason})")
     elif clone.system:
         lines.append(f"structural system: {clone.system}")
-    rule = d.get("start_rule") or {}
-    if rule.get("choice"):
-        where = "from the carried state" if rule["choice"] == "carried" else "from rest"
-        lines.append(f"next prediction starts {where} (start auto): {rule.get('reason', '')}")
-    check = d.get("update_check") or {}
-    if check.get("refit"):
+    rule = clone.start_rule
+    if rule is not None:
+        where = "from the carried state" if rule.choice == "carried" else "from rest"
+        lines.append(f"next prediction starts {where} (start auto): {rule.reason}")
+    check = clone.update_check
+    if check is not None and check.refit:
+        gauss = float("nan") if check.gaussian is None else check.gaussian
         lines.append("the update forgot the earlier events (their misfit grew by "
-                     f"{check.get('misfit_change') or float('nan'):.1f} where the posterior predicted "
-                     f"{check.get('gaussian', float('nan')):.1f}): fitted jointly again from their records")
-    elif check.get("note"):
-        lines.append(f"check of the update: {check['note']}")
-    for note in d.get("fallbacks") or []:
-        lines.append(f"fallback: {note.get('stage')} failed numerically ({note.get('error')}); {note.get('used')}")
+                     f"{check.misfit_change or float('nan'):.1f} where the posterior predicted "
+                     f"{gauss:.1f}): fitted jointly again from their records")
+    elif check is not None and check.note:
+        lines.append(f"check of the update: {check.note}")
+    for note in clone.fallbacks:
+        lines.append(f"fallback: {note.stage} failed numerically ({note.error}); {note.used}")
     from ..run.decision import identification_flags
 
     lines += [f"flag: {f}" for f in identification_flags(clone)]

@@ -25,7 +25,7 @@ prepares a clone (:func:`hlaid.model.collapse.accommodate`, called by
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -42,6 +42,7 @@ if TYPE_CHECKING:
     from ..clone import Clone
     from ..hla import HLAResult
     from ..measurement import Measurement
+    from ..record import EventRecord
 
 MAX_DRAWS_PER_MEMBER = 10
 """Rejection sampling draws at most this many candidates per ensemble member wanted."""
@@ -88,19 +89,19 @@ class EventMotions:
         return [(n, m) for n, m in zip(self.names, self.motions) if m is not None]
 
 
-def _matches(event: dict, motion: GroundMotion) -> bool:
+def _matches(event: EventRecord, motion: GroundMotion) -> bool:
     """Whether ``motion`` is the ground motion ``event`` (a clone's event record) was recorded with."""
-    try:
-        dt, dur, pga = (float(event[k]) for k in ("dt", "duration_s", "pga_g"))
-    except (KeyError, TypeError, ValueError):
+    if event.dt is None or event.duration_s is None or event.pga_g is None:
         return False
+    dt, dur, pga = float(event.dt), float(event.duration_s), float(event.pga_g)
     if not (dt > 0 and dur > 0):
         return False
     same_peak = abs(motion.pga_g - pga) <= 1e-6 * max(pga, 1e-12)
     return abs(motion.dt / dt - 1.0) < 1e-9 and abs(motion.npts * motion.dt / dur - 1.0) < 1e-6 and same_peak
 
 
-def read_event(event: Mapping, base: Path | None = None) -> tuple[Measurement | None, str | None]:
+def read_event(event: EventRecord, base: Path | None = None, name: str | None = None
+               ) -> tuple[Measurement | None, str | None]:
     """The measurement of a clone's ``event`` (its record in ``clone.events``) read again from its
     ``source`` (a relative path also from ``base``), checked against the SHA-256 of the file and
     of its ground record where the event keeps them; or None and why not."""
@@ -108,8 +109,8 @@ def read_event(event: Mapping, base: Path | None = None) -> tuple[Measurement | 
     from ..io import read
     from ..measurement import Measurement, ground_digest
 
-    name = escape_controls(event.get("name") or "an event")
-    src = event.get("source")
+    name = escape_controls(name or event.name or "an event")
+    src = event.source
     if not src:
         return None, f"{name}: its file (none recorded) is not there"
     path = Path(str(src))
@@ -123,7 +124,7 @@ def read_event(event: Mapping, base: Path | None = None) -> tuple[Measurement | 
             return None, f"{name}: its file {src} is not found"
     except (OSError, ValueError) as err:  # a name longer than the file system allows, a NUL in it
         return None, f"{name}: its file {src} cannot be looked up ({getattr(err, 'strerror', None) or err})"
-    sha = event.get("sha256")
+    sha = event.sha256
     try:
         if sha and file_sha256(path) != sha:
             return None, f"{name}: its file {src} changed since the clone was identified (SHA-256)"
@@ -132,18 +133,18 @@ def read_event(event: Mapping, base: Path | None = None) -> tuple[Measurement | 
         return None, f"{name}: its file could not be read again ({one_line(err, 120)})"
     if not isinstance(meas, Measurement):
         return None, f"{name}: its file {src} holds no measurement"
-    if event.get("ground_sha256") is not None and ground_digest(meas) != event["ground_sha256"]:
+    if event.ground_sha256 is not None and ground_digest(meas) != event.ground_sha256:
         return None, (f"{name}: {src} is not the event the clone learnt from (SHA-256 of its ground record "
                       "differs)")
     return meas, None
 
 
-def _read_event(event: dict, base: Path | None) -> tuple[GroundMotion | None, str | None]:
+def _read_event(event: EventRecord, base: Path | None) -> tuple[GroundMotion | None, str | None]:
     """The ground motion of ``event`` read again from its source (:func:`read_event`), or None and why not."""
     meas, why = read_event(event, base)
     if meas is None:
         return None, why
-    name, src = event.get("name") or "an event", event.get("source")
+    name, src = event.name or "an event", event.source
     motion = meas.ground_motion(name=str(name), source=str(meas.source or src))
     if not _matches(event, motion):
         return None, (f"{escape_controls(name)}: its file {escape_controls(src)} read with the default reader does "
@@ -158,14 +159,14 @@ def event_motions(clone: Clone, given: Sequence[GroundMotion | None] = ()) -> Ev
     base = Path(clone.building.source).parent if clone.building.source else None
     names, motions, starts, missing = [], [], [], []
     for k, e in enumerate(clone.events):
-        name = str(e.get("name") or f"event {k + 1}")
+        name = e.label(k)
         m = next((g for g in at_hand if _matches(e, g)), None)
         why = None
         if m is None:
             m, why = _read_event(e, base)
         names.append(name)
         motions.append(m)
-        starts.append("undamaged" if e.get("start") == "undamaged" else "carried")
+        starts.append("undamaged" if e.start == "undamaged" else "carried")
         if why:
             missing.append(why)
     return EventMotions(names=tuple(names), motions=tuple(motions), starts=tuple(starts), missing=tuple(missing))
@@ -191,8 +192,7 @@ class EventReplay:
 def input_corner(clone: Clone) -> float | None:
     """The upper corner [Hz] of the band the clone was fitted in (its identification config's
     ``refine.band_hz``), None where the clone does not say."""
-    cfg = (clone.provenance or {}).get("config") or {}
-    band = (cfg.get("refine") or {}).get("band_hz") if isinstance(cfg, dict) else None
+    band = None if clone.settings is None else clone.settings.value("refine.band_hz")
     try:
         hi = float(band[1])  # type: ignore[index]  # a missing band is caught below
     except (TypeError, ValueError, IndexError):

@@ -16,15 +16,19 @@ the update. Where a file is missing or changed, the update is kept and the clone
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import functools
+from collections.abc import Sequence
 
 import numpy as np
 
 from .. import _progress
+from ..identify.config import ResolvedSettings
+from ..joint.fallback import run_stage
 from ..joint.series import at_replay_rate, effective_samples, event_series
 from ..joint.vector import GaussianPrior, PriorVector
 from ..measurement import Measurement, ground_digest
 from ..model import Building
+from ..record import EventRecord, UpdateCheck
 
 EXCESS_MIN = 5.0
 """The earlier events' log-misfit change may exceed the Gaussian's prediction by this much (or
@@ -32,7 +36,7 @@ by the prediction itself, where larger) before the update is refitted jointly: t
 run-off update exceeded it by 16, its sound updates by 0.4-4.5."""
 
 
-def load_earlier(events: Sequence[Mapping], given: Sequence[Measurement] | None = None
+def load_earlier(events: Sequence[EventRecord], given: Sequence[Measurement] | None = None
                  ) -> tuple[list[Measurement], list[str]]:
     """The earlier events of a clone (its ``events`` records) as measurements: ``given`` (in the
     same order) where passed, else read again from each record's ``source``
@@ -43,15 +47,15 @@ def load_earlier(events: Sequence[Mapping], given: Sequence[Measurement] | None 
 
     found, missing = [], []
     for k, e in enumerate(events):
-        name = e.get("name") or f"event {k + 1}"
+        name = e.label(k)
         if given is not None and k < len(given):
             m: Measurement | None = given[k]
             why = None
-            if e.get("ground_sha256") is not None and ground_digest(given[k]) != e["ground_sha256"]:
+            if e.ground_sha256 is not None and ground_digest(given[k]) != e.ground_sha256:
                 m, why = None, (f"{name}: the record given is not the event the clone learnt from (SHA-256 of its "
                                 "ground record differs)")
         else:
-            m, why = read_event({**e, "name": name})
+            m, why = read_event(e, name=name)
         if m is None:
             missing.append(str(why))
         else:
@@ -60,9 +64,8 @@ def load_earlier(events: Sequence[Mapping], given: Sequence[Measurement] | None 
 
 
 def check_update(before: Building, after: Building, earlier: Sequence[Measurement], prior: GaussianPrior,
-                 vector: PriorVector, *, band_hz, compare: str = "acc", y0: np.ndarray | None = None) -> dict:
-    """The earlier events' log-misfit change against the Gaussian's prediction (see the module):
-    ``{"events", "misfit_change", "gaussian", "excess", "limit", "refit"}``."""
+                 vector: PriorVector, *, band_hz, compare: str = "acc", y0: np.ndarray | None = None) -> UpdateCheck:
+    """The earlier events' log-misfit change against the Gaussian's prediction (see the module)."""
     hi = float(band_hz[1])
     series = event_series(before, [at_replay_rate(m, hi) for m in earlier], band_hz, "ignore", 4, 2, y0, None,
                           compare=compare)
@@ -78,8 +81,34 @@ def check_update(before: Building, after: Building, earlier: Sequence[Measuremen
     refit = bool(not np.isfinite(exact) or excess > limit)
     _progress.info(f"[update] the earlier {len(earlier)} event(s)' log misfit changed by {exact:+.1f}, the posterior "
                    f"predicted {gauss:.1f}" + (": it forgot them, refitted jointly" if refit else ""))
-    return {"events": len(earlier), "misfit_change": exact if np.isfinite(exact) else None, "gaussian": gauss,
-            "excess": excess if np.isfinite(excess) else None, "limit": limit, "refit": refit}
+    return UpdateCheck(events=len(earlier), misfit_change=exact if np.isfinite(exact) else None, gaussian=gauss,
+                       excess=excess if np.isfinite(excess) else None, limit=limit, refit=refit)
 
 
-__all__ = ["EXCESS_MIN", "load_earlier", "check_update"]
+def check_against_earlier(events: Sequence[EventRecord], before: Building, after: Building, prior,
+                          vector: PriorVector, settings: ResolvedSettings, earlier: Sequence[Measurement] | None,
+                          notes: list[dict]) -> tuple[UpdateCheck, list[Measurement] | None]:
+    """The check of an update from ``before`` to ``after`` against the clone's earlier ``events``
+    (:func:`check_update`; their records ``earlier``, None: read again from their files) and those
+    records where it calls for a joint refit (else None). A stage that fails numerically is noted
+    in ``notes``."""
+    n = len(events)
+    if not events:
+        return UpdateCheck(events=0, note="the clone has no earlier events"), None
+    if not isinstance(prior, GaussianPrior):
+        return UpdateCheck(events=n, note="the clone keeps no posterior: the update is a fit from the structural "
+                                          "system's prior, nothing to forget"), None
+    stored, missing = load_earlier(events, earlier)
+    if missing:
+        _progress.warn("the update is not checked against the earlier events: " + "; ".join(missing[:3]))
+        return UpdateCheck(events=n, missing=tuple(missing),
+                           note="the earlier events' records are not all at hand: the update is kept unchecked"), None
+    check = run_stage("the check of the update against the earlier events", functools.partial(
+        check_update, before, after, stored, prior, vector, band_hz=settings.band_hz, compare=settings.compare), None,
+        notes, used="the update is kept unchecked")
+    if check is None:
+        return UpdateCheck(events=n, note="the check failed numerically: the update is kept"), None
+    return check, (stored if check.refit else None)
+
+
+__all__ = ["EXCESS_MIN", "load_earlier", "check_update", "check_against_earlier"]

@@ -28,9 +28,9 @@ import numpy as np
 
 from .. import _progress
 from ..clone import Clone
+from ..config import config_to_dict
 from ..errors import InputError, NotIdentifiableError
 from ..hla import HLAResult
-from ..hla.config import fixed
 from ..identify.auto import Resolution, damping_ran_away, held_damping, resolve_settings
 from ..identify.config import IdentifyConfig
 from ..identify.pipeline import identify_event, open_cache
@@ -48,6 +48,7 @@ from ..joint.vector import PriorVector, SystemPrior
 from ..measurement import Measurement, building_name, check_series, ground_digest, ground_profile
 from ..model import Building, Damping
 from ..model.state import BuildingState
+from ..record import EventRecord, LawChoice, Prequential, Settings
 from ..units import G_MM_S2
 from .evidence import measured_peak_drift
 from .prequential import HISTORY, predicted, with_history
@@ -97,17 +98,8 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
                                                           unit="record(s)")]
     timings["hla"] = time.perf_counter() - t_all
     best = most_informative(events)
-    single = None
-    if best is not None:
-        with _progress.stage(f"[identify] the paper's method on {events[best].measurement.name or 'the record'}"):
-            single = identify_event(events[best], cfg, cache, tb, timings)
-        m = events[best].measurement
-        state = state_after(single.clone.building, [m], cfg.refine.band_hz, [m.name or "event 1"])
-        record = event_record(m, hla=events[best].hla)
-        if len(meas) == 1 and cfg.system is None:  # this clone is the result: its full replay of its event
-            record = with_replays((record,), single.clone.building, [m], [None],
-                                  mass_normalised=single.clone.mass_normalised)[0]
-        single = dataclasses.replace(single, clone=dataclasses.replace(single.clone, events=(record,), state=state))
+    single = None if best is None else paper_clone(events[best], cfg, cache, tb, timings,
+                                                   alone=len(meas) == 1 and cfg.system is None)
     if len(meas) == 1 and single is not None and cfg.system is None:  # no system named: the paper's method
         timings["total"] = time.perf_counter() - t_all
         tb.close()
@@ -137,7 +129,23 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     result = result_of_joint(events, meas, fit, cfg, system=system, start=start, single=single, timings=timings)
     timings["total"] = time.perf_counter() - t_all
     tb.close()
-    return with_choices(with_history(result, history, diagnostics={"laws": laws, "fallbacks": notes}), settings)
+    return with_choices(with_history(result, history, laws=laws, notes=notes), settings)
+
+
+def paper_clone(event: Event, cfg: IdentifyConfig, cache, tb: TBLogger, timings: dict, *,
+                alone: bool) -> IdentificationResult:
+    """The paper's method on ``event`` (:func:`hlaid.identify.identify_event`): its clone left in
+    the state the event left it, the event its record (``alone``: this clone is the result, with
+    its full replay of its event)."""
+    with _progress.stage(f"[identify] the paper's method on {event.measurement.name or 'the record'}"):
+        single = identify_event(event, cfg, cache, tb, timings)
+    m = event.measurement
+    state = state_after(single.clone.building, [m], cfg.refine.band_hz, [m.name or "event 1"])
+    record = event_record(m, hla=event.hla)
+    if alone:
+        record = with_replays((record,), single.clone.building, [m], [None],
+                              mass_normalised=single.clone.mass_normalised)[0]
+    return dataclasses.replace(single, clone=dataclasses.replace(single.clone, events=(record,), state=state))
 
 
 def _main_fit(starts: Sequence[Building], meas: Sequence[Measurement], system: StructuralPrior, settings: Resolution, *,
@@ -184,9 +192,28 @@ MAX_CONTENDERS = 2
 short fit (the best first)."""
 
 
+def _short_fits(fit: JointFit, laws: tuple[str, ...], starts: Sequence[Building], fit_short, tried: dict,
+                seconds: dict, how: dict, notes: list[dict] | None) -> None:
+    """The short fits of the candidate ``laws`` from ``starts`` (``fit_short``: :func:`joint_fit`
+    of one weighting round, its ``start`` and ``laws`` to give): the best kept in ``tried`` where it
+    beats what is there, its time added to ``seconds``."""
+    found = []
+    for b in starts:
+        f = run_stage(f"the fit under the laws {'/'.join(laws)}", functools.partial(fit_short, b, laws=laws), None,
+                      notes, used="the candidate is left out", extra=(NotIdentifiableError,))
+        if f is not None:
+            found.append(f)
+    if found:
+        best_found = best_fit(found)
+        n_eff = np.mean([fit.n_eff, best_found.n_eff], axis=0)
+        if laws not in tried or best_found.log_evidence(n_eff) > tried[laws].log_evidence(n_eff):
+            tried[laws], how[laws] = best_found, "short fit"
+        seconds[laws] = seconds.get(laws, 0.0) + float(sum(f.seconds for f in found))
+
+
 def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPrior, cfg: IdentifyConfig, *,
                 names: Sequence[str], k0_ref: np.ndarray, isolation: Building | None = None,
-                notes: list[dict] | None = None, y0: np.ndarray | None = None) -> tuple[JointFit, dict]:
+                notes: list[dict] | None = None, y0: np.ndarray | None = None) -> tuple[JointFit, LawChoice]:
     """The laws the stories follow (:mod:`hlaid.joint.laws`), chosen by the Laplace evidence of
     the joint fit of ``meas`` under each candidate (:func:`~hlaid.joint.laws.candidates`), ties to
     the system's law. Every candidate nested in ``fit``'s laws (the fit under the system's laws)
@@ -214,23 +241,12 @@ def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPr
         for laws, sc in screened.items():
             tried[laws], seconds[laws], how[laws] = sc, dt, "screened from the joint fit"
     iterations = min(cfg.refine.max_iterations, CANDIDATE_ITERATIONS)
+    fit_short = functools.partial(joint_fit, measurements=meas, prior=system, cfg=cfg, names=names, k0_ref=k0_ref,
+                                  rounds=1, max_iterations=iterations, y0=y0)
     for laws in others:
         starts = ([] if laws in screened else [fit.building]) + (
             [isolation] if isolation is not None and len(set(laws)) > 1 else [])
-        found = []
-        for b in starts:
-            f = run_stage(f"the fit under the laws {'/'.join(laws)}",
-                          functools.partial(joint_fit, with_laws(b, laws, system), meas, system, cfg, names=names,
-                                            k0_ref=k0_ref, laws=laws, rounds=1, max_iterations=iterations, y0=y0),
-                          None, notes, used="the candidate is left out", extra=(NotIdentifiableError,))
-            if f is not None:
-                found.append(f)
-        if found:
-            best_found = best_fit(found)
-            n_eff = np.mean([fit.n_eff, best_found.n_eff], axis=0)
-            if laws not in tried or best_found.log_evidence(n_eff) > tried[laws].log_evidence(n_eff):
-                tried[laws], how[laws] = best_found, "short fit"
-            seconds[laws] = seconds.get(laws, 0.0) + float(sum(f.seconds for f in found))
+        _short_fits(fit, laws, [with_laws(b, laws, system) for b in starts], fit_short, tried, seconds, how, notes)
 
     def evidence_of() -> list[tuple[tuple[str, ...], float]]:
         n_eff = np.mean([f.n_eff for f in tried.values()], axis=0)
@@ -269,10 +285,10 @@ def select_laws(fit: JointFit, meas: Sequence[Measurement], system: StructuralPr
             chosen, reason = default, reason + "; its fit failed: the system's law is kept"
         else:
             best = full
-    info = {"chosen": list(chosen), "default": list(default), "reason": reason, "tie_log_units": TIE_LOG_UNITS,
-            "screen_margin": SCREEN_MARGIN,
-            "candidates": [{"laws": list(laws), "log_evidence": z if np.isfinite(z) else None,
-                            "seconds": seconds[laws], "judged_by": how[laws]} for laws, z in evidence]}
+    info = LawChoice(chosen=tuple(chosen), default=tuple(default), reason=reason, tie_log_units=TIE_LOG_UNITS,
+                     screen_margin=SCREEN_MARGIN,
+                     candidates=tuple({"laws": list(laws), "log_evidence": z if np.isfinite(z) else None,
+                                       "seconds": seconds[laws], "judged_by": how[laws]} for laws, z in evidence))
     return best, info
 
 
@@ -318,14 +334,14 @@ one round predict as those of three did (docs/events.md)."""
 
 def prefix_history(fit: JointFit, meas: Sequence[Measurement], system: StructuralPrior, cfg: IdentifyConfig, *,
                    names: Sequence[str], k0_ref: np.ndarray, notes: list[dict] | None = None,
-                   mass_normalised: bool = False, refit: bool = False) -> dict[int, dict]:
+                   mass_normalised: bool = False, refit: bool = False) -> dict[int, Prequential]:
     """How the clones of the prefixes of ``meas`` (the last :data:`~hlaid.events.prequential.HISTORY`)
     predict the record after them, from their carried state and from rest: per record index its
     prequential record. Each prefix's clone is ``fit``'s optimum moved by one Newton step of the
     prefix's posterior (:func:`hlaid.joint.screen.prefix_point`: no fit of its own); where the
     replay does not bear the step out, or it goes beyond the Gaussian's reach (or ``refit``), the
     prefix is fitted (:data:`PREFIX_ROUNDS` weighting rounds from ``fit``'s building under its laws)."""
-    out: dict[int, dict] = {}
+    out: dict[int, Prequential] = {}
     k = len(meas)
     for j in range(max(1, k - HISTORY), k):
         point = None if refit else run_stage(f"the Newton step to the clone of {', '.join(names[:j])}",
@@ -343,14 +359,14 @@ def prefix_history(fit: JointFit, meas: Sequence[Measurement], system: Structura
                 continue
             building, state, how = f.building, f.states[-1], "fit"
         clone = Clone(building=building, state=state, mass_normalised=mass_normalised)
-        out[j] = run_stage(f"the prediction of {names[j]} by the clone of {', '.join(names[:j])}",
-                           functools.partial(predicted, clone, meas[j], cfg.hla, names[:j]), None, notes,
-                           used=f"{names[j]} is not in the start rule's history")
-        if out[j] is None:
-            del out[j]
-        else:
-            out[j]["prefix"] = {"by": how, **({} if point is None else {"newton": point.to_dict()})}
-            c, r = out[j].get("carried", {}).get("r"), out[j].get("rest", {}).get("r")
+        told = run_stage(f"the prediction of {names[j]} by the clone of {', '.join(names[:j])}",
+                         functools.partial(predicted, clone, meas[j], cfg.hla, names[:j]), None, notes,
+                         used=f"{names[j]} is not in the start rule's history")
+        if told is not None:
+            out[j] = dataclasses.replace(told, prefix={"by": how, **({} if point is None else
+                                                                    {"newton": point.to_dict()})})
+            c = None if told.carried is None else told.carried.r
+            r = None if told.undamaged is None else told.undamaged.r
             _progress.step(f"[identify] the clone of {', '.join(names[:j])} predicts {names[j]}: R {c:.3f} carried, "
                            f"{r:.3f} from rest" if c is not None and r is not None else
                            f"[identify] the clone of {', '.join(names[:j])} predicts {names[j]}")
@@ -359,7 +375,7 @@ def prefix_history(fit: JointFit, meas: Sequence[Measurement], system: Structura
 
 CHOICE_WIDTH = 100
 """A chosen setting's line is cut to this many characters (its whole evidence with ``--verbose``
-and in the clone's ``provenance["choices"]``)."""
+and in the clone's ``settings``)."""
 
 
 def announce(settings: Resolution) -> None:
@@ -418,23 +434,22 @@ def choice_line(c) -> str:
 
 
 def with_choices(result: IdentificationResult, settings: Resolution) -> IdentificationResult:
-    """``result`` whose clone keeps the settings chosen from the data (``provenance["choices"]``)."""
-    clone = result.clone
-    prov = {**(clone.provenance or {}), "choices": settings.to_list()}
-    return dataclasses.replace(result, clone=dataclasses.replace(clone, provenance=prov))
+    """``result`` whose clone keeps the settings it used and those chosen from the data
+    (``clone.settings``: :class:`~hlaid.record.Settings`)."""
+    return dataclasses.replace(result, clone=dataclasses.replace(result.clone, settings=settings.record()))
 
 
-def event_record(meas: Measurement, start: str | None = None, hla: HLAResult | None = None) -> dict:
+def event_record(meas: Measurement, start: str | None = None, hla: HLAResult | None = None) -> EventRecord:
     """What a clone keeps of an event it learnt from (``start``: where its replay started,
     ``"carried"`` or ``"undamaged"``, when an update chose it; ``peak_drift``: the largest story
     drifts measured, with ``hla`` HLA's, :func:`~hlaid.events.evidence.measured_peak_drift`)."""
     peak = measured_peak_drift(meas, hla)
-    return {"name": meas.name, "source": meas.source or None,
-            "sha256": file_digest(meas.source) if meas.source else None, "ground_sha256": ground_digest(meas),
-            "pga_g": float(np.max(np.abs(meas.ground_acc)) / G_MM_S2), "duration_s": float(meas.n_samples * meas.dt),
-            "dt": float(meas.dt), "n_floors": int(meas.n_floors), "ground_profile": ground_profile(meas),
-            **({"recorded": meas.recorded} if meas.recorded else {}), **({"start": start} if start else {}),
-            **({"peak_drift": peak} if peak is not None else {})}
+    return EventRecord(name=meas.name, source=meas.source or None,
+                       sha256=file_digest(meas.source) if meas.source else None, ground_sha256=ground_digest(meas),
+                       pga_g=float(np.max(np.abs(meas.ground_acc)) / G_MM_S2),
+                       duration_s=float(meas.n_samples * meas.dt), dt=float(meas.dt), n_floors=int(meas.n_floors),
+                       ground_profile=tuple(ground_profile(meas)), recorded=meas.recorded or None, start=start or None,
+                       peak_drift=None if peak is None else tuple(peak))
 
 
 def most_informative(events) -> int | None:
@@ -470,7 +485,7 @@ def plausible_starts(single: IdentificationResult | None, event: Event, meas: Me
     if single is None:
         return [median]
     b = single.clone.building
-    prior = SystemPrior(system, PriorVector(b, damping=fixed(cfg.refine.damping, "refine.damping")), event.hla.k0)
+    prior = SystemPrior(system, PriorVector(b, damping=cfg.resolved().damping), event.hla.k0)
     if np.max(np.abs(prior.residuals(prior.vector.x0))) <= PLAUSIBLE_SD:
         return [b]
     return [median, b]
@@ -478,11 +493,13 @@ def plausible_starts(single: IdentificationResult | None, event: Event, meas: Me
 
 def result_of_joint(events: Sequence[Event], meas: Sequence[Measurement], fit: JointFit, cfg: IdentifyConfig, *,
                     system: StructuralPrior, start: Building, single: IdentificationResult | None = None,
-                    history: Sequence[dict] = (), y0: np.ndarray | None = None,
-                    timings: dict | None = None, last_start: str | None = None) -> IdentificationResult:
+                    history: Sequence[EventRecord] = (), y0: np.ndarray | None = None,
+                    timings: dict | None = None, last_start: str | None = None,
+                    settings: Resolution | None = None) -> IdentificationResult:
     """The identification result of a joint fit over ``events``: the clone left in the last
     event's state, its posterior, per event the replay from the state carried into it
-    (``last_start``: the start of the last event, recorded with it, where one was chosen)."""
+    (``last_start``: the start of the last event, recorded with it, where one was chosen), the
+    settings used (``settings``: with the choices made from the data; None: ``cfg`` alone)."""
     timings = {} if timings is None else timings
     checks = []
     y = y0
@@ -494,16 +511,19 @@ def result_of_joint(events: Sequence[Event], meas: Sequence[Measurement], fit: J
     diagnostics = {"joint": {"events": per_event, "rounds": fit.rounds, "prior": prior, "start": start.to_dict(),
                              "cost_final": fit.result.cost_final, "nfev": fit.result.nfev,
                              "seconds": fit.seconds},
-                   "parameters": flags(fit, "earlier events" if history else "prior"), "replay": checks[-1].to_dict(),
+                   "replay": checks[-1].to_dict(),
                    "single_event": None if single is None else single.clone.diagnostics}
-    prov = provenance(cfg, timings, sources=[m.source or None for m in meas])
+    prov = provenance(timings, sources=[m.source or None for m in meas])
+    replays = tuple(c.record(m.name) for m, c in zip(meas, checks))
     records = (tuple(history) + tuple(event_record(m, hla=ev.hla) for m, ev in zip(meas[:-1], events))
                + (event_record(meas[-1], start=last_start, hla=events[-1].hla),))
     befores = [None if y0 is None else BuildingState.from_vector(y0)] + list(fit.states[:-1])
     records = with_replays(records, fit.building, meas, befores, mass_normalised=events[-1].hla.mass_normalised)
     clone = Clone(building=fit.building, mass_normalised=events[-1].hla.mass_normalised, diagnostics=diagnostics,
                   provenance=prov, uncertainty=posterior_uncertainty(fit), system=system.name,
-                  events=records, state=fit.states[-1])
+                  events=records, state=fit.states[-1], parameters=flags(fit, "earlier events" if history else "prior"),
+                  fit_replays=replays,
+                  settings=Settings(config=config_to_dict(cfg)) if settings is None else settings.record())
     return IdentificationResult(clone=clone, hla=events[-1].hla,
                                 paper_estimate=start if single is None else single.paper_estimate,
                                 passes=[] if single is None else single.passes,

@@ -40,6 +40,7 @@ from .start import resolve_start
 if TYPE_CHECKING:
     from ..clone import Clone
     from ..hla import HLAConfig, HLAResult
+    from ..model import Building
 
 BAND_LEVEL = 0.9
 """Central probability of the predictive band."""
@@ -266,11 +267,7 @@ def identification_misfit(clone: Clone) -> np.ndarray | float:
     floor a fraction of their RMS: ``sqrt(2 (1 - R))`` of the replay's correlation ``R`` (the
     relative RMS difference of two signals of equal RMS), the mean over its events; 0 where the
     clone does not say."""
-    d = clone.diagnostics or {}
-    found = [e.get("r_measured") for e in ((d.get("joint") or {}).get("events") or []) if isinstance(e, dict)]
-    if not found and isinstance(d.get("replay"), dict):
-        found = [d["replay"].get("r_measured")]
-    rs = [np.asarray(r, dtype=float) for r in found if isinstance(r, list) and r]
+    rs = [np.asarray(r.r_measured, dtype=float) for r in clone.fit_replays if r.r_measured]
     if not rs or len({r.shape for r in rs}) != 1:
         return 0.0
     return np.mean([np.sqrt(np.clip(2.0 * (1.0 - r), 0.0, None)) for r in rs], axis=0)
@@ -307,7 +304,6 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
     check_hla : also compare the clone's elastic stiffness with HLA of the event (:class:`HLACheck`)
     """
     from ..hla import HLAConfig, resolve_hla
-    from ..hla.analysis import resolved_band
     from ..simulate import simulate_response
 
     b = clone.building
@@ -318,35 +314,12 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
     cfg = hla_config or clone_hla_config(clone) or HLAConfig()
     if cfg.unresolved():  # "auto" settings: as the clone was identified, else from this record
         cfg = clone_hla_config(clone) or resolve_hla(meas, cfg).config
-    from ..identify.auto import records_band
-
-    hla_band = resolved_band(meas, cfg)
-    band_name = "given"
-    if band_hz is None:  # with check_hla, HLA's band of the event, as HLA of it is compared
-        band_hz, band_name = (hla_band, "hla") if check_hla else (records_band(meas), "records")
-        p = cfg.preprocess
-        if band_name == "records" and (p.displacement == "integrate" or meas.floor_disp is None):
-            band_hz = (max(float(band_hz[0]), float(hla_band[0])), band_hz[1])  # integrated: HLA's high-pass
-    lo, hi = float(band_hz[0]), sg.cap_corner(float(band_hz[1]), meas.dt)
-    if not 0 <= lo < hi:
-        raise InputError(f"band {lo:g}-{band_hz[1]:g} Hz; expected low < high, below the Nyquist frequency",
-                         source=src)
-    cfg = _with_band(cfg, (lo, hi))
-    res = _hla_of(meas, cfg) if check_hla else None
-    band = (lo, hi) if res is None else cast("tuple[float, float]", tuple(res.band_hz))
-    cfg = _with_band(cfg, band)
+    cfg, band, hla_band, band_name, res = _comparison_band(meas, cfg, band_hz, check_hla)
     hi_in = sg.cap_corner(input_lowpass_hz or band[1], meas.dt)
     ground = GroundMotion(dt=meas.dt, acc=sg.bandpass(np.asarray(meas.ground_acc), meas.dt, (0.0, hi_in),
                                                       cfg.preprocess.order), name=meas.name)
     resolved = resolve_start(clone, start)
-    buildings = [b]
-    if n_ensemble:
-        from .evidence import survivors
-
-        surv = survivors(clone, n_ensemble, seed=seed)
-        for note in surv.notes:
-            _progress.debug(note)
-        buildings += list(surv.members)
+    buildings = [b] + (_survivors(clone, n_ensemble, seed) if n_ensemble else [])
     sim = simulate_response(buildings, ground, y0=resolved.vector(collapse=b.collapse is not None))
     assert sim.disp is not None and sim.acc is not None
     compare = _Comparison(meas, cfg, sim, ground)
@@ -356,17 +329,7 @@ def predict_event(clone: Clone, meas: Measurement, *, band_hz=None, start: str =
 
     xm, xp = pp.story_drift(measured), pp.story_drift(predicted[0])
     pm, pk = np.max(np.abs(xm), axis=0), np.max(np.abs(xp), axis=0)
-    others = {}
-    h_lo, h_hi = float(hla_band[0]), sg.cap_corner(float(hla_band[1]), meas.dt)
-    if band_name != "hla" and (h_lo, h_hi) != tuple(band) and 0 <= h_lo < h_hi:
-        m2, p2 = compare((h_lo, h_hi))
-        others["hla"] = BandFigures.of((h_lo, h_hi), m2, p2[0])
-    if band_name != "records":  # the whole ground motion's replay, in the band the records hold
-        w = predict_event(clone, meas, start=start, hla_config=cfg, misfit=misfit)
-        others["records"] = BandFigures(band_hz=w.band_hz, r=w.r, drift_r=w.drift_r,
-                                        peak_drift_measured=w.peak_drift_measured,
-                                        peak_drift_predicted=w.peak_drift_predicted,
-                                        peak_drift_error=w.peak_drift_error)
+    others = _other_bands(clone, meas, compare, band, hla_band, band_name, start=start, cfg=cfg, misfit=misfit)
     res_m, res_p = _residual_drift(meas, sim, resolved, hi_in)
     r_true = None if meas.truth is None else corrcoef(np.nan_to_num(sim.disp[0]), meas.truth.disp)
     pband = None if not n_ensemble else _band(clone, measured, predicted, misfit, len(buildings) - 1)
@@ -403,13 +366,13 @@ def _residual_drift(meas: Measurement, sim, start, hi_hz: float) -> tuple[np.nda
 
 
 def clone_hla_config(clone: Clone) -> HLAConfig | None:
-    """The HLA settings ``clone`` was identified with (its ``provenance["config"]["hla"]``, as
+    """The HLA settings ``clone`` was identified with (its ``settings``' ``hla`` section, as
     chosen from its records), None where it does not keep them or they are not a valid config."""
     from ..config import config_from_dict
     from ..errors import ConfigError
     from ..hla import HLAConfig
 
-    d = ((clone.provenance or {}).get("config") or {}).get("hla")
+    d = None if clone.settings is None else clone.settings.value("hla")
     if not isinstance(d, dict):
         return None
     try:
@@ -417,6 +380,59 @@ def clone_hla_config(clone: Clone) -> HLAConfig | None:
     except (ConfigError, InputError):
         return None
     return None if cfg.unresolved() else cfg
+
+
+def _comparison_band(meas: Measurement, cfg: HLAConfig, band_hz, check_hla: bool
+                     ) -> tuple[HLAConfig, tuple[float, float], tuple[float, float], str, HLAResult | None]:
+    """The band a prediction compares in (see :func:`predict_event`'s ``band_hz``): ``(cfg in that
+    band, band, HLA's band of meas, its name, HLA of meas where check_hla)``."""
+    from ..hla.analysis import resolved_band
+    from ..identify.auto import records_band
+
+    hla_band = resolved_band(meas, cfg)
+    band_name = "given"
+    if band_hz is None:  # with check_hla, HLA's band of the event, as HLA of it is compared
+        band_hz, band_name = (hla_band, "hla") if check_hla else (records_band(meas), "records")
+        p = cfg.preprocess
+        if band_name == "records" and (p.displacement == "integrate" or meas.floor_disp is None):
+            band_hz = (max(float(band_hz[0]), float(hla_band[0])), band_hz[1])  # integrated: HLA's high-pass
+    lo, hi = float(band_hz[0]), sg.cap_corner(float(band_hz[1]), meas.dt)
+    if not 0 <= lo < hi:
+        raise InputError(f"band {lo:g}-{band_hz[1]:g} Hz; expected low < high, below the Nyquist frequency",
+                         source=meas.source or None)
+    cfg = _with_band(cfg, (lo, hi))
+    res = _hla_of(meas, cfg) if check_hla else None
+    band = (lo, hi) if res is None else cast("tuple[float, float]", tuple(res.band_hz))
+    return _with_band(cfg, band), band, cast("tuple[float, float]", tuple(hla_band)), band_name, res
+
+
+def _survivors(clone: Clone, n: int, seed: int) -> list[Building]:
+    """``n`` clones drawn from ``clone``'s uncertainty, those that collapse under its own events
+    rejected (:func:`hlaid.events.evidence.survivors`)."""
+    from .evidence import survivors
+
+    surv = survivors(clone, n, seed=seed)
+    for note in surv.notes:
+        _progress.debug(note)
+    return list(surv.members)
+
+
+def _other_bands(clone: Clone, meas: Measurement, compare, band, hla_band, band_name: str, *, start: str,
+                 cfg: HLAConfig, misfit) -> dict[str, BandFigures]:
+    """The figures beside a prediction's: in HLA's band of ``meas`` (where it differs) and, where
+    the prediction is not in it, in the band the records hold (the whole ground motion's replay)."""
+    others = {}
+    h_lo, h_hi = float(hla_band[0]), sg.cap_corner(float(hla_band[1]), meas.dt)
+    if band_name != "hla" and (h_lo, h_hi) != tuple(band) and 0 <= h_lo < h_hi:
+        m2, p2 = compare((h_lo, h_hi))
+        others["hla"] = BandFigures.of((h_lo, h_hi), m2, p2[0])
+    if band_name != "records":  # the whole ground motion's replay, in the band the records hold
+        w = predict_event(clone, meas, start=start, hla_config=cfg, misfit=misfit)
+        others["records"] = BandFigures(band_hz=w.band_hz, r=w.r, drift_r=w.drift_r,
+                                        peak_drift_measured=w.peak_drift_measured,
+                                        peak_drift_predicted=w.peak_drift_predicted,
+                                        peak_drift_error=w.peak_drift_error)
+    return others
 
 
 def _with_band(cfg: HLAConfig, band) -> HLAConfig:

@@ -11,6 +11,7 @@ worst of them back; :func:`summary_line` is what ``hlaid identify`` prints.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
@@ -18,13 +19,14 @@ import numpy as np
 from ..measurement import Measurement
 from ..model import Building
 from ..model.state import BuildingState
+from ..record import EventRecord, OwnReplay
 
 
 def own_replay(building: Building, meas: Measurement, before: BuildingState | None = None, *,
-               mass_normalised: bool = False) -> dict | None:
+               mass_normalised: bool = False) -> OwnReplay | None:
     """The replay record of one of a clone's own events: ``building`` replayed under ``meas``
-    from ``before`` (None: at rest) and compared in the band the event's floor records hold:
-    ``{"band_hz": [lo, hi], "peak_drift_error": [per story], "drift_r": [per story]}``; None
+    from ``before`` (None: at rest) and compared in the band the event's floor records hold
+    (per story the peak-drift error and the drift R); None
     where the record cannot be compared (too short for the band's filters: a debug note)."""
     from .. import _progress
     from ..clone import Clone
@@ -37,13 +39,15 @@ def own_replay(building: Building, meas: Measurement, before: BuildingState | No
     except InputError as err:
         _progress.debug(f"{meas.name or 'an event'}: its full replay is not assessed ({err})")
         return None
-    return {"band_hz": [float(v) for v in p.band_hz],
-            "peak_drift_error": [float(v) for v in np.nan_to_num(p.peak_drift_error, nan=0.0)],
-            "drift_r": [float(v) for v in np.nan_to_num(p.drift_r, nan=0.0)]}
+    lo, hi = (float(v) for v in p.band_hz)
+    return OwnReplay(band_hz=(lo, hi),
+                     peak_drift_error=tuple(float(v) for v in np.nan_to_num(p.peak_drift_error, nan=0.0)),
+                     drift_r=tuple(float(v) for v in np.nan_to_num(p.drift_r, nan=0.0)))
 
 
-def with_replays(records: Sequence[dict], building: Building, meas: Sequence[Measurement],
-                 befores: Sequence[BuildingState | None], *, mass_normalised: bool = False) -> tuple[dict, ...]:
+def with_replays(records: Sequence[EventRecord], building: Building, meas: Sequence[Measurement],
+                 befores: Sequence[BuildingState | None], *, mass_normalised: bool = False
+                 ) -> tuple[EventRecord, ...]:
     """``records`` (the last ``len(meas)`` of them the records of ``meas``) with each of those
     holding its ``replay`` (:func:`own_replay` from the state in ``befores``)."""
     out = list(records)
@@ -51,22 +55,22 @@ def with_replays(records: Sequence[dict], building: Building, meas: Sequence[Mea
     for k, (m, y) in enumerate(zip(meas, befores)):
         r = own_replay(building, m, y, mass_normalised=mass_normalised)
         if r is not None:
-            out[first + k] = {**out[first + k], "replay": r}
+            out[first + k] = dataclasses.replace(out[first + k], replay=r)
     return tuple(out)
 
 
-def summary_line(events: Sequence[dict]) -> str | None:
+def summary_line(events: Sequence[EventRecord]) -> str | None:
     """One line: per own event the full replay's peak-drift errors (and the band), None where no
     event holds a replay record."""
     parts, band = [], None
     for k, e in enumerate(events):
-        r = e.get("replay") if isinstance(e, dict) else None
-        if not isinstance(r, dict) or not r.get("peak_drift_error"):
+        r = e.replay
+        if r is None or not r.peak_drift_error:
             continue
-        band = r.get("band_hz") or band
-        errs = "/".join(f"{100 * float(v):+.0f}" for v in r["peak_drift_error"])
-        dr = r.get("drift_r") or []
-        parts.append(f"{e.get('name') or f'event {k + 1}'} {errs} %"
+        band = r.band_hz
+        errs = "/".join(f"{100 * float(v):+.0f}" for v in r.peak_drift_error)
+        dr = r.drift_r
+        parts.append(f"{e.label(k)} {errs} %"
                      + (f" (drift R {float(np.mean(dr)):.2f})" if dr else ""))
     if not parts:
         return None

@@ -2,10 +2,11 @@
 
 A clone carries the state its last event left the building in (:class:`~hlaid.model.state.BuildingState`).
 A prediction, an IDA or a demand replay starts from it (``"carried"``), at rest (``"undamaged"``),
-or as the clone itself says (``"auto"``): its prequential start rule's choice
-(:mod:`hlaid.events.prequential`: carried only where the carried state predicted the events
-already seen better than from rest, else from rest); a clone made before the rule: the carried
-state, unless it carries none or its last event was explained better from an undamaged start.
+or as the clone itself says (``"auto"``): its start rule's choice (``clone.start_rule``, a
+:class:`~hlaid.record.StartRule`; :mod:`hlaid.events.prequential`: carried only where the carried
+state predicted the events already seen better than from rest, else from rest); a clone that
+keeps no rule: the carried state, unless it carries none. The words are :data:`hlaid.record.STARTS`
+and ``"auto"``.
 """
 
 from __future__ import annotations
@@ -17,11 +18,12 @@ import numpy as np
 
 from ..errors import InputError
 from ..model.state import BuildingState
+from ..record import STARTS
 
 if TYPE_CHECKING:
     from ..clone import Clone
 
-START_STATES = ("auto", "carried", "undamaged")
+START_STATES = ("auto", *STARTS)
 """The starts a replay may be asked for."""
 
 
@@ -61,14 +63,10 @@ def resolve_start(clone: Clone | object, start: str = "auto") -> Start:
         return Start("carried", state, "asked for: the state the clone's events left")
     if state is None:
         return Start("undamaged", None, "the clone carries no state")
-    rule = (getattr(clone, "diagnostics", None) or {}).get("start_rule")
-    if isinstance(rule, dict) and rule.get("choice") in ("carried", "rest"):
-        reason = f"the clone's start rule ({rule.get('rule', 'prequential')}): {rule.get('reason', '')}".rstrip(": ")
-        return Start("carried", state, reason) if rule["choice"] == "carried" else Start("undamaged", None, reason)
-    events = getattr(clone, "events", ())
-    if events and events[-1].get("start") == "undamaged":
-        return Start("undamaged", None, "its last event was explained better from an undamaged start: the building "
-                                        "recovered between its events")
+    rule = getattr(clone, "start_rule", None)
+    if rule is not None:
+        reason = f"the clone's start rule ({rule.rule}): {rule.reason}".rstrip(": ")
+        return Start("carried", state, reason) if rule.choice == "carried" else Start("undamaged", None, reason)
     return Start("carried", state, "the state the clone's events left")
 
 

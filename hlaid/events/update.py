@@ -18,20 +18,18 @@ from collections.abc import Sequence
 from .. import _progress
 from ..clone import Clone
 from ..errors import InputError, NotIdentifiableError
-from ..hla.config import fixed
 from ..identify.auto import resolve_like
 from ..identify.config import IdentifyConfig
 from ..identify.result import IdentificationResult
 from ..identify.stages import analyse
 from ..joint.fallback import run_stage
-from ..joint.fit import JointFit, best_fit, joint_fit
-from ..joint.laws import laws_of
+from ..joint.fit import best_fit, joint_fit
 from ..joint.priors import get_prior
-from ..joint.vector import GaussianPrior, PriorVector, prior_of_clone
+from ..joint.vector import PriorVector, prior_of_clone
 from ..measurement import Measurement, check_not_learnt
-from ..model import Building
-from .guard import check_update, load_earlier
-from .identify import announce, result_of_joint, with_choices
+from ..record import LawChoice
+from .guard import check_against_earlier
+from .identify import announce, result_of_joint
 from .prequential import predicted, with_history
 
 
@@ -52,9 +50,9 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
         and the clone says so)
 
     The event is fitted from the clone's carried state and from an undamaged start; the start of
-    higher posterior is kept and recorded (``clone.events[-1]["start"]``). Before the fit, the
+    higher posterior is kept and recorded (``clone.events[-1].start``). Before the fit, the
     clone predicts the event from its carried state and from rest (recorded with the event,
-    ``"prequential"``): the start rule of the updated clone's next prediction
+    ``prequential``): the start rule of the updated clone's next prediction
     (:mod:`hlaid.events.prequential`). The stories keep the clone's laws. After the fit, the
     earlier events are replayed by the clone before and after (:mod:`hlaid.events.guard`); where
     their misfit grew by more than the posterior predicted, the update forgot them, and the events
@@ -64,17 +62,18 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
     -------
     IdentificationResult whose ``clone`` has learnt from the clone's events and this one
     """
-    settings = resolve_like(clone.provenance, measurement, config or IdentifyConfig())
+    settings = resolve_like(clone.settings, measurement, config or IdentifyConfig())
     announce(settings)
     cfg = settings.config
     _check_inputs(clone, measurement, widen, earlier)
+    kept = LawChoice.kept_by_update(clone.laws, clone.building.n_stories)
+    laws = kept.chosen
     b = clone.building.replace(collapse=None)
     system = get_prior(cfg.system or clone.system or "generic")
-    laws = laws_of(clone)
-    vector = PriorVector(b, damping=fixed(cfg.refine.damping, "refine.damping"), laws=laws)
+    vector = PriorVector(b, damping=cfg.resolved().damping, laws=laws)
     prior = prior_of_clone(clone.uncertainty, b, vector, system, widen)
     y0 = None if clone.state is None else clone.state.vector()
-    earlier_names = [e.get("name") or f"event {k + 1}" for k, e in enumerate(clone.events)]
+    earlier_names = [e.label(k) for k, e in enumerate(clone.events)]
     name = measurement.name or f"event {len(earlier_names) + 1}"
     notes: list[dict] = []
     _progress.info(f"[update] {b.name or 'clone'}: adding {name}")
@@ -92,9 +91,10 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
                        "left: the building recovered between them (softening that is not damage)")
     fit = dataclasses.replace(fit, states=[dataclasses.replace(s, events=tuple(earlier_names) + (name,))
                                            for s in fit.states])
-    check, stored = _check(clone, b, fit, prior, vector, cfg, earlier, notes)
+    check, stored = check_against_earlier(clone.events, b, fit.building, prior, vector, cfg.resolved(), earlier,
+                                          notes)
     history = {len(clone.events): foretold} if foretold is not None else {}
-    extra = {"laws": _kept_laws(clone, laws), "fallbacks": notes, "update_check": check}
+    result = None
     if stored is not None:  # the update forgot the earlier events: all of them fitted jointly again
         meas_all, names = [*stored, measurement], [*earlier_names, name]
         evs = [analyse(m, cfg) for m in stored] + [event]
@@ -102,15 +102,15 @@ def update_clone(clone: Clone, measurement: Measurement, config: IdentifyConfig 
             joint_fit, fit.building, meas_all, system, cfg, names=names, k0_ref=evs[0].hla.k0, laws=laws), None,
             notes, used="the update is kept", extra=(NotIdentifiableError,))
         if joint is not None:
-            check["refitted"] = True
-            result = result_of_joint(evs, meas_all, joint, cfg, system=system, start=fit.building)
-            events = (*clone.events, result.clone.events[-1])
-            result = dataclasses.replace(result, clone=dataclasses.replace(result.clone, events=events))
-            return with_choices(with_history(result, history, diagnostics=extra), settings)
-    result = result_of_joint([event], [measurement], fit, cfg, system=system, start=b, history=clone.events,
-                             y0=y0 if carried else None, last_start="carried" if carried else "undamaged")
-    return with_choices(with_history(result, history, diagnostics=extra), settings)
-
+            check = dataclasses.replace(check, refitted=True)
+            result = result_of_joint(evs, meas_all, joint, cfg, system=system, start=fit.building, settings=settings)
+            result = dataclasses.replace(result, clone=dataclasses.replace(  # the earlier events as the clone kept them
+                result.clone, events=(*clone.events, result.clone.events[-1])))
+    if result is None:
+        result = result_of_joint([event], [measurement], fit, cfg, system=system, start=b, history=clone.events,
+                                 y0=y0 if carried else None, last_start="carried" if carried else "undamaged",
+                                 settings=settings)
+    return with_history(result, history, laws=kept, notes=notes, update_check=check)
 
 
 def _check_inputs(clone: Clone, measurement: Measurement, widen: float, earlier) -> None:
@@ -122,7 +122,7 @@ def _check_inputs(clone: Clone, measurement: Measurement, widen: float, earlier)
         raise InputError(f"{measurement.n_floors} floor channels, but the clone has {n} stories: the "
                          "measurement is not of this building", source=src)
     check_not_learnt(clone.events, measurement)
-    last = clone.events[-1].get("recorded") if clone.events else None
+    last = clone.events[-1].recorded if clone.events else None
     if last is not None and measurement.recorded is not None and str(measurement.recorded) <= str(last):
         raise InputError(f"recorded {measurement.recorded}, not after the clone's last event ({last})", source=src)
     if not 0 < widen < 100:
@@ -130,31 +130,4 @@ def _check_inputs(clone: Clone, measurement: Measurement, widen: float, earlier)
     if earlier is not None and len(earlier) != len(clone.events):
         raise InputError(f"earlier: {len(earlier)} records given for the clone's {len(clone.events)} events")
 
-def _kept_laws(clone: Clone, laws: tuple[str, ...] | None) -> dict:
-    """The clone's laws record, said to be kept by the update."""
-    old = dict((clone.diagnostics or {}).get("laws") or {})
-    if laws is None:
-        return {**old, "chosen": None, "reason": "the clone names no story laws: every entry free (degrading)"}
-    return {**old, "chosen": list(laws), "kept": "an update keeps the laws its clone was identified with"}
 
-
-def _check(clone: Clone, before: Building, fit: JointFit, prior, vector: PriorVector, cfg: IdentifyConfig,
-           earlier: Sequence[Measurement] | None, notes: list[dict]) -> tuple[dict, list[Measurement] | None]:
-    """The check of the update against the earlier events (:func:`hlaid.events.guard.check_update`)
-    and the earlier events' records where it calls for a joint refit (else None)."""
-    if not clone.events:
-        return {"events": 0, "note": "the clone has no earlier events"}, None
-    if not isinstance(prior, GaussianPrior):
-        return {"events": len(clone.events), "note": "the clone keeps no posterior: the update is a fit from the "
-                                                     "structural system's prior, nothing to forget"}, None
-    stored, missing = load_earlier(clone.events, earlier)
-    if missing:
-        _progress.warn("the update is not checked against the earlier events: " + "; ".join(missing[:3]))
-        return {"events": len(clone.events), "missing": missing,
-                "note": "the earlier events' records are not all at hand: the update is kept unchecked"}, None
-    check = run_stage("the check of the update against the earlier events", functools.partial(
-        check_update, before, fit.building, stored, prior, vector, band_hz=fixed(cfg.refine.band_hz, "refine.band_hz"),
-        compare=fixed(cfg.refine.compare, "refine.compare")), None, notes, used="the update is kept unchecked")
-    if check is None:
-        return {"events": len(clone.events), "note": "the check failed numerically: the update is kept"}, None
-    return check, (stored if check["refit"] else None)

@@ -8,7 +8,7 @@ and checked on the real shake-table data (``docs/hla.md``), where each choice is
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Final, Literal, TypeVar
+from typing import Final, Literal
 
 from ..bounds import bounded, check_bounds
 from ..errors import InputError
@@ -16,16 +16,6 @@ from ..errors import InputError
 AUTO: Final = "auto"
 """The value of a setting that the record decides (:mod:`hlaid.hla.auto`)."""
 
-T = TypeVar("T")
-
-
-def fixed(value: T | Literal["auto"], name: str) -> T:
-    """``value`` of the setting ``name`` where it is not ``"auto"`` (one left ``"auto"`` where a
-    value is needed: the settings were not chosen from the data first, InputError)."""
-    if isinstance(value, str) and value == AUTO:
-        raise InputError(f"{name} is 'auto': it is chosen from the record(s) first (hlaid.identify.auto."
-                         "resolve_settings, hlaid.hla.resolve_hla)")
-    return value  # type: ignore[return-value]
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -98,7 +98,7 @@ def _collapse_law(model, building: Building, law, collapse, system: str | None, 
     if collapse is not None:
         law = get_collapse_model(collapse)
     elif law is None and system is not None:
-        law = get_collapse_model(SYSTEMS[system].collapse if system in SYSTEMS else "none")
+        law = SYSTEMS[system].collapse if system in SYSTEMS else None
         if law is not None:
             notes.append(f"collapse model {law.name!r} chosen for the clone's structural system {system!r}: "
                          f"strength loss as measured on such members ({law.source})")

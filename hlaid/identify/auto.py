@@ -3,7 +3,7 @@
 
 :func:`resolve_settings` takes the record(s) of one building and the config and returns the
 concrete config and one :class:`~hlaid.hla.Choice` per setting it chose, with the evidence
-(printed by ``hlaid identify``, kept in the clone as ``provenance["choices"]``). A value given in
+(printed by ``hlaid identify``, kept in the clone as ``clone.settings``). A value given in
 the config is kept as it is. Several records get one set of choices (the evidence of all of them).
 
 - ``hla.*``: the band, the displacement source, the damping handling and the yield ratio
@@ -33,7 +33,7 @@ gives the settings the identification used before they were chosen from the data
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, cast
 
@@ -42,6 +42,7 @@ import numpy as np
 from ..hla.auto import Choice, HLAResolution, resolve_hla
 from ..hla.config import AUTO
 from ..measurement import Measurement
+from ..record import SettingChoice, Settings
 from .config import PARAMETERS, IdentifyConfig
 
 BROAD_BAND_HZ = (0.1, 20.0)
@@ -68,24 +69,34 @@ def records_band(measurements: Measurement | Sequence[Measurement], lo_hz: float
 
 @dataclass(frozen=True, eq=False)
 class Resolution:
-    """The settings chosen: ``config`` (no ``"auto"`` left) and ``choices`` (one per setting that
-    was ``"auto"``, in the order of the config file)."""
+    """The settings chosen: ``config`` (no ``"auto"`` left), ``choices`` (one per setting that
+    was ``"auto"``, in the order of the config file) and the config as ``given`` (None: not said)."""
 
     config: IdentifyConfig
     choices: tuple[Choice, ...]
+    given: IdentifyConfig | None = None
 
     def lines(self) -> list[str]:
         return [c.line() for c in self.choices]
 
     def to_list(self) -> list[dict]:
-        """The choices as the clone keeps them (``provenance["choices"]``)."""
+        """The choices as mappings (those of :meth:`record`)."""
         return [c.to_dict() for c in self.choices]
+
+    def record(self) -> Settings:
+        """What a clone keeps of them (:attr:`hlaid.clone.Clone.settings`)."""
+        from ..config import config_to_dict
+
+        return Settings(config=config_to_dict(self.config),
+                        choices=tuple(SettingChoice(c.setting, c.value, c.reason) for c in self.choices),
+                        given=None if self.given is None else config_to_dict(self.given))
 
 
 def resolve_settings(measurements: Measurement | Sequence[Measurement], cfg: IdentifyConfig) -> Resolution:
     """Every ``"auto"`` of ``cfg`` chosen from ``measurements`` (records of one building, one set
     of choices for all), with the evidence; values given in ``cfg`` are kept."""
     meas = [measurements] if isinstance(measurements, Measurement) else list(measurements)
+    given = cfg
     hla = resolve_hla(meas, cfg.hla, prefix="hla.")
     cfg = dataclasses.replace(cfg, hla=hla.config)
     choices = list(hla.choices)
@@ -157,7 +168,7 @@ def resolve_settings(measurements: Measurement | Sequence[Measurement], cfg: Ide
         choices.append(Choice("system", None, "not in the data (the records cannot tell a steel frame from a concrete "
                                               "one): the generic prior holds what they say little about (several "
                                               "records, or one that stays nearly elastic); name it where known"))
-    return Resolution(config=cfg, choices=tuple(choices))
+    return Resolution(config=cfg, choices=tuple(choices), given=given)
 
 
 DAMPING_RUNAWAY = 0.45
@@ -179,17 +190,17 @@ def held_damping(settings: Resolution, fitted: float, held: float) -> Resolution
     why = (f"fitted, the damping ratio ran to {fitted:.2f}, the model's bound: it took up model error, not the "
            f"building's damping; held at {held:.3g} and fitted again")
     choices = tuple(c for c in settings.choices if c.setting != "refine.damping")
-    return Resolution(config=cfg, choices=choices + (Choice("refine.damping", False, why),))
+    return Resolution(config=cfg, choices=choices + (Choice("refine.damping", False, why),), given=settings.given)
 
 
-def resolve_like(provenance: dict | None, measurements: Measurement | Sequence[Measurement],
+def resolve_like(settings: Settings | None, measurements: Measurement | Sequence[Measurement],
                  cfg: IdentifyConfig) -> Resolution:
-    """The ``"auto"`` settings of ``cfg`` as a clone was identified with them (its
-    ``provenance["config"]``), so that more records of the same building are analysed alike; a
-    clone that does not say (made before the settings were chosen from the data) has them chosen
-    from ``measurements``. Values given in ``cfg`` are kept."""
-    stored = (provenance or {}).get("config") or {}
-    known = {c["setting"]: c for c in (provenance or {}).get("choices") or []}
+    """The ``"auto"`` settings of ``cfg`` as a clone was identified with them (its ``settings``),
+    so that more records of the same building are analysed alike; a clone that does not say (made
+    before the settings were chosen from the data) has them chosen from ``measurements``. Values
+    given in ``cfg`` are kept."""
+    stored: Mapping = {} if settings is None else settings.config
+    cfg_given = cfg
     todo = cfg.unresolved()
     fixed: dict[str, object] = {}
     for key in todo:
@@ -200,17 +211,18 @@ def resolve_like(provenance: dict | None, measurements: Measurement | Sequence[M
         return resolve_settings(measurements, cfg)
     cfg = _with(cfg, fixed)
     rest = resolve_settings(measurements, cfg)
-    kept = [Choice(k, _plain(v), "as the clone was identified" + (f" ({known[k]['reason']})" if k in known else ""))
+    known = {} if settings is None else {c.setting: c for c in settings.choices}
+    kept = [Choice(k, _plain(v), "as the clone was identified" + (f" ({known[k].reason})" if k in known else ""))
             for k, v in fixed.items()]
-    return Resolution(config=rest.config, choices=tuple(kept) + rest.choices)
+    return Resolution(config=rest.config, choices=tuple(kept) + rest.choices, given=cfg_given)
 
 
 _MISSING = object()
 
 
-def _lookup(d: dict, key: str):
+def _lookup(d: Mapping, key: str):
     for part in key.split("."):
-        if not isinstance(d, dict) or part not in d:
+        if not isinstance(d, Mapping) or part not in d:
             return _MISSING
         d = d[part]
     return d

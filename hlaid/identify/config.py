@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import ClassVar, Literal, cast
 
 from ..bounds import SEED, bounded, check_bounds, with_bounds
 from ..errors import InputError
@@ -275,7 +275,7 @@ class IdentifyConfig:
         ``"auto"`` by default (``hla``: the band, the damping handling and the yield ratio,
         :func:`hlaid.hla.auto.resolve_hla`; ``refine``: method, parameters, damping and band):
         :func:`hlaid.identify.auto.resolve_settings` chooses them from the record(s), and the
-        clone keeps the choices (``provenance["choices"]``). A value given overrides.
+        clone keeps the choices (``clone.settings``). A value given overrides.
     aggregate : how the votes of a story's half cycles are combined: ``"mean"`` (vote-weighted
         mean of the bin centres) or ``"majority"`` (the paper's most voted bin)
     damping_ratio : Rayleigh damping of the clone (modes 1 and 2), as assumed by HLA
@@ -311,3 +311,40 @@ class IdentifyConfig:
     def unresolved(self) -> list[str]:
         """The settings still ``"auto"`` (keys as in the config file)."""
         return [f"hla.{k}" for k in self.hla.unresolved()] + [f"refine.{k}" for k in self.refine.unresolved()]
+
+    def resolved(self) -> ResolvedSettings:
+        """The settings the stages use, with no ``"auto"`` left (:class:`ResolvedSettings`); one
+        still ``"auto"`` is an InputError (the settings are chosen from the records first:
+        :func:`hlaid.identify.auto.resolve_settings`)."""
+        todo = [k for k in self.unresolved() if k in ResolvedSettings.KEYS]
+        if todo:
+            raise InputError(f"{todo[0]} is 'auto': it is chosen from the record(s) first (hlaid.identify.auto."
+                             "resolve_settings, hlaid.hla.resolve_hla)")
+        rc = self.refine
+        return ResolvedSettings(method=rc.method, parameters=tuple(cast("tuple[str, ...]", rc.parameters)),
+                                damping=bool(rc.damping), band_hz=cast("tuple[float, float]", tuple(rc.band_hz)),
+                                compare=rc.compare, yield_ratio=float(self.hla.stiffness.yield_ratio))
+
+
+@dataclass(frozen=True)
+class ResolvedSettings:
+    """The settings of an :class:`IdentifyConfig` that may be ``"auto"``, resolved: each of its own
+    type, none ``"auto"`` (:meth:`IdentifyConfig.resolved`). The choices made for them, with their
+    evidence, are :class:`hlaid.identify.auto.Resolution`'s (the clone keeps them:
+    :class:`hlaid.record.Settings`).
+
+    Attributes
+    ----------
+    method, parameters, damping, band_hz, compare : the replay fit's (``refine.*``)
+    yield_ratio : HLA's (``hla.stiffness.yield_ratio``)
+    """
+
+    method: str
+    parameters: tuple[str, ...]
+    damping: bool
+    band_hz: tuple[float, float]
+    compare: str
+    yield_ratio: float
+
+    KEYS: ClassVar[tuple[str, ...]] = ("refine.method", "refine.parameters", "refine.damping", "refine.band_hz",
+                                       "refine.compare", "hla.stiffness.yield_ratio")

@@ -25,7 +25,9 @@ import numpy as np
 
 from .. import _progress
 from ..clone import Clone
+from ..config import config_to_dict
 from ..model import Building
+from ..record import PaperMethod, PaperStory, Settings
 from ..uncertainty.laplace import uncertainty_of_refinement
 from .cache import MachineCache, default_cache_dir
 from .config import IdentifyConfig
@@ -125,18 +127,33 @@ def _clone(event: Event, est: Estimate, paper: Building, refined: Refinement, hi
            check: ReplayCheck, timings: dict, cfg: IdentifyConfig) -> Clone:
     """The clone file's content: the building, diagnostics, provenance and uncertainty."""
     meas = event.measurement
-    prov = {**provenance(cfg, timings, source=meas.source, sha256=file_digest(meas.source) if meas.source else None),
+    prov = {**provenance(timings, source=meas.source, sha256=file_digest(meas.source) if meas.source else None),
             "noise_rms_used": event.noise}
     rr = refined.result
     unc = None if rr is None else uncertainty_of_refinement(rr, rr.channels or meas.n_floors, noise_rms=event.noise,
                                                             band_hz=cfg.refine.band_hz, dt=meas.dt)
-    return Clone(building=refined.building, mass_normalised=event.hla.mass_normalised,
-                 diagnostics=_diagnostics(event, est, paper, history, passes, check, refined.info),
-                 provenance=prov, uncertainty=unc)
+    stories = _stories(event, est, paper, check)
+    diagnostics = _diagnostics(event, stories, history, passes, check, refined.info)
+    return Clone(building=refined.building, mass_normalised=event.hla.mass_normalised, diagnostics=diagnostics,
+                 provenance=prov, uncertainty=unc, fit_replays=(check.record(meas.name),),
+                 paper=PaperMethod(paper_stories(stories, passes), refine=refined.info),
+                 settings=Settings(config=config_to_dict(cfg)))
 
 
-def _diagnostics(event: Event, est: Estimate, paper: Building, history: list, passes: list, check: ReplayCheck,
-                 refine_info: dict | None) -> dict:
+def paper_stories(stories: list[dict], passes: list) -> tuple[PaperStory, ...]:
+    """What the paper's method found of each story (its diagnostics' ``stories``), with each
+    story's SVM test accuracies in the last pass that trained them."""
+    last: dict[int, dict] = {}
+    for pas in passes:
+        for i, st in enumerate(pas.get("stories", []) if isinstance(pas, dict) else []):
+            if st:
+                last[i] = {k: v.get("test_accuracy") for k, v in st.items()}
+    return tuple(PaperStory(story=s["story"], identifiable=s["identifiable"], k0_hla=s["k0_hla"],
+                            reason=s.get("reason", ""), svm_test_accuracy=last.get(i)) for i, s in enumerate(stories))
+
+
+def _stories(event: Event, est: Estimate, paper: Building, check: ReplayCheck) -> list[dict]:
+    """Per story what the paper's method found (the diagnostics' ``stories``)."""
     res = event.hla
     stories = []
     for i, s in enumerate(res.stories):
@@ -154,6 +171,13 @@ def _diagnostics(event: Event, est: Estimate, paper: Building, history: list, pa
                            "from the identified stories and dy is set above the largest drift reached; they "
                            "are assumptions, not identified")
         stories.append(d)
+    return stories
+
+
+def _diagnostics(event: Event, stories: list[dict], history: list, passes: list, check: ReplayCheck,
+                 refine_info: dict | None) -> dict:
+    """What the paper's method did, for the reader (the clone's ``diagnostics``)."""
+    res = event.hla
     return {"stories": stories, "outer_iterations": history, "passes": passes, "refine": refine_info,
             "hla": {"band_hz": list(res.band_hz), "damping": res.damping, "mass_normalised": res.mass_normalised},
             "replay": check.to_dict()}

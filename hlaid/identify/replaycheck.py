@@ -9,6 +9,7 @@ import numpy as np
 from ..hla import HLAResult
 from ..measurement import Measurement, measured_ground
 from ..model import Building
+from ..record import FitReplay
 from ..signal import bandpass
 from ..simulate import simulate_response
 
@@ -37,6 +38,10 @@ class ReplayCheck:
         return {"r_measured": self.r_measured.tolist(),
                 "r_true": None if self.r_true is None else self.r_true.tolist(),
                 "stiffness_error": self.stiffness_error.tolist()}
+
+    def record(self, name: str | None = None) -> FitReplay:
+        """What the clone keeps of it (:class:`~hlaid.record.FitReplay`), for the event ``name``."""
+        return FitReplay.from_dict({"name": name or None, **self.to_dict()})
 
 
 def corrcoef(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -9,7 +9,6 @@ from pathlib import Path
 from .._inputs import file_sha256
 from .._version import __version__
 from ..clone import Clone
-from ..config import config_to_dict
 from ..errors import InputError
 from ..hla import HLAResult
 from ..model import Building
@@ -56,8 +55,9 @@ def file_digest(path: str) -> str | None:
         return None
 
 
-def provenance(cfg, timings: dict, **sources) -> dict:
+def provenance(timings: dict, **sources) -> dict:
     """What a clone keeps of how it was made: its ``sources`` (file names, digests), the hlaid
-    version, the identification config, the seconds of each stage and the time it was made."""
-    return {**sources, "hlaid_version": __version__, "config": config_to_dict(cfg), "timings": timings,
+    version, the seconds of each stage and the time it was made (its settings are
+    :attr:`hlaid.clone.Clone.settings`)."""
+    return {**sources, "hlaid_version": __version__, "timings": timings,
             "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}

@@ -23,7 +23,6 @@ import numpy as np
 from .. import _progress
 from ..hla import HLAResult, run_hla
 from ..hla.analysis import reanalyse_story
-from ..hla.config import fixed
 from ..hla.features import HalfCycleFeatures, half_cycle_features
 from ..hla.result import StoryHLA
 from ..measurement import Measurement, building_name, measured_ground
@@ -131,7 +130,7 @@ def analyse(meas: Measurement, cfg: IdentifyConfig) -> Event:
     yielded in 3 half cycles has none identifiable: the paper's method cannot run on it)."""
     _progress.step(f"[identify] hysteresis loop analysis{' of ' + meas.name if meas.name else ''}")
     res = run_hla(meas, cfg.hla)
-    yield_ratio = fixed(cfg.hla.stiffness.yield_ratio, "hla.stiffness.yield_ratio")
+    yield_ratio = cfg.resolved().yield_ratio
     features = tuple(half_cycle_features(s, cfg.training.n_segments, yield_ratio=yield_ratio, with_ke=True)
                      for s in res.stories)
     identifiable = np.array([s.yielded and len(F) >= 3 for s, F in zip(res.stories, features)])
@@ -190,7 +189,7 @@ def follow_paths(event: Event, est: Estimate, cfg: IdentifyConfig) -> Estimate:
     for i, s in enumerate(res.stories):
         story = reanalyse_story(s, paths[:, i], s.force, res.dt, cfg.hla, res.band_hz)
         feats = half_cycle_features(story, cfg.training.n_segments,
-                                    yield_ratio=fixed(cfg.hla.stiffness.yield_ratio, "hla.stiffness.yield_ratio"))
+                                    yield_ratio=cfg.resolved().yield_ratio)
         if event.identifiable[i] and (len(feats) < 3 or not np.isfinite(story.k0) or story.k0 <= 0):
             story, feats = s, event.features[i]  # the path lost the yielding half cycles: keep HLA's
         elif event.identifiable[i]:

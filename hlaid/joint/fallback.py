@@ -4,8 +4,8 @@ A clone's identification runs many numerical stages beside its main fit: the law
 the prefix fits of the prequential start, the check of a sequential update, the Laplace covariance.
 Any of them can fail on real data (a factorisation that loses positive definiteness in floating
 point, a tangent that grows without bound, a search that leaves the model's range). Each runs
-through :func:`run_stage`: a failure is said on the terminal, recorded in the clone's diagnostics
-(``diagnostics["fallbacks"]``: the stage, the error, what was used instead) and replaced by the
+through :func:`run_stage`: a failure is said on the terminal, recorded in the clone
+(``clone.fallbacks``, :class:`hlaid.record.Fallback`: the stage, the error, what was used instead) and replaced by the
 stage's fallback, never an internal error.
 """
 

@@ -23,7 +23,6 @@ import numpy as np
 
 from .. import _progress
 from ..errors import InputError
-from ..hla.config import fixed
 from ..identify.config import IdentifyConfig
 from ..identify.refine import RefineResult, fit_residuals
 from ..identify.refiners import fit_or_fall_back
@@ -31,10 +30,11 @@ from ..measurement import Measurement
 from ..model import Building
 from ..model.state import BuildingState
 from ..model.uncertainty import ParameterUncertainty
+from ..record import ParameterFlag
 from .laws import with_laws
 from .priors import StructuralPrior
 from .series import REPLAY_RATE_RATIO, WIDE_RATE_RATIO, EventSeries, at_replay_rate, event_series
-from .vector import GaussianPrior, PosteriorResiduals, PriorVector, SystemPrior
+from .vector import GaussianPrior, PosteriorResiduals, PriorVector, SystemPrior, at_limit
 
 WEIGHT_ROUNDS = 3
 """At most this many searches, each with the weights of the last one's optimum."""
@@ -167,33 +167,13 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
     if prior is None:
         assert system is not None
         prior = SystemPrior(system, vector, start.k0)
-    hi = float(band_hz[1])
-    info: list[dict] = []
-    current = start
-    rr: RefineResult | None = None
-    weights: np.ndarray | None = None
-    fits = 0
     if series is None:
-        events = [at_replay_rate(m, hi, rate_ratio) for m in measurements]
+        events = [at_replay_rate(m, float(band_hz[1]), rate_ratio) for m in measurements]
         series = event_series(start, events, band_hz, ground_noise, substeps, jac_substeps, y0, tangent_max_mb,
                               compare=compare)
-    with _progress.stage(f"[identify] joint fit over {len(series.events)} event(s)", unit="rounds") as st:
-        for _ in range(max(int(rounds), 1)):
-            info = series.reweigh(current)
-            if weights is not None and bool(np.all(np.abs(np.log(series.weights / weights)) < np.log(1.2))):
-                break
-            weights = series.weights.copy()
-            fits += 1
-            _progress.step(f"[identify] joint fit over {len(series.events)} event(s), round {fits}: effective "
-                           "samples " + ", ".join(f"{d['n_eff']:.0f}" for d in info))
-            tol = max(ftol, LATER_FTOL) if (warm or fits > 1) else ftol
-            if fits > 1:
-                vector.x0 = vector.of(current)  # each round from the last one's optimum
-            rr = fit_residuals(vector, PosteriorResiduals(series, vector, prior), max_iterations=max_iterations,
-                               ftol=tol, jac_substeps=jac_substeps)
-            current = rr.building
-            st.update(1, note=f"cost {rr.cost_initial:.4g} -> {rr.cost_final:.4g}")
-    assert rr is not None
+    rr, info, fits, weights = _weighted_rounds(series, vector, prior, start, rounds=rounds, warm=warm, ftol=ftol,
+                                               max_iterations=max_iterations, jac_substeps=jac_substeps)
+    current = rr.building
     for d, w in zip(info, series.weights):
         d["weight"] = float(w)
     J = np.asarray(rr.jacobian)
@@ -211,6 +191,37 @@ def map_refine(start: Building, measurements: Sequence[Measurement], prior: Syst
                     prior_cost=prior_cost, **log_dets(J, Jp), compare=compare,
                     series=series, jac_weights=None if weights is None else weights.copy(),
                     prior=prior)
+
+
+def _weighted_rounds(series: EventSeries, vector: PriorVector, prior, start: Building, *, rounds: int, warm: bool,
+                     ftol: float, max_iterations: int, jac_substeps: int
+                     ) -> tuple[RefineResult, list[dict], int, np.ndarray | None]:
+    """The searches of :func:`map_refine`: each with the events' weights at the last one's optimum,
+    until the weights settle or ``rounds`` are done. Returns the last search, the events' weights
+    record, the searches made and the weights of the last one."""
+    info: list[dict] = []
+    current = start
+    rr: RefineResult | None = None
+    weights: np.ndarray | None = None
+    fits = 0
+    with _progress.stage(f"[identify] joint fit over {len(series.events)} event(s)", unit="rounds") as st:
+        for _ in range(max(int(rounds), 1)):
+            info = series.reweigh(current)
+            if weights is not None and bool(np.all(np.abs(np.log(series.weights / weights)) < np.log(1.2))):
+                break
+            weights = series.weights.copy()
+            fits += 1
+            _progress.step(f"[identify] joint fit over {len(series.events)} event(s), round {fits}: effective "
+                           "samples " + ", ".join(f"{d['n_eff']:.0f}" for d in info))
+            tol = max(ftol, LATER_FTOL) if (warm or fits > 1) else ftol
+            if fits > 1:
+                vector.x0 = vector.of(current)  # each round from the last one's optimum
+            rr = fit_residuals(vector, PosteriorResiduals(series, vector, prior), max_iterations=max_iterations,
+                               ftol=tol, jac_substeps=jac_substeps)
+            current = rr.building
+            st.update(1, note=f"cost {rr.cost_initial:.4g} -> {rr.cost_final:.4g}")
+    assert rr is not None
+    return rr, info, fits, weights
 
 
 def _pinv(A: np.ndarray) -> np.ndarray:
@@ -253,11 +264,11 @@ INFORMED = 0.5
 is flagged as coming from the prior: the data narrowed it by less than half."""
 
 
-def flags(fit: JointFit, prior: str = "prior") -> list[dict]:
+def flags(fit: JointFit, prior: str = "prior") -> tuple[ParameterFlag, ...]:
     """Per fitted parameter: value, where it comes from (``"data"``, or ``prior`` where the data
     narrowed it by less than :data:`INFORMED`: ``"prior"`` for the structural system's,
-    ``"earlier events"`` for an update's), and whether it sits at a limit of the model
-    (alpha at 0 or 0.95, p at 1, delta_eta below 1e-6: a value the search could only approach)."""
+    ``"earlier events"`` for an update's), and whether it sits at a bound of the search
+    (:func:`hlaid.joint.vector.at_limit`: a value the search could only approach)."""
     b, informed = fit.building, fit.informed()
     out = []
     for (name, i), inf in zip(fit.vector.slots, informed):
@@ -271,11 +282,10 @@ def flags(fit: JointFit, prior: str = "prior") -> list[dict]:
             value, name = float(b.dy[i]), "dy"
         else:
             value = float(getattr(b, name)[i])
-        at = ((name == "alpha" and not 1e-3 < value < 0.949) or (name == "p" and value < 1.005)
-              or (name == "delta_eta" and value < 1e-6))
-        out.append({"name": name, "story": i + 1 if i >= 0 else None, "value": value,
-                    "source": "data" if inf >= INFORMED else prior, "informed": float(inf), "at_limit": bool(at)})
-    return out
+        out.append(ParameterFlag(name=name, story=i + 1 if i >= 0 else None, value=float(value),
+                                 source="data" if inf >= INFORMED else prior, informed=float(inf),
+                                 at_limit=at_limit(name, value)))
+    return tuple(out)
 
 
 def joint_fit(start: Building, measurements: Sequence[Measurement], prior, cfg: IdentifyConfig, *, y0=None,
@@ -291,9 +301,8 @@ def joint_fit(start: Building, measurements: Sequence[Measurement], prior, cfg: 
     fitted (None: :func:`masses_free`). Where the band reaches the higher modes
     (:func:`wide_band`) and the damping is fitted, the second mode's Rayleigh ratio is fitted
     apart from the first's (:attr:`hlaid.model.Damping.ratio2`, from the first's)."""
-    rc = cfg.refine
-    damping = fixed(rc.damping, "refine.damping")
-    compare = fixed(rc.compare, "refine.compare")
+    rc, settings = cfg.refine, cfg.resolved()
+    damping, compare = settings.damping, settings.compare
     masses = masses_free(measurements, cfg) if masses is None else masses
     if damping and wide_band(cfg) and start.damping.kind == "rayleigh" and start.damping.ratio2 is None:
         start = start.replace(damping=dataclasses.replace(start.damping, ratio2=start.damping.ratio))
@@ -302,11 +311,11 @@ def joint_fit(start: Building, measurements: Sequence[Measurement], prior, cfg: 
     if isinstance(prior, StructuralPrior):
         prior = SystemPrior(prior, PriorVector(start, damping=damping, laws=laws, masses=masses),
                             start.k0 if k0_ref is None else k0_ref)
-    fit = functools.partial(map_refine, start, measurements, prior, band_hz=fixed(rc.band_hz, "refine.band_hz"),
+    fit = functools.partial(map_refine, start, measurements, prior, band_hz=settings.band_hz,
                             damping=damping, y0=y0, names=names, max_iterations=max_iterations or rc.max_iterations,
                             tangent_max_mb=rc.tangent_max_mb, compare=compare, laws=laws, rounds=rounds, warm=warm,
                             masses=masses, rate_ratio=WIDE_RATE_RATIO if wide_band(cfg) else REPLAY_RATE_RATIO)
-    eiv = fixed(rc.method, "refine.method") == "eiv" and compare == "acc"
+    eiv = settings.method == "eiv" and compare == "acc"
     return fit_or_fall_back(fit, "tangent" if eiv else "ignore")
 
 

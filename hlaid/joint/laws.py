@@ -1,8 +1,9 @@
 """Which law each story follows: elastic, non-degrading or degrading Bouc-Wen.
 
-A story's law says which of its entries in prior units (:mod:`hlaid.joint.vector`: ``log k0,
-logit(alpha / 0.95), log(p - 1), log Cy, log delta_eta``) the records may move; the others are
-held at fixed values:
+A story's law (:class:`hlaid.record.StoryLaw`, the registry :data:`hlaid.record.STORY_LAWS`) says
+which of its entries in prior units (:mod:`hlaid.joint.vector`: ``log k0, logit(alpha / 0.95),
+log(p - 1), log Cy, log delta_eta``) the records may move; the others are held at fixed values
+(:data:`HELD`):
 
 - ``elastic``: only ``k0`` moves; the yield shear coefficient is :data:`ELASTIC_CY` (``dy`` far
   beyond any drift), ``alpha`` and ``p`` the system's medians, no degradation;
@@ -12,7 +13,7 @@ held at fixed values:
 The laws of a building are chosen by the Laplace evidence of the joint fit of its records
 (:func:`choose_laws`): the candidates are the three laws for every story, and each of them for the
 first story under another for the stories above (an isolation layer, a soft first story); the
-structural system's own law (:data:`SYSTEM_LAWS`) is kept unless another is better by more than
+structural system's own law (:attr:`hlaid.systems.StructuralSystem.law`) is kept unless another is better by more than
 :data:`TIE_LOG_UNITS` (an entry the records say nothing about costs no evidence, so a tie says
 nothing either way).
 """
@@ -25,11 +26,13 @@ import numpy as np
 
 from ..errors import InputError
 from ..model import Building
+from ..record import STORY_LAWS
 from ..systems import SYSTEMS
 from .priors import StructuralPrior, weight_above
 
-LAWS = ("elastic", "nondegrading", "degrading")
-"""Story laws, nested: each one's free entries are a subset of the next one's."""
+LAWS = tuple(STORY_LAWS)
+"""Story law names, nested: each one's free entries are a subset of the next one's (a view of
+:data:`hlaid.record.STORY_LAWS`)."""
 
 ELASTIC_CY = 5.0
 """Yield shear coefficient of an elastic story: ``dy = 5 W_above / k0``, far beyond any drift."""
@@ -37,16 +40,12 @@ ELASTIC_CY = 5.0
 NO_DEGRADATION = 1e-8
 """``delta_eta`` of a story that does not degrade [s^2/m^2] (the model's lower bound is 0)."""
 
-SYSTEM_LAWS = {name: system.law for name, system in SYSTEMS.items()}
-"""The law each structural system's stories follow unless the records say otherwise
-(:attr:`hlaid.systems.StructuralSystem.law`)."""
-
 TIE_LOG_UNITS = 2.0
 """Another law replaces the system's only where its log evidence is higher by more than this."""
 
-FREE = {"elastic": (True, False, False, False, False), "nondegrading": (True, True, True, True, False),
-        "degrading": (True, True, True, True, True)}
-"""Per law, which of a story's five entries in prior units are free."""
+HELD = {"alpha": "the system's median", "p": "the system's median",
+        "cy": f"{ELASTIC_CY:g} (dy far beyond any drift)", "delta_eta": f"{NO_DEGRADATION:g} (no degradation)"}
+"""What a held entry is set to (:func:`with_laws`)."""
 
 
 def check_laws(laws: Sequence[str], n_stories: int) -> tuple[str, ...]:
@@ -60,13 +59,14 @@ def check_laws(laws: Sequence[str], n_stories: int) -> tuple[str, ...]:
 
 def law_mask(laws: Sequence[str]) -> np.ndarray:
     """``(story, 5)`` which of ``log k0, logit alpha, log(p - 1), log Cy, log delta_eta`` are free."""
-    return np.array([FREE[law] for law in laws], dtype=bool).reshape(len(laws), 5)
+    return np.array([STORY_LAWS[law].free for law in laws], dtype=bool).reshape(len(laws), 5)
 
 
 def default_laws(system: StructuralPrior | str, n_stories: int) -> tuple[str, ...]:
     """The structural system's law for every story."""
     name = system if isinstance(system, str) else system.name
-    return (SYSTEM_LAWS.get(name, "degrading"),) * n_stories
+    found = SYSTEMS.get(name)
+    return (found.law.name if found is not None else "degrading",) * n_stories
 
 
 def with_laws(building: Building, laws: Sequence[str], prior: StructuralPrior) -> Building:
@@ -77,11 +77,14 @@ def with_laws(building: Building, laws: Sequence[str], prior: StructuralPrior) -
     alpha, p, dy, de = (np.array(getattr(building, k), dtype=float) for k in ("alpha", "p", "dy", "delta_eta"))
     w = weight_above(building)
     for i, law in enumerate(laws):
-        if law == "elastic":
-            alpha[i], p[i] = prior.alpha.median, prior.p.median
+        held = STORY_LAWS[law].held
+        if "alpha" in held:
+            alpha[i] = prior.alpha.median
+        if "p" in held:
+            p[i] = prior.p.median
+        if "cy" in held:
             dy[i] = min(ELASTIC_CY * w[i] / building.k0[i], 1e5)
-            de[i] = NO_DEGRADATION
-        elif law == "nondegrading":
+        if "delta_eta" in held:
             de[i] = NO_DEGRADATION
     return building.replace(alpha=alpha, p=p, dy=dy, delta_eta=de)
 
@@ -94,16 +97,6 @@ def candidates(n_stories: int) -> list[tuple[str, ...]]:
     if n_stories > 1:
         out += [(a,) + (b,) * (n_stories - 1) for a in LAWS for b in LAWS if a != b]
     return out
-
-
-def laws_of(clone) -> tuple[str, ...] | None:
-    """The story laws a clone was identified with (``diagnostics["laws"]["chosen"]``; None where
-    it does not say: every story degrading, the model's law before laws were chosen)."""
-    d = ((getattr(clone, "diagnostics", None) or {}).get("laws") or {}).get("chosen")
-    n = clone.building.n_stories
-    if isinstance(d, list) and len(d) == n and all(law in LAWS for law in d):
-        return tuple(d)
-    return None
 
 
 def choose_laws(evidence: Sequence[tuple[tuple[str, ...], float]], default: tuple[str, ...]
@@ -130,5 +123,5 @@ def _show(laws: Sequence[str]) -> str:
     return " / ".join(laws)
 
 
-__all__ = ["LAWS", "ELASTIC_CY", "NO_DEGRADATION", "SYSTEM_LAWS", "TIE_LOG_UNITS", "check_laws", "law_mask",
-           "default_laws", "with_laws", "candidates", "laws_of", "choose_laws"]
+__all__ = ["LAWS", "ELASTIC_CY", "NO_DEGRADATION", "HELD", "TIE_LOG_UNITS", "check_laws", "law_mask",
+           "default_laws", "with_laws", "candidates", "choose_laws"]

@@ -50,7 +50,7 @@ def prior_record(prior: StructuralPrior) -> dict:
     """``prior`` as a clone records it: its system (name, title, collapse law) and its numbers."""
     system = get_system(prior.name)
     return {"name": prior.name, "title": system.title,
-            "collapse": system.collapse, "story_spread": prior.story_spread, "k0_beta": prior.k0_beta,
+            "collapse": system.collapse_name, "story_spread": prior.story_spread, "k0_beta": prior.k0_beta,
             **{k: {"median": getattr(prior, k).median, "beta": getattr(prior, k).beta}
                for k in ("cy", "alpha", "p", "delta_eta", "damping")}}
 

@@ -12,6 +12,7 @@ structural system's prior over it (:class:`SystemPrior`), an earlier clone's pos
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -54,9 +55,25 @@ def from_units(base, u: np.ndarray, log_zeta: float | None = None):
                         damping=dataclasses.replace(d, ratio=ratio))
 
 
+DAMPING_RANGE = (1e-6, 0.5)
+"""The damping ratios a search reaches (:func:`_ratio_of` clips to them)."""
+
+NEAR_BOUND = {"alpha": (1e-3, 0.949), "p": (1.005, math.inf), "delta_eta": (1e-6, math.inf),
+              "damping": DAMPING_RANGE, "damping2": DAMPING_RANGE}
+"""Per parameter, the open range inside the search's bounds (alpha in (0, ALPHA_MAX) through its
+logit, p > 1 and delta_eta > 0 through their logs, the damping ratio's clip
+:data:`DAMPING_RANGE`): a value outside it sits at a bound, one the search could only approach."""
+
+
+def at_limit(name: str, value: float) -> bool:
+    """Whether the parameter ``name`` at ``value`` sits at a bound of the search (:data:`NEAR_BOUND`)."""
+    lo, hi = NEAR_BOUND.get(name, (-math.inf, math.inf))
+    return not lo < value < hi
+
+
 def _ratio_of(log_zeta: float) -> float:
-    """A damping ratio of its log, within (1e-6, 0.5)."""
-    return max(float(min(np.exp(min(log_zeta, 0.0)), 0.5)), 1e-6)
+    """A damping ratio of its log, within :data:`DAMPING_RANGE`."""
+    return max(float(min(np.exp(min(log_zeta, 0.0)), DAMPING_RANGE[1])), DAMPING_RANGE[0])
 
 
 def _log_ratio(ratio: float | None) -> float:

@@ -40,22 +40,21 @@ def event_risks(assessment: dict | None, ida, motions: Sequence[tuple[str, Groun
 
 
 def parameter_flags(clone: Clone) -> list[str]:
-    """Parameters at a limit of the model or taken from the prior (the joint fit's
-    ``diagnostics["parameters"]``; for a clone of the paper's method alone, its values)."""
-    rows = (clone.diagnostics or {}).get("parameters")
-    if not isinstance(rows, list):
-        b = clone.building
-        rows = [{"name": n, "story": i + 1, "value": float(getattr(b, n)[i]), "source": "data",
-                 "at_limit": bool((n == "alpha" and not 1e-3 < getattr(b, n)[i] < 0.949)
-                                  or (n == "p" and getattr(b, n)[i] < 1.005)
-                                  or (n == "delta_eta" and getattr(b, n)[i] < 1e-6))}
-                for n in ("alpha", "p", "delta_eta") for i in range(b.n_stories)]
+    """Parameters at a limit of the search or taken from the prior (the joint fit's
+    ``clone.parameters``; for a clone of the paper's method alone, its values against the same
+    bounds, :func:`hlaid.joint.vector.at_limit`)."""
+    from ..joint.vector import at_limit
+    from ..record import ParameterFlag
 
-    def label(r: dict) -> str:
-        return f"{r['name']}[{r['story']}]" if r.get("story") else str(r["name"])
-    at = [label(r) for r in rows if isinstance(r, dict) and r.get("at_limit")]
-    prior = [label(r) for r in rows if isinstance(r, dict) and r.get("source") not in (None, "data", "earlier events")]
-    carried = [label(r) for r in rows if isinstance(r, dict) and r.get("source") == "earlier events"]
+    rows = clone.parameters
+    if rows is None:
+        b = clone.building
+        rows = tuple(ParameterFlag(name=n, story=i + 1, value=float(getattr(b, n)[i]),
+                                   at_limit=at_limit(n, float(getattr(b, n)[i])))
+                     for n in ("alpha", "p", "delta_eta") for i in range(b.n_stories))
+    at = [r.label() for r in rows if r.at_limit]
+    prior = [r.label() for r in rows if r.source not in ("data", "earlier events")]
+    carried = [r.label() for r in rows if r.source == "earlier events"]
     out = []
     u = clone.uncertainty
     if u is not None:
@@ -139,11 +138,10 @@ def plausibility_flags(clone: Clone) -> list[str]:
 
 def identification_flags(clone: Clone, stiffness_error: Sequence[float] | None = None) -> list[str]:
     """The flags of an identification: stories whose stiffness-evolution error exceeds
-    :data:`STIFFNESS_ERROR_FLAG` (``stiffness_error`` per story; None: the clone's replay
-    diagnostics), parameters at a limit or from the prior, unknown masses."""
+    :data:`STIFFNESS_ERROR_FLAG` (``stiffness_error`` per story; None: the replay
+    of its last fit), parameters at a limit or from the prior, unknown masses."""
     if stiffness_error is None:
-        replay = (clone.diagnostics or {}).get("replay")
-        stiffness_error = replay.get("stiffness_error") or () if isinstance(replay, dict) else ()
+        stiffness_error = clone.fit_replays[-1].stiffness_error if clone.fit_replays else ()
     err = np.asarray(stiffness_error, dtype=float)
     bad = [f"story {i + 1}: {v:.0%}" for i, v in enumerate(err) if np.isfinite(v) and v > STIFFNESS_ERROR_FLAG]
     out = []
@@ -153,7 +151,7 @@ def identification_flags(clone: Clone, stiffness_error: Sequence[float] | None =
                    "and identify from more events or with the structural system (--system)")
     out += parameter_flags(clone)
     out += plausibility_flags(clone)
-    fitted = any(f.get("name") == "mass" for f in (clone.diagnostics or {}).get("parameters") or ())
+    fitted = any(f.name == "mass" for f in clone.parameters or ())
     if clone.mass_normalised and fitted:
         ratios = " / ".join(f"{v:.2f}" for v in np.asarray(clone.building.mass) / np.sum(clone.building.mass))
         out.append(f"floor masses unknown: their ratios fitted to the records' higher modes ({ratios} of the total, "
@@ -183,8 +181,8 @@ def run_flags(clone: Clone, *, stiffness_error: Sequence[float] | None = None, s
               assessment: dict | None = None, heights_given: Sequence[float] | None = None,
               loss: dict | None = None, events: Sequence[dict] = (), drift_limit: float | None = None,
               basis: DecisionBasis | None = None) -> list[str]:
-    """The flags of a run (see the module doc): ``stiffness_error`` per story (None: the clone's
-    replay diagnostics), the flags of what the decision rests on (``basis``; None: :func:`run_basis`
+    """The flags of a run (see the module doc): ``stiffness_error`` per story (None: the replay
+    of the clone's last fit), the flags of what the decision rests on (``basis``; None: :func:`run_basis`
     of ``assessment``, ``heights_given``, ``events`` and ``drift_limit``), the ``survival`` block and
     the ``loss`` block (its demands' flags)."""
     out = identification_flags(clone, stiffness_error)

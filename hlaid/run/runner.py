@@ -24,6 +24,7 @@ from .. import _progress
 from .._fileio import atomic_directory, check_output_folder, write_json
 from .._inputs import read_json
 from .._version import __version__
+from ..clone import jsonable
 from ..config import config_to_dict
 from ..errors import InputError
 from ..events.identify import identify_clone
@@ -199,7 +200,7 @@ def _identification_outputs(meas: Measurement, res, tmp: Path, step: _Steps, plo
     rows = [r.to_dict() for r in table]
     write_json(tmp / "parameters.json", {"identified": rows, "paper_method": [r.to_dict() for r in paper]})
     (tmp / "parameters.csv").write_text(_csv(rows))
-    write_json(tmp / "identification.json", res.clone.diagnostics)
+    write_json(tmp / "identification.json", jsonable({**res.clone.diagnostics, **res.clone.identification_dict()}))
     step("figures" if plots else "figures: none (--no-plots)")
     if not plots:
         return table, paper

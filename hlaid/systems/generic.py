@@ -3,12 +3,13 @@ loss inventory (the user gives one)."""
 
 from __future__ import annotations
 
+from ..record import STORY_LAWS
 from .parts import Median, StructuralPrior, StructuralSystem
 
 NAME = "generic"
 
 SYSTEM = StructuralSystem(
-    name=NAME, title="unknown structural system", collapse="none", law="degrading",
+    name=NAME, title="unknown structural system", collapse=None, law=STORY_LAWS["degrading"],
     prior=StructuralPrior(
         name=NAME,
         cy=Median(median=0.3, beta=1.0), alpha=Median(median=0.1, beta=1.0), p=Median(median=2.0, beta=1.0),

@@ -1,6 +1,6 @@
 """What a structural system is made of: its prior, its loss inventory and the system itself.
 
-Plain frozen data (no numpy): each system of :data:`hlaid.systems.SYSTEMS` is one
+Plain frozen data: each system of :data:`hlaid.systems.SYSTEMS` is one
 :class:`StructuralSystem` in a module of its own beside this one. The code that acts on the parts
 lives where it acts: the prior's residuals in :mod:`hlaid.joint.priors`, the inventory's CSV and
 its checks in :mod:`hlaid.loss.inventory`, the collapse laws in :mod:`hlaid.model.collapse`.
@@ -9,6 +9,9 @@ its checks in :mod:`hlaid.loss.inventory`, the collapse laws in :mod:`hlaid.mode
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+
+from ..model.collapse import CollapseModel, get_collapse_model
+from ..record import STORY_LAWS, StoryLaw
 
 
 # ----------------------------------------------------------------------------- the prior
@@ -133,26 +136,34 @@ class StructuralSystem:
     ----------
     name : registry key (``identify.system`` in a config, ``--system`` on the command line)
     title : the system, in words
-    collapse : its collapse law, a name of :data:`hlaid.model.COLLAPSE_MODELS` (``"none"``: the
-        Bouc-Wen law alone, no strength loss)
+    collapse : its collapse law (:class:`~hlaid.model.collapse.CollapseModel`, one of
+        :data:`hlaid.model.COLLAPSE_MODELS` or its own; None: the Bouc-Wen law alone, no strength
+        loss; a name is looked up)
     prior : the identification's prior (:class:`StructuralPrior`)
-    law : the story law its stories follow unless the records say otherwise (a name of
-        :data:`hlaid.joint.laws.LAWS`)
+    law : the story law its stories follow unless the records say otherwise (one of
+        :data:`hlaid.record.STORY_LAWS`)
     inventory : the loss assessment's default component inventory, or None (the user gives one)
     """
 
     name: str
     title: str
-    collapse: str
+    collapse: CollapseModel | None
     prior: StructuralPrior
-    law: str = "degrading"
+    law: StoryLaw = STORY_LAWS["degrading"]
     inventory: Inventory | None = None
 
     def __post_init__(self):
+        if not isinstance(self.collapse, (CollapseModel, type(None))):
+            object.__setattr__(self, "collapse", get_collapse_model(self.collapse))
         named = {"prior": self.prior.name, **({"inventory": self.inventory.name} if self.inventory else {})}
         for part, name in named.items():
             if name != self.name:
                 raise ValueError(f"structural system {self.name!r}: its {part} is named {name!r}")
+
+    @property
+    def collapse_name(self) -> str:
+        """Its collapse law's name (``"none"``: none)."""
+        return "none" if self.collapse is None else self.collapse.name
 
     @property
     def sources(self) -> tuple[str, ...]:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ..model.collapse import COLLAPSE_MODELS
+from ..record import STORY_LAWS
 from .parts import (
     EXAMPLE_FLOOR_M2,
     JOINTS_BOTH_SIDES,
@@ -17,7 +19,8 @@ from .parts import (
 NAME = "rc-frame"
 
 SYSTEM = StructuralSystem(
-    name=NAME, title="reinforced-concrete moment frame", collapse="rc-frame", law="degrading",
+    name=NAME, title="reinforced-concrete moment frame", collapse=COLLAPSE_MODELS["rc-frame"],
+    law=STORY_LAWS["degrading"],
     prior=StructuralPrior(
         name=NAME,
         cy=Median(median=0.2, beta=0.6), alpha=Median(median=0.05, beta=0.7), p=Median(median=1.3, beta=0.7),

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ..model.collapse import COLLAPSE_MODELS
+from ..record import STORY_LAWS
 from .parts import (
     JOINTS_BOTH_SIDES,
     JOINTS_ONE_SIDE,
@@ -16,7 +18,7 @@ from .parts import (
 NAME = "steel-moment-frame"
 
 SYSTEM = StructuralSystem(
-    name=NAME, title="steel moment-resisting frame", collapse="steel-mrf", law="degrading",
+    name=NAME, title="steel moment-resisting frame", collapse=COLLAPSE_MODELS["steel-mrf"], law=STORY_LAWS["degrading"],
     prior=StructuralPrior(
         name=NAME,
         cy=Median(median=0.3, beta=0.6), alpha=Median(median=0.1, beta=0.7), p=Median(median=2.0, beta=0.7),

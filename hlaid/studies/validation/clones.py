@@ -21,6 +21,7 @@ from ...identify.auto import resolve_settings
 from ...measurement import Measurement
 from ...model import Building, Damping
 from ...motions import GroundMotion
+from ...record import Settings
 from ...simulate import simulate_response
 from .schema import StructureSpec
 
@@ -53,17 +54,13 @@ class IdentifiedClone:
     def identification(self) -> dict:
         """Per story: identifiable or not, and the SVM test accuracies of the last pass
         (nonlinear clones only)."""
-        d = self.clone.diagnostics
-        if self.kind != "nonlinear" or "stories" not in d:
+        paper = self.clone.paper
+        if self.kind != "nonlinear" or paper is None:
             return {}
-        last = {}
-        for pas in d.get("passes", []):
-            for i, st in enumerate(pas.get("stories", [])):
-                if st:
-                    last[i] = {k: v.get("test_accuracy") for k, v in st.items()}
-        return {"identifiable": [s["identifiable"] for s in d["stories"]],
-                "svm_test_accuracy": [last.get(i) for i in range(len(d["stories"]))],
-                "refine": d.get("refine")}
+        return {"identifiable": [s.identifiable for s in paper.stories],
+                "svm_test_accuracy": [None if s.svm_test_accuracy is None else dict(s.svm_test_accuracy)
+                                      for s in paper.stories],
+                "refine": None if paper.refine is None else dict(paper.refine)}
 
     def summary(self) -> dict:
         b = self.clone.building
@@ -101,8 +98,9 @@ def linear_clone(meas: Measurement, cfg: IdentifyConfig, *, fit: str = "scale+da
         b = rr.building
         diag["refine"] = {"cost_initial": rr.cost_initial, "cost_final": rr.cost_final, "nfev": rr.nfev,
                           "message": rr.message}
-    prov = {"source": meas.source, "config": config_to_dict(cfg), "method": f"linear clone (HLA k0; fitted: {fit})"}
-    return Clone(building=b, mass_normalised=res.mass_normalised, diagnostics=diag, provenance=prov)
+    prov = {"source": meas.source, "method": f"linear clone (HLA k0; fitted: {fit})"}
+    return Clone(building=b, mass_normalised=res.mass_normalised, diagnostics=diag, provenance=prov,
+                 settings=Settings(config=config_to_dict(cfg)))
 
 
 def _fit_scale_damping(b: Building, meas: Measurement, band_hz, max_iterations: int) -> tuple[Building, dict]:
