@@ -11,7 +11,13 @@ cell is ``|``), and from the running text where a word says what a name is:
   (``method:``: a refiner, an identifier, a torchdiffeq solver) is in its registry;
 - every ``hlaid COMMAND ... --flag`` names a command of the command line and a flag that command
   takes (its argparse parser, :func:`hlaid.cli.app.build_parser`), and a literal value of a flag
-  with choices is one of them.
+  with choices is one of them;
+- the clone's record as it is (README.md, docs/*.md and CONTRIBUTING.md): every ``clone.X`` and
+  ``Clone.X`` is a field or attribute of :class:`hlaid.clone.Clone` (and ``clone.X.Y``, ``clone.X[i].Y``
+  one of the record type of ``X``, which is read by attribute, not by ``["key"]``); no
+  ``diagnostics[...]`` or ``diagnostics.KEY`` (written for the reader, never read back: a page
+  names the typed field instead); no ``provenance["config"]`` or ``["choices"]`` (the clone's
+  ``settings``).
 
 And docs/ (with README.md) holds no commit hash of the project's history (a hash after ``@`` names
 the commit of a dataset's source repository, docs/data.md), no path of the machine a figure was
@@ -247,6 +253,73 @@ def bad_command_lines(spans: list[tuple[str, str]]) -> list[str]:
     return wrong
 
 
+# ------------------------------------------------------------------------------ the clone's record
+RECORD_PAGES = [*PAGES, REPO / "CONTRIBUTING.md"]
+CLONE_ATTR = re.compile(r"(?<![\w/-])((?:\w+\.)*)([Cc]lone)\.([A-Za-z_]\w*)(\[[^\]\n]*\])?"
+                        r"(?:\.([A-Za-z_]\w*)|\[[\"']([\w.]+)[\"']\])?")
+FILE_SUFFIXES = {"json", "py", "yaml", "yml", "npz", "csv", "html", "md", "png"}
+DIAGNOSTICS = re.compile(r"\bdiagnostics(?:\[[^\]\n]*\]|\.[A-Za-z_]\w*)")
+PROVENANCE_MOVED = re.compile(r"\bprovenance(?:\[[\"'](config|choices)[\"']\]|\.(config|choices)\b)")
+EVENT_KEY = re.compile(r"(?<![\w.])events\[[^\]\n]*\]\[[\"'](\w+)[\"']\]")  # a clone file's events[i]["replay"]
+
+
+@cache
+def clone_fields() -> dict[str, type | None]:
+    """Each field of :class:`hlaid.clone.Clone` and the record type its values are (a frozen
+    dataclass, the element's of a tuple; None: not a record)."""
+    import types
+    import typing
+
+    from hlaid.clone import Clone
+    from hlaid.model.uncertainty import ParameterUncertainty
+
+    hints = typing.get_type_hints(Clone, localns={"ParameterUncertainty": ParameterUncertainty})
+    out: dict[str, type | None] = {}
+    for f in dataclasses.fields(Clone):
+        tp = hints[f.name]
+        args = [a for a in typing.get_args(tp) if a is not type(None)] if isinstance(tp, types.UnionType) else [tp]
+        tp = args[0] if len(args) == 1 else None
+        if typing.get_origin(tp) is tuple:
+            tp = typing.get_args(tp)[0]
+        out[f.name] = tp if isinstance(tp, type) and dataclasses.is_dataclass(tp) else None
+    return out
+
+
+def _has(cls: type, name: str) -> bool:
+    return hasattr(cls, name) or (dataclasses.is_dataclass(cls) and name in {f.name for f in dataclasses.fields(cls)})
+
+
+def unknown_record_names(spans: list[tuple[str, str]]) -> list[str]:
+    """What a page's code spans name of the clone's record that it does not have: ``clone.X``
+    that :class:`~hlaid.clone.Clone` lacks, ``clone.X.Y`` that ``X``'s record type lacks, a record
+    read by ``["key"]``, a key of the write-only ``diagnostics``, ``provenance["config"]``."""
+    from hlaid.clone import Clone
+
+    fields, wrong = clone_fields(), []
+    for _, code in spans:
+        for m in CLONE_ATTR.finditer(code):
+            prefix, _, attr, _, sub, key = m.groups()
+            if prefix.endswith("hlaid.") or attr in FILE_SUFFIXES:
+                continue  # the module hlaid.clone, a file clone.json
+            if not (attr in fields or hasattr(Clone, attr)):
+                wrong.append(f"{m.group(0)} (Clone has no {attr!r})")
+                continue
+            record = fields.get(attr)
+            if record is None:
+                continue
+            if sub and not _has(record, sub):
+                wrong.append(f"{m.group(0)} ({record.__name__} has no {sub!r})")
+            if key:
+                wrong.append(f"{m.group(0)} ({record.__name__} is read by attribute: .{key})")
+        wrong += [f"{m.group(0)} (diagnostics are written for the reader, never read back: name the clone's "
+                  "typed field)" for m in DIAGNOSTICS.finditer(code)]
+        wrong += [f"{m.group(0)} (the clone's settings: clone.settings.{m.group(1) or m.group(2)})"
+                  for m in PROVENANCE_MOVED.finditer(code)]
+        wrong += [f"{m.group(0)} (an EventRecord is read by attribute: clone.events[i].{m.group(1)})"
+                  for m in EVENT_KEY.finditer(code)]
+    return wrong
+
+
 # ------------------------------------------------------------------------------ the tests
 @pytest.mark.parametrize("page", PAGES, ids=_rel)
 def test_every_name_a_page_gives_is_there(page):
@@ -257,6 +330,12 @@ def test_every_name_a_page_gives_is_there(page):
     wrong += unknown_prose_names(text)
     wrong += bad_command_lines(spans)
     assert wrong == [], f"{_rel(page)} names what hlaid does not have: {wrong}"
+
+
+@pytest.mark.parametrize("page", RECORD_PAGES, ids=_rel)
+def test_the_pages_name_the_clone_record_as_it_is(page):
+    wrong = unknown_record_names(code_spans(page.read_text(encoding="utf-8")))
+    assert wrong == [], f"{_rel(page)} names what the clone does not have: {wrong}"
 
 
 def history_in(text: str) -> list[str]:
@@ -306,3 +385,21 @@ def test_the_checks_see_what_they_look_for():
     assert history_in("figures at 5f769b0, load average 2.3; the code before: 3 s; /work/x") != []
     assert len(history_in("at 5f769b0; load average 2.3; the code before; /tmp/run; session 12")) == 5
     assert history_in("github.com/x/y @ c73b9f5; 1048576 bytes; dt 0.00390625 s; -o run/x") == []
+
+
+def test_the_record_check_sees_what_it_looks_for():
+    """The clone-record check finds each kind of stale name (so the empty results above are real)
+    and passes the ones the clone has."""
+    spans = code_spans("`clone.diagnostics[\"laws\"]`, `res.clone.start_rule.choice`, `Clone.fixed()`,\n"
+                       "`clone.events[j][\"prequential\"]`, `clone.laws.chosen`, `clone.laws.kept_laws`,\n"
+                       "`provenance[\"choices\"]`, `provenance[\"timings\"]`, `hlaid.clone.load_clone`,\n"
+                       "`clone.json`, `hlaid/clone.py`, `clone.events[0].replay.band_hz`,\n"
+                       "`diagnostics.refine.tangent`, `events[j][\"prequential\"][\"prefix\"]`, `provenance.config`\n"
+                       "```python\nclone = hlaid.load_clone(\"c.json\")\nclone.save(\"c.json\")\n"
+                       "print(clone.building.alpha, clone.uncertainty.interval(0.9), clone.parameterz)\n```\n")
+    wrong = unknown_record_names(spans)
+    for w in ("diagnostics[\"laws\"]", "Clone.fixed (Clone has no 'fixed')", "EventRecord is read by attribute",
+              "LawChoice has no 'kept_laws'", "clone.settings.choices", "diagnostics.refine",
+              "Clone has no 'parameterz'", "clone.events[i].prequential", "clone.settings.config"):
+        assert any(w in x for x in wrong), (w, wrong)
+    assert len(wrong) == 9, wrong

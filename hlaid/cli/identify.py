@@ -202,7 +202,7 @@ def print_summary(clone, before=None) -> None:
         if limit:
             mark += f"  (at a limit: {', '.join(limit)})"
         if clone.paper is not None and i < len(clone.paper.stories) and not clone.paper.stories[i].identifiable:
-            mark += "  (not identifiable: see diagnostics)"
+            mark += "  (not identifiable: see the clone file's identification.paper)"
         lines.append(table[i + 1] + mark)
     stories = () if clone.paper is None else clone.paper.stories
     lines.append(modal_line(b, [s.k0_hla for s in stories] if len(stories) == b.n_stories else None))

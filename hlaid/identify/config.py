@@ -191,7 +191,7 @@ class RefineConfig:
         ``restart_ratio`` times its noise, stops on ``max_iterations``, or the tangent is
         unstable or larger than ``tangent_max_mb``, least squares runs instead (with its
         restart), then the errors-in-variables fit once more from its optimum if that one is
-        consistent with the noise; the clone says which (``diagnostics.refine.tangent``). On
+        consistent with the noise; the clone says which (``clone.paper.refine["tangent"]``). On
         Table 1 at 10 % noise: 0.92 % mean, 4.26 % worst against 1.39 / 8.96 % by least squares.
         ``"least_squares"``: plain least squares of the normalised residuals (the fall-back and
         the comparison baseline, ``configs/identify_leastsquares.yaml``; the steel frame's

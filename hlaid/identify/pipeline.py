@@ -125,7 +125,9 @@ def identify_event(event: Event, cfg: IdentifyConfig, cache: MachineCache, tb: T
 
 def _clone(event: Event, est: Estimate, paper: Building, refined: Refinement, history: list, passes: list,
            check: ReplayCheck, timings: dict, cfg: IdentifyConfig) -> Clone:
-    """The clone file's content: the building, diagnostics, provenance and uncertainty."""
+    """The clone file's content: the building, its uncertainty, what the paper's method found
+    (``paper``), the replay of the record (``fit_replays``), the settings, provenance and the
+    write-only diagnostics."""
     meas = event.measurement
     prov = {**provenance(timings, source=meas.source, sha256=file_digest(meas.source) if meas.source else None),
             "noise_rms_used": event.noise}
@@ -141,7 +143,7 @@ def _clone(event: Event, est: Estimate, paper: Building, refined: Refinement, hi
 
 
 def paper_stories(stories: list[dict], passes: list) -> tuple[PaperStory, ...]:
-    """What the paper's method found of each story (its diagnostics' ``stories``), with each
+    """What the paper's method found of each story (the clone's ``paper.stories``), with each
     story's SVM test accuracies in the last pass that trained them."""
     last: dict[int, dict] = {}
     for pas in passes:

@@ -101,7 +101,7 @@ class Refinement:
     building : the refined building (the start itself without refinement)
     result : the final fit (its Jacobian and residuals give the clone's uncertainty); None
         without refinement
-    info : the summary written into the clone's ``diagnostics.refine``; None without refinement
+    info : the summary the clone keeps (``clone.paper.refine``); None without refinement
     """
 
     building: Building
