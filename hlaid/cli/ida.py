@@ -8,7 +8,7 @@ from pathlib import Path
 from .. import _progress
 from ..errors import InputError
 from ..limits import check_count
-from .app import add_building, add_plots, add_seed, subcommand
+from .app import add_building, add_ensemble, add_plots, add_seed, subcommand
 
 
 def _numbers(text: str, what: str) -> list[float]:
@@ -53,6 +53,11 @@ def register(sub) -> None:
     p.add_argument("--start", choices=["auto", "carried", "undamaged"], default=None,
                    help="undamaged (default): every run from rest; carried: from the state the clone's last event "
                         "left it in (the fragility after that event); auto: as the clone says")
+    p.add_argument("--event", nargs="+", metavar="FILE", default=[],
+                   help="recorded events of the building the clone was not identified from (measurement files, "
+                        "later than its own): each is listed with its own-motion replay and the fragility at its "
+                        "intensity, beside the clone's own events")
+    add_ensemble(p, "replaying each recorded event's own motion")
     p.add_argument("--bootstrap", type=int, help="bootstrap resamples of the fragility interval (default 1000)")
     add_seed(p, "the bootstrap")
     add_plots(p)
@@ -104,10 +109,7 @@ def run_ida(args) -> int:
     prepare_building(clone, pdelta=cfg.pdelta, heights=cfg.heights_mm, collapse=cfg.collapse,
                      gravity_load=cfg.gravity_load_n())
     res = ida_from_config(clone, cfg, records=motions, base_dir=base)  # the clone and records read once
-    from ..ida.basis import decision_basis, ida_events
-
-    basis = decision_basis(clone, events=ida_events(clone, res), heights=res.building.height,
-                           heights_assumed=cfg.heights_mm is not None, drift_limit=cfg.drift_limit)
+    basis = recorded_basis(clone, res, cfg, extra=args.event, n_ensemble=args.ensemble, seed=args.seed or 0)
     res.save(out, force=args.force, plots=not args.no_plots, n_boot=cfg.bootstrap, ci=cfg.ci, seed=cfg.seed,
              inputs=inputs, basis=basis.to_dict())
     s = res.summary(n_boot=0)
@@ -121,6 +123,32 @@ def run_ida(args) -> int:
     _progress.info(f"wrote {out}/ (points.csv, summary.json, ida.npz"
                    + ("" if args.no_plots else ", ida_curves.png, fragility.png, exceedance.png") + ")")
     return 0
+
+
+def recorded_basis(clone, res, cfg, *, extra=(), n_ensemble=None, seed: int = 0):
+    """The basis of an IDA's decision listing EVERY recorded event (the clone's own and the
+    measurements ``extra``) with both questions: the clone replaying its own motion
+    (:func:`hlaid.ida.ownevent.event_checks`) and the fragility at its intensity."""
+    from ..ida.basis import decision_basis, ida_events
+    from ..ida.capacity import capacity_record
+    from ..ida.ownevent import event_checks, recorded_events
+    from ..uncertainty.config import N_ENSEMBLE
+
+    heights = res.building.height
+    events = recorded_events(clone, extra)
+    n_ens = n_ensemble if n_ensemble is not None else (N_ENSEMBLE if clone.uncertainty is not None else 0)
+    own_cfg = cfg.replace(collapse=res.building.collapse.to_dict() if res.building.collapse is not None else "none")
+    checks = event_checks(clone, events, ida_config=own_cfg, heights=heights,
+                          heights_assumed=cfg.heights_mm is not None, n_ensemble=n_ens, seed=seed)
+    cap = capacity_record(clone, res.building, cfg.collapse)
+    at = ida_events(clone, res, [(n, None if m is None else m.ground_motion(name=n)) for n, m, _, _ in events])
+    if cap is not None and cap.get("informative") and not cap.get("consistent"):
+        from dataclasses import replace
+
+        at = tuple(replace(e, p_collapse=None, source="not assessed: the collapse law contradicts the records")
+                   for e in at)
+    return decision_basis(clone, events=at, heights=heights, heights_assumed=cfg.heights_mm is not None,
+                          drift_limit=cfg.drift_limit, own_motion=checks, capacity=cap)
 
 
 def print_basis(basis) -> None:
