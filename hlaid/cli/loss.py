@@ -130,9 +130,9 @@ def run_demands(args) -> int:
     if args.motion:  # the recorded event's own motion: "did the clone survive it?"
         from ..ida.ownevent import check_of_demands
 
-        own = (check_of_demands(Path(args.motion).stem, d if n_ens == 0 else None, d if n_ens else None, measured=measured,
-                                in_clone=any(e.get("sha256") and e.get("sha256") == _sha(args.motion)
-                                             for e in clone.events),
+        sha = _sha(args.motion)
+        own = (check_of_demands(Path(args.motion).stem, d if n_ens == 0 else None, d if n_ens else None,
+                                measured=measured, in_clone=any(e.get("sha256") == sha for e in clone.events),
                                 heights_assumed=cfg.heights_mm is not None),)
     basis = decision_basis(clone, heights=cfg.heights_mm, heights_assumed=cfg.heights_mm is not None,
                            demand_ratio=median_peak_ratio(d.pid[~d.collapsed]), drift_limit=cfg.drift_limit,
