@@ -168,7 +168,8 @@ def test_loss_of_a_run_says_when_its_figure_contradicts_the_survival(event):
     clone, meas, _ = event
     b = loss_basis(clone, None, (1.0, 0.4), None, [{"name": meas.name, "im": 1.2, "p_collapse": 0.574,
                                                     "source": "IDA of the identified clone"}], False, None)
-    assert any(f.startswith(f"P(collapse) 57% at {meas.name} (1.2 g), an event the building survived")
+    assert any(f.startswith(f"the fragility gives P(collapse) 57% for another record of {meas.name}'s intensity "
+                            "(1.2 g), an event the building survived")
                for f in b.flags())
     assert b.to_dict()["survival_contradicted"] == [meas.name]
 
@@ -213,7 +214,7 @@ def test_the_fleet_keeps_what_each_unit_rests_on(event):
     assert b["survival_contradicted"] == [meas.name] and b["extrapolated"] is False
     assert b["heights_assumed"] is True
     row = flatten(a)
-    assert f"P(collapse) 60% at {meas.name}" in row["basis_flags"] and "assumed" in row["basis_flags"]
+    assert f"P(collapse) 60% for another record of {meas.name}'s intensity" in row["basis_flags"] and "assumed" in row["basis_flags"]
     assert row["basis.survived_drift_ratio"] == pytest.approx(float(np.max(clone.survived_drift(measured_only=True) / 3000.0)))
 
 

@@ -48,9 +48,10 @@ def _check_inputs(cfg, base) -> None:
     from .._inputs import check_input
 
     m = cfg.measurement
-    if m.file is not None and not str(m.file).startswith("builtin"):
-        p = Path(m.file)
-        check_input(p if p.is_absolute() else base / p)
+    for f in m.files:
+        if not str(f).startswith("builtin"):
+            p = Path(f)
+            check_input(p if p.is_absolute() else base / p)
     if cfg.ida is not None:
         specs = cfg.ida.record_specs(base)
         if specs:

@@ -52,15 +52,29 @@ PARAMS = ("alpha", "p", "delta_eta", "dy", "k0")
 
 
 def load_measurement(src: MeasurementSource, base_dir: Path | None) -> Measurement:
-    import dataclasses
+    """The measurement of the event the decisions are at (the last of ``src.files``)."""
+    return load_measurements(src, base_dir)[-1]
+
+
+def load_measurements(src: MeasurementSource, base_dir: Path | None) -> list[Measurement]:
+    """The measurements of a run, oldest first (one, or the events of ``src.files``)."""
     if src.simulate is not None:
-        meas = measurement_from_config(src.simulate, base_dir=base_dir)
-    else:
-        path = Path(cast(str, src.file))  # file is given when simulate is not (MeasurementSource)
+        return [_changed(src, measurement_from_config(src.simulate, base_dir=base_dir))]
+    out = []
+    for f in src.files:
+        path = Path(f)
         if base_dir is not None and not path.is_absolute():
             path = Path(base_dir) / path
         meas = read(path, "measurement", format=src.format, **src.options)
         check_moving(meas)
+        out.append(_changed(src, meas))
+    return out
+
+
+def _changed(src: MeasurementSource, meas: Measurement) -> Measurement:
+    """``meas`` with the masses and story heights ``src`` gives."""
+    import dataclasses
+
     changes: dict[str, Any] = {}
     if src.mass_t is not None:
         changes["mass"] = np.asarray(src.mass_t, float)
@@ -149,15 +163,18 @@ def _pipeline(cfg: RunConfig, out, base_dir, force: bool, cache_dir, inputs, plo
         (tmp / "figures").mkdir()
         t = time.perf_counter()
         step("measurement")
-        meas = load_measurement(cfg.measurement, Path(base_dir) if base_dir else None)
-        check_band(meas, cfg.identify.hla.preprocess.band_hz, "identify.hla.preprocess.band_hz")
-        check_band(meas, cfg.identify.refine.band_hz, "identify.refine.band_hz", default=RefineConfig().band_hz)
+        series = load_measurements(cfg.measurement, Path(base_dir) if base_dir else None)
+        meas = series[-1]  # the event the decisions are at
+        for m in series:
+            check_band(m, cfg.identify.hla.preprocess.band_hz, "identify.hla.preprocess.band_hz")
+            check_band(m, cfg.identify.refine.band_hz, "identify.refine.band_hz", default=RefineConfig().band_hz)
         check_output_folder(out, force=force, inputs=inputs)  # and the files the measurement named: before the work
         meas.save(tmp / "measurement.npz")
         timings["measurement"] = time.perf_counter() - t
         t = time.perf_counter()
         step("hysteresis loop analysis and identification")
-        res = identify_clone(meas, cfg.identify, tensorboard=str(tmp / "tensorboard"), cache_dir=cache_dir)
+        res = identify_clone(series if len(series) > 1 else meas, cfg.identify, tensorboard=str(tmp / "tensorboard"),
+                             cache_dir=cache_dir)
         timings["identify"] = time.perf_counter() - t
         table, paper = _identification_outputs(meas, res, tmp, step, plots)
         risk = _risk(res.clone, meas, cfg, tmp, base_dir, timings, step, plots)
