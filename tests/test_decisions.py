@@ -144,6 +144,8 @@ def test_the_capacity_posterior_is_the_truncated_lognormal():
         assert post.p_consistent == pytest.approx(stats.norm.sf(a), rel=1e-9)
         new = post.conditioned()
         assert new.theta_p > t and new.theta_u - new.theta_p == pytest.approx(law.theta_u - law.theta_p)
+        again = capacity_posterior(new, dy=dy, height=h, survived=survived).conditioned()
+        assert again.theta_p == new.theta_p  # conditioned once: the law in force is a point value
     far = capacity_posterior(law, dy=dy, height=h, survived=[10.0, 500.0, 5.0])  # 48 % plastic drift
     assert not far.consistent and "not assessed" in far.note()
     elastic = capacity_posterior(law, dy=dy, height=h, survived=[9.0, 15.0, 5.0])

@@ -131,7 +131,8 @@ def run_demands(args) -> int:
         from ..ida.ownevent import check_of_demands
 
         sha = _sha(args.motion)
-        own = (check_of_demands(Path(args.motion).stem, d if n_ens == 0 else None, d if n_ens else None,
+        own = (check_of_demands(Path(args.motion).name.split(".")[0], d if n_ens == 0 else None,
+                                d if n_ens else None,
                                 measured=measured, in_clone=any(e.get("sha256") == sha for e in clone.events),
                                 heights_assumed=cfg.heights_mm is not None),)
     basis = decision_basis(clone, heights=cfg.heights_mm, heights_assumed=cfg.heights_mm is not None,

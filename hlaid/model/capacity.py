@@ -111,16 +111,20 @@ class CapacityPosterior:
         return self.quantile(0.5 - level / 2), self.quantile(0.5 + level / 2)
 
     def conditioned(self) -> CollapseModel:
-        """The law in force: ``theta_p`` at the posterior median, ``theta_u`` moved by as much (the
-        literature law itself where the evidence is not informative)."""
+        """The law in force: ``theta_p`` at the posterior median, ``theta_u`` moved by as much, and
+        ``beta_p`` 0 (a point value: conditioning it again on the same drifts leaves it as it is);
+        the literature law itself where the evidence is not informative."""
         if not self.informative:
             return self.law
         tp = self.quantile(0.5)
-        return replace(self.law, theta_p=tp, theta_u=self.law.theta_u + (tp - self.law.theta_p))
+        return replace(self.law, theta_p=tp, theta_u=self.law.theta_u + (tp - self.law.theta_p), beta_p=0.0)
 
     def note(self) -> str:
         """In words: what the evidence did to the law."""
         law = self.law
+        if law.beta_p == 0.0 and self.informative and self.consistent:
+            return (f"collapse law {law.name!r}: capping drift dy/h + {law.theta_p:.4g}, beyond every drift the "
+                    "building survived (a point value, already conditioned on them)")
         if not self.informative:
             return (f"collapse law {law.name!r}: no story went beyond its yield drift in the recorded events, so "
                     f"the capping drift dy/h + {law.theta_p:g} is the literature's")

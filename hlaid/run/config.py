@@ -61,7 +61,7 @@ class MeasurementSource:
         if isinstance(self.file, list) and not self.file:
             raise InputError("measurement.file: give a file, or a list of one building's event files, oldest first")
         if self.decide_at is not None:
-            files = self.files
+            files = [self.file] if isinstance(self.file, str) else list(self.file or ())
             if not any(self.decide_at in (f, _stem(f)) for f in files):
                 raise InputError(f"measurement.decide_at names no file of measurement.file ({len(files)} given): "
                                  "give one of them as written, or its name without folder and suffixes")
