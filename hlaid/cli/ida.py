@@ -127,28 +127,10 @@ def run_ida(args) -> int:
 
 def recorded_basis(clone, res, cfg, *, extra=(), n_ensemble=None, seed: int = 0):
     """The basis of an IDA's decision listing EVERY recorded event (the clone's own and the
-    measurements ``extra``) with both questions: the clone replaying its own motion
-    (:func:`hlaid.ida.ownevent.event_checks`) and the fragility at its intensity."""
-    from ..ida.basis import decision_basis, ida_events
-    from ..ida.capacity import capacity_record
-    from ..ida.ownevent import event_checks, recorded_events
-    from ..uncertainty.config import N_ENSEMBLE
+    measurements ``extra``) with both questions (:func:`hlaid.run.decide.decide`)."""
+    from ..run.decide import decide
 
-    heights = res.building.height
-    events = recorded_events(clone, extra)
-    n_ens = n_ensemble if n_ensemble is not None else (N_ENSEMBLE if clone.uncertainty is not None else 0)
-    own_cfg = cfg.replace(collapse=res.building.collapse.to_dict() if res.building.collapse is not None else "none")
-    checks = event_checks(clone, events, ida_config=own_cfg, heights=heights,
-                          heights_assumed=cfg.heights_mm is not None, n_ensemble=n_ens, seed=seed)
-    cap = capacity_record(clone, res.building, cfg.collapse)
-    at = ida_events(clone, res, [(n, None if m is None else m.ground_motion(name=n)) for n, m, _, _ in events])
-    if cap is not None and cap.get("informative") and not cap.get("consistent"):
-        from dataclasses import replace
-
-        at = tuple(replace(e, p_collapse=None, source="not assessed: the collapse law contradicts the records")
-                   for e in at)
-    return decision_basis(clone, events=at, heights=heights, heights_assumed=cfg.heights_mm is not None,
-                          drift_limit=cfg.drift_limit, own_motion=checks, capacity=cap)
+    return decide(clone, res, cfg, extra=extra, n_ensemble=n_ensemble, seed=seed).basis
 
 
 def print_basis(basis) -> None:

@@ -101,7 +101,7 @@ def p_collapse_text(a) -> str:
     band = ("" if a.p_collapse_band is None else
             f", {a.ci:.0%} band {a.p_collapse_band[0]:.1%}-{a.p_collapse_band[1]:.1%} (its 5th to 95th percentile "
             "over members and record resamples)")
-    return f"P(collapse) {a.p_collapse:.1%} (mean of the ensemble{band})"
+    return f"P(collapse | another record of this intensity) {a.p_collapse:.1%} (mean of the ensemble{band})"
 
 
 def run_report(args) -> int:

@@ -35,7 +35,7 @@ from ..model import Building
 from ..plots import plot_time_histories, save_figure
 from ..synthetic import measurement_from_config
 from .config import MeasurementSource, RunConfig, input_paths, load_run_config
-from .decision import event_risks, run_basis, run_flags
+from .decision import run_basis, run_flags
 from .summary import (
     Assessment,
     ConfigRecord,
@@ -178,9 +178,10 @@ def _pipeline(cfg: RunConfig, out, base_dir, force: bool, cache_dir, inputs, plo
         timings["identify"] = time.perf_counter() - t
         table, paper = _identification_outputs(meas, res, tmp, step, plots)
         risk = _risk(res.clone, meas, cfg, tmp, base_dir, timings, step, plots)
-        basis = run_basis(res.clone, assessment=risk.pop("assessment_dict"), heights_given=_heights_given(cfg),
-                          events=[e.to_dict() for e in risk["events"]],
-                          drift_limit=cfg.ida.drift_limit if cfg.ida is not None else None)
+        decision = risk.pop("decision")
+        assessment = risk.pop("assessment_dict")
+        basis = decision.basis if decision is not None else run_basis(
+            res.clone, assessment=assessment, heights_given=_heights_given(cfg), drift_limit=None)
         flags = run_flags(res.clone, stiffness_error=res.replay.stiffness_error.tolist(),
                           survival=risk.pop("survival_dict"), loss=risk.pop("loss_dict"), basis=basis)
         step.close()
@@ -248,7 +249,7 @@ def _risk(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir, timings
     asks for (into ``tmp``, their times into ``timings``); returns the summary's blocks of them
     (and, for the flags, ``*_dict``: the survival, the assessment and the losses as mappings)."""
     out: dict = dict.fromkeys(("ida", "ida_after", "assessment", "loss", "survival", "survival_dict",
-                               "assessment_dict", "loss_dict"))
+                               "assessment_dict", "loss_dict", "decision"))
     out["events"] = ()
     if cfg.ida is None:
         return out
@@ -283,14 +284,33 @@ def _risk(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir, timings
                                     "nominal_survives": surv.nominal_survives,
                                     "nominal_collapsed_in": surv.nominal_collapsed_in}
     out["survival"] = Survival.from_dict(out["survival_dict"], file="summary.json", path="survival")
-    out["events"] = tuple(EventRisk.from_dict(e, file="summary.json", path="events")
-                          for e in event_risks(out["assessment_dict"], ir, surv.motions.available))
+    out["decision"] = _decision(clone, ir, cfg, out["assessment_dict"])
+    out["events"] = tuple(EventRisk.from_dict(e.to_dict(), file="summary.json", path="events")
+                          for e in out["decision"].basis.events)
     if cfg.loss is not None:
         t = time.perf_counter()
         step("FEMA P-58 losses through pelicun: the measured record and the IDA stripes")
         out["loss"], out["loss_dict"] = _loss(clone, meas, cfg, tmp, out["ida"], out["assessment"], base_dir, plots)
         timings["loss"] = time.perf_counter() - t
     return out
+
+
+def _decision(clone, ir, cfg: RunConfig, assessment: dict | None):
+    """The run's decision (:func:`hlaid.run.decide.decide`): both questions at every event of the
+    clone, the members of the ensemble assessment replaying each event's own motion, the
+    assessment's band beside the fragility's figure and its members' median peak drift ratio as
+    the demand."""
+    from .decide import decide
+
+    assert cfg.ida is not None
+    demand = None
+    if assessment and assessment.get("own_peak_drift") is not None:
+        demand = float(np.median(np.asarray(assessment["own_peak_drift"], dtype=float)))
+    band = {e["name"]: e.get("p_collapse_band") for e in (assessment or {}).get("events") or ()
+            if isinstance(e, dict) and "name" in e}
+    n = cfg.assess.n_ensemble if cfg.assess is not None and clone.uncertainty is not None else 0
+    return decide(clone, ir, cfg.ida, n_ensemble=n, seed=cfg.assess.seed if cfg.assess is not None else 0,
+                  heights_given=_heights_given(cfg), demand_ratio=demand, band_of=band)
 
 
 def _ida_summary(folder: Path) -> IDASummary:
