@@ -109,9 +109,12 @@ def run_ida(args) -> int:
     prepare_building(clone, pdelta=cfg.pdelta, heights=cfg.heights_mm, collapse=cfg.collapse,
                      gravity_load=cfg.gravity_load_n())
     res = ida_from_config(clone, cfg, records=motions, base_dir=base)  # the clone and records read once
-    basis = recorded_basis(clone, res, cfg, extra=args.event, n_ensemble=args.ensemble, seed=args.seed or 0)
+    from ..run.decide import decide
+
+    decision = decide(clone, res, cfg, extra=args.event, n_ensemble=args.ensemble, seed=args.seed or 0)
+    basis = decision.basis
     res.save(out, force=args.force, plots=not args.no_plots, n_boot=cfg.bootstrap, ci=cfg.ci, seed=cfg.seed,
-             inputs=inputs, basis=basis.to_dict())
+             inputs=inputs, basis={**basis.to_dict(), "identification_flags": list(decision.identification_flags)})
     s = res.summary(n_boot=0)
     f = s["collapse_fragility"]["capacities"]
     if "median_g" in f:
@@ -120,17 +123,11 @@ def run_ida(args) -> int:
     for note in res.notes:
         _progress.debug(f"note: {note}")
     print_basis(basis)
+    for flag in decision.identification_flags:
+        _progress.warn(f"flag: {flag}")
     _progress.info(f"wrote {out}/ (points.csv, summary.json, ida.npz"
                    + ("" if args.no_plots else ", ida_curves.png, fragility.png, exceedance.png") + ")")
     return 0
-
-
-def recorded_basis(clone, res, cfg, *, extra=(), n_ensemble=None, seed: int = 0):
-    """The basis of an IDA's decision listing EVERY recorded event (the clone's own and the
-    measurements ``extra``) with both questions (:func:`hlaid.run.decide.decide`)."""
-    from ..run.decide import decide
-
-    return decide(clone, res, cfg, extra=extra, n_ensemble=n_ensemble, seed=seed).basis
 
 
 def print_basis(basis) -> None:

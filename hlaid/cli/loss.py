@@ -135,10 +135,15 @@ def run_demands(args) -> int:
                                 d if n_ens else None,
                                 measured=measured, in_clone=any(e.get("sha256") == sha for e in clone.events),
                                 heights_assumed=cfg.heights_mm is not None),)
+    hr = ()
+    if own and cfg.heights_mm is not None and meas is not None:  # assumed heights: the decision at 0.8 and 1.2 x
+        from ..ida.ownevent import height_range
+
+        hr = height_range(clone, own[0].name, meas, ida_config=cfg, heights=cfg.heights_mm, in_clone=own[0].in_clone)
     basis = decision_basis(clone, heights=cfg.heights_mm, heights_assumed=cfg.heights_mm is not None,
                            demand_ratio=median_peak_ratio(d.pid[~d.collapsed]), drift_limit=cfg.drift_limit,
                            events_note="demands run no IDA (the fragility at an intensity); hlaid ida CLONE gives it",
-                           own_motion=own)
+                           own_motion=own, height_range=hr)
     d.write_csv(args.out, force=args.force)
     from .._fileio import write_json
 

@@ -174,6 +174,28 @@ def unit_loss(clone, own: GroundMotion, a: dict, job: UnitJob) -> dict:
             "cost_unit": r["cost_unit"]}
 
 
+def unit_decision(clone, records: Sequence[GroundMotion], a: dict, job: UnitJob, own: GroundMotion
+                  ) -> tuple[dict, dict]:
+    """The unit's decision (:func:`hlaid.run.decide.decide`, the step ``hlaid run`` takes): the
+    identified clone's IDA fragility at the event's intensity (the ensemble's band beside it) and
+    the clone replaying the event's own motion, its residual drift beside the measured, with the
+    identification's and the plausibility flags. Returns its scalar figures (the ``decision.*``
+    columns of the fleet table) and the whole decision (the unit's result file)."""
+    from ..ida import ida_from_config
+    from ..run.decide import decide
+
+    ir = ida_from_config(clone, job.ida, list(records), event_motions=[own])
+    ens = {e["name"]: e for e in a.get("events") or () if isinstance(e, dict) and "name" in e}
+    d = decide(clone, ir, job.ida, n_ensemble=job.n_ensemble if clone.uncertainty is not None else 0, seed=job.seed,
+               ensemble_events=ens)
+    at, mine = d.basis.events[-1:] or (None,), d.basis.own_motion[-1:] or (None,)
+    err = mine[0].residual_error if mine[0] is not None else None
+    return {"p_collapse_fragility_at_im": at[0].p_collapse if at[0] is not None else None,
+            "p_collapse_own_motion": mine[0].p_collapse if mine[0] is not None else None,
+            "residual_drift_error_max": None if err is None else max(abs(v) for v in err),
+            "flags": " | ".join(d.flags), "n_flags": len(d.flags)}, d.to_dict()
+
+
 def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | None = None) -> dict:
     """Assess one building under one event (on a worker); returns the unit's result mapping.
 
@@ -218,6 +240,7 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
         own = meas.ground_motion(name=f"{job.unit}-own")
         a = assess_clone(res.clone, records, n_ensemble=job.n_ensemble, ida_config=job.ida, own_motion=own,
                          seed=job.seed, assess=assess, engine=job.engine or None)
+        a["decision"], decision = unit_decision(res.clone, records, a, job, own)
         clock("assess", t, c)
         if job.loss is not None:
             stage = "loss"
@@ -236,10 +259,11 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
     row = {"n_stories": b.n_stories, "mass_normalised": bool(res.clone.mass_normalised),
            "T1_s": float(b.periods()[0]),
            "replay_r_min": float(np.nanmin(r)) if r.size else None, **flatten(a)}
-    return {**out, "status": "ok", "row": row, "assessment": a, "clone": res.clone.to_dict(), "timings": timings,
+    return {**out, "status": "ok", "row": row, "assessment": a, "decision": decision, "clone": res.clone.to_dict(),
+            "timings": timings,
             "measurement": {"source": meas.source, "dt_s": meas.dt, "n_samples": meas.n_samples,
                             "n_floors": meas.n_floors}}
 
 
-__all__ = ["UnitJob", "make_jobs", "run_unit", "unit_loss", "records_digest", "unit_seed", "load_unit_measurement",
-           "RESULT_FORMAT", "RESULT_VERSION"]
+__all__ = ["UnitJob", "make_jobs", "run_unit", "unit_decision", "unit_loss", "records_digest", "unit_seed",
+           "load_unit_measurement", "RESULT_FORMAT", "RESULT_VERSION"]

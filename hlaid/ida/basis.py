@@ -124,6 +124,8 @@ class DecisionBasis:
         beside the measured); empty: not asked
     capacity : the collapse law's capping drift conditioned on what the building survived
         (:meth:`hlaid.model.capacity.CapacityPosterior.to_dict`; None: no law or no heights)
+    height_range : where the heights are assumed, ``(factor, OwnMotionCheck)`` of the replay with
+        the heights scaled by each factor (:func:`hlaid.ida.ownevent.height_range`)
     """
 
     events: tuple[AtEvent, ...] = ()
@@ -136,6 +138,7 @@ class DecisionBasis:
     events_note: str = "the clone's events' ground motions are not at hand"
     own_motion: tuple = ()
     capacity: dict | None = None
+    height_range: tuple = ()
 
     # ---------------------------------------------------------------- the figures
     @property
@@ -217,6 +220,8 @@ class DecisionBasis:
                        f"not assessed ({self.events_note})")
         for c in self.own_motion:
             out.append("  " + c.text())
+        for f, c in self.height_range:
+            out.append(f"  with the assumed heights x {f:g}: " + c.text())
         cap = self.capacity
         if cap is not None and cap.get("informative"):
             lo, hi = cap["theta_p_90"]
@@ -261,7 +266,8 @@ class DecisionBasis:
                    replay_miss=None if not miss else (float(miss["error"]), int(miss["story"]) - 1, str(miss["event"]),
                                                       _band_pair(miss.get("band_hz"))),
                    events_note=d.get("events_note") or cls.events_note,
-                   own_motion=tuple(_own(c) for c in d.get("own_motion") or ()), capacity=d.get("capacity"))
+                   own_motion=tuple(_own(c) for c in d.get("own_motion") or ()), capacity=d.get("capacity"),
+                   height_range=tuple((float(c["factor"]), _own(c)) for c in d.get("height_range") or ()))
 
     def to_dict(self) -> dict:
         miss = self.replay_miss
@@ -278,6 +284,7 @@ class DecisionBasis:
                 "replay_miss_flagged": self.replay_flagged,
                 "events_note": None if self.events else self.events_note,
                 "own_motion": [c.to_dict() for c in self.own_motion], "capacity": self.capacity,
+                "height_range": [{"factor": f, **c.to_dict()} for f, c in self.height_range],
                 "flags": self.flags()}
 
 
@@ -288,8 +295,8 @@ def _band(band) -> str:
 
 def decision_basis(clone, *, events: Iterable[AtEvent | Mapping] = (), heights=None, heights_assumed: bool = False,
                    demand_ratio: float | None = None, drift_limit: float | None = None,
-                   events_note: str | None = None, own_motion: Iterable = (), capacity: dict | None = None
-                   ) -> DecisionBasis:
+                   events_note: str | None = None, own_motion: Iterable = (), capacity: dict | None = None,
+                   height_range: Iterable = ()) -> DecisionBasis:
     """The :class:`DecisionBasis` of a decision taken from ``clone`` (None: no clone at hand, e.g. a
     demand CSV): ``events`` (:class:`AtEvent` or mappings of its fields), the story ``heights``
     used [mm] (None: the clone's), whether they were ``heights_assumed``, the decision's
@@ -304,7 +311,7 @@ def decision_basis(clone, *, events: Iterable[AtEvent | Mapping] = (), heights=N
                          survived_mm=None if seen is None else tuple(float(v) for v in seen),
                          demand_ratio=None if demand_ratio is None else float(demand_ratio),
                          drift_limit=drift_limit, replay_miss=None if clone is None else clone.own_replay_miss(),
-                         own_motion=tuple(own_motion), capacity=capacity,
+                         own_motion=tuple(own_motion), capacity=capacity, height_range=tuple(height_range),
                          **({"events_note": events_note} if events_note else {}))
 
 

@@ -186,9 +186,7 @@ def is_finite(v) -> bool:
     return v is not None and math.isfinite(v)
 
 
-__all__ = ["AT_INTENSITY", "OWN_MOTION", "OwnMotionCheck", "RESIDUAL_TOLERANCE", "fragility_at_im",
-           "RESIDUAL_WINDOW_S", "check_of_demands", "event_checks", "measured_drift_ratios",
-           "own_motion_check", "recorded_events"]
+
 
 
 def recorded_events(clone, extra=(), *, heights=None, read_options=None):
@@ -228,3 +226,27 @@ def event_checks(clone, events, *, ida_config, heights, heights_assumed: bool, n
                                     ida_config=ida_config, n_ensemble=n_ensemble, seed=seed, in_clone=in_clone,
                                     heights_assumed=heights_assumed))
     return tuple(out)
+
+
+HEIGHT_FACTORS = (0.8, 1.2)
+"""Where story heights are assumed, the decisions resting on them are shown at these multiples too."""
+
+
+def height_range(clone, name: str, meas, *, ida_config, heights, factors=HEIGHT_FACTORS, in_clone: bool = False
+                 ) -> tuple[tuple[float, OwnMotionCheck], ...]:
+    """The identified clone replaying ``meas``'s own motion with its assumed story ``heights``
+    scaled by each of ``factors`` (drift ratios, P-Delta and the collapse law rest on them), the
+    measured drift ratios over the same heights beside: ``((factor, OwnMotionCheck), ...)``."""
+    h = np.asarray(heights, dtype=float)
+    out = []
+    for f in factors:
+        cfg = ida_config.replace(heights_mm=[float(v) for v in f * h])
+        out.append((float(f), own_motion_check(clone, name, meas.ground_motion(name=name),
+                                               measured=measured_drift_ratios(meas, f * h), ida_config=cfg,
+                                               in_clone=in_clone, heights_assumed=True)))
+    return tuple(out)
+
+
+__all__ = ["AT_INTENSITY", "HEIGHT_FACTORS", "OWN_MOTION", "OwnMotionCheck", "RESIDUAL_TOLERANCE", "RESIDUAL_WINDOW_S",
+           "check_of_demands", "event_checks", "fragility_at_im", "height_range", "measured_drift_ratios",
+           "own_motion_check", "recorded_events"]

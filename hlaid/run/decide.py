@@ -60,7 +60,7 @@ class Decision:
 
 def decide(clone, ida, cfg, *, extra: Sequence = (), n_ensemble: int | None = None, seed: int = 0,
            heights_given: Sequence[float] | None = None, demand_ratio: float | None = None,
-           stiffness_error: Sequence[float] | None = None, band_of=None) -> Decision:
+           stiffness_error: Sequence[float] | None = None, ensemble_events: dict | None = None) -> Decision:
     """The decision of ``clone`` from its IDA ``ida`` (:class:`~hlaid.ida.IDAResult`, run with the
     IDA settings ``cfg``) at every recorded event: the clone's own (read again from their files)
     and ``extra`` (measurement files or Measurements of later events).
@@ -68,8 +68,9 @@ def decide(clone, ida, cfg, *, extra: Sequence = (), n_ensemble: int | None = No
     ``n_ensemble``: members replaying each event's own motion (None: the default ensemble where the
     clone has an uncertainty, else 0); ``heights_given``: story heights assumed (None: ``cfg``'s);
     ``demand_ratio``: the decision's median peak drift ratio (extrapolation); ``stiffness_error``:
-    per story (None: the clone's replay diagnostics); ``band_of``: ``{event: (lo, hi)}`` of the
-    fragility figure over an ensemble, where an ensemble assessment gave one.
+    per story (None: the clone's replay diagnostics); ``ensemble_events``: ``{event: mapping}`` of
+    an ensemble assessment's figures at the events (:func:`hlaid.ida.assess`'s ``events``): their
+    band beside the identified clone's figure, and their figure where the clone's IDA fitted none.
     """
     from ..ida.basis import ida_events
     from ..ida.capacity import capacity_record
@@ -90,12 +91,23 @@ def decide(clone, ida, cfg, *, extra: Sequence = (), n_ensemble: int | None = No
     if cap is not None and cap.get("informative") and not cap.get("consistent"):
         at = tuple(replace(e, p_collapse=None, source="not assessed: the collapse law contradicts the records")
                    for e in at)
-    if band_of:
-        at = tuple(replace(e, p_collapse_band=tuple(band_of[e.name])) if band_of.get(e.name) is not None else e
-                   for e in at)
+    if ensemble_events:
+        at = tuple(_with_ensemble(e, ensemble_events.get(e.name)) for e in at)
     basis = decision_basis(clone, events=at, heights=heights, heights_assumed=assumed is not None,
                            demand_ratio=demand_ratio, drift_limit=cfg.drift_limit, own_motion=checks, capacity=cap)
     return Decision(basis=basis, identification_flags=tuple(identification_flags(clone, stiffness_error)))
+
+
+def _with_ensemble(e: AtEvent, ens: dict | None) -> AtEvent:
+    """The figure ``e`` with the ensemble's band beside it (the ensemble's figure where ``e`` has none)."""
+    if not ens:
+        return e
+    band = ens.get("p_collapse_band")
+    band = None if band is None else (float(band[0]), float(band[1]))
+    if e.p_collapse is None and ens.get("p_collapse") is not None:
+        return replace(e, p_collapse=float(ens["p_collapse"]), p_collapse_band=band,
+                       source=f"the ensemble's mean ({e.source or 'the identified clone fitted no fragility'})")
+    return replace(e, p_collapse_band=band, source=f"{e.source}; 90 % band over the ensemble")
 
 
 __all__ = ["Decision", "decide"]

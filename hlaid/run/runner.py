@@ -306,11 +306,10 @@ def _decision(clone, ir, cfg: RunConfig, assessment: dict | None):
     demand = None
     if assessment and assessment.get("own_peak_drift") is not None:
         demand = float(np.median(np.asarray(assessment["own_peak_drift"], dtype=float)))
-    band = {e["name"]: e.get("p_collapse_band") for e in (assessment or {}).get("events") or ()
-            if isinstance(e, dict) and "name" in e}
+    ens = {e["name"]: e for e in (assessment or {}).get("events") or () if isinstance(e, dict) and "name" in e}
     n = cfg.assess.n_ensemble if cfg.assess is not None and clone.uncertainty is not None else 0
     return decide(clone, ir, cfg.ida, n_ensemble=n, seed=cfg.assess.seed if cfg.assess is not None else 0,
-                  heights_given=_heights_given(cfg), demand_ratio=demand, band_of=band)
+                  heights_given=_heights_given(cfg), demand_ratio=demand, ensemble_events=ens)
 
 
 def _ida_summary(folder: Path) -> IDASummary:
