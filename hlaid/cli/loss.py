@@ -126,7 +126,7 @@ def run_demands(args) -> int:
 
     heights = cfg.heights_mm if cfg.heights_mm is not None else clone.building.height
     measured = measured_drift_ratios(meas, heights)
-    own = ()
+    own: tuple = ()
     if args.motion:  # the recorded event's own motion: "did the clone survive it?"
         from ..ida.ownevent import check_of_demands
 

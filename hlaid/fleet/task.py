@@ -174,8 +174,8 @@ def unit_loss(clone, own: GroundMotion, a: dict, job: UnitJob) -> dict:
             "cost_unit": r["cost_unit"]}
 
 
-def unit_decision(clone, records: Sequence[GroundMotion], a: dict, job: UnitJob, own: GroundMotion
-                  ) -> tuple[dict, dict]:
+def unit_decision(clone, records: Sequence[GroundMotion], a: dict, job: UnitJob, own: GroundMotion,
+                  meas: Measurement) -> tuple[dict, dict]:
     """The unit's decision (:func:`hlaid.run.decide.decide`, the step ``hlaid run`` takes): the
     identified clone's IDA fragility at the event's intensity (the ensemble's band beside it) and
     the clone replaying the event's own motion, its residual drift beside the measured, with the
@@ -186,8 +186,8 @@ def unit_decision(clone, records: Sequence[GroundMotion], a: dict, job: UnitJob,
 
     ir = ida_from_config(clone, job.ida, list(records), event_motions=[own])
     ens = {e["name"]: e for e in a.get("events") or () if isinstance(e, dict) and "name" in e}
-    d = decide(clone, ir, job.ida, n_ensemble=job.n_ensemble if clone.uncertainty is not None else 0, seed=job.seed,
-               ensemble_events=ens)
+    n = job.n_ensemble if clone.uncertainty is not None else 0
+    d = decide(clone, ir, job.ida, at_hand=[meas], n_ensemble=n, seed=job.seed, ensemble_events=ens)
     at, mine = d.basis.events[-1:] or (None,), d.basis.own_motion[-1:] or (None,)
     err = mine[0].residual_error if mine[0] is not None else None
     return {"p_collapse_fragility_at_im": at[0].p_collapse if at[0] is not None else None,
@@ -240,7 +240,7 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
         own = meas.ground_motion(name=f"{job.unit}-own")
         a = assess_clone(res.clone, records, n_ensemble=job.n_ensemble, ida_config=job.ida, own_motion=own,
                          seed=job.seed, assess=assess, engine=job.engine or None)
-        a["decision"], decision = unit_decision(res.clone, records, a, job, own)
+        a["decision"], decision = unit_decision(res.clone, records, a, job, own, meas)
         clock("assess", t, c)
         if job.loss is not None:
             stage = "loss"

@@ -189,21 +189,24 @@ def is_finite(v) -> bool:
 
 
 
-def recorded_events(clone, extra=(), *, heights=None, read_options=None):
-    """Every recorded event of ``clone``'s building: its own events (read again from their files,
-    :func:`hlaid.events.evidence.read_event`) and the measurements ``extra`` (files or Measurements
-    of later events it was not identified from); per event ``(name, measurement or None, in_clone,
-    why)``."""
+def recorded_events(clone, extra=(), *, at_hand=(), read_options=None):
+    """Every recorded event of ``clone``'s building: its own events (a measurement of ``at_hand``
+    holding the event, else read again from its file, :func:`hlaid.events.evidence.read_event`) and
+    the measurements ``extra`` (files or Measurements of later events it was not identified from);
+    per event ``(name, measurement or None, in_clone, why)``."""
     from pathlib import Path
 
-    from ..events.evidence import read_event
+    from ..events.evidence import _matches, read_event
     from ..io import read
     from ..measurement import Measurement
 
     base = Path(clone.building.source).parent if clone.building.source else None
     out = []
     for k, e in enumerate(clone.events):
-        meas, why = read_event(e, base)
+        meas = next((m for m in at_hand if _matches(e, m.ground_motion())), None)
+        why = None
+        if meas is None:
+            meas, why = read_event(e, base)
         out.append((str(e.get("name") or f"event {k + 1}"), meas, True, why or ""))
     for x in extra:
         meas = x if isinstance(x, Measurement) else read(str(x), "measurement", **(read_options or {}))

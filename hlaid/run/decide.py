@@ -58,12 +58,14 @@ class Decision:
                 "flags": list(self.flags)}
 
 
-def decide(clone, ida, cfg, *, extra: Sequence = (), n_ensemble: int | None = None, seed: int = 0,
+def decide(clone, ida, cfg, *, extra: Sequence = (), at_hand: Sequence = (), n_ensemble: int | None = None,
+           seed: int = 0,
            heights_given: Sequence[float] | None = None, demand_ratio: float | None = None,
            stiffness_error: Sequence[float] | None = None, ensemble_events: dict | None = None) -> Decision:
     """The decision of ``clone`` from its IDA ``ida`` (:class:`~hlaid.ida.IDAResult`, run with the
     IDA settings ``cfg``) at every recorded event: the clone's own (read again from their files)
-    and ``extra`` (measurement files or Measurements of later events).
+    and ``extra`` (measurement files or Measurements of later events); ``at_hand``: measurements of
+    the clone's events in hand (used instead of reading their files again).
 
     ``n_ensemble``: members replaying each event's own motion (None: the default ensemble where the
     clone has an uncertainty, else 0); ``heights_given``: story heights assumed (None: ``cfg``'s);
@@ -80,7 +82,7 @@ def decide(clone, ida, cfg, *, extra: Sequence = (), n_ensemble: int | None = No
 
     heights = ida.building.height
     assumed = heights_given if heights_given is not None else cfg.heights_mm
-    events = recorded_events(clone, extra)
+    events = recorded_events(clone, extra, at_hand=at_hand)
     n_ens = n_ensemble if n_ensemble is not None else (N_ENSEMBLE if clone.uncertainty is not None else 0)
     law = ida.building.collapse
     own_cfg = cfg.replace(collapse=law.to_dict() if law is not None else "none")

@@ -284,7 +284,7 @@ def _risk(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir, timings
                                     "nominal_survives": surv.nominal_survives,
                                     "nominal_collapsed_in": surv.nominal_collapsed_in}
     out["survival"] = Survival.from_dict(out["survival_dict"], file="summary.json", path="survival")
-    out["decision"] = _decision(clone, ir, cfg, out["assessment_dict"])
+    out["decision"] = _decision(clone, ir, cfg, out["assessment_dict"], meas)
     out["events"] = tuple(EventRisk.from_dict(e.to_dict(), file="summary.json", path="events")
                           for e in out["decision"].basis.events)
     if cfg.loss is not None:
@@ -295,7 +295,7 @@ def _risk(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir, timings
     return out
 
 
-def _decision(clone, ir, cfg: RunConfig, assessment: dict | None):
+def _decision(clone, ir, cfg: RunConfig, assessment: dict | None, meas: Measurement):
     """The run's decision (:func:`hlaid.run.decide.decide`): both questions at every event of the
     clone, the members of the ensemble assessment replaying each event's own motion, the
     assessment's band beside the fragility's figure and its members' median peak drift ratio as
@@ -308,7 +308,8 @@ def _decision(clone, ir, cfg: RunConfig, assessment: dict | None):
         demand = float(np.median(np.asarray(assessment["own_peak_drift"], dtype=float)))
     ens = {e["name"]: e for e in (assessment or {}).get("events") or () if isinstance(e, dict) and "name" in e}
     n = cfg.assess.n_ensemble if cfg.assess is not None and clone.uncertainty is not None else 0
-    return decide(clone, ir, cfg.ida, n_ensemble=n, seed=cfg.assess.seed if cfg.assess is not None else 0,
+    seed = cfg.assess.seed if cfg.assess is not None else 0
+    return decide(clone, ir, cfg.ida, at_hand=[meas], n_ensemble=n, seed=seed,
                   heights_given=_heights_given(cfg), demand_ratio=demand, ensemble_events=ens)
 
 
