@@ -135,7 +135,7 @@ def run_demands(args) -> int:
                                 d if n_ens else None,
                                 measured=measured, in_clone=any(e.get("sha256") == sha for e in clone.events),
                                 heights_assumed=cfg.heights_mm is not None),)
-    hr = ()
+    hr: tuple = ()
     if own and cfg.heights_mm is not None and meas is not None:  # assumed heights: the decision at 0.8 and 1.2 x
         from ..ida.ownevent import height_range
 
