@@ -150,17 +150,18 @@ def run_demands(args) -> int:
     write_json(basis_file, {**basis.to_dict(), "demands": str(args.out), "flags_of_demands": list(d.flags)},
                force=args.force)
     s = d.summary()
+    assumed = " [drift ratios over assumed story heights]" if cfg.heights_mm is not None else ""
     _progress.info(f"wrote {args.out}: {d.n_realizations} realizations ({s['n_collapsed']} collapsed), "
                    f"median peak drift ratio {max(s['pid_median'] or [0]):.2%}, median residual "
                    f"{max(s['rid_median'] or [0]):.2%}, {d.im_label} {float(d.im.max()):.3g} g"
                    + (" (the clones' full replay, unfiltered; hlaid predict compares drifts in a band, so its "
-                      "errors differ)" if args.motion else ""))
+                      "errors differ)" if args.motion else "") + assumed)
     if measured is not None:
         pct = lambda a: " / ".join(f"{100 * v:.2f}" for v in a)  # noqa: E731
         _progress.info(f"measured (the record's floor displacements): peak drift ratio {pct(measured[0])} %, "
                        f"residual {pct(measured[1])} % per story; the nominal clone: {pct(d.pid[0])} %, "
                        f"{pct(d.rid[0])} %" + ("; the median over the realizations: " + pct(s["pid_median"]) + " %"
-                                               if s["pid_median"] and d.n_realizations > 1 else ""))
+                                               if s["pid_median"] and d.n_realizations > 1 else "") + assumed)
     for note in d.notes:
         _progress.debug(f"note: {note}")
     for flag in d.flags:
