@@ -272,14 +272,18 @@ def clone_figures(clone_file: Path, events: list[Path], heights, out: Path, n_en
 def figures_table(label: str, rows: list[dict]) -> str:
     def p(v):
         return "n/a" if v is None else f"{100 * v:.1f} %"
+
+    def r(v):  # a drift ratio's error, in percentage points of drift
+        return "n/a" if v is None else f"{100 * v:.2f}"
     lines = ["| clone | event | identified from it | P(collapse \\| own motion): ida / demands | P(collapse \\| "
-             "another record of its Sa(T1)): ida / loss (CSV) | residual-drift error, worst story: ida / demands |",
+             "another record of its Sa(T1)): ida / loss (CSV) | residual drift ratio's error, worst story [%]: ida / "
+             "demands |",
              "|---|---|---|---|---|---|"]
-    for r in rows:
-        lines.append(f"| {label} | {r['event']} | {'yes' if r.get('in_clone') else 'no'} | "
-                     f"{p(r.get('ida_own_motion'))} / {p(r.get('demands_own_motion'))} | "
-                     f"{p(r.get('ida_fragility_at_im'))} / {p(r.get('loss_csv_fragility_at_im'))} | "
-                     f"{p(r.get('ida_residual_error'))} / {p(r.get('demands_residual_error'))} |")
+    for row in rows:
+        lines.append(f"| {label} | {row['event']} | {'yes' if row.get('in_clone') else 'no'} | "
+                     f"{p(row.get('ida_own_motion'))} / {p(row.get('demands_own_motion'))} | "
+                     f"{p(row.get('ida_fragility_at_im'))} / {p(row.get('loss_csv_fragility_at_im'))} | "
+                     f"{r(row.get('ida_residual_error'))} / {r(row.get('demands_residual_error'))} |")
     return "\n".join(lines)
 
 
@@ -299,6 +303,7 @@ def main(argv=None) -> int:
     ap.add_argument("--events", nargs="*", type=Path, default=[], help="later recorded events of the clones' building")
     ap.add_argument("--heights", default="1000,1000,1000", help="story heights [mm] of --clones")
     ap.add_argument("--ensemble", type=int, default=None, help="ensemble of the own-motion replays (--clones)")
+    ap.add_argument("--table-only", action="store_true", help="--clones: the table of the figures already computed")
     args = ap.parse_args(argv)
     _progress.set_verbosity(0)
     if args.clones:
@@ -309,8 +314,12 @@ def main(argv=None) -> int:
             folder.mkdir(parents=True, exist_ok=True)
             own = {str(e.get("name")) for e in Clone.load(c).events}
             later = [f for f in args.events if f.name.split(".")[0] not in own]
-            rows = clone_figures(c, later, [float(v) for v in args.heights.split(",")], folder, args.ensemble)
-            (folder / "figures.json").write_text(json.dumps(rows, indent=1))
+            done = folder / "figures.json"
+            if args.table_only and done.exists():
+                rows = json.loads(done.read_text())
+            else:
+                rows = clone_figures(c, later, [float(v) for v in args.heights.split(",")], folder, args.ensemble)
+                done.write_text(json.dumps(rows, indent=1))
             text.append(figures_table(c.stem, rows))
             print(text[-1], flush=True)
         (out / "figures.md").write_text("\n\n".join(text) + "\n")
