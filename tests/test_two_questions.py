@@ -96,3 +96,20 @@ def test_a_run_of_several_events_decides_at_the_last_or_a_named_one():
         MeasurementSource(file=m.file, decide_at="s9")
     with pytest.raises(InputError, match="measurement.file"):
         MeasurementSource(file=[])
+
+
+def test_survived_is_measured_and_extrapolation_is_beyond_the_fitted_range(table1):
+    """The drift the building survived is the measured one (the capacity's evidence); a demand is
+    extrapolated only beyond the range the clone was fitted on (the records or its replay of them,
+    whichever is larger): the clone's replay of its own record is no extrapolation."""
+    from hlaid.model.state import BuildingState
+
+    b = table1.replace(height=np.full(3, 1000.0))
+    z = np.zeros(3)
+    state = BuildingState(drift=z, z=z, work=z, peak_positive=np.array([60.0, 10.0, 10.0]), peak_negative=z)
+    c = Clone(building=b, events=({"name": "e", "peak_drift": [50.0, 10.0, 10.0]},), state=state)
+    basis = decision_basis(c, demand_ratio=0.062)  # beyond 1.1 x the 5 % measured, within 1.1 x the 6 % replayed
+    assert basis.survived_ratio == pytest.approx(0.05) and basis.fitted_ratio == pytest.approx(0.06)
+    assert basis.extrapolated is False
+    assert decision_basis(c, demand_ratio=0.067).extrapolated is True
+    assert "largest drift survived (measured): 50.0, 10.0, 10.0 mm" in "\n".join(basis.lines())

@@ -115,6 +115,8 @@ class DecisionBasis:
     heights_mm : the story heights the figures use [mm] (None: none known)
     heights_assumed : True where they were given (command line, config), not measured
     survived_mm : the drift each story survived [mm] (:func:`survived_drift`; None: not recorded)
+    fitted_mm : the drift each story went through in the records or in the clone's replay of them,
+        whichever is larger [mm] (the range the clone was fitted on; None: as ``survived_mm``)
     demand_ratio : the decision's median peak drift ratio (None: the command has none)
     drift_limit : the collapse criterion, peak drift ratio (None: the command has none)
     replay_miss : :meth:`~hlaid.clone.Clone.own_replay_miss` (None: not assessed)
@@ -132,6 +134,7 @@ class DecisionBasis:
     heights_mm: tuple[float, ...] | None = None
     heights_assumed: bool = False
     survived_mm: tuple[float, ...] | None = None
+    fitted_mm: tuple[float, ...] | None = None
     demand_ratio: float | None = None
     drift_limit: float | None = None
     replay_miss: tuple[float, int, str, tuple[float, float]] | None = None
@@ -149,10 +152,21 @@ class DecisionBasis:
         return float(np.max(np.asarray(self.survived_mm) / np.asarray(self.heights_mm)))
 
     @property
-    def extrapolated(self) -> bool | None:
-        """Whether the demand lies beyond :data:`EXTRAPOLATION_MARGIN` times the drift survived
-        (None: not assessed)."""
+    def fitted_ratio(self) -> float | None:
+        """The largest drift ratio of the range the clone was fitted on: the records' or its replay
+        of them, whichever is larger (the replay of a survived record is no extrapolation)."""
+        f = self.fitted_mm
+        if f is None or self.heights_mm is None or len(f) != len(self.heights_mm):
+            return self.survived_ratio
+        r = float(np.max(np.asarray(f) / np.asarray(self.heights_mm)))
         s = self.survived_ratio
+        return r if s is None else max(r, s)
+
+    @property
+    def extrapolated(self) -> bool | None:
+        """Whether the demand lies beyond :data:`EXTRAPOLATION_MARGIN` times the largest drift ratio
+        the clone was fitted on (:attr:`fitted_ratio`; None: not assessed)."""
+        s = self.fitted_ratio
         if s is None or self.demand_ratio is None:
             return None
         return bool(self.demand_ratio > EXTRAPOLATION_MARGIN * s)
@@ -179,7 +193,8 @@ class DecisionBasis:
                        "(--collapse) and the drift limit before acting on it")
         if self.extrapolated:
             out.append(f"demands extrapolated: median peak drift ratio {self.demand_ratio:.2%}, beyond "
-                       f"{EXTRAPOLATION_MARGIN:g} x the largest the building survived ({self.survived_ratio:.2%}); "
+                       f"{EXTRAPOLATION_MARGIN:g} x the largest the clone was fitted on ({self.fitted_ratio:.2%}, "
+                       "the records' or its replay of them); "
                        "the clone there follows its law, not the data: treat the figure as an estimate")
         if self.heights_assumed and self.heights_mm is not None:
             out.append("story heights " + ", ".join(f"{v:g}" for v in self.heights_mm) + " mm assumed, not "
@@ -257,11 +272,12 @@ class DecisionBasis:
     def from_dict(cls, d: Mapping) -> DecisionBasis:
         """The basis :meth:`to_dict` wrote (a run's ``summary.json``, ``loss.json``)."""
         miss = d.get("replay_miss")
-        h, seen = d.get("heights_mm"), d.get("survived_drift_mm")
+        h, seen, fitted = d.get("heights_mm"), d.get("survived_drift_mm"), d.get("fitted_drift_mm")
         return cls(events=tuple(_at_event(e) for e in d.get("events") or ()),
                    heights_mm=None if h is None else tuple(float(v) for v in h),
                    heights_assumed=bool(d.get("heights_assumed")),
                    survived_mm=None if seen is None else tuple(float(v) for v in seen),
+                   fitted_mm=None if fitted is None else tuple(float(v) for v in fitted),
                    demand_ratio=d.get("demand_drift_ratio"), drift_limit=d.get("drift_limit"),
                    replay_miss=None if not miss else (float(miss["error"]), int(miss["story"]) - 1, str(miss["event"]),
                                                       _band_pair(miss.get("band_hz"))),
@@ -275,7 +291,9 @@ class DecisionBasis:
                 "heights_mm": None if self.heights_mm is None else list(self.heights_mm),
                 "heights_assumed": self.heights_assumed,
                 "survived_drift_mm": None if self.survived_mm is None else list(self.survived_mm),
-                "survived_drift_ratio": self.survived_ratio, "demand_drift_ratio": self.demand_ratio,
+                "survived_drift_ratio": self.survived_ratio,
+                "fitted_drift_mm": None if self.fitted_mm is None else list(self.fitted_mm),
+                "fitted_drift_ratio": self.fitted_ratio, "demand_drift_ratio": self.demand_ratio,
                 "extrapolation_margin": EXTRAPOLATION_MARGIN, "extrapolated": self.extrapolated,
                 "drift_limit": self.drift_limit,
                 "survival_contradicted": [e.name for e in self.contradicted],
@@ -306,9 +324,11 @@ def decision_basis(clone, *, events: Iterable[AtEvent | Mapping] = (), heights=N
         events_note = "the clone records no events it was identified from (an older clone file)"
     h = heights if heights is not None else (None if clone is None else clone.building.height)
     seen = None if clone is None else survived_drift(clone)
+    fitted = None if clone is None else clone.survived_drift()  # the records' or the clone's replay of them
     return DecisionBasis(events=evs, heights_mm=None if h is None else tuple(float(v) for v in h),
                          heights_assumed=bool(heights_assumed and h is not None),
                          survived_mm=None if seen is None else tuple(float(v) for v in seen),
+                         fitted_mm=None if fitted is None else tuple(float(v) for v in fitted),
                          demand_ratio=None if demand_ratio is None else float(demand_ratio),
                          drift_limit=drift_limit, replay_miss=None if clone is None else clone.own_replay_miss(),
                          own_motion=tuple(own_motion), capacity=capacity, height_range=tuple(height_range),
