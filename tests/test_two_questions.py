@@ -113,3 +113,28 @@ def test_survived_is_measured_and_extrapolation_is_beyond_the_fitted_range(table
     assert basis.extrapolated is False
     assert decision_basis(c, demand_ratio=0.067).extrapolated is True
     assert "largest drift survived (measured): 50.0, 10.0, 10.0 mm" in "\n".join(basis.lines())
+
+
+def test_a_fleet_with_history_clones_each_building_from_its_events_so_far(table1, tmp_path):
+    """``history: true``: a building's unit at its event k reads events 1..k (the clone of them,
+    as identify takes several records); its digest covers the earlier events' files."""
+    from hlaid.fleet import load_fleet_config, make_jobs
+    from hlaid.fleet.task import load_unit_measurements
+
+    for k, pga in enumerate((0.1, 0.2, 0.3)):
+        q = load_builtin("elcentro-1940-ns").scaled_to_pga(pga)
+        q = GroundMotion(dt=q.dt, acc=q.acc[: int(4 / q.dt)], name=f"e{k + 1}")
+        simulate_measurement(table1, q, rate_hz=100.0, noise_rms=0.0, seed=k).save(tmp_path / f"e{k + 1}.npz")
+    text = ("records: builtin-suite\nHISTORYbuildings:\n  - name: B1\n    measurements:\n"
+            + "".join(f"      ev{k}: {{file: e{k}.npz}}\n" for k in (1, 2, 3)))
+    (tmp_path / "a.yaml").write_text(text.replace("HISTORY", ""))
+    (tmp_path / "h.yaml").write_text(text.replace("HISTORY", "history: true\n"))
+    alone = make_jobs(load_fleet_config(tmp_path / "a.yaml"), tmp_path, "sha", "fake")
+    jobs = make_jobs(load_fleet_config(tmp_path / "h.yaml"), tmp_path, "sha", "fake")
+    assert [len(j.earlier) for j in alone] == [0, 0, 0] and [len(j.earlier) for j in jobs] == [0, 1, 2]
+    series = load_unit_measurements(jobs[2])
+    assert [m.name for m in series] == ["B1@ev1", "B1@ev2", "B1@ev3"]
+    assert jobs[0].digest == alone[0].digest != jobs[1].digest
+    (tmp_path / "e1.npz").write_bytes((tmp_path / "e1.npz").read_bytes()[:-64])
+    again = make_jobs(load_fleet_config(tmp_path / "h.yaml"), tmp_path, "sha", "fake")
+    assert again[2].digest != jobs[2].digest  # an earlier event's file changed
