@@ -228,8 +228,8 @@ def run_loss(args) -> int:
         print_basis(basis)
         p = (block["recorded"] or {}).get("p_collapse")
         if p is not None and p >= P_SURVIVED_FLAG and not basis.contradicted:
-            _progress.warn(f"flag: P(collapse) {p:.0%} in the losses at the recorded event, which the building "
-                           "survived: the figure contradicts the record; check the story heights, the collapse law "
+            _progress.warn(f"flag: P(collapse | another record of the recorded event's intensity) {p:.0%} in the "
+                           "losses, at an event the building survived: check the story heights, the collapse law "
                            "and the drift limit before acting on it")
     if block["stripes"]:
         _progress.info(f"loss curve at {len(block['stripes'])} intensities: {folder / 'loss_curve.csv'}")
