@@ -230,7 +230,8 @@ def clone_figures(clone_file: Path, events: list[Path], heights, out: Path, n_en
     h = ",".join(f"{v:g}" for v in heights)
     ens = [] if n_ensemble is None else ["--ensemble", str(n_ensemble)]
     ida = out / "ida"
-    rc, err = _cli("ida", clone_file, "--records", "builtin-suite", "--heights", h, "--event", *events, *ens,
+    later = ["--event", *events] if events else []
+    rc, err = _cli("ida", clone_file, "--records", "builtin-suite", "--heights", h, *later, *ens,
                    "--no-plots", "--bootstrap", "0", "-o", ida, "--force")
     if rc:
         raise SystemExit(f"hlaid ida failed: {err.strip().splitlines()[-1]}")
