@@ -20,8 +20,8 @@ from hlaid.ida.ownevent import (
     check_of_demands,
     fragility_at_im,
     measured_drift_ratios,
-    own_motion_check,
 )
+from hlaid.loss.ownmotion import own_motion_check
 from hlaid.motions import GroundMotion, load_builtin
 from hlaid.synthetic import simulate_measurement
 

@@ -137,7 +137,7 @@ def run_demands(args) -> int:
                                 heights_assumed=cfg.heights_mm is not None),)
     hr: tuple = ()
     if own and cfg.heights_mm is not None and meas is not None:  # assumed heights: the decision at 0.8 and 1.2 x
-        from ..ida.ownevent import height_range
+        from ..loss.ownmotion import height_range
 
         hr = height_range(clone, own[0].name, meas, ida_config=cfg, heights=cfg.heights_mm, in_clone=own[0].in_clone)
     basis = decision_basis(clone, heights=cfg.heights_mm, heights_assumed=cfg.heights_mm is not None,

@@ -7,7 +7,7 @@ fleet`` turn a clone into a decision. Each prints and stores (``basis`` in its J
 * **The fragility at each recorded event's intensity** (:func:`p_collapse`, the lognormal
   collapse fragility at the event's Sa(T1)): how likely collapse is in ANOTHER record of that
   intensity (:data:`hlaid.ida.ownevent.AT_INTENSITY`). Whether the clone survives the event's own
-  motion is the other question, :func:`hlaid.ida.ownevent.own_motion_check`.
+  motion is the other question, :func:`hlaid.loss.ownmotion.own_motion_check`.
 * **Survival contradicted**: that fragility at or above :data:`P_SURVIVED_FLAG` at an event the
   building survived. Not a contradiction by itself (other records of the intensity may be worse),
   but a sign that the clone, its collapse law or the story heights may be wrong there.
@@ -127,7 +127,7 @@ class DecisionBasis:
     capacity : the collapse law's capping drift conditioned on what the building survived
         (:meth:`hlaid.model.capacity.CapacityPosterior.to_dict`; None: no law or no heights)
     height_range : where the heights are assumed, ``(factor, OwnMotionCheck)`` of the replay with
-        the heights scaled by each factor (:func:`hlaid.ida.ownevent.height_range`)
+        the heights scaled by each factor (:func:`hlaid.loss.ownmotion.height_range`)
     """
 
     events: tuple[AtEvent, ...] = ()

@@ -76,7 +76,7 @@ def decide(clone, ida, cfg, *, extra: Sequence = (), at_hand: Sequence = (), n_e
     """
     from ..ida.basis import ida_events
     from ..ida.capacity import capacity_record
-    from ..ida.ownevent import event_checks, recorded_events
+    from ..loss.ownmotion import event_checks, recorded_events
     from ..uncertainty.config import N_ENSEMBLE
     from .decision import identification_flags
 
