@@ -215,6 +215,79 @@ def table(cases: list[dict]) -> str:
     return "\n".join(lines)
 
 
+# ---------------------------------------------------------------------------- given clones, every command
+def _cli(*args) -> tuple[int, str]:
+    p = subprocess.run([sys.executable, "-m", "hlaid", *map(str, args)], capture_output=True, text=True)
+    return p.returncode, p.stderr
+
+
+def clone_figures(clone_file: Path, events: list[Path], heights, out: Path, n_ensemble: int | None) -> list[dict]:
+    """Per recorded event (the clone's own and ``events``), both P(collapse) figures and the
+    replay's residual-drift error from every command that gives them on a clone file: ``hlaid
+    ida`` (both; ``--event`` the later ones), ``hlaid demands --motion`` (the own motion), ``hlaid
+    loss`` of the demand CSV with the IDA's fragility (the fragility at the event's intensity,
+    pelicun's sample)."""
+    h = ",".join(f"{v:g}" for v in heights)
+    ens = [] if n_ensemble is None else ["--ensemble", str(n_ensemble)]
+    ida = out / "ida"
+    later = ["--event", *events] if events else []
+    rc, err = _cli("ida", clone_file, "--records", "builtin-suite", "--heights", h, *later, *ens,
+                   "--no-plots", "--bootstrap", "0", "-o", ida, "--force")
+    if rc:
+        raise SystemExit(f"hlaid ida failed: {err.strip().splitlines()[-1]}")
+    basis = json.loads((ida / "summary.json").read_text())["basis"]
+    rows = {e["name"]: {"event": e["name"], "ida_fragility_at_im": e.get("p_collapse_fragility_at_im"),
+                        "im_g": e.get("im")} for e in basis["events"]}
+    for c in basis["own_motion"]:
+        r = rows.setdefault(c["name"], {"event": c["name"]})
+        err_ = c.get("residual_drift_error")
+        r.update(in_clone=c["in_clone"], ida_own_motion=c.get("p_collapse_own_motion"),
+                 ida_residual=c.get("residual_drift_ratio"), measured_residual=c.get("measured_residual_drift_ratio"),
+                 ida_residual_error=None if err_ is None else max(abs(v) for v in err_))
+    clone = Clone.load(clone_file)
+    files = {str(e.name): Path(str(e.source)) for e in clone.events}
+    files.update({f.name.split(".")[0]: f for f in events})
+    for name, r in rows.items():
+        f = files.get(name) or next((v for k, v in files.items() if name.startswith(k) or k.startswith(name)), None)
+        if f is None:
+            continue
+        csv = out / f"demands_{name}.csv"
+        rc, err = _cli("demands", clone_file, "--motion", f, "--heights", h, *ens, "-o", csv, "--force")
+        if rc:
+            r["demands_error"] = err.strip().splitlines()[-1]
+            continue
+        own = json.loads(Path(str(csv) + ".basis.json").read_text())["own_motion"][0]
+        e2 = own.get("residual_drift_error")
+        r.update(demands_own_motion=own.get("p_collapse_own_motion"),
+                 demands_residual_error=None if e2 is None else max(abs(v) for v in e2))
+        rc, err = _cli("loss", csv, "--floor-area", "100", "--collapse-from", ida, "-o", out / f"loss_{name}",
+                       "--force", "--no-curve")
+        if rc == 0:
+            r["loss_csv_fragility_at_im"] = json.loads((out / f"loss_{name}" / "loss.json").read_text()).get(
+                "p_collapse")
+        else:
+            r["loss_error"] = err.strip().splitlines()[-1]
+    return list(rows.values())
+
+
+def figures_table(label: str, rows: list[dict]) -> str:
+    def p(v):
+        return "n/a" if v is None else f"{100 * v:.1f} %"
+
+    def r(v):  # a drift ratio's error, in percentage points of drift
+        return "n/a" if v is None else f"{100 * v:.2f}"
+    lines = ["| clone | event | identified from it | P(collapse \\| own motion): ida / demands | P(collapse \\| "
+             "another record of its Sa(T1)): ida / loss (CSV) | residual drift ratio's error, worst story [%]: ida / "
+             "demands |",
+             "|---|---|---|---|---|---|"]
+    for row in rows:
+        lines.append(f"| {label} | {row['event']} | {'yes' if row.get('in_clone') else 'no'} | "
+                     f"{p(row.get('ida_own_motion'))} / {p(row.get('demands_own_motion'))} | "
+                     f"{p(row.get('ida_fragility_at_im'))} / {p(row.get('loss_csv_fragility_at_im'))} | "
+                     f"{r(row.get('ida_residual_error'))} / {r(row.get('demands_residual_error'))} |")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--config", default=str(REPO / "configs" / "validate_real.yaml"))
@@ -225,8 +298,33 @@ def main(argv=None) -> int:
     ap.add_argument("--n-ensemble", type=int, default=10)
     ap.add_argument("--n-levels", type=int, default=10)
     ap.add_argument("--cache", default=None, help="classifier cache folder (default ~/.cache/hlaid/svm)")
+    ap.add_argument("--clones", nargs="+", type=Path, default=None,
+                    help="evaluate these clone files (no identification): every command's figures at every recorded "
+                         "event, the clone's own and --events")
+    ap.add_argument("--events", nargs="*", type=Path, default=[], help="later recorded events of the clones' building")
+    ap.add_argument("--heights", default="1000,1000,1000", help="story heights [mm] of --clones")
+    ap.add_argument("--ensemble", type=int, default=None, help="ensemble of the own-motion replays (--clones)")
+    ap.add_argument("--table-only", action="store_true", help="--clones: the table of the figures already computed")
     args = ap.parse_args(argv)
     _progress.set_verbosity(0)
+    if args.clones:
+        out = Path(args.out)
+        text = []
+        for c in args.clones:
+            folder = out / c.stem
+            folder.mkdir(parents=True, exist_ok=True)
+            own = {str(e.name) for e in Clone.load(c).events}
+            later = [f for f in args.events if f.name.split(".")[0] not in own]
+            done = folder / "figures.json"
+            if args.table_only and done.exists():
+                rows = json.loads(done.read_text())
+            else:
+                rows = clone_figures(c, later, [float(v) for v in args.heights.split(",")], folder, args.ensemble)
+                done.write_text(json.dumps(rows, indent=1))
+            text.append(figures_table(c.stem, rows))
+            print(text[-1], flush=True)
+        (out / "figures.md").write_text("\n\n".join(text) + "\n")
+        return 0
     cfg = load_validation_config(args.config)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

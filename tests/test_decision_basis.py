@@ -65,14 +65,15 @@ def test_survival_contradicted_at_half_and_said_with_what_to_do():
     b = DecisionBasis(events=(AtEvent("s4", 1.2, 0.574), AtEvent("s3", 0.8, 0.43)))
     assert [e.name for e in b.contradicted] == ["s4"]
     flags = b.flags()
-    assert len(flags) == 1 and "P(collapse) 57% at s4" in flags[0] and "building survived" in flags[0]
+    assert len(flags) == 1 and "P(collapse) 57% for another record of s4's intensity" in flags[0]
+    assert "building survived" in flags[0]
     assert "check the story heights" in flags[0]
     assert b.to_dict()["survival_contradicted"] == ["s4"]
 
 
 def test_extrapolation_keeps_the_margin(event):
     clone, _, _ = event
-    worst = float(np.max(clone.survived_drift() / 3000.0))
+    worst = float(np.max(clone.survived_drift(measured_only=True) / 3000.0))
     inside = decision_basis(clone, demand_ratio=worst * 1.02)  # the clone's own event, 2 % above: not flagged
     assert inside.extrapolated is False and not inside.flags()
     beyond = decision_basis(clone, demand_ratio=worst * (EXTRAPOLATION_MARGIN + 0.05))
@@ -127,12 +128,16 @@ def test_ida_prints_and_stores_p_collapse_at_the_recorded_event(event, ida_run):
     clone, meas, _ = event
     out, err = ida_run
     block = _basis_lines(err)
-    assert f"P(collapse) at the events the building survived: {meas.name} at" in block[1]
+    assert "P(collapse | another record of the intensity of each event the building survived), the fragility at " \
+           f"its IM: {meas.name} at" in block[1]
     s = json.loads((out / "summary.json").read_text())["basis"]
     assert [e["name"] for e in s["events"]] == [meas.name] and s["events"][0]["im"] > 0
     p = s["events"][0]["p_collapse"]
     assert p is not None and f"{p:.1%}" in block[1]
-    assert s["survived_drift_mm"] == pytest.approx(clone.survived_drift().tolist())
+    assert s["survived_drift_mm"] == pytest.approx(clone.survived_drift(measured_only=True).tolist())
+    own = s["own_motion"][0]  # the other question: the clone replaying the event's own motion
+    assert own["name"] == meas.name and own["in_clone"] is True and own["p_collapse_own_motion"] == 0.0
+    assert f"{meas.name}: P(collapse | the event's own motion)" in err
     assert s["replay_miss"] is None and s["heights_assumed"] is False
     assert "the collapse criterion 3% is 2.4 x the drift survived" in err
     assert "with no collapse law (collapse only beyond the 3% drift limit)" in err  # not "with its collapse law"
@@ -163,7 +168,8 @@ def test_loss_of_a_run_says_when_its_figure_contradicts_the_survival(event):
     clone, meas, _ = event
     b = loss_basis(clone, None, (1.0, 0.4), None, [{"name": meas.name, "im": 1.2, "p_collapse": 0.574,
                                                     "source": "IDA of the identified clone"}], False, None)
-    assert any(f.startswith(f"P(collapse) 57% at {meas.name} (1.2 g), an event the building survived")
+    assert any(f.startswith(f"the fragility gives P(collapse) 57% for another record of {meas.name}'s intensity "
+                            "(1.2 g), an event the building survived")
                for f in b.flags())
     assert b.to_dict()["survival_contradicted"] == [meas.name]
 
@@ -208,8 +214,10 @@ def test_the_fleet_keeps_what_each_unit_rests_on(event):
     assert b["survival_contradicted"] == [meas.name] and b["extrapolated"] is False
     assert b["heights_assumed"] is True
     row = flatten(a)
-    assert f"P(collapse) 60% at {meas.name}" in row["basis_flags"] and "assumed" in row["basis_flags"]
-    assert row["basis.survived_drift_ratio"] == pytest.approx(float(np.max(clone.survived_drift() / 3000.0)))
+    assert f"P(collapse) 60% for another record of {meas.name}'s intensity" in row["basis_flags"]
+    assert "assumed" in row["basis_flags"]
+    survived = clone.survived_drift(measured_only=True)
+    assert row["basis.survived_drift_ratio"] == pytest.approx(float(np.max(survived / 3000.0)))
 
 
 def test_predict_and_demands_say_which_drifts_they_compare(event, tmp_path, capsys):

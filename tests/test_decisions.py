@@ -19,6 +19,7 @@ from hlaid.ida.config import IDAConfig
 from hlaid.ida.prepare import prepare_building
 from hlaid.io import read
 from hlaid.model import COLLAPSE_MODELS
+from hlaid.model.capacity import capacity_posterior
 from hlaid.model.collapse import accommodate
 from hlaid.model.schema import STORY_BOUNDS
 from hlaid.model.uncertainty import BOUNDS, ParameterUncertainty
@@ -81,19 +82,76 @@ def test_a_capping_below_the_survived_drift_is_moved_to_it():
         accommodate(law, dy=dy, height=np.full(3, 1000.0), survived=np.array([10.0, 1200.0, 5.0]))
 
 
-def test_prepare_building_applies_the_survived_drift(table1):
+def test_prepare_building_conditions_the_law_on_the_measured_drifts(table1):
     b = table1.replace(height=np.full(3, 3000.0))
     c = Clone(building=b, system="steel-moment-frame",
               events=({"name": "big one", "peak_drift": [150.0, 30.0, 20.0]},))  # 5 % in story 1
     prepared, notes = prepare_building(c)
-    assert prepared.collapse.theta_p == pytest.approx((150.0 - table1.dy[0]) / 3000.0)
-    assert any("lay below a drift the building survived" in n for n in notes)
+    t = (150.0 - table1.dy[0]) / 3000.0
+    assert prepared.collapse.theta_p > t  # never capping below a drift the story came through
+    assert prepared.collapse.theta_p == pytest.approx(capacity_posterior(
+        COLLAPSE_MODELS["steel-mrf"], dy=table1.dy, height=b.height, survived=[150.0, 30.0, 20.0]).quantile(0.5))
+    assert any("without losing strength" in n for n in notes)
     plain, _ = prepare_building(dataclasses.replace(c, events=()))
     assert plain.collapse.theta_p == COLLAPSE_MODELS["steel-mrf"].theta_p
+    # the clone's replay (its carried state) is no evidence: only the measured drifts are
+    from hlaid.model.state import BuildingState
+    z = np.zeros(3)
+    replayed = dataclasses.replace(c, events=({"name": "small", "peak_drift": [1.0, 1.0, 1.0]},),
+                                   state=BuildingState(drift=z, z=z, work=z, peak_positive=np.array([300.0, 1, 1]),
+                                                       peak_negative=z))
+    assert prepare_building(replayed)[0].collapse.theta_p == COLLAPSE_MODELS["steel-mrf"].theta_p
     # an ensemble member of large dy (dy/h + theta_p beyond theta_u) is prepared, not refused
     big = table1.replace(height=np.full(3, 100.0), dy=np.array([7.0, 9.0, 3.0]))
     member, notes = prepare_building(big, collapse="steel-mrf")
     assert member.collapse.theta_u > 0.09 + 0.025 and any("theta_u raised" in n for n in notes)
+
+
+def test_a_clone_that_stayed_elastic_keeps_the_literature_law_and_its_fragility(table1):
+    """No story beyond its yield drift in any event: the evidence says nothing, the building the IDA
+    runs is the one without events, bit for bit, so its fragility is unchanged."""
+    from hlaid.ida import run_ida
+
+    b = table1.replace(height=np.full(3, 3000.0))
+    elastic = Clone(building=b, system="steel-moment-frame",
+                    events=({"name": "small", "peak_drift": (0.5 * np.asarray(table1.dy)).tolist()},))
+    bare = dataclasses.replace(elastic, events=())
+    pe, notes = prepare_building(elastic)
+    pb, _ = prepare_building(bare)
+    assert pe.collapse == pb.collapse == COLLAPSE_MODELS["steel-mrf"]
+    assert not any("without losing strength" in n for n in notes)
+    cfg = IDAConfig(levels=[1.0, 2.0, 4.0, 8.0], refine=False, bootstrap=0)
+    recs = [load_builtin("elcentro-1940-ns"), load_builtin("kocaeli-1999-dzc180")]
+    fe, fb = (run_ida(c, recs, cfg).summary(n_boot=0)["collapse_fragility"] for c in (elastic, bare))
+    assert fe == fb
+
+
+def test_the_capacity_posterior_is_the_truncated_lognormal():
+    """Against scipy's truncated normal of ln theta_p: median, 90 % interval, the prior
+    probability of surviving; no evidence (no story beyond yield) leaves the law unchanged."""
+    from scipy import stats
+
+    law = COLLAPSE_MODELS["steel-mrf"]
+    dy, h = np.array([10.0, 20.0, 5.0]), np.array([1000.0, 1000.0, 2000.0])
+    for survived in ([30.0, 60.0, 40.0], [12.0, 30.0, 9.0], [10.0, 95.0, 5.0]):
+        post = capacity_posterior(law, dy=dy, height=h, survived=survived)
+        t = float(np.max((np.array(survived) - dy) / h))
+        a = (np.log(t) - np.log(law.theta_p)) / law.beta_p
+        ref = stats.truncnorm(a, np.inf, loc=np.log(law.theta_p), scale=law.beta_p)
+        assert post.threshold == pytest.approx(t)
+        assert post.quantile(0.5) == pytest.approx(np.exp(ref.median()), rel=1e-9)
+        assert post.interval(0.9) == pytest.approx(tuple(np.exp(ref.interval(0.9))), rel=1e-9)
+        assert post.p_consistent == pytest.approx(stats.norm.sf(a), rel=1e-9)
+        new = post.conditioned()
+        assert new.theta_p > t and new.theta_u - new.theta_p == pytest.approx(law.theta_u - law.theta_p)
+        again = capacity_posterior(new, dy=dy, height=h, survived=survived).conditioned()
+        assert again.theta_p == new.theta_p  # conditioned once: the law in force is a point value
+    far = capacity_posterior(law, dy=dy, height=h, survived=[10.0, 500.0, 5.0])  # 48 % plastic drift
+    assert not far.consistent and "not assessed" in far.note()
+    elastic = capacity_posterior(law, dy=dy, height=h, survived=[9.0, 15.0, 5.0])
+    assert not elastic.informative and elastic.conditioned() is law
+    with pytest.raises(InputError, match="beyond its height 1000 mm"):
+        capacity_posterior(law, dy=dy, height=np.full(3, 1000.0), survived=[10.0, 1200.0, 5.0])
 
 
 # ---------------------------------------------------------------------------- survival as evidence
@@ -215,7 +273,7 @@ def test_the_steel_frame_clone_of_s4_is_consistent_with_what_the_frame_did(tmp_p
     for name, (lo, hi) in c.uncertainty.interval(0.9).items():
         assert 0 < lo <= hi <= 100 * lo, name
     b, notes = prepare_building(c, heights=[1000.0] * 3)
-    survived = c.survived_drift()
+    survived = c.survived_drift(measured_only=True)
     assert np.all(b.dy + b.collapse.theta_p * 1000.0 >= survived - 1e-6)
     own = GroundMotion(dt=meas.dt, acc=np.asarray(meas.ground_acc))
     surv = survivors(c, 20, prepare=member_preparer(IDAConfig(heights_mm=[1000.0] * 3,

@@ -126,8 +126,8 @@ def test_the_ensembles_p_collapse_is_said_one_way():
     from hlaid.ida.assessment import ReoccupancyThresholds, _indicator
 
     a = types.SimpleNamespace(p_collapse=0.044, p_collapse_band=(0.003, 0.104), ci=0.9)
-    assert p_collapse_text(a) == ("P(collapse) 4.4% (mean of the ensemble, 90% band 0.3%-10.4% (its 5th to 95th "
-                                  "percentile over members and record resamples))")
+    assert p_collapse_text(a) == ("P(collapse | another record of this intensity) 4.4% (mean of the ensemble, 90% "
+                                  "band 0.3%-10.4% (its 5th to 95th percentile over members and record resamples))")
     p = np.linspace(0.0, 0.0878, 100)
     _, reasons = _indicator(p, np.full(5, 1e-4), ReoccupancyThresholds())
     assert reasons[0].startswith("P(collapse) at the experienced intensity, its 90th percentile over the ensemble")

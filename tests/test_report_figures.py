@@ -87,8 +87,10 @@ def test_the_reports_first_section_says_what_the_figures_rest_on():
         name="s4", im=1.2, p_collapse=0.574, p_collapse_band=None, source="IDA of the identified clone"),),
         basis=b.to_dict(), survival=None)
     page = section(s)
-    assert "P(collapse) 57% at s4 (1.2 g), an event the building survived" in page  # the flag, first
-    assert "largest drift survived: 38.0, 47.4, 51.6 mm (up to 5.16% of the story height)" in page
+    assert "P(collapse) 57% for another record of s4&#x27;s intensity (1.2 g), an event the building survived" \
+        in page
+    assert "largest drift survived (measured): 38.0, 47.4, 51.6 mm (up to 5.16% of the story height, assumed)" \
+        in page
     assert "1000, 1000, 1000 mm, assumed (given, not measured)" in page
     assert "not assessed (no replay record kept with its events)" in page
     assert page.count("57.4%") == 1  # in the events' table only

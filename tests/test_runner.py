@@ -124,9 +124,16 @@ def test_assessment_is_written(run_dir):
     assert 0 <= a.p_collapse <= 1 and a.own_im > 0
     full = json.loads((out / "assessment.json").read_text())
     assert len(full["member_median"]) == 2 and len(full["fragility_median"]) == len(full["im_grid"])
-    # the building survived its record: P(collapse) there from the ensemble, which is conditioned on it
+    # the building survived its record: P(collapse | another record of its intensity) there is the identified
+    # clone's IDA fragility, as every command reports it; the ensemble's band (conditioned on it) beside
+    from hlaid.ida.basis import p_collapse
+
     (ev,) = summary.events
-    assert ev.p_collapse == pytest.approx(a.p_collapse) and ev.im == pytest.approx(a.own_im)
+    fit = summary.ida.collapse_fit
+    assert ev.im == pytest.approx(a.own_im) and ev.p_collapse_band is not None
+    assert ev.p_collapse == pytest.approx(p_collapse(a.own_im, fit.median_g, fit.beta), rel=1e-6)
+    own = summary.basis["own_motion"][0]  # the other question: the clone replaying the record's own motion
+    assert own["p_collapse_own_motion"] == 0.0 and own["in_clone"] is True
     assert summary.survival.nominal_survives is True and summary.survival.n_members == 2
     assert summary.survival.n_drawn == 2 + summary.survival.n_rejected
     assert "What the decision rests on" in (out / "report.html").read_text()

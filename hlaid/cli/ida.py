@@ -8,7 +8,7 @@ from pathlib import Path
 from .. import _progress
 from ..errors import InputError
 from ..limits import check_count
-from .app import add_building, add_plots, add_seed, subcommand
+from .app import add_building, add_ensemble, add_plots, add_seed, subcommand
 
 
 def _numbers(text: str, what: str) -> list[float]:
@@ -53,6 +53,11 @@ def register(sub) -> None:
     p.add_argument("--start", choices=["auto", "carried", "undamaged"], default=None,
                    help="undamaged (default): every run from rest; carried: from the state the clone's last event "
                         "left it in (the fragility after that event); auto: as the clone says")
+    p.add_argument("--event", nargs="+", metavar="FILE", default=[],
+                   help="recorded events of the building the clone was not identified from (measurement files, "
+                        "later than its own): each is listed with its own-motion replay and the fragility at its "
+                        "intensity, beside the clone's own events")
+    add_ensemble(p, "replaying each recorded event's own motion")
     p.add_argument("--bootstrap", type=int, help="bootstrap resamples of the fragility interval (default 1000)")
     add_seed(p, "the bootstrap")
     add_plots(p)
@@ -104,12 +109,12 @@ def run_ida(args) -> int:
     prepare_building(clone, pdelta=cfg.pdelta, heights=cfg.heights_mm, collapse=cfg.collapse,
                      gravity_load=cfg.gravity_load_n())
     res = ida_from_config(clone, cfg, records=motions, base_dir=base)  # the clone and records read once
-    from ..ida.basis import decision_basis, ida_events
+    from ..run.decide import decide
 
-    basis = decision_basis(clone, events=ida_events(clone, res), heights=res.building.height,
-                           heights_assumed=cfg.heights_mm is not None, drift_limit=cfg.drift_limit)
+    decision = decide(clone, res, cfg, extra=args.event, n_ensemble=args.ensemble, seed=args.seed or 0)
+    basis = decision.basis
     res.save(out, force=args.force, plots=not args.no_plots, n_boot=cfg.bootstrap, ci=cfg.ci, seed=cfg.seed,
-             inputs=inputs, basis=basis.to_dict())
+             inputs=inputs, basis={**basis.to_dict(), "identification_flags": list(decision.identification_flags)})
     s = res.summary(n_boot=0)
     f = s["collapse_fragility"]["capacities"]
     if "median_g" in f:
@@ -118,6 +123,8 @@ def run_ida(args) -> int:
     for note in res.notes:
         _progress.debug(f"note: {note}")
     print_basis(basis)
+    for flag in decision.identification_flags:
+        _progress.warn(f"flag: {flag}")
     _progress.info(f"wrote {out}/ (points.csv, summary.json, ida.npz"
                    + ("" if args.no_plots else ", ida_curves.png, fragility.png, exceedance.png") + ")")
     return 0

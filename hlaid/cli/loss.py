@@ -81,25 +81,11 @@ def _own_motion(path: str, options: dict):
     raise InputError("expected one ground motion (a record or a measurement file), not a record set", source=path)
 
 
-RESIDUAL_WINDOW_S = 1.0
-"""A measured residual drift: the mean drift over the record's last second less its first's."""
+def measured_drift_ratios(meas, heights):
+    """:func:`hlaid.ida.ownevent.measured_drift_ratios` (the one definition), imported when used."""
+    from ..ida.ownevent import measured_drift_ratios as measured
 
-
-def measured_drift_ratios(meas, heights) -> tuple | None:
-    """``(peak, residual)`` ``(story,)`` drift ratios the measurement's floor displacements held
-    (the largest |story drift| and the drift left at its end, each over the story's height);
-    None without floor displacements, heights or two seconds of record."""
-    import numpy as np
-
-    if meas is None or meas.floor_disp is None or heights is None:
-        return None
-    h = np.asarray(heights, dtype=float)
-    u = np.asarray(meas.floor_disp, dtype=float)
-    n = max(int(round(RESIDUAL_WINDOW_S / meas.dt)), 1)
-    if h.shape != (u.shape[1],) or 2 * n > u.shape[0]:
-        return None
-    drift = np.diff(u, axis=1, prepend=0.0)
-    return np.nanmax(np.abs(drift), axis=0) / h, np.abs(drift[-n:].mean(axis=0) - drift[:n].mean(axis=0)) / h
+    return measured(meas, heights)
 
 
 def run_demands(args) -> int:
@@ -138,28 +124,44 @@ def run_demands(args) -> int:
     from ..loss.demands import median_peak_ratio
     from .ida import print_basis
 
+    heights = cfg.heights_mm if cfg.heights_mm is not None else clone.building.height
+    measured = measured_drift_ratios(meas, heights)
+    own: tuple = ()
+    if args.motion:  # the recorded event's own motion: "did the clone survive it?"
+        from ..ida.ownevent import check_of_demands
+
+        sha = _sha(args.motion)
+        own = (check_of_demands(Path(args.motion).name.split(".")[0], d if n_ens == 0 else None,
+                                d if n_ens else None,
+                                measured=measured, in_clone=any(e.sha256 == sha for e in clone.events),
+                                heights_assumed=cfg.heights_mm is not None),)
+    hr: tuple = ()
+    if own and cfg.heights_mm is not None and meas is not None:  # assumed heights: the decision at 0.8 and 1.2 x
+        from ..loss.ownmotion import height_range
+
+        hr = height_range(clone, own[0].name, meas, ida_config=cfg, heights=cfg.heights_mm, in_clone=own[0].in_clone)
     basis = decision_basis(clone, heights=cfg.heights_mm, heights_assumed=cfg.heights_mm is not None,
                            demand_ratio=median_peak_ratio(d.pid[~d.collapsed]), drift_limit=cfg.drift_limit,
-                           events_note="demands run no IDA; hlaid ida CLONE gives it")
+                           events_note="demands run no IDA (the fragility at an intensity); hlaid ida CLONE gives it",
+                           own_motion=own, height_range=hr)
     d.write_csv(args.out, force=args.force)
     from .._fileio import write_json
 
     write_json(basis_file, {**basis.to_dict(), "demands": str(args.out), "flags_of_demands": list(d.flags)},
                force=args.force)
     s = d.summary()
+    assumed = " [drift ratios over assumed story heights]" if cfg.heights_mm is not None else ""
     _progress.info(f"wrote {args.out}: {d.n_realizations} realizations ({s['n_collapsed']} collapsed), "
                    f"median peak drift ratio {max(s['pid_median'] or [0]):.2%}, median residual "
                    f"{max(s['rid_median'] or [0]):.2%}, {d.im_label} {float(d.im.max()):.3g} g"
                    + (" (the clones' full replay, unfiltered; hlaid predict compares drifts in a band, so its "
-                      "errors differ)" if args.motion else ""))
-    heights = cfg.heights_mm if cfg.heights_mm is not None else clone.building.height
-    measured = measured_drift_ratios(meas, heights)
+                      "errors differ)" if args.motion else "") + assumed)
     if measured is not None:
         pct = lambda a: " / ".join(f"{100 * v:.2f}" for v in a)  # noqa: E731
         _progress.info(f"measured (the record's floor displacements): peak drift ratio {pct(measured[0])} %, "
                        f"residual {pct(measured[1])} % per story; the nominal clone: {pct(d.pid[0])} %, "
                        f"{pct(d.rid[0])} %" + ("; the median over the realizations: " + pct(s["pid_median"]) + " %"
-                                               if s["pid_median"] and d.n_realizations > 1 else ""))
+                                               if s["pid_median"] and d.n_realizations > 1 else "") + assumed)
     for note in d.notes:
         _progress.debug(f"note: {note}")
     for flag in d.flags:
@@ -199,12 +201,12 @@ def run_loss(args) -> int:
                                 drift_limit=0.10 if args.drift_limit is None else args.drift_limit, force=args.force)
         _report(s, args.out)
         side = Path(str(src) + ".basis.json")
-        _progress.info("what the decision rests on: " + (f"the demands' own, in {side} (hlaid demands wrote it)"
-                                                         if side.is_file() else
-                                                         "not assessed (a demand CSV carries no clone: P(collapse) "
-                                                         "at the events the building survived, the drift survived "
-                                                         "and the heights are unknown here; run hlaid loss on a run "
-                                                         "folder to have them)"))
+        if side.is_file():
+            _print_side_basis(side)
+        else:
+            _progress.info("what the decision rests on: not assessed (a demand CSV carries no clone: the events the "
+                           "building survived, the drift survived and the heights are unknown here; hlaid demands "
+                           "writes them beside its CSV, or run hlaid loss on a run folder)")
         return 0
     if collapse is not None:
         raise InputError("--collapse-median/--collapse-beta are for a demand CSV; a run folder has its own fragility")
@@ -226,12 +228,37 @@ def run_loss(args) -> int:
         print_basis(basis)
         p = (block["recorded"] or {}).get("p_collapse")
         if p is not None and p >= P_SURVIVED_FLAG and not basis.contradicted:
-            _progress.warn(f"flag: P(collapse) {p:.0%} in the losses at the recorded event, which the building "
-                           "survived: the figure contradicts the record; check the story heights, the collapse law "
+            _progress.warn(f"flag: P(collapse | another record of the recorded event's intensity) {p:.0%} in the "
+                           "losses, at an event the building survived: check the story heights, the collapse law "
                            "and the drift limit before acting on it")
     if block["stripes"]:
         _progress.info(f"loss curve at {len(block['stripes'])} intensities: {folder / 'loss_curve.csv'}")
     return 0
+
+
+def _sha(path) -> str | None:
+    """The SHA-256 of a file (None where it cannot be read)."""
+    from .._inputs import file_sha256
+
+    try:
+        return file_sha256(path)
+    except (OSError, InputError):
+        return None
+
+
+def _print_side_basis(side: Path) -> None:
+    """Print what the demands of a CSV rest on, from the basis ``hlaid demands`` wrote beside it,
+    with its flags (the same block and flags the demands printed)."""
+    from .._inputs import read_json
+    from ..ida.basis import DecisionBasis
+    from .ida import print_basis
+
+    d = read_json(side)
+    _progress.info(f"what the decision rests on: the demands' own basis, {side}")
+    print_basis(DecisionBasis.from_dict(d))
+    for flag in d.get("flags_of_demands") or ():
+        if not str(flag).startswith("demands extrapolated"):  # said once, by the basis
+            _progress.warn(f"flag: {flag}")
 
 
 def ida_fragility(folder: str, demands: Path) -> tuple[float, float]:
@@ -282,7 +309,9 @@ def _report(s: dict, out) -> None:
     _progress.info(f"repair cost: median {s['repair_cost_median']:,.0f} {s['cost_unit']} "
                    f"({s['repair_cost_ratio_median']:.1%} of replacement), 90 % band {lo:,.0f} - {hi:,.0f}; "
                    f"repair time median {s['repair_time_parallel_median']:.0f} worker-days (parallel); "
-                   + ("P(collapse) not assessed (no collapse fragility)" if s['p_collapse'] is None
-                      else f"P(collapse) {s['p_collapse']:.1%} (pelicun's sample of the collapse fragility)")
+                   + ("P(collapse | another record of this intensity) not assessed (no collapse fragility)"
+                      if s['p_collapse'] is None else
+                      f"P(collapse | another record of this intensity) {s['p_collapse']:.1%} (the IDA fragility at "
+                      "the demands' intensity, pelicun's sample of it)")
                    + f", P(irreparable) {s['p_irreparable']:.1%}")
     _progress.info(f"wrote {out}/ (loss.json, pelicun's inputs: demands.csv, inventory.csv, config.json)")

@@ -48,9 +48,10 @@ def _check_inputs(cfg, base) -> None:
     from .._inputs import check_input
 
     m = cfg.measurement
-    if m.file is not None and not str(m.file).startswith("builtin"):
-        p = Path(m.file)
-        check_input(p if p.is_absolute() else base / p)
+    for f in m.files:
+        if not str(f).startswith("builtin"):
+            p = Path(f)
+            check_input(p if p.is_absolute() else base / p)
     if cfg.ida is not None:
         specs = cfg.ida.record_specs(base)
         if specs:
@@ -100,7 +101,7 @@ def p_collapse_text(a) -> str:
     band = ("" if a.p_collapse_band is None else
             f", {a.ci:.0%} band {a.p_collapse_band[0]:.1%}-{a.p_collapse_band[1]:.1%} (its 5th to 95th percentile "
             "over members and record resamples)")
-    return f"P(collapse) {a.p_collapse:.1%} (mean of the ensemble{band})"
+    return f"P(collapse | another record of this intensity) {a.p_collapse:.1%} (mean of the ensemble{band})"
 
 
 def run_report(args) -> int:

@@ -12,6 +12,7 @@ folder of the config file. Example (``configs/fleet_example.yaml``)::
     identify: {training: {samples: 800}}        # any key of configs/identify.yaml
     ida: {n_levels: 10, drift_limit: 0.10}      # any key of configs/ida.yaml except records
     loss: {system: steel-moment-frame}          # optional: FEMA P-58 losses at each event (hlaid[loss])
+    history: false                 # true: a building's unit at event k is the clone of its events 1..k
     cluster: {n_workers: 2, threads_per_worker: 1}
     buildings:
       - name: B001
@@ -154,6 +155,10 @@ class FleetConfig:
     cluster: ClusterConfig = field(default_factory=ClusterConfig)
     loss: LossConfig | None = None
     name: str = "hlaid fleet"
+    history: bool = False
+    """True: a building's unit at its event k is the clone of its events 1..k (its measurements in
+    the order the config lists them, as ``hlaid identify`` takes several records), the decisions at
+    event k; False: the clone of each event alone."""
 
     def __post_init__(self):
         if not self.buildings:

@@ -62,6 +62,9 @@ class UnitJob:
     verbosity: int = 1
     driver_pid: int = 0
     loss: LossConfig | None = None
+    earlier: tuple[tuple[str, FleetMeasurement], ...] = ()
+    """The building's earlier events ``(event, measurement)``, oldest first (a fleet with
+    ``history: true``): the unit's clone is of them and its own event."""
 
 
 def unit_seed(seed: int, unit: str) -> int:
@@ -110,7 +113,9 @@ def make_jobs(cfg: FleetConfig, base_dir: Path | None, records_sha: str, engine:
     for b, ev in cfg.units():
         m = b.measurements[ev]
         uid = unit_id(b.name, ev)
-        job = UnitJob(unit=uid, building=b.name, event=ev, measurement=m,
+        names = list(b.measurements)
+        earlier = tuple((e, b.measurements[e]) for e in names[:names.index(ev)]) if cfg.history else ()
+        job = UnitJob(unit=uid, building=b.name, event=ev, measurement=m, earlier=earlier,
                       mass_t=m.mass_t if m.mass_t is not None else b.mass_t,
                       height_mm=m.height_mm if m.height_mm is not None else b.height_mm,
                       identify=dataclasses.replace(cfg.identify, n_jobs=1), ida=cfg.ida, n_ensemble=cfg.n_ensemble,
@@ -121,14 +126,25 @@ def make_jobs(cfg: FleetConfig, base_dir: Path | None, records_sha: str, engine:
                "ida": config_to_dict(dataclasses.replace(cfg.ida, records=None)),
                "n_ensemble": cfg.n_ensemble, "seed": job.seed, "engine": engine, "hlaid": __version__,
                "loss": None if cfg.loss is None else config_to_dict(cfg.loss),
-               "records": records_sha, "files": {str(p): _file_digest(p) for p in input_files(m, base)}}
+               "records": records_sha, "files": {str(p): _file_digest(p) for p in input_files(m, base)},
+               **({"earlier": [{"event": e, "measurement": config_to_dict(x),
+                                "files": {str(p): _file_digest(p) for p in input_files(x, base)}}
+                               for e, x in earlier]} if earlier else {})}
         digest = hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()
         jobs.append(dataclasses.replace(job, digest=digest, verbosity=_progress.verbosity(), driver_pid=os.getpid()))
     return jobs
 
 
-def load_unit_measurement(job: UnitJob) -> Measurement:
-    """The measurement of a job, masses and heights applied."""
+def load_unit_measurements(job: UnitJob) -> list[Measurement]:
+    """The measurements of a job, oldest first: its building's earlier events (``history: true``)
+    and its own, the last; masses and heights applied."""
+    earlier = [load_unit_measurement(dataclasses.replace(job, measurement=m, earlier=()),
+                                     name=unit_id(job.building, e)) for e, m in job.earlier]
+    return [*earlier, load_unit_measurement(job)]
+
+
+def load_unit_measurement(job: UnitJob, name: str | None = None) -> Measurement:
+    """The measurement of a job, masses and heights applied (named ``name``, default the unit)."""
     from ..io.station import read_station
     from ..run.config import MeasurementSource
     from ..run.runner import load_measurement
@@ -139,7 +155,7 @@ def load_unit_measurement(job: UnitJob) -> Measurement:
     else:
         src = MeasurementSource(file=m.file, format=m.format, options=m.options, simulate=m.simulate)
         meas = load_measurement(src, base)
-    changes: dict[str, Any] = {"name": job.unit}  # the clone is named after the unit
+    changes: dict[str, Any] = {"name": name or job.unit}  # the clone is named after the unit
     if job.mass_t is not None:
         changes["mass"] = np.asarray(job.mass_t, float)
     if job.height_mm is not None:
@@ -172,6 +188,28 @@ def unit_loss(clone, own: GroundMotion, a: dict, job: UnitJob) -> dict:
             "p_irreparable", "p_replacement")
     return {**{k: r[k] for k in keep}, "replacement_cost": block["replacement_cost"], "system": block["system"],
             "cost_unit": r["cost_unit"]}
+
+
+def unit_decision(clone, records: Sequence[GroundMotion], a: dict, job: UnitJob, own: GroundMotion,
+                  meas: Measurement) -> tuple[dict, dict]:
+    """The unit's decision (:func:`hlaid.run.decide.decide`, the step ``hlaid run`` takes): the
+    identified clone's IDA fragility at the event's intensity (the ensemble's band beside it) and
+    the clone replaying the event's own motion, its residual drift beside the measured, with the
+    identification's and the plausibility flags. Returns its scalar figures (the ``decision.*``
+    columns of the fleet table) and the whole decision (the unit's result file)."""
+    from ..ida import ida_from_config
+    from ..run.decide import decide
+
+    ir = ida_from_config(clone, job.ida, list(records), event_motions=[own])
+    ens = {e["name"]: e for e in a.get("events") or () if isinstance(e, dict) and "name" in e}
+    n = job.n_ensemble if clone.uncertainty is not None else 0
+    d = decide(clone, ir, job.ida, at_hand=[meas], n_ensemble=n, seed=job.seed, ensemble_events=ens)
+    at, mine = d.basis.events[-1:] or (None,), d.basis.own_motion[-1:] or (None,)
+    err = mine[0].residual_error if mine[0] is not None else None
+    return {"p_collapse_fragility_at_im": at[0].p_collapse if at[0] is not None else None,
+            "p_collapse_own_motion": mine[0].p_collapse if mine[0] is not None else None,
+            "residual_drift_error_max": None if err is None else max(abs(v) for v in err),
+            "flags": " | ".join(d.flags), "n_flags": len(d.flags)}, d.to_dict()
 
 
 def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | None = None) -> dict:
@@ -207,17 +245,19 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
         timings[f"{name}_cpu_s"] = cpu_time() - c
     try:
         t, c = time.perf_counter(), cpu_time()
-        meas = load_unit_measurement(job)
+        series = load_unit_measurements(job)
+        meas = series[-1]
         clock("measurement", t, c)
         stage = "identify"
         t, c = time.perf_counter(), cpu_time()
-        res = identify_clone(meas, job.identify, cache_dir=job.cache_dir)
+        res = identify_clone(series if len(series) > 1 else meas, job.identify, cache_dir=job.cache_dir)
         clock("identify", t, c)
         stage = "assess"
         t, c = time.perf_counter(), cpu_time()
         own = meas.ground_motion(name=f"{job.unit}-own")
         a = assess_clone(res.clone, records, n_ensemble=job.n_ensemble, ida_config=job.ida, own_motion=own,
                          seed=job.seed, assess=assess, engine=job.engine or None)
+        a["decision"], decision = unit_decision(res.clone, records, a, job, own, meas)
         clock("assess", t, c)
         if job.loss is not None:
             stage = "loss"
@@ -236,10 +276,11 @@ def run_unit(job: UnitJob, records: Sequence[GroundMotion], assess: Callable | N
     row = {"n_stories": b.n_stories, "mass_normalised": bool(res.clone.mass_normalised),
            "T1_s": float(b.periods()[0]),
            "replay_r_min": float(np.nanmin(r)) if r.size else None, **flatten(a)}
-    return {**out, "status": "ok", "row": row, "assessment": a, "clone": res.clone.to_dict(), "timings": timings,
+    return {**out, "status": "ok", "row": row, "assessment": a, "decision": decision, "clone": res.clone.to_dict(),
+            "timings": timings,
             "measurement": {"source": meas.source, "dt_s": meas.dt, "n_samples": meas.n_samples,
                             "n_floors": meas.n_floors}}
 
 
-__all__ = ["UnitJob", "make_jobs", "run_unit", "unit_loss", "records_digest", "unit_seed", "load_unit_measurement",
-           "RESULT_FORMAT", "RESULT_VERSION"]
+__all__ = ["UnitJob", "make_jobs", "run_unit", "unit_decision", "unit_loss", "records_digest", "unit_seed",
+           "load_unit_measurement", "load_unit_measurements", "RESULT_FORMAT", "RESULT_VERSION"]

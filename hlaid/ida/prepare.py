@@ -27,10 +27,10 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     combined with it. Story heights are required (``require_heights``): IDA reports drift ratios.
     ``collapse`` (a name, a mapping or a CollapseModel; see :mod:`hlaid.model.collapse`) replaces
     the clone's strength-loss model; None keeps the clone's, else the collapse law of the
-    clone's structural system (``clone.system``), else ``none``. The law in force is made
-    consistent with the drifts the building survived (:meth:`Clone.survived_drift`;
-    :func:`hlaid.model.collapse.accommodate`: a capping drift below them is moved to them), with
-    a note saying how.
+    clone's structural system (``clone.system``), else ``none``. The law in force is conditioned
+    on the drifts the building was measured to survive (:mod:`hlaid.model.capacity`: its capping
+    drift's posterior median, never below a drift a story came through intact), with a note
+    saying how.
     """
     source = None
     if isinstance(model, (str, os.PathLike)):
@@ -91,25 +91,43 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     return building, notes
 
 
+def chosen_law(model, collapse=None, notes: list[str] | None = None):
+    """The literature collapse law of ``model`` (a Clone or Building) before any evidence:
+    ``collapse`` where given, else the building's own, else its structural system's, else None."""
+    system = model.system if isinstance(model, Clone) else None
+    building = model.building if isinstance(model, Clone) else model
+    if collapse is not None:
+        return get_collapse_model(collapse)
+    law = building.collapse
+    if law is None and system is not None:
+        law = SYSTEMS[system].collapse if system in SYSTEMS else None
+        if law is not None and notes is not None:
+            notes.append(f"collapse model {law.name!r} chosen for the clone's structural system {system!r}: "
+                         f"strength loss as measured on such members ({law.source})")
+    return law
+
+
 def _collapse_law(model, building: Building, law, collapse, system: str | None, notes: list[str],
                   source: str | None = None):
     """The collapse law in force: ``collapse`` where given, else the clone's own, else its
-    structural system's; made consistent with the drifts the building survived; with notes."""
+    structural system's; conditioned on the drifts the building was measured to survive
+    (:func:`hlaid.ida.capacity.law_posterior`); with notes."""
     if collapse is not None:
         law = get_collapse_model(collapse)
     elif law is None and system is not None:
-        law = SYSTEMS[system].collapse if system in SYSTEMS else None
-        if law is not None:
-            notes.append(f"collapse model {law.name!r} chosen for the clone's structural system {system!r}: "
-                         f"strength loss as measured on such members ({law.source})")
+        law = chosen_law(model, None, notes)
     if law is not None and building.height is not None:
-        survived = model.survived_drift() if isinstance(model, Clone) else None
+        from .capacity import law_posterior
+
         try:
-            law, changed = accommodate(law, dy=building.dy, height=building.height, survived=survived)
+            post = law_posterior(model, law, building)
         except InputError as err:  # said of the clone whose events give the drifts
             if err.source:
                 raise
             raise InputError(f"{err} (the drifts of the clone's recorded events)", source=source) from None
+        if post.informative:
+            notes.append(post.note())
+        law, changed = accommodate(post.conditioned(), dy=building.dy, height=building.height)
         notes.extend(changed)
     c = building.replace(collapse=law).collapse  # as the building holds it
     if c is None:
@@ -117,6 +135,6 @@ def _collapse_law(model, building: Building, law, collapse, system: str | None, 
                      "drift limit or the slope criterion (optimistic); choose one with collapse: steel-mrf, "
                      "rc-frame, rc-frame-nonductile or your own ratios (docs/collapse.md)")
     else:
-        notes.append(f"collapse model {c.name!r}: cap at dy/h + {c.theta_p:g}, post-capping drift {c.theta_pc:g} "
-                     f"to zero strength, residual {c.kappa:g} k0 dy, ultimate drift {c.theta_u:g}")
+        notes.append(f"collapse model {c.name!r}: cap at dy/h + {c.theta_p:.4g}, post-capping drift {c.theta_pc:g} "
+                     f"to zero strength, residual {c.kappa:g} k0 dy, ultimate drift {c.theta_u:.4g}")
     return law

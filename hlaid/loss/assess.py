@@ -130,7 +130,7 @@ def assess_demands(demands: Demands, asset: Asset, cfg: LossConfig, folder: str 
         sample = run_pelicun(folder)
     s = summarise(sample, asset.replacement_cost, asset.replacement_time)
     if asset.collapse_median_g is None:  # no fragility given: collapse not assessed (pelicun counted none)
-        s.update(p_collapse=None, p_replacement=None)
+        s.update(p_collapse=None, p_collapse_fragility_at_im=None, p_replacement=None)
         notes.append("collapse not assessed: no collapse fragility; the losses are those of the realisations that did "
                      "not collapse")
     s.update(name=name, level_g=demands.level, im=float(np.median(demands.im)), im_label=demands.im_label,
@@ -309,7 +309,7 @@ def loss_of_demand_file(path: str | os.PathLike, cfg: LossConfig, out: str | os.
         write_inputs(tmp, inputs)
         s = summarise(run_pelicun(tmp), asset.replacement_cost, asset.replacement_time)
         if collapse is None:  # pelicun counted no collapse because none was asked for: not assessed, not 0
-            s.update(p_collapse=None, p_replacement=None)
+            s.update(p_collapse=None, p_collapse_fragility_at_im=None, p_replacement=None)
             s["notes"] = ["collapse not assessed: no collapse fragility given (--collapse-median, --collapse-beta); "
                           "the repair costs and times are those of the realisations that did not collapse"]
         s.update(demand_file=str(path), inventory=asset.inventory_source, n_demand_realizations=df.n_realizations,

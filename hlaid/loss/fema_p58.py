@@ -221,6 +221,7 @@ def summarise(sample: dict[str, np.ndarray], replacement_cost: float, replacemen
         out[f"repair_time_{k}_median"], out[f"repair_time_{k}_band"] = tm, [tl, th]
     col, irr = sample["collapse"] > 0.5, sample["irreparable"] > 0.5
     out["p_collapse"] = float(col.mean())
+    out["p_collapse_fragility_at_im"] = out["p_collapse"]  # the fragility at the demands' intensity, sampled
     out["p_irreparable"] = float((irr & ~col).mean())
     out["p_replacement"] = float((col | irr).mean())
     return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in out.items()}

@@ -55,6 +55,9 @@ class CollapseModel:
     kappa : residual strength as a fraction of the yield strength ``k0 dy``, in [0, 1)
     theta_u : ultimate drift ratio, where the residual strength starts to fall to zero; it
         must exceed the capping drift ratio ``dy/h + theta_p`` of every story
+    beta_p : the logarithmic standard deviation of ``theta_p`` over the members the median comes
+        from (the law's scatter, conditioned on what a building survived in
+        :mod:`hlaid.model.capacity`); 0: ``theta_p`` known
     source : where the ratios come from
     """
 
@@ -63,6 +66,7 @@ class CollapseModel:
     theta_pc: float = bounded(lo=1e-5, hi=10.0, hi_open=True)
     kappa: float = bounded(lo=0.0, hi=1.0, hi_open=True)
     theta_u: float = bounded(lo=1e-5, hi=10.0, hi_open=True)
+    beta_p: float = bounded(0.4, lo=0.0, hi=2.0)
     source: str = ""
 
     def __post_init__(self):
@@ -161,7 +165,8 @@ def no_collapse(n_stories: int) -> np.ndarray:
 
 
 _LK2011 = ("Lignos & Krawinkler (2011), J. Struct. Eng. 137(11):1291-1302, RBS beam medians "
-           "(theta_p ~ 0.025, theta_pc ~ 0.16-0.20, kappa ~ 0.4, theta_u 0.06-0.08); NIST GCR 10-917-8")
+           "(theta_p ~ 0.025 with a logarithmic scatter ~ 0.3, theta_pc ~ 0.16-0.20, kappa ~ 0.4, "
+           "theta_u 0.06-0.08); NIST GCR 10-917-8")
 _H2016 = ("Haselton, Liel, Taylor-Lange & Deierlein (2016), ACI Struct. J. 113(6):1141-1152 and "
           "PEER 2007/03 (Haselton et al. 2008): conforming RC columns (theta_cap,pl ~ 0.05-0.06, "
           "theta_pc ~ 0.10, capped at 0.10), FEMA P695 RC SMF archetypes")
@@ -171,15 +176,16 @@ _LIEL = ("Haselton et al. (2008, 2016) equations for non-conforming columns (low
 COLLAPSE_MODELS: dict[str, CollapseModel | None] = {
     "none": None,
     "steel-mrf": CollapseModel(name="steel-mrf", theta_p=0.025, theta_pc=0.16, kappa=0.4, theta_u=0.08,
-                               source=_LK2011),
+                               beta_p=0.32, source=_LK2011),
     "rc-frame": CollapseModel(name="rc-frame", theta_p=0.05, theta_pc=0.10, kappa=0.2, theta_u=0.10,
-                              source=_H2016),
+                              beta_p=0.54, source=_H2016),
     "rc-frame-nonductile": CollapseModel(name="rc-frame-nonductile", theta_p=0.02, theta_pc=0.04, kappa=0.1,
-                                         theta_u=0.05, source=_LIEL),
+                                         theta_u=0.05, beta_p=0.54, source=_LIEL),
 }
 """Named collapse models: ``"none"`` (the paper's law: no strength loss) and literature presets."""
 
 _USER_KEYS = ("theta_p", "theta_pc", "kappa", "theta_u")
+_USER_OPTIONAL = ("name", "source", "beta_p")
 
 
 def get_collapse_model(spec) -> CollapseModel | None:
@@ -196,10 +202,10 @@ def get_collapse_model(spec) -> CollapseModel | None:
                              f"or a mapping of {', '.join(_USER_KEYS)}") from None
     if isinstance(spec, Mapping):
         d = dict(spec)
-        unknown = sorted(set(d) - set(_USER_KEYS) - {"name", "source"})
+        unknown = sorted(set(d) - set(_USER_KEYS) - set(_USER_OPTIONAL))
         if unknown:
             raise InputError(f"collapse: unknown field(s) {unknown}; expected {', '.join(_USER_KEYS)} "
-                             "(and optionally name, source)")
+                             f"(and optionally {', '.join(_USER_OPTIONAL)})")
         missing = [k for k in _USER_KEYS if k not in d]
         if missing:
             raise InputError(f"collapse: missing {', '.join(missing)}; a user collapse model gives "

@@ -39,10 +39,14 @@ def check_reader_options(options: dict, where: str) -> None:
 @dataclass(frozen=True, kw_only=True)
 class MeasurementSource:
     """Where the measurement comes from: a file (``file``, optional ``format`` and reader
-    ``options``) or a simulation (``simulate``: the ``hlaid simulate`` config). ``mass_t`` and
-    ``height_mm`` add or replace floor masses [t] and story heights [mm]."""
+    ``options``), several files of one building's events, oldest first (``file: [s1, s2, s3]``:
+    the clone of events 1..k as ``hlaid identify`` makes it, the decisions at the last, or at the
+    one ``decide_at`` names: its file as given or its name without the folder and suffixes, the
+    clone then of the events up to it), or a simulation (``simulate``: the ``hlaid simulate``
+    config). ``mass_t`` and ``height_mm`` add or replace floor masses [t] and story heights [mm]."""
 
-    file: str | None = None
+    file: str | list[str] | None = None
+    decide_at: str | None = None
     format: str | None = None
     options: dict[str, Any] = field(default_factory=dict)
     simulate: SimulationConfig | None = None
@@ -54,6 +58,28 @@ class MeasurementSource:
             raise InputError("give exactly one of measurement.file or measurement.simulate")
         check_reader_options(self.options, "measurement.options")
         check_bounds(self)
+        if isinstance(self.file, list) and not self.file:
+            raise InputError("measurement.file: give a file, or a list of one building's event files, oldest first")
+        if self.decide_at is not None:
+            files = [self.file] if isinstance(self.file, str) else list(self.file or ())
+            if not any(self.decide_at in (f, _stem(f)) for f in files):
+                raise InputError(f"measurement.decide_at names no file of measurement.file ({len(files)} given): "
+                                 "give one of them as written, or its name without folder and suffixes")
+
+    @property
+    def files(self) -> list[str]:
+        """The event files whose clone the decisions rest on, oldest first, up to ``decide_at``."""
+        files = [] if self.file is None else [self.file] if isinstance(self.file, str) else list(self.file)
+        if self.decide_at is None:
+            return files
+        k = next(i for i, f in enumerate(files) if self.decide_at in (f, _stem(f)))
+        return files[:k + 1]
+
+
+def _stem(path: str) -> str:
+    """A file's name without its folder and suffixes (``runs/s1.tsv.gz`` -> ``s1``)."""
+    name = Path(path).name
+    return name.split(".")[0] if not name.startswith(".") else name
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -93,7 +119,8 @@ def input_paths(cfg: RunConfig, base_dir: str | Path | None) -> list[Path]:
         return [p if p.is_absolute() or base_dir is None else Path(base_dir) / p]
 
     m = cfg.measurement
-    out = resolve(m.file) + (resolve(m.simulate.motion.file) if m.simulate is not None else [])
+    out = [p for f in m.files for p in resolve(f)] + (resolve(m.simulate.motion.file) if m.simulate is not None
+                                                      else [])
     for spec in (cfg.ida.record_specs(base_dir) or []) if cfg.ida is not None else []:
         out += resolve(spec)
     if cfg.loss is not None:

@@ -27,16 +27,26 @@ STIFFNESS_ERROR_FLAG = 0.20
 record) exceeds this is flagged: the clone does not follow the building's degradation there."""
 
 def event_risks(assessment: dict | None, ida, motions: Sequence[tuple[str, GroundMotion]]) -> list[dict]:
-    """P(collapse) at each event's intensity: the ensemble assessment's (``assessment``: its
-    :meth:`~hlaid.ida.Assessment.to_dict`) where there is one, else the identified clone's IDA
-    fragility (``ida``: an :class:`~hlaid.ida.IDAResult`) at ``motions`` ``[(name, GroundMotion)]``."""
-    if assessment is not None and assessment.get("events"):
-        return [{**e, "source": f"ensemble of {assessment['n_ensemble']} clones"} for e in assessment["events"]]
+    """P(collapse | another record of each event's intensity): the identified clone's IDA fragility
+    (``ida``: an :class:`~hlaid.ida.IDAResult`) at ``motions`` ``[(name, GroundMotion)]``, the one
+    figure every command reports (:func:`hlaid.ida.basis.ida_events`), with the ensemble
+    assessment's band beside it where there is one (``assessment``: its
+    :meth:`~hlaid.ida.Assessment.to_dict`; its events only, where the IDA is not at hand)."""
+    ens = {e["name"]: e for e in (assessment or {}).get("events") or () if isinstance(e, dict) and "name" in e}
     if ida is None or not motions:
-        return []
+        return [{**e, "source": f"ensemble of {assessment['n_ensemble']} clones"} for e in ens.values()] \
+            if assessment else []
     from ..ida.basis import ida_events
 
-    return [e.to_dict() for e in ida_events(None, ida, motions)]
+    out = []
+    for e in ida_events(None, ida, motions):
+        d = e.to_dict()
+        band = ens.get(e.name, {}).get("p_collapse_band")
+        if band is not None and assessment is not None:
+            d.update(p_collapse_band=list(band), source=f"{d['source']}; 90 % band: ensemble of "
+                                                           f"{assessment['n_ensemble']} clones")
+        out.append(d)
+    return out
 
 
 def parameter_flags(clone: Clone) -> list[str]:

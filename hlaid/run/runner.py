@@ -36,7 +36,7 @@ from ..model import Building
 from ..plots import plot_time_histories, save_figure
 from ..synthetic import measurement_from_config
 from .config import MeasurementSource, RunConfig, input_paths, load_run_config
-from .decision import event_risks, run_basis, run_flags
+from .decision import run_basis, run_flags
 from .summary import (
     Assessment,
     ConfigRecord,
@@ -53,15 +53,29 @@ PARAMS = ("alpha", "p", "delta_eta", "dy", "k0")
 
 
 def load_measurement(src: MeasurementSource, base_dir: Path | None) -> Measurement:
-    import dataclasses
+    """The measurement of the event the decisions are at (the last of ``src.files``)."""
+    return load_measurements(src, base_dir)[-1]
+
+
+def load_measurements(src: MeasurementSource, base_dir: Path | None) -> list[Measurement]:
+    """The measurements of a run, oldest first (one, or the events of ``src.files``)."""
     if src.simulate is not None:
-        meas = measurement_from_config(src.simulate, base_dir=base_dir)
-    else:
-        path = Path(cast(str, src.file))  # file is given when simulate is not (MeasurementSource)
+        return [_changed(src, measurement_from_config(src.simulate, base_dir=base_dir))]
+    out = []
+    for f in src.files:
+        path = Path(f)
         if base_dir is not None and not path.is_absolute():
             path = Path(base_dir) / path
         meas = read(path, "measurement", format=src.format, **src.options)
         check_moving(meas)
+        out.append(_changed(src, meas))
+    return out
+
+
+def _changed(src: MeasurementSource, meas: Measurement) -> Measurement:
+    """``meas`` with the masses and story heights ``src`` gives."""
+    import dataclasses
+
     changes: dict[str, Any] = {}
     if src.mass_t is not None:
         changes["mass"] = np.asarray(src.mass_t, float)
@@ -150,21 +164,25 @@ def _pipeline(cfg: RunConfig, out, base_dir, force: bool, cache_dir, inputs, plo
         (tmp / "figures").mkdir()
         t = time.perf_counter()
         step("measurement")
-        meas = load_measurement(cfg.measurement, Path(base_dir) if base_dir else None)
-        check_band(meas, cfg.identify.hla.preprocess.band_hz, "identify.hla.preprocess.band_hz")
-        check_band(meas, cfg.identify.refine.band_hz, "identify.refine.band_hz", default=RefineConfig().band_hz)
+        series = load_measurements(cfg.measurement, Path(base_dir) if base_dir else None)
+        meas = series[-1]  # the event the decisions are at
+        for m in series:
+            check_band(m, cfg.identify.hla.preprocess.band_hz, "identify.hla.preprocess.band_hz")
+            check_band(m, cfg.identify.refine.band_hz, "identify.refine.band_hz", default=RefineConfig().band_hz)
         check_output_folder(out, force=force, inputs=inputs)  # and the files the measurement named: before the work
         meas.save(tmp / "measurement.npz")
         timings["measurement"] = time.perf_counter() - t
         t = time.perf_counter()
         step("hysteresis loop analysis and identification")
-        res = identify_clone(meas, cfg.identify, tensorboard=str(tmp / "tensorboard"), cache_dir=cache_dir)
+        res = identify_clone(series if len(series) > 1 else meas, cfg.identify, tensorboard=str(tmp / "tensorboard"),
+                             cache_dir=cache_dir)
         timings["identify"] = time.perf_counter() - t
         table, paper = _identification_outputs(meas, res, tmp, step, plots)
         risk = _risk(res.clone, meas, cfg, tmp, base_dir, timings, step, plots)
-        basis = run_basis(res.clone, assessment=risk.pop("assessment_dict"), heights_given=_heights_given(cfg),
-                          events=[e.to_dict() for e in risk["events"]],
-                          drift_limit=cfg.ida.drift_limit if cfg.ida is not None else None)
+        decision = risk.pop("decision")
+        assessment = risk.pop("assessment_dict")
+        basis = decision.basis if decision is not None else run_basis(
+            res.clone, assessment=assessment, heights_given=_heights_given(cfg), drift_limit=None)
         flags = run_flags(res.clone, stiffness_error=res.replay.stiffness_error.tolist(),
                           survival=risk.pop("survival_dict"), loss=risk.pop("loss_dict"), basis=basis)
         step.close()
@@ -232,7 +250,7 @@ def _risk(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir, timings
     asks for (into ``tmp``, their times into ``timings``); returns the summary's blocks of them
     (and, for the flags, ``*_dict``: the survival, the assessment and the losses as mappings)."""
     out: dict = dict.fromkeys(("ida", "ida_after", "assessment", "loss", "survival", "survival_dict",
-                               "assessment_dict", "loss_dict"))
+                               "assessment_dict", "loss_dict", "decision"))
     out["events"] = ()
     if cfg.ida is None:
         return out
@@ -267,14 +285,33 @@ def _risk(clone, meas: Measurement, cfg: RunConfig, tmp: Path, base_dir, timings
                                     "nominal_survives": surv.nominal_survives,
                                     "nominal_collapsed_in": surv.nominal_collapsed_in}
     out["survival"] = Survival.from_dict(out["survival_dict"], file="summary.json", path="survival")
-    out["events"] = tuple(EventRisk.from_dict(e, file="summary.json", path="events")
-                          for e in event_risks(out["assessment_dict"], ir, surv.motions.available))
+    out["decision"] = _decision(clone, ir, cfg, out["assessment_dict"], meas)
+    out["events"] = tuple(EventRisk.from_dict(e.to_dict(), file="summary.json", path="events")
+                          for e in out["decision"].basis.events)
     if cfg.loss is not None:
         t = time.perf_counter()
         step("FEMA P-58 losses through pelicun: the measured record and the IDA stripes")
         out["loss"], out["loss_dict"] = _loss(clone, meas, cfg, tmp, out["ida"], out["assessment"], base_dir, plots)
         timings["loss"] = time.perf_counter() - t
     return out
+
+
+def _decision(clone, ir, cfg: RunConfig, assessment: dict | None, meas: Measurement):
+    """The run's decision (:func:`hlaid.run.decide.decide`): both questions at every event of the
+    clone, the members of the ensemble assessment replaying each event's own motion, the
+    assessment's band beside the fragility's figure and its members' median peak drift ratio as
+    the demand."""
+    from .decide import decide
+
+    assert cfg.ida is not None
+    demand = None
+    if assessment and assessment.get("own_peak_drift") is not None:
+        demand = float(np.median(np.asarray(assessment["own_peak_drift"], dtype=float)))
+    ens = {e["name"]: e for e in (assessment or {}).get("events") or () if isinstance(e, dict) and "name" in e}
+    n = cfg.assess.n_ensemble if cfg.assess is not None and clone.uncertainty is not None else 0
+    seed = cfg.assess.seed if cfg.assess is not None else 0
+    return decide(clone, ir, cfg.ida, at_hand=[meas], n_ensemble=n, seed=seed,
+                  heights_given=_heights_given(cfg), demand_ratio=demand, ensemble_events=ens)
 
 
 def _ida_summary(folder: Path) -> IDASummary:

@@ -25,14 +25,16 @@ def section(s: RunSummary) -> str:
             f"<tr><td class='l'>{e(r.name)}</td><td>{fmt(r.im, '.3g')}</td>"
             f"<td>{'not assessed' if r.p_collapse is None else fmt(r.p_collapse, '.1%')}</td>"
             f"<td>{band(r.p_collapse_band)}</td><td class='l'>{e(r.source or '')}</td></tr>" for r in s.events)
-        out.append("<p>P(collapse) of the undamaged clone at the intensity of each event it was identified from "
-                   "(the building survived every one):</p><table><tr><th class='l'>event</th><th>IM [g]</th>"
+        out.append("<p>P(collapse | another record of the intensity of each recorded event): the undamaged clone's "
+                   "IDA fragility at the event's intensity (the building survived every one; whether the clone "
+                   "survives the event's own motion is listed below):</p>"
+                   "<table><tr><th class='l'>event</th><th>IM [g]</th>"
                    "<th>P(collapse)</th><th>90 % band</th><th class='l'>fragility</th></tr>" + rows + "</table>")
     if s.basis is not None:
         from ...ida.basis import DecisionBasis
 
         lines = [x for x in DecisionBasis.from_dict(s.basis).lines()[1:]  # P(collapse) at the events: the table
-                 if not (s.events and x.lstrip().startswith("P(collapse) at the events"))]
+                 if not (s.events and x.lstrip().startswith("P(collapse | another record"))]
         out.append("<p>What the figures rest on:</p><ul>" + "".join(f"<li>{e(x.strip())}</li>" for x in lines)
                    + "</ul>")
     v = s.survival

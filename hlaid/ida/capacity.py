@@ -1,0 +1,42 @@
+"""What the building survived, as evidence on its collapse law (:mod:`hlaid.model.capacity`).
+
+:func:`survived_peaks` is the one reader of the clone's record of what each event measured;
+:func:`law_posterior` conditions a collapse law on it for a building prepared for an assessment.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..clone import Clone
+from ..model import Building
+from ..model.capacity import CapacityPosterior, capacity_posterior
+from ..model.collapse import CollapseModel
+
+
+def survived_peaks(clone: Clone) -> np.ndarray | None:
+    """``(story,)`` the largest drift of each story MEASURED over the events the building survived
+    and the clone was identified from [mm] (not the clone's replay of them); None where no event
+    recorded one."""
+    return clone.survived_drift(measured_only=True)
+
+
+def law_posterior(model: Clone | Building, law: CollapseModel, building: Building) -> CapacityPosterior:
+    """The posterior of ``law``'s capping drift for ``building`` (prepared: its heights and ``dy``)
+    given what ``model`` (a Clone; a Building records nothing) survived."""
+    survived = survived_peaks(model) if isinstance(model, Clone) else None
+    return capacity_posterior(law, dy=building.dy, height=building.height, survived=survived)
+
+
+__all__ = ["capacity_record", "law_posterior", "survived_peaks"]
+
+
+def capacity_record(clone: Clone, building: Building, collapse=None) -> dict | None:
+    """The posterior of the collapse law in force for ``clone`` prepared as ``building`` (its
+    heights), as :meth:`~hlaid.model.capacity.CapacityPosterior.to_dict`; None: no law or no heights."""
+    from .prepare import chosen_law
+
+    law = chosen_law(clone, collapse)
+    if law is None or building.height is None:
+        return None
+    return law_posterior(clone, law, building).to_dict()
