@@ -20,7 +20,9 @@ Layout::
                  "replay": {"band_hz": [lo, hi], "peak_drift_error": [...], "drift_r": [...]}
                            (optional: how the clone's full replay met this event)}, ...],
      "state": null | {"drift": [...], "z": [...], "work": [...], "peak_positive": [...],
-                      "peak_negative": [...], "events": [...]}}
+                      "peak_negative": [...], "events": [...]},
+     "modes": {"clone": [{"frequency_hz": ..., "damping_ratio": ..., "shape": [...]}, ...],
+               "records": [...], "damping_max": ..., "system": ...}   (optional, version 3)}
 
 Version 2 adds the optional ``uncertainty`` block: the identified
 parameters' Gaussian in log space (per parameter: name, story, transform, value, std and a
@@ -59,6 +61,7 @@ from .systems import SYSTEMS
 from .units import UNITS_JSON
 
 if TYPE_CHECKING:
+    from .model.modes import ModalCheck
     from .model.uncertainty import ParameterUncertainty
 
 FORMAT = "hlaid-clone"
@@ -83,6 +86,8 @@ class Clone:
     events : the events the clone was identified from, oldest first (name, source, sha256,
         pga_g, duration_s)
     state : the state its last event left the building in (None: undamaged, at rest)
+    modes : its modes at small amplitude beside the records' (:class:`hlaid.model.modes.ModalCheck`;
+        None: not assessed, a file from before)
     """
 
     building: Building
@@ -93,6 +98,7 @@ class Clone:
     system: str | None = None
     events: tuple[dict, ...] = ()
     state: BuildingState | None = None
+    modes: ModalCheck | None = None
 
     def survived_drift(self, *, measured_only: bool = False) -> np.ndarray | None:
         """``(story,)`` the largest drift of each story the building survived [mm]: the measured
@@ -150,6 +156,7 @@ class Clone:
                 "uncertainty": None if self.uncertainty is None else jsonable(self.uncertainty.to_dict()),
                 "system": self.system, "events": jsonable(list(self.events)),
                 "state": None if self.state is None else self.state.to_dict(),
+                **({"modes": self.modes.to_dict()} if self.modes is not None else {}),
                 **({"collapse": b.collapse.to_dict()} if b.collapse is not None else {})}
 
     def save(self, path: str | os.PathLike, *, force: bool = False) -> Path:
@@ -168,7 +175,7 @@ class Clone:
             raise InputError(f"clone version {_show(version)} is not supported; this hlaid reads versions "
                              f"{', '.join(map(str, READS))}", source=source)
         _no_unknown(d, _TOP_KEYS + (("uncertainty",) if version >= 2 else ())
-                    + (("system", "events", "state") if version >= 3 else ()), "", source)
+                    + (("system", "events", "state", "modes") if version >= 3 else ()), "", source)
         _check_units(d.get("units"), source)
         stories = d.get("stories")
         if not isinstance(stories, list) or not stories:
@@ -228,9 +235,14 @@ class Clone:
         if state is not None:
             _checked(check_state, state.z, b.dy, drift=state.drift, height=b.height, source=source,
                      peaks=(("peak_positive", state.peak_positive), ("peak_negative", state.peak_negative)))
+        modes = None
+        if d.get("modes") is not None:
+            from .model.modes import ModalCheck
+
+            modes = ModalCheck.from_dict(d["modes"], source=source)
         return cls(building=b, mass_normalised=d.get("mass_normalised", False),
                    diagnostics=d.get("diagnostics") or {}, provenance=d.get("provenance") or {}, uncertainty=unc,
-                   system=system, events=events, state=state)
+                   system=system, events=events, state=state, modes=modes)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Clone:

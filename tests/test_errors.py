@@ -71,8 +71,8 @@ def test_numerical_failures_are_defined_once():
     found = _failure_definitions()
     assert len(found) == 1 and found[0].startswith("hlaid/errors.py:"), found
     from hlaid.errors import NUMERICAL_FAILURES, TangentTooLargeError, UnstableTangentError
-    from hlaid.joint import fallback
     from hlaid.identify import refiners
+    from hlaid.joint import fallback
 
     assert refiners.NUMERICAL_FAILURES is NUMERICAL_FAILURES is fallback.NUMERICAL_FAILURES
     assert set(NUMERICAL_FAILURES) == {np.linalg.LinAlgError, FloatingPointError, ZeroDivisionError, OverflowError,

@@ -207,6 +207,8 @@ def print_summary(clone, before=None) -> None:
         lines.append(table[i + 1] + mark)
     stories = d.get("stories") or []
     lines.append(modal_line(b, [s.get("k0_hla") for s in stories] if len(stories) == b.n_stories else None))
+    if clone.modes is not None:
+        lines += clone.modes.lines()
     events = (d.get("joint") or {}).get("events") or []
     if events:  # one line: R per floor of each event's replay
         lines.append("replay R (floors bottom to top): " + "; ".join(
@@ -243,6 +245,7 @@ def print_summary(clone, before=None) -> None:
     from ..run.decision import identification_flags
 
     lines += [f"flag: {f}" for f in identification_flags(clone)]
+    lines += [f"flag: {f}" for f in (clone.modes.flags() if clone.modes is not None else [])]
     for line in lines:
         _progress.info(line)
 

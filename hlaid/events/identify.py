@@ -111,8 +111,8 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     if len(meas) == 1 and single is not None and cfg.system is None:  # no system named: the paper's method
         timings["total"] = time.perf_counter() - t_all
         tb.close()
-        return with_choices(with_history(dataclasses.replace(
-            single, clone=dataclasses.replace(single.clone, system=cfg.system)), {}), settings)
+        return with_modes(with_choices(with_history(dataclasses.replace(
+            single, clone=dataclasses.replace(single.clone, system=cfg.system)), {}), settings), meas)
     system = get_prior(cfg.system or "generic")
     starts = plausible_starts(single, events[0], meas[0], system, cfg)
     names = [m.name or f"event {k + 1}" for k, m in enumerate(meas)]
@@ -137,7 +137,18 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     result = result_of_joint(events, meas, fit, cfg, system=system, start=start, single=single, timings=timings)
     timings["total"] = time.perf_counter() - t_all
     tb.close()
-    return with_choices(with_history(result, history, diagnostics={"laws": laws, "fallbacks": notes}), settings)
+    return with_modes(with_choices(with_history(result, history, diagnostics={"laws": laws, "fallbacks": notes}),
+                                   settings), meas)
+
+
+def with_modes(result: IdentificationResult, meas: Sequence[Measurement]) -> IdentificationResult:
+    """``result`` whose clone holds its modes at small amplitude beside the records' own
+    (:class:`hlaid.model.modes.ModalCheck`)."""
+    from ..model.modes import modal_check
+
+    clone = result.clone
+    check = modal_check(clone.building, clone.system)
+    return dataclasses.replace(result, clone=dataclasses.replace(clone, modes=check))
 
 
 def _main_fit(starts: Sequence[Building], meas: Sequence[Measurement], system: StructuralPrior, settings: Resolution, *,

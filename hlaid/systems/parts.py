@@ -139,6 +139,9 @@ class StructuralSystem:
     law : the story law its stories follow unless the records say otherwise (a name of
         :data:`hlaid.joint.laws.LAWS`)
     inventory : the loss assessment's default component inventory, or None (the user gives one)
+    damping_max : the largest viscous damping ratio of any mode that the system makes plausible
+        at the small amplitudes of the linear system (a clone mode damped more is flagged,
+        :mod:`hlaid.model.modes`)
     """
 
     name: str
@@ -147,6 +150,7 @@ class StructuralSystem:
     prior: StructuralPrior
     law: str = "degrading"
     inventory: Inventory | None = None
+    damping_max: float = 0.2
 
     def __post_init__(self):
         named = {"prior": self.prior.name, **({"inventory": self.inventory.name} if self.inventory else {})}

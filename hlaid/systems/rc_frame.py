@@ -17,7 +17,7 @@ from .parts import (
 NAME = "rc-frame"
 
 SYSTEM = StructuralSystem(
-    name=NAME, title="reinforced-concrete moment frame", collapse="rc-frame", law="degrading",
+    name=NAME, title="reinforced-concrete moment frame", collapse="rc-frame", law="degrading", damping_max=0.10,
     prior=StructuralPrior(
         name=NAME,
         cy=Median(median=0.2, beta=0.6), alpha=Median(median=0.05, beta=0.7), p=Median(median=1.3, beta=0.7),

@@ -16,7 +16,7 @@ from .parts import (
 NAME = "steel-moment-frame"
 
 SYSTEM = StructuralSystem(
-    name=NAME, title="steel moment-resisting frame", collapse="steel-mrf", law="degrading",
+    name=NAME, title="steel moment-resisting frame", collapse="steel-mrf", law="degrading", damping_max=0.10,
     prior=StructuralPrior(
         name=NAME,
         cy=Median(median=0.3, beta=0.6), alpha=Median(median=0.1, beta=0.7), p=Median(median=2.0, beta=0.7),
