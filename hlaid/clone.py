@@ -11,6 +11,8 @@ Layout::
      "mass_normalised": false,
      "collapse": {"name": ..., "theta_p": ..., "theta_pc": ..., "kappa": ..., "theta_u": ...}
                  (optional: the strength-loss model IDA uses, see hlaid.model.collapse),
+     "coupling": {"flexural": [...]} (optional: the linear floor coupling beside the story springs,
+                 hlaid.model.coupling; absent: the shear chain),
      "diagnostics": {...}, "provenance": {...},
      "uncertainty": null | {...},                          (version 2 and later)
      "system": null | "steel-moment-frame" | ...,          (version 3)
@@ -157,7 +159,8 @@ class Clone:
                 "system": self.system, "events": jsonable(list(self.events)),
                 "state": None if self.state is None else self.state.to_dict(),
                 **({"modes": self.modes.to_dict()} if self.modes is not None else {}),
-                **({"collapse": b.collapse.to_dict()} if b.collapse is not None else {})}
+                **({"collapse": b.collapse.to_dict()} if b.collapse is not None else {}),
+                **({"coupling": b.coupling.to_dict()} if b.coupling is not None else {})}
 
     def save(self, path: str | os.PathLike, *, force: bool = False) -> Path:
         """Write the clone JSON atomically (never a half-written file); an existing file is
@@ -201,7 +204,7 @@ class Clone:
         damping = d.get("damping", {})
         if not isinstance(damping, dict):
             raise InputError(f"field 'damping' must be a mapping, got {kind_of(damping)}", source=source)
-        _no_unknown(damping, ("kind", "ratio", "modes", "ratio2"), "damping.", source)
+        _no_unknown(damping, ("kind", "ratio", "modes", "ratio2", "higher"), "damping.", source)
         if "kind" in damping and not isinstance(damping["kind"], str):
             raise InputError(f"damping.kind must be a string, got {kind_of(damping['kind'])}", source=source)
         if "ratio" in damping:
@@ -220,7 +223,7 @@ class Clone:
             # the story lists become arrays in Building
             b = Building(**cols, height=None if None in heights else cast("np.ndarray", heights),
                          gravity_load=None if None in gravity else cast("np.ndarray", gravity),
-                         damping=Damping(**damping), pdelta=d.get("pdelta"),
+                         damping=_damping(damping, source), pdelta=d.get("pdelta"), coupling=_coupling(d, source),
                          collapse=_collapse_block(d.get("collapse"), source), name=d.get("name") or "", source=source)
         except InputError as err:
             raise InputError(str(err).removeprefix(f"{escape_controls(source)}: "), source=source) from None
@@ -299,7 +302,27 @@ def _checked(check, *args, source: str | None, **kw) -> None:
 
 
 _TOP_KEYS = ("format", "version", "units", "name", "stories", "damping", "pdelta", "mass_normalised",
-             "diagnostics", "provenance", "collapse")
+             "diagnostics", "provenance", "collapse", "coupling")
+
+
+def _damping(damping: dict, source: str | None) -> Damping:
+    """The ``damping`` block (its ``higher`` ratios a list of numbers)."""
+    higher = damping.get("higher", [])
+    if not (isinstance(higher, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in higher)):
+        raise InputError("damping.higher must be a list of damping ratios", source=source)
+    return Damping(**{**damping, **({"higher": tuple(higher)} if higher else {})})
+
+
+def _coupling(d: dict, source: str | None):
+    """The optional ``coupling`` block (absent: the shear chain, the coupling at zero)."""
+    if d.get("coupling") is None:
+        return None
+    from .model.coupling import Coupling
+
+    try:
+        return Coupling.from_dict(d["coupling"])
+    except InputError as err:
+        raise InputError(str(err), source=source) from None
 _STORY_OPTIONAL = ("height", "gravity_load")
 
 

@@ -155,10 +155,10 @@ def modal_line(b, k0_hla=None) -> str:
     the first-mode period HLA's stiffnesses alone give (the same masses)."""
     import numpy as np
 
+    from ..model.modes import clone_modes
+
     T = np.asarray(b.periods())
-    w = 2 * np.pi / T
-    a0, a1 = b.rayleigh()
-    xi = a0 / (2 * w) + a1 * w / 2
+    xi = [m.damping_ratio for m in clone_modes(b)]
     line = ("elastic modes: T " + " / ".join(f"{v:.3f}" for v in T) + " s, damping "
             + " / ".join(f"{100 * v:.1f}" for v in xi) + " %")
     if k0_hla is not None and len(k0_hla) == b.n_stories and all(v and v > 0 for v in k0_hla):

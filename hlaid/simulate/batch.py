@@ -152,7 +152,8 @@ def _run_numba(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, outputs):
     status = np.zeros(B, dtype=np.int64)
     kernel = _kernel.integrate_collapse if S == 6 * n else _kernel.integrate
     kernel(ag, dt, nt, mi, bi, sc, int(nsub), P["mass"], P["k0"], P["alpha"], P["p"], P["dy"],
-           P["delta_eta"], P["kg"], P["damping"], _kernel.damping_bandwidth(P["damping"]), P["collapse"], y0, stop,
+           P["delta_eta"], P["kg"], P["damping"], _kernel.damping_bandwidth(P["damping"]), P["coupling"],
+           _kernel.coupling_bandwidth(P["coupling"]), P["collapse"], y0, stop,
            save, states, save_acc, acc, peak_drift, peak_acc, final, n_done, status)
     return (states if save else None), (acc if save_acc else None), peak_drift, peak_acc, final, n_done, status
 
@@ -183,9 +184,11 @@ def _run_torch(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, outputs):
 
 
 def _tensors(P: dict, width: int) -> BuildingTensors:
-    """The parameters as tensors; the collapse values only for a collapse-law (6*story) state."""
+    """The parameters as tensors; the collapse values only for a collapse-law (6*story) state, the
+    coupling only where a building has one."""
     n = P["mass"].shape[1]
-    return BuildingTensors(**{k: torch.as_tensor(v) for k, v in P.items() if k != "collapse" or width == 6 * n})
+    skip = {k for k, keep in (("collapse", width == 6 * n), ("coupling", bool(np.any(P["coupling"])))) if not keep}
+    return BuildingTensors(**{k: torch.as_tensor(v) for k, v in P.items() if k not in skip})
 
 
 BACKENDS: dict[str, Callable] = {"numba": _run_numba, "torch": _run_torch}
