@@ -63,6 +63,7 @@ from .systems import SYSTEMS
 from .units import UNITS_JSON
 
 if TYPE_CHECKING:
+    from .events.coupled import LinearPart
     from .model.modes import ModalCheck
     from .model.uncertainty import ParameterUncertainty
 
@@ -90,6 +91,8 @@ class Clone:
     state : the state its last event left the building in (None: undamaged, at rest)
     modes : its modes at small amplitude beside the records' (:class:`hlaid.model.modes.ModalCheck`;
         None: not assessed, a file from before)
+    linear : which linear part the clone has, shear chain or coupled, and why
+        (:class:`hlaid.events.coupled.LinearPart`; None: the shear chain, not chosen)
     """
 
     building: Building
@@ -101,6 +104,7 @@ class Clone:
     events: tuple[dict, ...] = ()
     state: BuildingState | None = None
     modes: ModalCheck | None = None
+    linear: LinearPart | None = None
 
     def survived_drift(self, *, measured_only: bool = False) -> np.ndarray | None:
         """``(story,)`` the largest drift of each story the building survived [mm]: the measured
@@ -159,6 +163,7 @@ class Clone:
                 "system": self.system, "events": jsonable(list(self.events)),
                 "state": None if self.state is None else self.state.to_dict(),
                 **({"modes": self.modes.to_dict()} if self.modes is not None else {}),
+                **({"linear": self.linear.to_dict()} if self.linear is not None else {}),
                 **({"collapse": b.collapse.to_dict()} if b.collapse is not None else {}),
                 **({"coupling": b.coupling.to_dict()} if b.coupling is not None else {})}
 
@@ -178,7 +183,7 @@ class Clone:
             raise InputError(f"clone version {_show(version)} is not supported; this hlaid reads versions "
                              f"{', '.join(map(str, READS))}", source=source)
         _no_unknown(d, _TOP_KEYS + (("uncertainty",) if version >= 2 else ())
-                    + (("system", "events", "state", "modes") if version >= 3 else ()), "", source)
+                    + (("system", "events", "state", "modes", "linear") if version >= 3 else ()), "", source)
         _check_units(d.get("units"), source)
         stories = d.get("stories")
         if not isinstance(stories, list) or not stories:
@@ -243,9 +248,14 @@ class Clone:
             from .model.modes import ModalCheck
 
             modes = ModalCheck.from_dict(d["modes"], source=source)
+        linear = None
+        if d.get("linear") is not None:
+            from .events.coupled import LinearPart
+
+            linear = LinearPart.from_dict(d["linear"], source=source)
         return cls(building=b, mass_normalised=d.get("mass_normalised", False),
                    diagnostics=d.get("diagnostics") or {}, provenance=d.get("provenance") or {}, uncertainty=unc,
-                   system=system, events=events, state=state, modes=modes)
+                   system=system, events=events, state=state, modes=modes, linear=linear)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Clone:

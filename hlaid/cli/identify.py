@@ -209,6 +209,8 @@ def print_summary(clone, before=None) -> None:
     lines.append(modal_line(b, [s.get("k0_hla") for s in stories] if len(stories) == b.n_stories else None))
     if clone.modes is not None:
         lines += clone.modes.lines()
+    if clone.linear is not None:
+        lines.append(f"linear part: {clone.linear.form} ({clone.linear.reason})")
     events = (d.get("joint") or {}).get("events") or []
     if events:  # one line: R per floor of each event's replay
         lines.append("replay R (floors bottom to top): " + "; ".join(

@@ -49,6 +49,7 @@ from ..measurement import Measurement, building_name, check_series, ground_diges
 from ..model import Building, Damping
 from ..model.state import BuildingState
 from ..units import G_MM_S2
+from .coupled import choose_linear_part
 from .evidence import measured_peak_drift
 from .prequential import HISTORY, predicted, with_history
 from .replay import with_replays
@@ -112,7 +113,7 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
         timings["total"] = time.perf_counter() - t_all
         tb.close()
         return with_modes(with_choices(with_history(dataclasses.replace(
-            single, clone=dataclasses.replace(single.clone, system=cfg.system)), {}), settings), meas)
+            single, clone=dataclasses.replace(single.clone, system=cfg.system)), {}), settings))
     system = get_prior(cfg.system or "generic")
     starts = plausible_starts(single, events[0], meas[0], system, cfg)
     names = [m.name or f"event {k + 1}" for k, m in enumerate(meas)]
@@ -130,6 +131,10 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
                                 isolation=isolation_start(events, meas[0], system, fit.building), notes=notes)
     timings["laws"] = time.perf_counter() - t
     t = time.perf_counter()
+    with _progress.stage("[identify] the records' modes and the coupled linear part"):
+        fit, linear, lin = choose_linear_part(fit, meas, system, cfg, names=names, notes=notes)
+    timings["linear"] = time.perf_counter() - t
+    t = time.perf_counter()
     with _progress.stage("[identify] prefix fits of the start rule") if len(meas) > 1 else contextlib.nullcontext():
         history = prefix_history(fit, meas, system, cfg, names=names, k0_ref=k0_ref, notes=notes,
                                  mass_normalised=events[-1].hla.mass_normalised)
@@ -137,18 +142,19 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     result = result_of_joint(events, meas, fit, cfg, system=system, start=start, single=single, timings=timings)
     timings["total"] = time.perf_counter() - t_all
     tb.close()
-    return with_modes(with_choices(with_history(result, history, diagnostics={"laws": laws, "fallbacks": notes}),
-                                   settings), meas)
+    result = with_choices(with_history(result, history, diagnostics={"laws": laws, "fallbacks": notes}), settings)
+    return with_modes(result, () if lin is None else lin.modes, linear)
 
 
-def with_modes(result: IdentificationResult, meas: Sequence[Measurement]) -> IdentificationResult:
-    """``result`` whose clone holds its modes at small amplitude beside the records' own
-    (:class:`hlaid.model.modes.ModalCheck`)."""
+def with_modes(result: IdentificationResult, records=(), linear=None) -> IdentificationResult:
+    """``result`` whose clone holds its modes at small amplitude beside the ``records``' own
+    (:class:`hlaid.model.modes.ModalCheck`) and its ``linear`` part's choice
+    (:class:`hlaid.events.coupled.LinearPart`)."""
     from ..model.modes import modal_check
 
     clone = result.clone
-    check = modal_check(clone.building, clone.system)
-    return dataclasses.replace(result, clone=dataclasses.replace(clone, modes=check))
+    check = modal_check(clone.building, clone.system, records)
+    return dataclasses.replace(result, clone=dataclasses.replace(clone, modes=check, linear=linear))
 
 
 def _main_fit(starts: Sequence[Building], meas: Sequence[Measurement], system: StructuralPrior, settings: Resolution, *,

@@ -1,0 +1,153 @@
+"""The clone's linear part, chosen by the data: the shear chain, or the story springs with a
+flexural coupling and per-mode damping (:mod:`hlaid.model.coupling`) where the records' modes
+need it.
+
+The records' modes come from the lowest-amplitude record (:func:`hlaid.identify.modal.fit_linear`,
+the clone's masses). The coupled candidate starts from the shear clone's story laws and yield
+drifts, with the linear fit's story springs, coupling and per-mode damping; its joint fit moves
+the story parameters, the first two modes' damping ratios and holds the coupling and the higher
+modes' damping at the records' (its prior's stiffness centred on the linear fit's springs). The
+coupled form replaces the shear chain only where its Laplace log evidence (the same criterion
+that chooses the story laws, :func:`hlaid.joint.laws.choose_laws`) is higher by more than
+:data:`~hlaid.joint.laws.TIE_LOG_UNITS` per coupling term it adds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..identify.config import IdentifyConfig
+from ..joint.fit import JointFit, joint_fit
+from ..joint.laws import TIE_LOG_UNITS
+from ..joint.priors import StructuralPrior
+from ..measurement import Measurement
+from ..model import Building, Damping
+from ..model.coupling import Coupling
+
+FORMS = ("shear", "coupled")
+"""The linear parts a clone may have."""
+
+
+@dataclass(frozen=True)
+class LinearPart:
+    """Which linear part the clone has and why (a typed field of the clone: ``Clone.linear``).
+
+    Attributes
+    ----------
+    form : ``"shear"`` (the shear chain) or ``"coupled"`` (:mod:`hlaid.model.coupling`)
+    log_evidence : per form tried, its Laplace log evidence (a common ``n_eff``), None where
+        it was not fitted
+    reason : one sentence
+    record : the record the records' modes were identified from
+    """
+
+    form: str = "shear"
+    log_evidence: tuple[tuple[str, float | None], ...] = ()
+    reason: str = ""
+    record: str = ""
+
+    def __post_init__(self):
+        if self.form not in FORMS:
+            raise InputError(f"field 'linear.form' must be one of {', '.join(FORMS)}, got {self.form!r}")
+
+    def to_dict(self) -> dict:
+        return {"form": self.form, "log_evidence": {k: v for k, v in self.log_evidence}, "reason": self.reason,
+                "record": self.record}
+
+    @classmethod
+    def from_dict(cls, d, *, source: str | None = None) -> LinearPart:
+        try:
+            if not isinstance(d, Mapping) or not set(d) <= {"form", "log_evidence", "reason", "record"}:
+                raise InputError("field 'linear' must be a mapping of form, log_evidence, reason and record")
+            ev = d.get("log_evidence") or {}
+            if not isinstance(ev, Mapping) or not all(
+                    k in FORMS and (v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)))
+                    for k, v in ev.items()):
+                raise InputError("field 'linear.log_evidence' must map shear/coupled to numbers")
+            if not all(isinstance(d.get(k, ""), str) for k in ("form", "reason", "record")):
+                raise InputError("fields 'linear.form', 'linear.reason' and 'linear.record' must be strings")
+            return cls(d.get("form", "shear"), tuple((k, None if v is None else float(v)) for k, v in ev.items()),
+                       d.get("reason", ""), d.get("record", ""))
+        except InputError as e:
+            raise InputError(str(e), source=source) from None
+
+
+def coupled_start(shear: Building, lin) -> Building:
+    """The coupled candidate's start: ``shear``'s story laws and yield drifts, the linear fit
+    ``lin``'s story springs, coupling and per-mode damping (modes 1-2 free, the higher held)."""
+    z = lin.ratios
+    damping = Damping(kind="modal", ratio=float(z[0]), ratio2=float(z[1]) if len(z) > 1 else None,
+                      higher=tuple(float(v) for v in z[2:]))
+    return shear.replace(k0=np.asarray(lin.k), coupling=Coupling(tuple(lin.flexural)), damping=damping)
+
+
+def fit_coupled(shear_fit: JointFit, lin, meas: Sequence[Measurement], system: StructuralPrior, cfg: IdentifyConfig,
+                *, names: Sequence[str], y0=None) -> JointFit:
+    """The joint fit of the coupled candidate (see the module's doc), under the shear fit's laws."""
+    start = coupled_start(shear_fit.building, lin)
+    return joint_fit(start, meas, system, cfg, names=names, k0_ref=np.asarray(lin.k), laws=shear_fit.laws, y0=y0)
+
+
+def choose_form(shear_fit: JointFit, coupled_fit: JointFit | None, n_terms: int, record: str) -> tuple[str, LinearPart]:
+    """The form kept and its record: the coupled one where its log evidence beats the shear
+    chain's by more than :data:`TIE_LOG_UNITS` per coupling term."""
+    if coupled_fit is None:
+        return "shear", LinearPart("shear", (("shear", None), ("coupled", None)),
+                                   "the coupled candidate could not be fitted: the shear chain", record)
+    n_eff = np.mean([shear_fit.n_eff, coupled_fit.n_eff], axis=0)
+    zs, zc = shear_fit.log_evidence(n_eff), coupled_fit.log_evidence(n_eff)
+    margin = TIE_LOG_UNITS * max(n_terms, 1)
+    ev = (("shear", zs if np.isfinite(zs) else None), ("coupled", zc if np.isfinite(zc) else None))
+    if np.isfinite(zc) and (not np.isfinite(zs) or zc - zs > margin):
+        return "coupled", LinearPart("coupled", ev, f"the records' modes need the coupling: log evidence "
+                                                    f"{zc - zs:+.1f} over the shear chain (more than {margin:g})",
+                                     record)
+    return "shear", LinearPart("shear", ev, f"the shear chain suffices: the coupling's log evidence {zc - zs:+.1f} "
+                                            f"is not above {margin:g}", record)
+
+
+def linear_record(meas: Sequence[Measurement], building: Building, band_hz: tuple[float, float]):
+    """The records' linear model: :func:`hlaid.identify.modal.fit_linear` of the lowest-amplitude
+    record with ``building``'s masses and story stiffnesses as the start."""
+    from ..identify.modal import fit_linear, lowest_amplitude
+
+    k = lowest_amplitude(meas)
+    m = meas[k]
+    return fit_linear(m.ground_acc, m.floor_acc, m.dt, k_start=building.k0, mass=building.mass,
+                      band_hz=band_hz, record=m.name or f"event {k + 1}")
+
+
+MODAL_BAND_HZ = (0.5, 20.0)
+"""The band of the records' modal identification (its top kept within the compared band)."""
+
+
+def choose_linear_part(fit: JointFit, meas: Sequence[Measurement], system: StructuralPrior, cfg: IdentifyConfig, *,
+                       names: Sequence[str], notes: list[dict]):
+    """The records' modes, the coupled candidate's fit and the form chosen: ``(fit kept,
+    LinearPart, LinearFit or None)``; a numerical failure of either stage keeps the shear chain
+    (with a note)."""
+    from ..errors import NotIdentifiableError
+    from ..joint.fallback import run_stage
+
+    n = fit.building.n_stories
+    if n < 2:
+        return fit, LinearPart("shear", reason="one story: no coupling to choose"), None
+    top = (cfg.refine.band_hz or MODAL_BAND_HZ)[1]
+    band = (MODAL_BAND_HZ[0], min(MODAL_BAND_HZ[1], float(top)))
+    lin = run_stage("the records' modal identification", lambda: linear_record(meas, fit.building, band), None, notes,
+                    used="the shear chain is kept")
+    if lin is None:
+        return fit, LinearPart("shear", reason="the records' modes could not be identified: the shear chain"), None
+    coupled = run_stage("the coupled candidate's fit",
+                        lambda: fit_coupled(fit, lin, meas, system, cfg, names=names), None, notes,
+                        used="the shear chain is kept", extra=(NotIdentifiableError,))
+    form, part = choose_form(fit, coupled, n - 1, lin.record)
+    return (coupled if form == "coupled" and coupled is not None else fit), part, lin
+
+
+__all__ = ["FORMS", "MODAL_BAND_HZ", "LinearPart", "choose_form", "choose_linear_part", "coupled_start",
+           "fit_coupled", "linear_record"]
