@@ -126,8 +126,8 @@ def _band(x, dt, band):
     return scipy.signal.sosfiltfilt(sos, x, axis=0)
 
 
-def fit_linear(ground_acc: np.ndarray, floor_acc: np.ndarray, dt: float, *, k_start: Sequence[float],
-               mass: Sequence[float] | None = None, band_hz: tuple[float, float] = (0.5, 20.0),
+def fit_linear(ground_acc: np.ndarray, floor_acc: np.ndarray, dt: float, *, k_start: Sequence[float] | np.ndarray,
+               mass: Sequence[float] | np.ndarray | None = None, band_hz: tuple[float, float] = (0.5, 20.0),
                record: str = "") -> LinearFit:
     """The linear model of one record (see the module's doc).
 
