@@ -51,3 +51,23 @@ def test_linear_part_is_a_typed_field_of_the_clone():
     d["linear"]["form"] = "beam"
     with pytest.raises(InputError, match="linear.form"):
         Clone.from_dict(d, source="c.json")
+
+
+class _Fit:
+    """A joint fit as far as the choice of linear part reads it."""
+
+    def __init__(self, z):
+        self.n_eff = np.array([100.0])
+        self.z = z
+
+    def log_evidence(self, n_eff):
+        return self.z
+
+
+def test_the_coupling_is_kept_only_where_its_evidence_clears_the_margin():
+    from hlaid.events.coupled import choose_form
+
+    form, part = choose_form(_Fit(0.0), _Fit(4.5), 2, "s1")
+    assert form == "coupled" and part.form == "coupled" and dict(part.log_evidence)["coupled"] == 4.5
+    assert choose_form(_Fit(0.0), _Fit(3.5), 2, "s1")[0] == "shear"  # 2 log units per coupling term
+    assert choose_form(_Fit(0.0), None, 2, "s1")[1].log_evidence == (("shear", None), ("coupled", None))
