@@ -136,6 +136,8 @@ def choose_linear_part(fit: JointFit, meas: Sequence[Measurement], system: Struc
     n = fit.building.n_stories
     if n < 2:
         return fit, LinearPart("shear", reason="one story: no coupling to choose"), None
+    if any(np.shape(m.floor_acc)[-1] != n for m in meas):
+        return fit, LinearPart("shear", reason="the records do not measure every floor: the shear chain"), None
     top = (cfg.refine.band_hz or MODAL_BAND_HZ)[1]
     band = (MODAL_BAND_HZ[0], min(MODAL_BAND_HZ[1], float(top)))
     lin = run_stage("the records' modal identification", lambda: linear_record(meas, fit.building, band), None, notes,
