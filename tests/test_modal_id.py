@@ -71,3 +71,16 @@ def test_the_coupling_is_kept_only_where_its_evidence_clears_the_margin():
     assert form == "coupled" and part.form == "coupled" and dict(part.log_evidence)["coupled"] == 4.5
     assert choose_form(_Fit(0.0), _Fit(3.5), 2, "s1")[0] == "shear"  # 2 log units per coupling term
     assert choose_form(_Fit(0.0), None, 2, "s1")[1].log_evidence == (("shear", None), ("coupled", None))
+
+
+def test_the_shear_chain_suffices_where_its_modes_reach_the_records():
+    from types import SimpleNamespace
+
+    from hlaid.events.coupled import shear_reaches
+    from hlaid.model.modes import Mode
+
+    def fit(*f):
+        return SimpleNamespace(modes=tuple(Mode(v, 0.02, (1.0,)) for v in f))
+
+    assert shear_reaches(fit(1.39, 5.08, 10.1), fit(1.40, 5.2, 9.5))
+    assert not shear_reaches(fit(1.39, 5.08, 10.1), fit(1.58, 4.45, 6.0))

@@ -6,8 +6,10 @@ The records' modes come from the lowest-amplitude record (:func:`hlaid.identify.
 the clone's masses). The coupled candidate starts from the shear clone's story laws and yield
 drifts, with the linear fit's story springs, coupling and per-mode damping; its joint fit moves
 the story parameters, the first two modes' damping ratios and holds the coupling and the higher
-modes' damping at the records' (its prior's stiffness centred on the linear fit's springs). The
-coupled form replaces the shear chain only where its Laplace log evidence (the same criterion
+modes' damping at the records' (its prior's stiffness centred on the linear fit's springs). It is
+fitted only where the shear chain's own best linear model of the record misses one of the records'
+modes by more than :data:`~hlaid.model.modes.FREQUENCY_TOLERANCE` (elsewhere the shear chain
+suffices), and replaces the shear chain only where its Laplace log evidence (the same criterion
 that chooses the story laws, :func:`hlaid.joint.laws.choose_laws`) is higher by more than
 :data:`~hlaid.joint.laws.TIE_LOG_UNITS` per coupling term it adds.
 """
@@ -27,6 +29,7 @@ from ..joint.priors import StructuralPrior
 from ..measurement import Measurement
 from ..model import Building, Damping
 from ..model.coupling import Coupling
+from ..model.modes import FREQUENCY_TOLERANCE
 
 FORMS = ("shear", "coupled")
 """The linear parts a clone may have."""
@@ -110,15 +113,23 @@ def choose_form(shear_fit: JointFit, coupled_fit: JointFit | None, n_terms: int,
                                             f"is not above {margin:g}", record)
 
 
-def linear_record(meas: Sequence[Measurement], building: Building, band_hz: tuple[float, float]):
+def linear_record(meas: Sequence[Measurement], building: Building, band_hz: tuple[float, float], *,
+                  coupling: bool = True):
     """The records' linear model: :func:`hlaid.identify.modal.fit_linear` of the lowest-amplitude
-    record with ``building``'s masses and story stiffnesses as the start."""
+    record with ``building``'s masses and story stiffnesses as the start (``coupling`` False: the
+    shear chain's)."""
     from ..identify.modal import fit_linear, lowest_amplitude
 
     k = lowest_amplitude(meas)
     m = meas[k]
     return fit_linear(m.ground_acc, m.floor_acc, m.dt, k_start=building.k0, mass=building.mass,
-                      band_hz=band_hz, record=m.name or f"event {k + 1}")
+                      band_hz=band_hz, record=m.name or f"event {k + 1}", coupling=coupling)
+
+
+def shear_reaches(lin, shear_lin, tolerance: float = FREQUENCY_TOLERANCE) -> bool:
+    """Whether the shear chain's best linear model of the record (``shear_lin``) has every mode
+    within ``tolerance`` of the records' (``lin``, the coupled model's) in frequency."""
+    return all(abs(a.frequency_hz / b.frequency_hz - 1.0) <= tolerance for a, b in zip(shear_lin.modes, lin.modes))
 
 
 MODAL_BAND_HZ = (0.5, 20.0)
@@ -144,6 +155,14 @@ def choose_linear_part(fit: JointFit, meas: Sequence[Measurement], system: Struc
                     used="the shear chain is kept")
     if lin is None:
         return fit, LinearPart("shear", reason="the records' modes could not be identified: the shear chain"), None
+    shear_lin = run_stage("the shear chain's modal fit",
+                          lambda: linear_record(meas, fit.building, band, coupling=False), None, notes,
+                          used="the coupled candidate is fitted")
+    if shear_lin is not None and shear_reaches(lin, shear_lin):
+        shown = " / ".join(f"{m.frequency_hz:.2f}" for m in shear_lin.modes)
+        return fit, LinearPart("shear", reason=f"the shear chain suffices: its modes of the record ({shown} Hz) are "
+                                              f"within {100 * FREQUENCY_TOLERANCE:g} % of the records'",
+                               record=lin.record), lin
     coupled = run_stage("the coupled candidate's fit",
                         lambda: fit_coupled(fit, lin, meas, system, cfg, names=names), None, notes,
                         used="the shear chain is kept", extra=(NotIdentifiableError,))

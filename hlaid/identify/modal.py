@@ -128,7 +128,7 @@ def _band(x, dt, band):
 
 def fit_linear(ground_acc: np.ndarray, floor_acc: np.ndarray, dt: float, *, k_start: Sequence[float] | np.ndarray,
                mass: Sequence[float] | np.ndarray | None = None, band_hz: tuple[float, float] = (0.5, 20.0),
-               record: str = "") -> LinearFit:
+               record: str = "", coupling: bool = True) -> LinearFit:
     """The linear model of one record (see the module's doc).
 
     Parameters
@@ -137,6 +137,7 @@ def fit_linear(ground_acc: np.ndarray, floor_acc: np.ndarray, dt: float, *, k_st
     k_start : (story,) a start of the story stiffnesses (e.g. HLA's)
     mass : (story,) [t], or None (equal unit masses: stiffness per unit mass)
     band_hz : the band compared (its top kept below :data:`MAX_MODE_HZ` and Nyquist)
+    coupling : fit the flexural terms (False: held at zero, the shear chain's modes)
     """
     import scipy.optimize
 
@@ -148,9 +149,11 @@ def fit_linear(ground_acc: np.ndarray, floor_acc: np.ndarray, dt: float, *, k_st
     scale = np.sqrt(np.mean(meas**2, axis=0))
     k0 = np.log(np.asarray(k_start, dtype=float))
 
+    nf = n - 1 if coupling else 0
+
     def unpack(x):
         e = np.exp(x)
-        return e[:n], e[n:2 * n - 1], np.minimum(e[2 * n - 1:], 0.9)
+        return e[:n], (e[n:n + nf] if coupling else np.zeros(n - 1)), np.minimum(e[n + nf:], 0.9)
 
     def residuals(x):
         k, kf, zeta = unpack(x)
@@ -158,10 +161,11 @@ def fit_linear(ground_acc: np.ndarray, floor_acc: np.ndarray, dt: float, *, k_st
         return ((sim - meas) / scale).ravel() / np.sqrt(meas.shape[0])
 
     best = None
-    for c in (1e-3, 0.05, 0.3):  # flexural terms from nearly none to a third of the mean story spring
-        x0 = np.concatenate([k0, np.full(n - 1, np.log(c * np.mean(np.exp(k0)))), np.full(n, np.log(0.03))])
-        lo = np.concatenate([k0 - 3.0, np.full(n - 1, np.log(1e-6 * np.mean(np.exp(k0)))), np.full(n, np.log(1e-3))])
-        up = np.concatenate([k0 + 3.0, np.full(n - 1, np.log(10 * np.mean(np.exp(k0)))), np.full(n, np.log(0.9))])
+    kbar = float(np.mean(np.exp(k0)))
+    for c in (1e-3, 0.05, 0.3) if coupling else (0.0,):  # flexural terms from nearly none to a third of k
+        x0 = np.concatenate([k0, np.full(nf, np.log(max(c, 1e-9) * kbar)), np.full(n, np.log(0.03))])
+        lo = np.concatenate([k0 - 3.0, np.full(nf, np.log(1e-6 * kbar)), np.full(n, np.log(1e-3))])
+        up = np.concatenate([k0 + 3.0, np.full(nf, np.log(10 * kbar)), np.full(n, np.log(0.9))])
         sol = scipy.optimize.least_squares(residuals, np.clip(x0, lo + 1e-9, up - 1e-9), bounds=(lo, up),
                                            x_scale=1.0, max_nfev=200)
         if best is None or sol.cost < best.cost:
