@@ -27,6 +27,13 @@ from ..model.modes import Mode, unit_roof
 MAX_MODE_HZ = 25.0
 """No mode above this is sought (the top of the compared band is kept below it)."""
 
+MAX_EVALUATIONS = 40
+"""At most this many evaluations of the residuals (each with its finite-difference Jacobian) per
+start of the fit: from the starts below, the modes of the steel frame's record settle within 20."""
+
+FLEXURAL_STARTS = (0.01, 0.3)
+"""Starts of the flexural terms, as fractions of the mean story spring."""
+
 
 @dataclass(frozen=True)
 class LinearFit:
@@ -162,12 +169,12 @@ def fit_linear(ground_acc: np.ndarray, floor_acc: np.ndarray, dt: float, *, k_st
 
     best = None
     kbar = float(np.mean(np.exp(k0)))
-    for c in (1e-3, 0.05, 0.3) if coupling else (0.0,):  # flexural terms from nearly none to a third of k
+    for c in FLEXURAL_STARTS if coupling else (0.0,):
         x0 = np.concatenate([k0, np.full(nf, np.log(max(c, 1e-9) * kbar)), np.full(n, np.log(0.03))])
         lo = np.concatenate([k0 - 3.0, np.full(nf, np.log(1e-6 * kbar)), np.full(n, np.log(1e-3))])
         up = np.concatenate([k0 + 3.0, np.full(nf, np.log(10 * kbar)), np.full(n, np.log(0.9))])
         sol = scipy.optimize.least_squares(residuals, np.clip(x0, lo + 1e-9, up - 1e-9), bounds=(lo, up),
-                                           x_scale=1.0, max_nfev=200)
+                                           x_scale=1.0, max_nfev=MAX_EVALUATIONS)
         if best is None or sol.cost < best.cost:
             best = sol
     assert best is not None
