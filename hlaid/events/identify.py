@@ -133,6 +133,8 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     t = time.perf_counter()
     with _progress.stage("[identify] the records' modes and the coupled linear part"):
         fit, linear, lin = choose_linear_part(fit, meas, system, cfg, names=names, notes=notes)
+    if linear.form == "coupled" and lin is not None:  # the coupled fit's prior stiffness: the records' springs
+        k0_ref = np.asarray(lin.k)
     timings["linear"] = time.perf_counter() - t
     t = time.perf_counter()
     with _progress.stage("[identify] prefix fits of the start rule") if len(meas) > 1 else contextlib.nullcontext():
