@@ -79,8 +79,9 @@ def test_the_shear_chain_suffices_where_its_modes_reach_the_records():
     from hlaid.events.coupled import shear_reaches
     from hlaid.model.modes import Mode
 
-    def fit(*f):
-        return SimpleNamespace(modes=tuple(Mode(v, 0.02, (1.0,)) for v in f))
+    def fit(*f, top=12.5):
+        return SimpleNamespace(modes=tuple(Mode(v, 0.02, (1.0,)) for v in f), band_hz=(0.5, top))
 
     assert shear_reaches(fit(1.39, 5.08, 10.1), fit(1.40, 5.2, 9.5))
     assert not shear_reaches(fit(1.39, 5.08, 10.1), fit(1.58, 4.45, 6.0))
+    assert shear_reaches(fit(7.8, 22.7, 31.8, top=20.0), fit(7.8, 22.7, 16.0))  # beyond the band: not the record's

@@ -126,10 +126,17 @@ def linear_record(meas: Sequence[Measurement], building: Building, band_hz: tupl
                       band_hz=band_hz, record=m.name or f"event {k + 1}", coupling=coupling)
 
 
+def in_band(lin) -> tuple:
+    """The modes of the linear fit ``lin`` within its compared band (the ones the record identifies)."""
+    return tuple(m for m in lin.modes if m.frequency_hz <= lin.band_hz[1])
+
+
 def shear_reaches(lin, shear_lin, tolerance: float = FREQUENCY_TOLERANCE) -> bool:
     """Whether the shear chain's best linear model of the record (``shear_lin``) has every mode
-    within ``tolerance`` of the records' (``lin``, the coupled model's) in frequency."""
-    return all(abs(a.frequency_hz / b.frequency_hz - 1.0) <= tolerance for a, b in zip(shear_lin.modes, lin.modes))
+    the record identifies (:func:`in_band`) within ``tolerance`` of the records' (``lin``, the
+    coupled model's) in frequency."""
+    return all(abs(a.frequency_hz / b.frequency_hz - 1.0) <= tolerance
+               for a, b in zip(shear_lin.modes, in_band(lin)))
 
 
 MODAL_BAND_HZ = (0.5, 20.0)
@@ -171,4 +178,4 @@ def choose_linear_part(fit: JointFit, meas: Sequence[Measurement], system: Struc
 
 
 __all__ = ["FORMS", "MODAL_BAND_HZ", "LinearPart", "choose_form", "choose_linear_part", "coupled_start",
-           "fit_coupled", "linear_record"]
+           "fit_coupled", "in_band", "linear_record", "shear_reaches"]

@@ -49,7 +49,7 @@ from ..measurement import Measurement, building_name, check_series, ground_diges
 from ..model import Building, Damping
 from ..model.state import BuildingState
 from ..units import G_MM_S2
-from .coupled import choose_linear_part
+from .coupled import choose_linear_part, in_band
 from .evidence import measured_peak_drift
 from .prequential import HISTORY, predicted, with_history
 from .replay import with_replays
@@ -145,7 +145,7 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     timings["total"] = time.perf_counter() - t_all
     tb.close()
     result = with_choices(with_history(result, history, diagnostics={"laws": laws, "fallbacks": notes}), settings)
-    return with_modes(result, () if lin is None else lin.modes, linear)
+    return with_modes(result, () if lin is None else in_band(lin), linear)
 
 
 def with_modes(result: IdentificationResult, records=(), linear=None) -> IdentificationResult:
