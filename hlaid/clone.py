@@ -18,6 +18,10 @@ Layout::
                         "fallbacks": [...]}
                        (version 4: the decisions later steps read, see hlaid.record),
      "settings": null | {"config": {...}, "choices": [...]}   (version 4, hlaid.record.Settings),
+     "coupling": {"flexural": [...]} (optional: the linear floor coupling beside the story springs,
+                 hlaid.model.coupling; absent: the shear chain),
+     "modes": {...} (optional: the clone's modes at small amplitude beside the records', hlaid.model.modes),
+     "linear": {...} (optional: which linear part the clone has and why, hlaid.record.LinearPart),
      "uncertainty": null | {...},                          (version 2 and later)
      "system": null | "steel-moment-frame" | ...,          (version 3)
      "events": [{"name": ..., "source": ..., "sha256": ..., "pga_g": ..., "duration_s": ...,
@@ -26,7 +30,9 @@ Layout::
                  "replay": {"band_hz": [lo, hi], "peak_drift_error": [...], "drift_r": [...]}
                            (optional: how the clone's full replay met this event)}, ...],
      "state": null | {"drift": [...], "z": [...], "work": [...], "peak_positive": [...],
-                      "peak_negative": [...], "events": [...]}}
+                      "peak_negative": [...], "events": [...]},
+     "modes": {"clone": [{"frequency_hz": ..., "damping_ratio": ..., "shape": [...]}, ...],
+               "records": [...], "damping_max": ..., "system": ...}   (optional, version 3)}
 
 Version 2 adds the optional ``uncertainty`` block: the identified
 parameters' Gaussian in log space (per parameter: name, story, transform, value, std and a
@@ -70,6 +76,7 @@ from .record import (
     Fallback,
     FitReplay,
     LawChoice,
+    LinearPart,
     PaperMethod,
     ParameterFlag,
     Settings,
@@ -80,6 +87,7 @@ from .systems import SYSTEMS
 from .units import UNITS_JSON
 
 if TYPE_CHECKING:
+    from .model.modes import ModalCheck
     from .model.uncertainty import ParameterUncertainty
 
 FORMAT = "hlaid-clone"
@@ -115,6 +123,10 @@ class Clone:
     update_check : the check of its last update against the earlier events (None: not updated)
     fallbacks : the stages of its identification that failed numerically, and what was used instead
     settings : the settings its identification used (None: not kept)
+    modes : its modes at small amplitude beside the records' (:class:`hlaid.model.modes.ModalCheck`;
+        None: not assessed, a file from before)
+    linear : which linear part the clone has, shear chain or coupled, and why
+        (:class:`hlaid.record.LinearPart`; None: the shear chain, not chosen)
     """
 
     building: Building
@@ -144,6 +156,8 @@ class Clone:
     def story_laws(self) -> tuple[str, ...] | None:
         """The law each story follows (None where the clone names none: every entry free)."""
         return None if self.laws is None else self.laws.laws(self.building.n_stories)
+    modes: ModalCheck | None = None
+    linear: LinearPart | None = None
 
     def survived_drift(self, *, measured_only: bool = False) -> np.ndarray | None:
         """``(story,)`` the largest drift of each story the building survived [mm]: the measured
@@ -202,7 +216,10 @@ class Clone:
                 "state": None if self.state is None else self.state.to_dict(),
                 "identification": jsonable(self.identification_dict()),
                 "settings": None if self.settings is None else jsonable(self.settings.to_dict()),
-                **({"collapse": b.collapse.to_dict()} if b.collapse is not None else {})}
+                **({"modes": self.modes.to_dict()} if self.modes is not None else {}),
+                **({"linear": self.linear.to_dict()} if self.linear is not None else {}),
+                **({"collapse": b.collapse.to_dict()} if b.collapse is not None else {}),
+                **({"coupling": b.coupling.to_dict()} if b.coupling is not None else {})}
 
     def identification_dict(self) -> dict:
         """The file's ``identification`` block: the decisions later steps read (:mod:`hlaid.record`)."""
@@ -230,7 +247,7 @@ class Clone:
             raise InputError(f"clone version {_show(version)} is not supported; this hlaid reads versions "
                              f"{', '.join(map(str, READS))}", source=source)
         _no_unknown(d, _TOP_KEYS + (("uncertainty",) if version >= 2 else ())
-                    + (("system", "events", "state") if version >= 3 else ())
+                    + (("system", "events", "state", "modes", "linear") if version >= 3 else ())
                     + (("identification", "settings") if version >= 4 else ()), "", source)
         _check_units(d.get("units"), source)
         stories = d.get("stories")
@@ -257,7 +274,7 @@ class Clone:
         damping = d.get("damping", {})
         if not isinstance(damping, dict):
             raise InputError(f"field 'damping' must be a mapping, got {kind_of(damping)}", source=source)
-        _no_unknown(damping, ("kind", "ratio", "modes", "ratio2"), "damping.", source)
+        _no_unknown(damping, ("kind", "ratio", "modes", "ratio2", "higher"), "damping.", source)
         if "kind" in damping and not isinstance(damping["kind"], str):
             raise InputError(f"damping.kind must be a string, got {kind_of(damping['kind'])}", source=source)
         if "ratio" in damping:
@@ -277,7 +294,7 @@ class Clone:
             # the story lists become arrays in Building
             b = Building(**cols, height=None if None in heights else cast("np.ndarray", heights),
                          gravity_load=None if None in gravity else cast("np.ndarray", gravity),
-                         damping=Damping(**damping), pdelta=d.get("pdelta"),
+                         damping=_damping(damping, source), pdelta=d.get("pdelta"), coupling=_coupling(d, source),
                          collapse=_collapse_block(d.get("collapse"), source), name=d.get("name") or "", source=source)
         except InputError as err:
             raise InputError(str(err).removeprefix(f"{escape_controls(source)}: "), source=source) from None
@@ -293,8 +310,14 @@ class Clone:
             _checked(check_state, state.z, b.dy, drift=state.drift, height=b.height, source=source,
                      peaks=(("peak_positive", state.peak_positive), ("peak_negative", state.peak_negative)))
         typed = _typed(d, version, events, state, source)
+        modes = None
+        if d.get("modes") is not None:
+            from .model.modes import ModalCheck
+
+            modes = ModalCheck.from_dict(d["modes"], source=source)
+        linear = None if d.get("linear") is None else LinearPart.from_dict(d["linear"], source=source)
         return cls(building=b, mass_normalised=d.get("mass_normalised", False), uncertainty=unc,
-                   system=system, events=events, state=state, **typed)
+                   system=system, events=events, state=state, modes=modes, linear=linear, **typed)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Clone:
@@ -467,7 +490,27 @@ def _checked(check, *args, source: str | None, **kw) -> None:
 
 
 _TOP_KEYS = ("format", "version", "units", "name", "stories", "damping", "pdelta", "mass_normalised",
-             "diagnostics", "provenance", "collapse")
+             "diagnostics", "provenance", "collapse", "coupling")
+
+
+def _damping(damping: dict, source: str | None) -> Damping:
+    """The ``damping`` block (its ``higher`` ratios a list of numbers)."""
+    higher = damping.get("higher", [])
+    if not (isinstance(higher, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in higher)):
+        raise InputError("damping.higher must be a list of damping ratios", source=source)
+    return Damping(**{**damping, **({"higher": tuple(higher)} if higher else {})})
+
+
+def _coupling(d: dict, source: str | None):
+    """The optional ``coupling`` block (absent: the shear chain, the coupling at zero)."""
+    if d.get("coupling") is None:
+        return None
+    from .model.coupling import Coupling
+
+    try:
+        return Coupling.from_dict(d["coupling"])
+    except InputError as err:
+        raise InputError(str(err), source=source) from None
 _STORY_OPTIONAL = ("height", "gravity_load")
 
 

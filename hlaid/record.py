@@ -596,6 +596,55 @@ def _list(v) -> list | None:
     return None if v is None else list(v)
 
 
-__all__ = ["ENTRIES", "STORY_LAWS", "STARTS", "EventRecord", "Fallback", "FitReplay", "LawChoice", "OwnReplay",
+FORMS = ("shear", "coupled")
+"""The linear parts a clone may have."""
+
+
+@dataclass(frozen=True)
+class LinearPart:
+    """Which linear part the clone has and why (a typed field of the clone: ``Clone.linear``).
+
+    Attributes
+    ----------
+    form : ``"shear"`` (the shear chain) or ``"coupled"`` (:mod:`hlaid.model.coupling`)
+    log_evidence : per form tried, its Laplace log evidence (a common ``n_eff``), None where
+        it was not fitted
+    reason : one sentence
+    record : the record the records' modes were identified from
+    """
+
+    form: str = "shear"
+    log_evidence: tuple[tuple[str, float | None], ...] = ()
+    reason: str = ""
+    record: str = ""
+
+    def __post_init__(self):
+        if self.form not in FORMS:
+            raise InputError(f"field 'linear.form' must be one of {', '.join(FORMS)}, got {self.form!r}")
+
+    def to_dict(self) -> dict:
+        return {"form": self.form, "log_evidence": {k: v for k, v in self.log_evidence}, "reason": self.reason,
+                "record": self.record}
+
+    @classmethod
+    def from_dict(cls, d, *, source: str | None = None) -> LinearPart:
+        try:
+            if not isinstance(d, Mapping) or not set(d) <= {"form", "log_evidence", "reason", "record"}:
+                raise InputError("field 'linear' must be a mapping of form, log_evidence, reason and record")
+            ev = d.get("log_evidence") or {}
+            if not isinstance(ev, Mapping) or not all(
+                    k in FORMS and (v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)))
+                    for k, v in ev.items()):
+                raise InputError("field 'linear.log_evidence' must map shear/coupled to numbers")
+            if not all(isinstance(d.get(k, ""), str) for k in ("form", "reason", "record")):
+                raise InputError("fields 'linear.form', 'linear.reason' and 'linear.record' must be strings")
+            return cls(d.get("form", "shear"), tuple((k, None if v is None else float(v)) for k, v in ev.items()),
+                       d.get("reason", ""), d.get("record", ""))
+        except InputError as e:
+            raise InputError(str(e), source=source) from None
+
+
+__all__ = ["FORMS", "LinearPart", "ENTRIES", "STORY_LAWS", "STARTS", "EventRecord", "Fallback", "FitReplay",
+           "LawChoice", "OwnReplay",
            "PaperMethod", "PaperStory", "ParameterFlag", "Prequential", "SettingChoice", "Settings", "StartRule",
            "StartScore", "StoryLaw", "UpdateCheck", "story_law"]

@@ -147,9 +147,9 @@ def test_a_broken_record_is_a_clear_error_naming_the_file(bad, expect, tmp_path)
 
 
 def test_a_parameter_at_a_bound_of_the_search_is_flagged_against_that_bound():
-    from hlaid.joint.vector import DAMPING_RANGE, _ratio_of, at_limit
+    from hlaid.joint.vector import RATIO_BOUNDS, _ratio_of, at_limit
 
-    assert _ratio_of(10.0) == DAMPING_RANGE[1] and _ratio_of(-100.0) == DAMPING_RANGE[0]  # the clip the search uses
+    assert _ratio_of(10.0) == RATIO_BOUNDS[1] and _ratio_of(-100.0) == RATIO_BOUNDS[0]  # the clip the search uses
     assert at_limit("damping2", _ratio_of(10.0)) and at_limit("damping", _ratio_of(-100.0))
     assert not at_limit("damping", 0.025) and not at_limit("k0", 1e9)
     assert at_limit("alpha", 0.9495) and at_limit("alpha", 1e-4) and not at_limit("alpha", 0.2)

@@ -155,10 +155,10 @@ def modal_line(b, k0_hla=None) -> str:
     the first-mode period HLA's stiffnesses alone give (the same masses)."""
     import numpy as np
 
+    from ..model.modes import clone_modes
+
     T = np.asarray(b.periods())
-    w = 2 * np.pi / T
-    a0, a1 = b.rayleigh()
-    xi = a0 / (2 * w) + a1 * w / 2
+    xi = [m.damping_ratio for m in clone_modes(b)]
     line = ("elastic modes: T " + " / ".join(f"{v:.3f}" for v in T) + " s, damping "
             + " / ".join(f"{100 * v:.1f}" for v in xi) + " %")
     if k0_hla is not None and len(k0_hla) == b.n_stories and all(v and v > 0 for v in k0_hla):
@@ -206,6 +206,10 @@ def print_summary(clone, before=None) -> None:
         lines.append(table[i + 1] + mark)
     stories = () if clone.paper is None else clone.paper.stories
     lines.append(modal_line(b, [s.k0_hla for s in stories] if len(stories) == b.n_stories else None))
+    if clone.modes is not None:
+        lines += clone.modes.lines()
+    if clone.linear is not None:
+        lines.append(f"linear part: {clone.linear.form} ({clone.linear.reason})")
     fits = clone.fit_replays
     if fits and clone.paper is None:  # one line: R per floor of each event's replay
         lines.append("replay R (floors bottom to top): " + "; ".join(
@@ -243,6 +247,7 @@ def print_summary(clone, before=None) -> None:
     from ..run.decision import identification_flags
 
     lines += [f"flag: {f}" for f in identification_flags(clone)]
+    lines += [f"flag: {f}" for f in (clone.modes.flags() if clone.modes is not None else [])]
     for line in lines:
         _progress.info(line)
 

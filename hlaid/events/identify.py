@@ -50,6 +50,7 @@ from ..model import Building, Damping
 from ..model.state import BuildingState
 from ..record import EventRecord, LawChoice, Prequential, Settings
 from ..units import G_MM_S2
+from .coupled import choose_linear_part, in_band
 from .evidence import measured_peak_drift
 from .prequential import HISTORY, predicted, with_history
 from .replay import with_replays
@@ -103,8 +104,8 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     if len(meas) == 1 and single is not None and cfg.system is None:  # no system named: the paper's method
         timings["total"] = time.perf_counter() - t_all
         tb.close()
-        return with_choices(with_history(dataclasses.replace(
-            single, clone=dataclasses.replace(single.clone, system=cfg.system)), {}), settings)
+        return with_modes(with_choices(with_history(dataclasses.replace(
+            single, clone=dataclasses.replace(single.clone, system=cfg.system)), {}), settings))
     system = get_prior(cfg.system or "generic")
     starts = plausible_starts(single, events[0], meas[0], system, cfg)
     names = [m.name or f"event {k + 1}" for k, m in enumerate(meas)]
@@ -122,6 +123,12 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
                                 isolation=isolation_start(events, meas[0], system, fit.building), notes=notes)
     timings["laws"] = time.perf_counter() - t
     t = time.perf_counter()
+    with _progress.stage("[identify] the records' modes and the coupled linear part"):
+        fit, linear, lin = choose_linear_part(fit, meas, system, cfg, names=names, notes=notes)
+    if linear.form == "coupled" and lin is not None:  # the coupled fit's prior stiffness: the records' springs
+        k0_ref = np.asarray(lin.k)
+    timings["linear"] = time.perf_counter() - t
+    t = time.perf_counter()
     with _progress.stage("[identify] prefix fits of the start rule") if len(meas) > 1 else contextlib.nullcontext():
         history = prefix_history(fit, meas, system, cfg, names=names, k0_ref=k0_ref, notes=notes,
                                  mass_normalised=events[-1].hla.mass_normalised)
@@ -129,7 +136,8 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     result = result_of_joint(events, meas, fit, cfg, system=system, start=start, single=single, timings=timings)
     timings["total"] = time.perf_counter() - t_all
     tb.close()
-    return with_choices(with_history(result, history, laws=laws, notes=notes), settings)
+    result = with_choices(with_history(result, history, laws=laws, notes=notes), settings)
+    return with_modes(result, () if lin is None else in_band(lin), linear)
 
 
 def paper_clone(event: Event, cfg: IdentifyConfig, cache, tb: TBLogger, timings: dict, *,
@@ -146,6 +154,17 @@ def paper_clone(event: Event, cfg: IdentifyConfig, cache, tb: TBLogger, timings:
         record = with_replays((record,), single.clone.building, [m], [None],
                               mass_normalised=single.clone.mass_normalised)[0]
     return dataclasses.replace(single, clone=dataclasses.replace(single.clone, events=(record,), state=state))
+
+
+def with_modes(result: IdentificationResult, records=(), linear=None) -> IdentificationResult:
+    """``result`` whose clone holds its modes at small amplitude beside the ``records``' own
+    (:class:`hlaid.model.modes.ModalCheck`) and its ``linear`` part's choice
+    (:class:`hlaid.record.LinearPart`)."""
+    from ..model.modes import modal_check
+
+    clone = result.clone
+    check = modal_check(clone.building, clone.system, records)
+    return dataclasses.replace(result, clone=dataclasses.replace(clone, modes=check, linear=linear))
 
 
 def _main_fit(starts: Sequence[Building], meas: Sequence[Measurement], system: StructuralPrior, settings: Resolution, *,

@@ -34,7 +34,7 @@ from ..record import ParameterFlag
 from .laws import with_laws
 from .priors import StructuralPrior
 from .series import REPLAY_RATE_RATIO, WIDE_RATE_RATIO, EventSeries, at_replay_rate, event_series
-from .vector import GaussianPrior, PosteriorResiduals, PriorVector, SystemPrior, at_limit
+from .vector import MASS_RATIO_LIMIT, GaussianPrior, PosteriorResiduals, PriorVector, SystemPrior, at_limit
 
 WEIGHT_ROUNDS = 3
 """At most this many searches, each with the weights of the last one's optimum."""
@@ -268,8 +268,11 @@ def flags(fit: JointFit, prior: str = "prior") -> tuple[ParameterFlag, ...]:
     """Per fitted parameter: value, where it comes from (``"data"``, or ``prior`` where the data
     narrowed it by less than :data:`INFORMED`: ``"prior"`` for the structural system's,
     ``"earlier events"`` for an update's), and whether it sits at a bound of the search
-    (:func:`hlaid.joint.vector.at_limit`: a value the search could only approach)."""
+    (:func:`~hlaid.joint.vector.at_limit`: alpha at 0 or 0.95, p at 1, delta_eta below
+    1e-6, a damping ratio at the search's clip, a floor mass ratio at its clip: a value the search
+    could only approach)."""
     b, informed = fit.building, fit.informed()
+    lm = fit.vector.log_mass_ratios(fit.vector.of(b)) if fit.vector.masses else None
     out = []
     for (name, i), inf in zip(fit.vector.slots, informed):
         if name == "damping":
@@ -282,9 +285,11 @@ def flags(fit: JointFit, prior: str = "prior") -> tuple[ParameterFlag, ...]:
             value, name = float(b.dy[i]), "dy"
         else:
             value = float(getattr(b, name)[i])
+        at = at_limit(name, value) or (name == "mass" and lm is not None and i < lm.size
+                                       and abs(abs(lm[i]) - MASS_RATIO_LIMIT) < 1e-3)
         out.append(ParameterFlag(name=name, story=i + 1 if i >= 0 else None, value=float(value),
                                  source="data" if inf >= INFORMED else prior, informed=float(inf),
-                                 at_limit=at_limit(name, value)))
+                                 at_limit=bool(at)))
     return tuple(out)
 
 

@@ -12,13 +12,12 @@ structural system's prior over it (:class:`SystemPrior`), an earlier clone's pos
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Sequence
 
 import numpy as np
 
 from ..model import Building
-from ..model.schema import STORY_BOUNDS
+from ..model.schema import DAMPING_RATIO_MAX, STORY_BOUNDS
 from ..model.uncertainty import ParameterUncertainty
 from .priors import ALPHA_MAX, StructuralPrior, elf_profile, prior_record, system_residuals, weight_above
 from .series import EventSeries
@@ -55,25 +54,36 @@ def from_units(base, u: np.ndarray, log_zeta: float | None = None):
                         damping=dataclasses.replace(d, ratio=ratio))
 
 
-DAMPING_RANGE = (1e-6, 0.5)
-"""The damping ratios a search reaches (:func:`_ratio_of` clips to them)."""
+RATIO_BOUNDS = (1e-6, DAMPING_RATIO_MAX)
+"""The damping ratios a search can reach (:func:`_ratio_of` clips to them): a fitted ratio at
+either end sits at a bound of the search, not where the records put it."""
 
-NEAR_BOUND = {"alpha": (1e-3, 0.949), "p": (1.005, math.inf), "delta_eta": (1e-6, math.inf),
-              "damping": DAMPING_RANGE, "damping2": DAMPING_RANGE}
-"""Per parameter, the open range inside the search's bounds (alpha in (0, ALPHA_MAX) through its
-logit, p > 1 and delta_eta > 0 through their logs, the damping ratio's clip
-:data:`DAMPING_RANGE`): a value outside it sits at a bound, one the search could only approach."""
-
-
-def at_limit(name: str, value: float) -> bool:
-    """Whether the parameter ``name`` at ``value`` sits at a bound of the search (:data:`NEAR_BOUND`)."""
-    lo, hi = NEAR_BOUND.get(name, (-math.inf, math.inf))
-    return not lo < value < hi
+MASS_RATIO_LIMIT = 5.0
+"""A floor mass over the top floor's that moves stays within ``exp(+-MASS_RATIO_LIMIT)``."""
 
 
 def _ratio_of(log_zeta: float) -> float:
-    """A damping ratio of its log, within :data:`DAMPING_RANGE`."""
-    return max(float(min(np.exp(min(log_zeta, 0.0)), DAMPING_RANGE[1])), DAMPING_RANGE[0])
+    """A damping ratio of its log, within :data:`RATIO_BOUNDS`."""
+    return max(float(min(np.exp(min(log_zeta, 0.0)), RATIO_BOUNDS[1])), RATIO_BOUNDS[0])
+
+
+def at_limit(name: str, value: float, *, rel: float = 1e-3) -> bool:
+    """Whether a fitted parameter sits at a bound of the search (within ``rel``): alpha at 0 or
+    0.95, p at 1, delta_eta below 1e-6, a damping ratio at :data:`RATIO_BOUNDS`, k0 or dy at
+    the model's bounds (:data:`~hlaid.model.schema.STORY_BOUNDS`, where :func:`from_units` clips)."""
+    v = float(value)
+    if name == "alpha":
+        return not 1e-3 < v < ALPHA_MAX - 1e-3
+    if name == "p":
+        return v < 1.005
+    if name == "delta_eta":
+        return v < 1e-6
+    if name in ("damping", "damping2"):
+        return not RATIO_BOUNDS[0] * (1 + rel) < v < RATIO_BOUNDS[1] * (1 - rel)
+    if name in ("k0", "dy"):
+        b = STORY_BOUNDS[name]
+        return not b.lo * (1 + rel) < v < b.upper() * (1 - rel)
+    return False
 
 
 def _log_ratio(ratio: float | None) -> float:
@@ -169,7 +179,7 @@ class PriorVector:
         base = self.building
         lm = self.log_mass_ratios(x)
         if lm is not None:
-            r = np.exp(np.clip(np.append(lm, 0.0), -5.0, 5.0))
+            r = np.exp(np.clip(np.append(lm, 0.0), -MASS_RATIO_LIMIT, MASS_RATIO_LIMIT))
             base = base.replace(mass=float(np.sum(base.mass)) * r / r.sum())
         b = from_units(base, u, lz)
         lz2 = self.log_zeta2(x)

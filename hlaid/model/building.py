@@ -42,7 +42,8 @@ def _above(a: torch.Tensor) -> torch.Tensor:
 
 
 class BoucWenBuilding(nn.Module):
-    """Right-hand side ``dy/dt = forward(t, y)`` of a batch of shear buildings.
+    """Right-hand side ``dy/dt = forward(t, y)`` of a batch of shear buildings (with their linear
+    floor coupling where they have one: :mod:`hlaid.model.coupling`).
 
     One definition serves the batch simulator (checked against it to 1e-8), the torchdiffeq
     replay and gradient-based identification (it is differentiable in its parameters).
@@ -111,7 +112,7 @@ class BoucWenBuilding(nn.Module):
         x, xd = u - _below(u), v - _below(v)
         eta = eq.degradation(e, P.alpha, P.k0, P.mass, P.delta_eta)
         zd = eq.hysteretic_rate(xd, z, P.dy, P.p, eta)
-        acc = _absolute_acceleration(P, x, v, z, xp, xn) - ag[:, None]
+        acc = _absolute_acceleration(P, x, v, z, xp, xn, u) - ag[:, None]
         if xp is None:
             return torch.cat([v, acc, zd, z * xd], dim=-1)
         return torch.cat([v, acc, zd, z * xd, eq.peak_rate(x, xd, xp), eq.peak_rate(-x, -xd, xn)], dim=-1)
@@ -166,7 +167,7 @@ class BoucWenBuilding(nn.Module):
         else:
             (u, v, z, e), xp, xn = states.split(n, dim=-1), None, None
         x = u - _below(u)
-        return {"disp": u, "vel": v, "acc": _absolute_acceleration(P, x, v, z, xp, xn), "drift": x,
+        return {"disp": u, "vel": v, "acc": _absolute_acceleration(P, x, v, z, xp, xn, u), "drift": x,
                 "force": _story_force(P, x, z, xp, xn), "z": z,
                 "eta": eq.degradation(e, P.alpha, P.k0, P.mass, P.delta_eta),
                 "energy": (1.0 - P.alpha) * P.k0 * e}
@@ -180,8 +181,11 @@ def _story_force(P: BuildingTensors, x, z, xp=None, xn=None):
     return eq.collapse_spring_force(x, z, xp, xn, P.alpha, P.k0, *(c[..., j] for j in range(c.shape[-1])))
 
 
-def _absolute_acceleration(P: BuildingTensors, x, v, z, xp=None, xn=None):
-    """Absolute floor acceleration ``-(R(x, z) + C v) / m`` [mm/s^2]; fields of ``P`` broadcast."""
+def _absolute_acceleration(P: BuildingTensors, x, v, z, xp=None, xn=None, u=None):
+    """Absolute floor acceleration ``-(R(x, z) + K_c u + C v) / m`` [mm/s^2]; fields of ``P``
+    broadcast; the coupling ``K_c`` (:mod:`hlaid.model.coupling`) where ``P`` has one."""
     f = _story_force(P, x, z, xp, xn) - P.kg * x  # story shear, P-Delta included
     fd = torch.einsum("...ij,...j->...i", P.damping, v)
+    if P.coupling is not None:
+        fd = fd + torch.einsum("...ij,...j->...i", P.coupling, u)
     return -(f - _above(f) + fd) / P.mass

@@ -13,6 +13,7 @@ from ..bounds import with_bounds
 from ..errors import InputError, escape_controls
 from ..units import G_MM_S2, kn_to_n, n_to_kn, weight_kn_to_mass_t
 from .collapse import CollapseModel, get_collapse_model, no_collapse
+from .coupling import Coupling, coupling_matrix
 from .schema import STORY_BOUNDS, Damping, check_damping_ratios, check_story_value
 
 if TYPE_CHECKING:  # torch is imported where a building is simulated, not where one is checked
@@ -61,6 +62,9 @@ class Building:
     collapse : strength loss beyond a capping drift (:class:`~hlaid.model.collapse.CollapseModel`,
         a name of :data:`~hlaid.model.collapse.COLLAPSE_MODELS` or a mapping); None (``"none"``):
         the paper's law. Needs story heights.
+    coupling : a linear floor coupling beside the story springs (:class:`~hlaid.model.coupling.Coupling`,
+        or a mapping of it), the restoring force ``F = shear-chain story forces + K_c u``; None:
+        the shear chain
     name : a label
     """
 
@@ -75,6 +79,7 @@ class Building:
     damping: Damping = field(default_factory=Damping)
     pdelta: bool | None = None
     collapse: CollapseModel | None = None
+    coupling: Coupling | None = None
     name: str = ""
     source: str | None = field(default=None, repr=False)
 
@@ -100,6 +105,13 @@ class Building:
             raise InputError(f"damping must be a Damping, got {type(self.damping).__name__}", source=self.source)
         try:
             self.damping.check_modes(self.n_stories)
+            c = self.coupling
+            if c is not None and not isinstance(c, Coupling):
+                c = Coupling.from_dict(c)
+            if c is not None and c.n_stories != self.n_stories:
+                raise InputError(f"coupling.flexural has {len(c.flexural)} terms; a building of {self.n_stories} "
+                                 f"stories has {self.n_stories - 1} (one per level with a floor above it)")
+            object.__setattr__(self, "coupling", None if c is None or c.is_zero else c)
         except InputError as e:
             raise InputError(str(e), source=self.source) from None
         try:
@@ -151,7 +163,10 @@ class Building:
         d = dict(d)
         stories = d.pop("stories")
         check_damping_ratios(d.get("damping", {}), source)
-        damping = Damping(**d.pop("damping", {}))
+        dd = dict(d.pop("damping", {}))
+        if "higher" in dd:
+            dd["higher"] = tuple(dd["higher"])
+        damping = Damping(**dd)
         return cls.from_stories(stories, damping=damping, source=source, **d)
 
     def to_dict(self) -> dict:
@@ -168,6 +183,8 @@ class Building:
         out: dict[str, Any] = {"stories": stories, "damping": self.damping.to_dict(), "pdelta": self.pdelta}
         if self.collapse is not None:
             out["collapse"] = self.collapse.to_dict()
+        if self.coupling is not None:
+            out["coupling"] = self.coupling.to_dict()
         if self.name:
             out["name"] = self.name
         return out
@@ -207,17 +224,31 @@ class Building:
         return torch.tensor(np.asarray(getattr(self, name)), dtype=torch.float64)[None]
 
     def rayleigh(self) -> tuple[float, float]:
-        """Damping coefficients ``(a0, a1)`` of ``C = a0 M + a1 K0``."""
+        """Damping coefficients ``(a0, a1)`` of ``C = a0 M + a1 K0`` (none for ``modal`` damping)."""
         from . import _structure as S
+        if self.damping.kind == "modal":
+            raise InputError("modal damping has no Rayleigh coefficients (C is built from the modes)",
+                             source=self.source)
         a0, a1 = S.rayleigh_coefficients(self._t("k0"), self._t("mass"), self.damping.kind,
                                          self.damping.ratio, self.damping.modes, self.damping.ratio2)
         return float(a0[0]), float(a1[0])
 
     def damping_matrix(self) -> np.ndarray:
-        """``C`` [N s/mm], ``(story, story)``."""
+        """``C`` [N s/mm], ``(story, story)``: Rayleigh's, or for ``modal`` damping
+        ``M Phi diag(2 zeta_j w_j) Phi^T M`` over the mass-normalised modes ``Phi`` of the initial
+        linear system (:meth:`linear_stiffness`)."""
         import torch
 
         from . import _structure as S
+        if self.damping.kind == "modal":
+            import scipy.linalg
+
+            lam, phi = scipy.linalg.eigh(self.linear_stiffness(), np.diag(self.mass))
+            w = np.sqrt(np.maximum(lam, 0.0))
+            zeta = np.asarray(self.damping.mode_ratios(self.n_stories))
+            mp = self.mass[:, None] * phi
+            C = mp @ np.diag(2.0 * zeta * w) @ mp.T
+            return 0.5 * (C + C.T)
         a0, a1 = self.rayleigh()
         return S.damping_matrix(self._t("k0"), self._t("mass"), torch.tensor([a0], dtype=torch.float64),
                                 torch.tensor([a1], dtype=torch.float64))[0].numpy()
@@ -233,9 +264,24 @@ class Building:
             k = k - torch.as_tensor(self.geometric_stiffness(), dtype=torch.float64)[None]
         return S.stiffness_matrix(k)[0].numpy()
 
+    def coupling_matrix(self) -> np.ndarray:
+        """``K_c`` [N/mm], ``(story, story)``: the linear coupling's (zeros for a shear chain)."""
+        return coupling_matrix(self.coupling, self.n_stories)
+
+    def linear_stiffness(self) -> np.ndarray:
+        """The stiffness matrix of the initial linear system [N/mm], ``(story, story)``: the story
+        springs at ``k0`` less the P-Delta stiffness (where active), plus the coupling ``K_c``."""
+        return self.stiffness_matrix(pdelta=True) + self.coupling_matrix()
+
     def periods(self) -> np.ndarray:
-        """Initial elastic periods [s], longest first, ``(story,)``."""
+        """Initial elastic periods [s], longest first, ``(story,)`` (of the story springs and the
+        coupling; P-Delta left out)."""
         from . import _structure as S
+        if self.coupling is not None:
+            import scipy.linalg
+
+            lam = scipy.linalg.eigvalsh(self.stiffness_matrix() + self.coupling_matrix(), np.diag(self.mass))
+            return 2.0 * np.pi / np.sqrt(np.maximum(lam, 1e-300))
         w = S.natural_frequencies(self._t("k0"), self._t("mass"))[0].numpy()
         return 2.0 * np.pi / w
 
@@ -253,7 +299,9 @@ class BuildingTensors:
     ``kg`` is the P-Delta stiffness ``P/h`` (zeros where inactive); ``collapse`` is
     ``(batch, story, 8)`` (gap springs ``x1, dk1, ..., x4, dk4``, :meth:`Building.collapse_values`) or None when no
     building of the batch has a collapse model. It is used when the state carries the collapse
-    memory (``6*story`` wide, see :class:`~hlaid.model.BoucWenBuilding`).
+    memory (``6*story`` wide, see :class:`~hlaid.model.BoucWenBuilding`). ``coupling`` is the
+    linear coupling ``K_c`` ``(batch, story, story)`` (:mod:`hlaid.model.coupling`), or None
+    when no building of the batch has one.
     """
 
     mass: torch.Tensor
@@ -265,6 +313,7 @@ class BuildingTensors:
     kg: torch.Tensor
     damping: torch.Tensor
     collapse: torch.Tensor | None = None
+    coupling: torch.Tensor | None = None
 
     @classmethod
     def stack(cls, buildings: Sequence[Building], dtype=None, device=None) -> BuildingTensors:
@@ -285,6 +334,8 @@ class BuildingTensors:
         fields["damping"] = t([b.damping_matrix() for b in buildings])
         if any(b.collapse is not None for b in buildings):
             fields["collapse"] = t([b.collapse_values() for b in buildings])
+        if any(b.coupling is not None for b in buildings):
+            fields["coupling"] = t([b.coupling_matrix() for b in buildings])
         return cls(**fields)
 
     @property
@@ -297,6 +348,13 @@ class BuildingTensors:
             return np.ascontiguousarray(self.collapse.detach().cpu().numpy())
         n = self.mass.shape[-1]
         return np.broadcast_to(no_collapse(n), (self.batch_size, n, no_collapse(n).shape[1])).copy()
+
+    def coupling_array(self) -> np.ndarray:
+        """``(batch, story, story)`` coupling ``K_c`` for the compiled simulator (zeros when None)."""
+        if self.coupling is not None:
+            return np.ascontiguousarray(self.coupling.detach().cpu().numpy())
+        n = self.mass.shape[-1]
+        return np.zeros((self.batch_size, n, n))
 
     @property
     def batch_size(self) -> int:
@@ -311,8 +369,10 @@ class BuildingTensors:
         return BuildingTensors(**fields)
 
     def numpy(self) -> dict[str, np.ndarray]:
-        """Every field as an array; ``collapse`` always (no-loss values when None)."""
+        """Every field as an array; ``collapse`` and ``coupling`` always (no-loss values, zeros
+        when None)."""
         out = {f.name: getattr(self, f.name).detach().cpu().numpy() for f in dataclasses.fields(self)
-               if f.name != "collapse"}
+               if f.name not in ("collapse", "coupling")}
         out["collapse"] = self.collapse_array()
+        out["coupling"] = self.coupling_array()
         return out

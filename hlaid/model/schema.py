@@ -135,7 +135,7 @@ def check_state(z, dy, *, drift=None, peaks=(), height=None) -> None:
 WEIGHT_KN = Bounds(1e-5, 1e9, unit="kN")
 """Bounds of a floor weight or gravity load given in kN (configs)."""
 
-DAMPING_KINDS = ("rayleigh", "stiffness", "mass", "none")
+DAMPING_KINDS = ("rayleigh", "stiffness", "mass", "none", "modal")
 """Names of the damping models (their equations: :data:`hlaid.model.structure.DAMPING_KINDS`)."""
 
 
@@ -159,12 +159,19 @@ class Damping:
     ratio2 : ``rayleigh`` only: the damping ratio of ``modes[1]``, independent of ``ratio``
         (None: ``ratio``): the higher modes' damping is then the records', not the first
         mode's. ``C = a0 M + a1 K0`` still, with ``a0, a1`` solving the two ratios.
+        ``modal``: the damping ratio of mode 2 (None: ``ratio``).
+    higher : ``modal`` only: the damping ratios of modes 3 and up (a mode beyond the list takes
+        its last entry, or ``ratio2`` where it is empty). ``modal`` damping gives every mode of
+        the initial linear system (:meth:`hlaid.model.Building.linear_stiffness`) its own ratio:
+        ``C = M Phi diag(2 zeta_j w_j) Phi^T M`` with ``Phi`` the mass-normalised modes, ``ratio``
+        for mode 1.
     """
 
     kind: str = "rayleigh"
     ratio: float = bounded(0.05, lo=0.0, hi=1.0, hi_open=True)
     modes: tuple[int, int] = bounded((1, 2), lo=1, hi="STORIES")
     ratio2: float | None = bounded(None, lo=0.0, hi=1.0, hi_open=True)
+    higher: tuple[float, ...] = ()
 
     def __post_init__(self):
         if self.kind not in DAMPING_KINDS:
@@ -177,22 +184,39 @@ class Damping:
             raise InputError(f"damping.modes = {list(modes)}; expected two mode numbers such as [1, 2]")
         check_bounds(self, prefix="damping.")
         object.__setattr__(self, "modes", modes)
-        if self.ratio2 is not None and self.kind != "rayleigh":
+        if self.ratio2 is not None and self.kind not in ("rayleigh", "modal"):
             raise InputError(f"damping.ratio2 = {self.ratio2!r} with kind {self.kind!r}; a second ratio is for "
-                             "kind 'rayleigh' only")
-        if self.ratio2 is not None and modes[0] == modes[1]:
+                             "kind 'rayleigh' or 'modal' only")
+        try:
+            higher = tuple(float(v) for v in self.higher)
+        except (TypeError, ValueError):
+            raise InputError(f"damping.higher = {self.higher!r}; expected a list of damping ratios") from None
+        if higher and self.kind != "modal":
+            raise InputError(f"damping.higher with kind {self.kind!r}; the ratios of modes 3 and up are for kind "
+                             "'modal' only")
+        if not all(0.0 <= v < 1.0 for v in higher):
+            raise InputError(f"damping.higher = {list(higher)}; expected damping ratios in [0, 1)")
+        object.__setattr__(self, "higher", higher)
+        if self.ratio2 is not None and self.kind == "rayleigh" and modes[0] == modes[1]:
             raise InputError(f"damping.ratio2 with damping.modes = {list(modes)}; expected two different modes")
+
+    def mode_ratios(self, n_modes: int) -> tuple[float, ...]:
+        """``modal``: the damping ratio of each of ``n_modes`` modes, lowest first."""
+        second = self.ratio if self.ratio2 is None else self.ratio2
+        rest = self.higher or (second,)
+        return ((self.ratio, second) + tuple(rest[min(j, len(rest) - 1)] for j in range(max(n_modes - 2, 0))))[:n_modes]
 
     def check_modes(self, n_stories: int) -> None:
         """Refuse a mode beyond the building's ``n_stories`` (a one-story building keeps ``[1, 2]``)."""
         used = self.modes if self.kind == "rayleigh" else self.modes[:1]
-        if self.kind != "none" and max(used) > max(n_stories, 2):
+        if self.kind not in ("none", "modal") and max(used) > max(n_stories, 2):
             raise InputError(f"damping.modes = {list(self.modes)}: a building of {n_stories} stories has modes "
                              f"1..{n_stories}")
 
     def to_dict(self) -> dict:
         return {"kind": self.kind, "ratio": self.ratio, "modes": list(self.modes),
-                **({"ratio2": self.ratio2} if self.ratio2 is not None else {})}
+                **({"ratio2": self.ratio2} if self.ratio2 is not None else {}),
+                **({"higher": list(self.higher)} if self.higher else {})}
 
 
 def check_damping_ratios(damping: object, source: str | None = None) -> None:
@@ -205,6 +229,12 @@ def check_damping_ratios(damping: object, source: str | None = None) -> None:
         if isinstance(r, (int, float)) and not isinstance(r, bool) and r > DAMPING_RATIO_MAX:
             raise InputError(f"damping.{key} = {r:g}; a building's damping ratio is at most {DAMPING_RATIO_MAX:g} "
                              "(0.05 is 5 %)", source=source)
+    higher = damping.get("higher")
+    if isinstance(higher, (list, tuple)):
+        for r in higher:
+            if isinstance(r, (int, float)) and not isinstance(r, bool) and r > DAMPING_RATIO_MAX:
+                raise InputError(f"damping.higher holds {r:g}; a building's damping ratio is at most "
+                                 f"{DAMPING_RATIO_MAX:g} (0.05 is 5 %)", source=source)
 
 
 __all__ = ["check_damping_ratios", "STORY_BOUNDS", "DAMPING_RATIO_MAX", "WEIGHT_KN", "DAMPING_KINDS", "Damping",

@@ -81,6 +81,10 @@ def model_data(model) -> dict[str, Any]:
     """
     from .._version import __version__
     b = building_of(model)
+    if b.coupling is not None or b.damping.kind == "modal":
+        raise InputError("this clone has a linear floor coupling or per-mode damping (a frame that is no shear "
+                         "chain), which the OpenSees export does not write yet; simulate it with hlaid",
+                         source=b.source)
     a0, a1 = b.rayleigh()
     return {
         "name": str(b.name or "clone"),

@@ -51,9 +51,10 @@ COLLAPSE = False
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
-def _rhs(y, ag, n, m, k0, al, p, dy, de, kg, C, bw, f, out):
+def _rhs(y, ag, n, m, k0, al, p, dy, de, kg, C, bw, Kc, bwc, f, out):
     """``out = dy/dt`` for one building; ``f`` is scratch ``(n,)``; ``C`` is zero beyond ``bw``
-    off its diagonal (see :func:`damping_bandwidth`). See BoucWenBuilding.rates."""
+    off its diagonal (see :func:`damping_bandwidth`), the coupling ``Kc`` beyond ``bwc`` (-1: no
+    coupling, none of its arithmetic). See BoucWenBuilding.rates."""
     u_below = 0.0
     v_below = 0.0
     for i in range(n):
@@ -73,6 +74,8 @@ def _rhs(y, ag, n, m, k0, al, p, dy, de, kg, C, bw, f, out):
         fd = 0.0
         for k in range(max(0, j - bw), min(n, j + bw + 1)):
             fd += C[j, k] * y[n + k]
+        for k in range(max(0, j - bwc), min(n, j + bwc + 1)):
+            fd += Kc[j, k] * y[k]
         f_above = f[j + 1] if j + 1 < n else 0.0
         out[n + j] = -(f[j] - f_above + fd) / m[j] - ag
 
@@ -87,8 +90,8 @@ def _all_finite(y):
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
-def _absolute_acc(y, n, m, al, k0, kg, C, bw, f, acc):
-    """Absolute floor accelerations ``-(R + C v)/m`` at state ``y``."""
+def _absolute_acc(y, n, m, al, k0, kg, C, bw, Kc, bwc, f, acc):
+    """Absolute floor accelerations ``-(R + K_c u + C v)/m`` at state ``y``."""
     u_below = 0.0
     for i in range(n):
         x = y[i] - u_below
@@ -98,6 +101,8 @@ def _absolute_acc(y, n, m, al, k0, kg, C, bw, f, acc):
         fd = 0.0
         for k in range(max(0, j - bw), min(n, j + bw + 1)):
             fd += C[j, k] * y[n + k]
+        for k in range(max(0, j - bwc), min(n, j + bwc + 1)):
+            fd += Kc[j, k] * y[k]
         f_above = f[j + 1] if j + 1 < n else 0.0
         acc[j] = -(f[j] - f_above + fd) / m[j]
 
@@ -148,7 +153,16 @@ def damping_bandwidth(C: np.ndarray) -> np.ndarray:
     return np.where(C != 0.0, off[None], 0).reshape(C.shape[0], -1).max(axis=1, initial=0).astype(np.int64)
 
 
-def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, bw, cpar, y0, stop_drift,
+def coupling_bandwidth(Kc: np.ndarray) -> np.ndarray:
+    """``(building,)`` the band of each coupling matrix ``Kc`` ``(building, story, story)`` as
+    :func:`damping_bandwidth`, and -1 for a zero matrix (no coupling: the kernel skips it, and
+    a shear chain runs the arithmetic it ran before, bit for bit)."""
+    Kc = np.asarray(Kc)
+    band = damping_bandwidth(Kc)
+    return np.where(np.any(Kc.reshape(Kc.shape[0], -1) != 0.0, axis=1), band, -1).astype(np.int64)
+
+
+def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, bw, Kc, bwc, cpar, y0, stop_drift,
               save, states, save_acc, acc_hist, peak_drift, peak_acc, final, n_done, status):
     """Integrate every batch element; results are written into the output arrays.
 
@@ -163,6 +177,8 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, bw, cpa
     bw : (building,) bandwidth of ``C`` (:func:`damping_bandwidth`): the damping force sums
         only the band (3 products per floor for a shear building's tridiagonal C instead of n),
         bit for bit the full product's values
+    Kc : (building, story, story) linear coupling (:mod:`hlaid.model.coupling`); bwc : (building,)
+        its band, -1 where it is zero (:func:`coupling_bandwidth`)
     cpar : (building, story, 8) collapse gap springs ``x1, dk1, ..., x4, dk4`` (hlaid.model.collapse),
         used when the state has the collapse memory
     y0 : (batch, 4*story) initial states, or (batch, 6*story) with the collapse memory
@@ -183,6 +199,7 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, bw, cpa
         s_b = sc[b]
         w = bi[b]
         mb, k0b, alb, pb, dyb, deb, kgb, Cb, bwb = m[w], k0[w], al[w], p[w], dy[w], de[w], kg[w], C[w], bw[w]
+        Kcb, bwcb = Kc[w], bwc[w]
         y = y0[b].copy()
         y_prev = np.empty(S)
         yt = np.empty(S)
@@ -196,7 +213,7 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, bw, cpa
         T = nt[mi[b]]
         if save:
             states[b, 0, :] = y
-        _absolute_acc(y, n, mb, alb, k0b, kgb, Cb, bwb, f, acc)
+        _absolute_acc(y, n, mb, alb, k0b, kgb, Cb, bwb, Kcb, bwcb, f, acc)
         if col:
             _add_collapse(y, n, mb, cpb, f, acc, False)
         if save_acc:
@@ -219,22 +236,22 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, bw, cpa
                     g0 = lo + da * (s / ns)
                     gm = lo + da * ((s + 0.5) / ns)
                     g1 = lo + da * ((s + 1.0) / ns)
-                    _rhs(y, g0, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, bwb, f, k1)
+                    _rhs(y, g0, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, bwb, Kcb, bwcb, f, k1)
                     if col:
                         _add_collapse(y, n, mb, cpb, f, k1, True)
                     for j in range(S):
                         yt[j] = y[j] + 0.5 * hs * k1[j]
-                    _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, bwb, f, k2)
+                    _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, bwb, Kcb, bwcb, f, k2)
                     if col:
                         _add_collapse(yt, n, mb, cpb, f, k2, True)
                     for j in range(S):
                         yt[j] = y[j] + 0.5 * hs * k2[j]
-                    _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, bwb, f, k3)
+                    _rhs(yt, gm, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, bwb, Kcb, bwcb, f, k3)
                     if col:
                         _add_collapse(yt, n, mb, cpb, f, k3, True)
                     for j in range(S):
                         yt[j] = y[j] + hs * k3[j]
-                    _rhs(yt, g1, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, bwb, f, k4)
+                    _rhs(yt, g1, n, mb, k0b, alb, pb, dyb, deb, kgb, Cb, bwb, Kcb, bwcb, f, k4)
                     if col:
                         _add_collapse(yt, n, mb, cpb, f, k4, True)
                     for j in range(S):
@@ -256,7 +273,7 @@ def integrate(ag, dt, nt, mi, bi, sc, nsub, m, k0, al, p, dy, de, kg, C, bw, cpa
             k += 1
             if save:
                 states[b, k, :] = y
-            _absolute_acc(y, n, mb, alb, k0b, kgb, Cb, bwb, f, acc)
+            _absolute_acc(y, n, mb, alb, k0b, kgb, Cb, bwb, Kcb, bwcb, f, acc)
             if col:
                 _add_collapse(y, n, mb, cpb, f, acc, False)
             if save_acc:

@@ -175,11 +175,12 @@ def _run_numba(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, outputs):
     status = np.zeros(B, dtype=np.int64)
     kernel = _kernel.integrate_collapse if S == 6 * n else _kernel.integrate
     bw = _kernel.damping_bandwidth(P["damping"])
+    cbw = _kernel.coupling_bandwidth(P["coupling"])
     for a, b in _chunks(nt[mi], int(nsub) * n):  # Ctrl-C and SIGTERM are honoured between chunks
         _interrupt.check()
         kernel(ag, dt, nt, mi[a:b], bi[a:b], sc[a:b], int(nsub), P["mass"], P["k0"], P["alpha"], P["p"], P["dy"],
-               P["delta_eta"], P["kg"], P["damping"], bw, P["collapse"], y0[a:b], stop[a:b], save,
-               states[a:b] if save else states, save_acc, acc[a:b] if save_acc else acc, peak_drift[a:b],
+               P["delta_eta"], P["kg"], P["damping"], bw, P["coupling"], cbw, P["collapse"], y0[a:b], stop[a:b],
+               save, states[a:b] if save else states, save_acc, acc[a:b] if save_acc else acc, peak_drift[a:b],
                peak_acc[a:b], final[a:b], n_done[a:b], status[a:b])
     return (states if save else None), (acc if save_acc else None), peak_drift, peak_acc, final, n_done, status
 
@@ -210,9 +211,11 @@ def _run_torch(P: dict, ag, dt, nt, mi, bi, sc, nsub, y0, stop, outputs):
 
 
 def _tensors(P: dict, width: int) -> BuildingTensors:
-    """The parameters as tensors; the collapse values only for a collapse-law (6*story) state."""
+    """The parameters as tensors; the collapse values only for a collapse-law (6*story) state, the
+    coupling only where a building has one."""
     n = P["mass"].shape[1]
-    return BuildingTensors(**{k: torch.as_tensor(v) for k, v in P.items() if k != "collapse" or width == 6 * n})
+    skip = {k for k, keep in (("collapse", width == 6 * n), ("coupling", bool(np.any(P["coupling"])))) if not keep}
+    return BuildingTensors(**{k: torch.as_tensor(v) for k, v in P.items() if k not in skip})
 
 
 BACKENDS: dict[str, Callable] = {"numba": _run_numba, "torch": _run_torch}

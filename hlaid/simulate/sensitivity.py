@@ -33,7 +33,15 @@ import numba as nb
 import numpy as np
 
 from ..model import equations as eq
-from ._kernel import _FASTMATH, STATUS_DIVERGED, STATUS_OK, _absolute_acc, _all_finite, damping_bandwidth
+from ._kernel import (
+    _FASTMATH,
+    STATUS_DIVERGED,
+    STATUS_OK,
+    _absolute_acc,
+    _all_finite,
+    coupling_bandwidth,
+    damping_bandwidth,
+)
 
 ENERGY_SCALE = eq.ENERGY_SCALE
 
@@ -75,10 +83,11 @@ def is_linearised() -> bool:
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
-def _rhs_tangent(y, Y, ag, n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC, haslog, f, F, out, OUT):
+def _rhs_tangent(y, Y, ag, n, D, m, k0, al, p, dy, de, kg, C, bw, Kc, bwc, P, dC, dKc, haslog, f, F, out, OUT):
     """``out = dy/dt`` at ``y`` (the arithmetic of :func:`hlaid.simulate._kernel._rhs`) and
     ``OUT[:, d]`` its derivative in direction ``d``: state ``Y[:, d]``, story parameters
-    ``P[:, :, d]`` (``N_PAR``, story) and damping matrix ``dC[:, :, d]``. ``f`` ``(n,)`` and ``F``
+    ``P[:, :, d]`` (``N_PAR``, story), damping matrix ``dC[:, :, d]`` and coupling ``dKc[:, :, d]``
+    (``Kc`` zero beyond its band ``bwc``, -1: none). ``f`` ``(n,)`` and ``F``
     ``(n, D)`` are scratch (the spring forces and their tangents); ``haslog[i]``: some direction
     moves story ``i``'s ``p`` (the log of the power is then needed). The loops over the
     directions hold no branch (the story's coefficients are formed first), so they vectorise."""
@@ -139,6 +148,9 @@ def _rhs_tangent(y, Y, ag, n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC, haslog,
         lo, hi = max(0, j - bw), min(n, j + bw + 1)
         for k in range(lo, hi):
             fd += C[j, k] * y[n + k]
+        lc, hc = max(0, j - bwc), min(n, j + bwc + 1)
+        for k in range(lc, hc):
+            fd += Kc[j, k] * y[k]
         f_above = f[j + 1] if j + 1 < n else 0.0
         out[n + j] = -(f[j] - f_above + fd) / m[j] - ag
         sa = 1.0 if j + 1 < n else 0.0
@@ -151,12 +163,17 @@ def _rhs_tangent(y, Y, ag, n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC, haslog,
             vk = y[n + k]
             for d in range(D):
                 OUT[n + j, d] += cjk * Y[n + k, d] + dC[j, k, d] * vk
+        for k in range(lc, hc):
+            kjk = Kc[j, k]
+            uk = y[k]
+            for d in range(D):
+                OUT[n + j, d] += kjk * Y[k, d] + dKc[j, k, d] * uk
         for d in range(D):
             OUT[n + j, d] *= im
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
-def _acc_tangent(y, Y, n, D, m, k0, al, kg, C, bw, P, dC, F, dacc):
+def _acc_tangent(y, Y, n, D, m, k0, al, kg, C, bw, Kc, bwc, P, dC, dKc, F, dacc):
     """``dacc[:, d]`` ``(n, D)``: the tangent of the absolute floor accelerations
     (:func:`hlaid.simulate._kernel._absolute_acc`) at state ``y`` in direction ``d``."""
     u_below = 0.0
@@ -183,32 +200,37 @@ def _acc_tangent(y, Y, n, D, m, k0, al, kg, C, bw, P, dC, F, dacc):
             vk = y[n + k]
             for d in range(D):
                 dacc[j, d] += cjk * Y[n + k, d] + dC[j, k, d] * vk
+        for k in range(max(0, j - bwc), min(n, j + bwc + 1)):
+            kjk = Kc[j, k]
+            uk = y[k]
+            for d in range(D):
+                dacc[j, d] += kjk * Y[k, d] + dKc[j, k, d] * uk
         for d in range(D):
             dacc[j, d] *= im
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
-def _rk4_tangent(y, Y, hs, g0, gm, g1, n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC, haslog, work):
+def _rk4_tangent(y, Y, hs, g0, gm, g1, n, D, m, k0, al, p, dy, de, kg, C, bw, Kc, bwc, P, dC, dKc, haslog, work):
     """One RK4 step ``hs`` of the replay ``y`` ``(4*story,)`` and its tangent ``Y`` ``(4*story, D)``,
     in place, under ground ``g0`` / ``gm`` / ``g1`` at the step's start / middle / end."""
     f, F, yt, Yt, k1, k2, k3, k4, K1, K2, K3, K4 = work
     S = 4 * n
-    _rhs_tangent(y, Y, g0, n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC, haslog, f, F, k1, K1)
+    _rhs_tangent(y, Y, g0, n, D, m, k0, al, p, dy, de, kg, C, bw, Kc, bwc, P, dC, dKc, haslog, f, F, k1, K1)
     for j in range(S):
         yt[j] = y[j] + 0.5 * hs * k1[j]
         for d in range(D):
             Yt[j, d] = Y[j, d] + 0.5 * hs * K1[j, d]
-    _rhs_tangent(yt, Yt, gm, n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC, haslog, f, F, k2, K2)
+    _rhs_tangent(yt, Yt, gm, n, D, m, k0, al, p, dy, de, kg, C, bw, Kc, bwc, P, dC, dKc, haslog, f, F, k2, K2)
     for j in range(S):
         yt[j] = y[j] + 0.5 * hs * k2[j]
         for d in range(D):
             Yt[j, d] = Y[j, d] + 0.5 * hs * K2[j, d]
-    _rhs_tangent(yt, Yt, gm, n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC, haslog, f, F, k3, K3)
+    _rhs_tangent(yt, Yt, gm, n, D, m, k0, al, p, dy, de, kg, C, bw, Kc, bwc, P, dC, dKc, haslog, f, F, k3, K3)
     for j in range(S):
         yt[j] = y[j] + hs * k3[j]
         for d in range(D):
             Yt[j, d] = Y[j, d] + hs * K3[j, d]
-    _rhs_tangent(yt, Yt, g1, n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC, haslog, f, F, k4, K4)
+    _rhs_tangent(yt, Yt, g1, n, D, m, k0, al, p, dy, de, kg, C, bw, Kc, bwc, P, dC, dKc, haslog, f, F, k4, K4)
     for j in range(S):
         y[j] = y[j] + hs / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
         for d in range(D):
@@ -216,8 +238,8 @@ def _rk4_tangent(y, Y, hs, g0, gm, g1, n, D, m, k0, al, p, dy, de, kg, C, bw, P,
 
 
 @nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
-def _sample_tangent(y, Y, y_prev, Y_prev, lo, dg, dt, nsub, refine, n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC,
-                    haslog, work):
+def _sample_tangent(y, Y, y_prev, Y_prev, lo, dg, dt, nsub, refine, n, D, m, k0, al, p, dy, de, kg, C, bw, Kc, bwc,
+                    P, dC, dKc, haslog, work):
     """One record sample (ground ``lo`` to ``lo + dg``) of the replay and its tangent with ``nsub``
     sub-steps, redone with 2x ... 16x as many where ``|z|`` overshoots ``dy`` (as
     :func:`hlaid.simulate._kernel.integrate` does). Returns :data:`STATUS_OK`, or
@@ -232,7 +254,7 @@ def _sample_tangent(y, Y, y_prev, Y_prev, lo, dg, dt, nsub, refine, n, D, m, k0,
         hs = dt / ns
         for s in range(ns):
             _rk4_tangent(y, Y, hs, lo + dg * (s / ns), lo + dg * ((s + 0.5) / ns), lo + dg * ((s + 1.0) / ns),
-                         n, D, m, k0, al, p, dy, de, kg, C, bw, P, dC, haslog, work)
+                         n, D, m, k0, al, p, dy, de, kg, C, bw, Kc, bwc, P, dC, dKc, haslog, work)
         bad = False
         for i in range(n):
             if not (abs(y[2 * n + i]) <= dy[i] * (1.0 + 1e-5)):
@@ -298,7 +320,7 @@ def _finish_tangent(k, T, st, y, Y, n, D, d0, base, ok, acc, final, n_done, stat
 
 
 @nb.njit(cache=True, parallel=True, fastmath=_FASTMATH, error_model="numpy")
-def integrate_tangent(g, dt, T, nsub, m, k0, al, p, dy, de, kg, C, bw, P, dC, y0, Y0, groups, refine,
+def integrate_tangent(g, dt, T, nsub, m, k0, al, p, dy, de, kg, C, bw, Kc, bwc, P, dC, dKc, y0, Y0, groups, refine,
                       acc, final, peak_drift, peak_acc, n_done, status):  # pragma: no cover (compiled)
     """The replay of one building and its tangent in ``D`` directions; see the module's doc.
 
@@ -309,7 +331,9 @@ def integrate_tangent(g, dt, T, nsub, m, k0, al, p, dy, de, kg, C, bw, P, dC, y0
     m, k0, al, p, dy, de, kg : (story,) the building; C : (story, story) its damping matrix;
         bw : the band of ``C`` and of every ``dC``
     P : (N_PAR, story, D) parameter directions (k0, alpha, p, dy, delta_eta, kg); dC : (story,
-        story, D) damping directions; y0 : (4*story,) initial state; Y0 : (4*story, D) its directions
+        story, D) damping directions; Kc : (story, story) the linear coupling, bwc its band (-1:
+        none, in no direction), dKc : (story, story, D) its directions; y0 : (4*story,) initial
+        state; Y0 : (4*story, D) its directions
     groups : (G + 1,) direction bounds of the G groups that run in parallel, each with its own
         copy of the replay (the replay is sequential in time; its copies cost less than a second
         core left idle)
@@ -334,6 +358,7 @@ def integrate_tangent(g, dt, T, nsub, m, k0, al, p, dy, de, kg, C, bw, P, dC, y0
         D = groups[gi + 1] - d0
         Pg = np.ascontiguousarray(P[:, :, d0:d0 + D])
         dCg = np.ascontiguousarray(dC[:, :, d0:d0 + D])
+        dKcg = np.ascontiguousarray(dKc[:, :, d0:d0 + D])
         y = y0.copy()
         Y = np.ascontiguousarray(Y0[:, d0:d0 + D])
         y_prev = np.empty(S)
@@ -344,19 +369,19 @@ def integrate_tangent(g, dt, T, nsub, m, k0, al, p, dy, de, kg, C, bw, P, dC, y0
         a = np.empty(n)
         da = np.empty((n, D))
         ok = np.ones(D, dtype=np.bool_)
-        _absolute_acc(y, n, m, al, k0, kg, C, bw, f, a)
-        _acc_tangent(y, Y, n, D, m, k0, al, kg, C, bw, Pg, dCg, F, da)
+        _absolute_acc(y, n, m, al, k0, kg, C, bw, Kc, bwc, f, a)
+        _acc_tangent(y, Y, n, D, m, k0, al, kg, C, bw, Kc, bwc, Pg, dCg, dKcg, F, da)
         _record_tangent(0, y, Y, a, da, n, D, d0, gi == 0, ok, acc, peak_drift, peak_acc)
         st = STATUS_OK
         k = 0
         while k < T - 1:
             st = _sample_tangent(y, Y, y_prev, Y_prev, g[k], g[k + 1] - g[k], dt, nsub, refine, n, D, m, k0, al,
-                                 p, dy, de, kg, C, bw, Pg, dCg, haslog, work)
+                                 p, dy, de, kg, C, bw, Kc, bwc, Pg, dCg, dKcg, haslog, work)
             if st == STATUS_REFINED:
                 break
             k += 1
-            _absolute_acc(y, n, m, al, k0, kg, C, bw, f, a)
-            _acc_tangent(y, Y, n, D, m, k0, al, kg, C, bw, Pg, dCg, F, da)
+            _absolute_acc(y, n, m, al, k0, kg, C, bw, Kc, bwc, f, a)
+            _acc_tangent(y, Y, n, D, m, k0, al, kg, C, bw, Kc, bwc, Pg, dCg, dKcg, F, da)
             if not _all_finite(y):
                 st = STATUS_DIVERGED
                 break
@@ -388,6 +413,8 @@ def run_linearised(P: dict, g: np.ndarray, dt: float, nsub: int, y0: np.ndarray,
         dirs[r] = (P[name][1:] - P[name][0]).T
     dC = np.ascontiguousarray((P["damping"][1:] - P["damping"][0]).transpose(1, 2, 0))
     bw = int(damping_bandwidth(P["damping"]).max(initial=0))
+    dKc = np.ascontiguousarray((P["coupling"][1:] - P["coupling"][0]).transpose(1, 2, 0))
+    bwc = int(coupling_bandwidth(P["coupling"]).max(initial=-1))
     Y0 = np.ascontiguousarray((y0[1:] - y0[0]).T)
     G = max(1, min(D // GROUP_DIRECTIONS, int(n_threads if n_threads is not None else nb.get_num_threads())))
     groups = np.linspace(0, D, G + 1).round().astype(np.int64)
@@ -398,7 +425,8 @@ def run_linearised(P: dict, g: np.ndarray, dt: float, nsub: int, y0: np.ndarray,
     n_done = np.zeros(B, dtype=np.int64)
     integrate_tangent(np.ascontiguousarray(g, dtype=np.float64), float(dt), int(T), int(nsub), base["mass"],
                       base["k0"], base["alpha"], base["p"], base["dy"], base["delta_eta"], base["kg"],
-                      np.ascontiguousarray(base["damping"]), bw, dirs, dC, np.ascontiguousarray(y0[0]), Y0, groups,
+                      np.ascontiguousarray(base["damping"]), bw, np.ascontiguousarray(base["coupling"]), bwc, dirs, dC,
+                      dKc, np.ascontiguousarray(y0[0]), Y0, groups,
                       bool(refine), acc, final, peak_drift, peak_acc, n_done, status)
     if np.any(status == STATUS_REFINED):
         status[:] = STATUS_REFINED

@@ -143,6 +143,9 @@ class StructuralSystem:
     law : the story law its stories follow unless the records say otherwise (one of
         :data:`hlaid.record.STORY_LAWS`)
     inventory : the loss assessment's default component inventory, or None (the user gives one)
+    damping_max : the largest viscous damping ratio of any mode that the system makes plausible
+        at the small amplitudes of the linear system (a clone mode damped more is flagged,
+        :mod:`hlaid.model.modes`)
     """
 
     name: str
@@ -151,6 +154,7 @@ class StructuralSystem:
     prior: StructuralPrior
     law: StoryLaw = STORY_LAWS["degrading"]
     inventory: Inventory | None = None
+    damping_max: float = 0.2
 
     def __post_init__(self):
         if not isinstance(self.collapse, (CollapseModel, type(None))):

@@ -20,7 +20,7 @@ NAME = "rc-frame"
 
 SYSTEM = StructuralSystem(
     name=NAME, title="reinforced-concrete moment frame", collapse=COLLAPSE_MODELS["rc-frame"],
-    law=STORY_LAWS["degrading"],
+    law=STORY_LAWS["degrading"], damping_max=0.10,
     prior=StructuralPrior(
         name=NAME,
         cy=Median(median=0.2, beta=0.6), alpha=Median(median=0.05, beta=0.7), p=Median(median=1.3, beta=0.7),

@@ -19,6 +19,7 @@ NAME = "steel-moment-frame"
 
 SYSTEM = StructuralSystem(
     name=NAME, title="steel moment-resisting frame", collapse=COLLAPSE_MODELS["steel-mrf"], law=STORY_LAWS["degrading"],
+    damping_max=0.10,
     prior=StructuralPrior(
         name=NAME,
         cy=Median(median=0.3, beta=0.6), alpha=Median(median=0.1, beta=0.7), p=Median(median=2.0, beta=0.7),
