@@ -271,18 +271,7 @@ class Clone:
                 i = values.index(None)
                 raise InputError(f"stories[{i}].{key} is missing; give {key} for every story or for none",
                                  source=source)
-        damping = d.get("damping", {})
-        if not isinstance(damping, dict):
-            raise InputError(f"field 'damping' must be a mapping, got {kind_of(damping)}", source=source)
-        _no_unknown(damping, ("kind", "ratio", "modes", "ratio2", "higher"), "damping.", source)
-        if "kind" in damping and not isinstance(damping["kind"], str):
-            raise InputError(f"damping.kind must be a string, got {kind_of(damping['kind'])}", source=source)
-        if "ratio" in damping:
-            _number(damping["ratio"], "damping.ratio", source)
-        check_damping_ratios(damping, source)
-        modes = damping.get("modes", [1, 2])
-        if not (isinstance(modes, list) and all(isinstance(m, int) and not isinstance(m, bool) for m in modes)):
-            raise InputError("damping.modes must be a list of two mode numbers such as [1, 2]", source=source)
+        damping = _damping_block(d.get("damping", {}), source)
         for key, kinds, what in (("pdelta", (bool, type(None)), "true, false or null"),
                                  ("mass_normalised", (bool,), "true or false"),
                                  ("name", (str, type(None)), "a string"),
@@ -310,14 +299,8 @@ class Clone:
             _checked(check_state, state.z, b.dy, drift=state.drift, height=b.height, source=source,
                      peaks=(("peak_positive", state.peak_positive), ("peak_negative", state.peak_negative)))
         typed = _typed(d, version, events, state, source)
-        modes = None
-        if d.get("modes") is not None:
-            from .model.modes import ModalCheck
-
-            modes = ModalCheck.from_dict(d["modes"], source=source)
-        linear = None if d.get("linear") is None else LinearPart.from_dict(d["linear"], source=source)
         return cls(building=b, mass_normalised=d.get("mass_normalised", False), uncertainty=unc,
-                   system=system, events=events, state=state, modes=modes, linear=linear, **typed)
+                   system=system, events=events, state=state, **_linear_part(d, source), **typed)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Clone:
@@ -331,6 +314,33 @@ _TYPED = ("laws", "start_rule", "parameters", "update_check", "fallbacks")
 LAST_EVENT_UNDAMAGED = ("its last event was explained better from an undamaged start: the building recovered between "
                         "its events")
 """The start rule of a clone made before the prequential rule whose last update chose an undamaged start."""
+
+
+def _damping_block(damping: object, source: str | None) -> dict:
+    """A clone file's ``damping`` block, checked (its keys, kind, ratios and mode numbers)."""
+    if not isinstance(damping, dict):
+        raise InputError(f"field 'damping' must be a mapping, got {kind_of(damping)}", source=source)
+    _no_unknown(damping, ("kind", "ratio", "modes", "ratio2", "higher"), "damping.", source)
+    if "kind" in damping and not isinstance(damping["kind"], str):
+        raise InputError(f"damping.kind must be a string, got {kind_of(damping['kind'])}", source=source)
+    if "ratio" in damping:
+        _number(damping["ratio"], "damping.ratio", source)
+    check_damping_ratios(damping, source)
+    modes = damping.get("modes", [1, 2])
+    if not (isinstance(modes, list) and all(isinstance(m, int) and not isinstance(m, bool) for m in modes)):
+        raise InputError("damping.modes must be a list of two mode numbers such as [1, 2]", source=source)
+    return damping
+
+
+def _linear_part(d: dict, source: str | None) -> dict:
+    """The clone file's ``modes`` and ``linear`` blocks as the Clone's fields (absent: None)."""
+    modes = None
+    if d.get("modes") is not None:
+        from .model.modes import ModalCheck
+
+        modes = ModalCheck.from_dict(d["modes"], source=source)
+    linear = None if d.get("linear") is None else LinearPart.from_dict(d["linear"], source=source)
+    return {"modes": modes, "linear": linear}
 
 
 def _typed(d: dict, version: int, events: tuple[EventRecord, ...], state: BuildingState | None,

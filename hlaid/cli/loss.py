@@ -88,16 +88,8 @@ def measured_drift_ratios(meas, heights):
     return measured(meas, heights)
 
 
-def run_demands(args) -> int:
-    from .._fileio import check_output_file
-    from ..clone import Clone
-    from ..ida import IDAConfig, load_ida_config
-    from ..loss import clone_demands
-
-    inputs = [args.clone, args.motion, args.config, *(args.records or [])]
-    check_output_file(args.out, force=args.force, inputs=inputs)
-    basis_file = Path(str(args.out) + ".basis.json")  # what the demands rest on, beside them
-    check_output_file(basis_file, force=args.force, inputs=inputs)
+def _check_level(args) -> None:
+    """``--level`` with ``--records`` only, and within the IDA's levels (1e-6 to 100 g)."""
     if args.records and args.level is None:
         raise InputError("--records needs --level G (the stripe's intensity); for the recorded event use --motion")
     if args.motion and args.level is not None:
@@ -108,7 +100,20 @@ def run_demands(args) -> int:
 
         b = bounds_of(next(f for f in dataclasses.fields(IDAConfig) if f.name == "levels"))
         assert b is not None  # the IDA's levels are bounded
-        b.check("--level", args.level)  # as the IDA's levels: 1e-6 to 100 g
+        b.check("--level", args.level)
+
+
+def run_demands(args) -> int:
+    from .._fileio import check_output_file
+    from ..clone import Clone
+    from ..ida import IDAConfig, load_ida_config
+    from ..loss import clone_demands
+
+    inputs = [args.clone, args.motion, args.config, *(args.records or [])]
+    check_output_file(args.out, force=args.force, inputs=inputs)
+    basis_file = Path(str(args.out) + ".basis.json")  # what the demands rest on, beside them
+    check_output_file(basis_file, force=args.force, inputs=inputs)
+    _check_level(args)
     clone = Clone.load(args.clone)
     n_ens = args.ensemble if args.ensemble is not None else (N_ENSEMBLE if clone.uncertainty is not None else 0)
     cfg = load_ida_config(args.config) if args.config else IDAConfig()

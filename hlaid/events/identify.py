@@ -122,12 +122,8 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
         fit, laws = select_laws(fit, meas, system, cfg, names=names, k0_ref=k0_ref,
                                 isolation=isolation_start(events, meas[0], system, fit.building), notes=notes)
     timings["laws"] = time.perf_counter() - t
-    t = time.perf_counter()
-    with _progress.stage("[identify] the records' modes and the coupled linear part"):
-        fit, linear, lin = choose_linear_part(fit, meas, system, cfg, names=names, notes=notes)
-    if linear.form == "coupled" and lin is not None:  # the coupled fit's prior stiffness: the records' springs
-        k0_ref = np.asarray(lin.k)
-    timings["linear"] = time.perf_counter() - t
+    fit, linear, lin, k0_ref = linear_stage(fit, meas, system, cfg, names=names, notes=notes, k0_ref=k0_ref,
+                                            timings=timings)
     t = time.perf_counter()
     with _progress.stage("[identify] prefix fits of the start rule") if len(meas) > 1 else contextlib.nullcontext():
         history = prefix_history(fit, meas, system, cfg, names=names, k0_ref=k0_ref, notes=notes,
@@ -138,6 +134,19 @@ def identify_clone(measurements: Measurement | Sequence[Measurement], config: Id
     tb.close()
     result = with_choices(with_history(result, history, laws=laws, notes=notes), settings)
     return with_modes(result, () if lin is None else in_band(lin), linear)
+
+
+def linear_stage(fit: JointFit, meas: Sequence[Measurement], system: StructuralPrior, cfg: IdentifyConfig, *,
+                 names: Sequence[str], notes: list, k0_ref, timings: dict):
+    """The records' modes and the linear part chosen by them (:func:`choose_linear_part`):
+    ``(fit, linear, lin, k0_ref)``, the prior's stiffness the records' springs where coupled."""
+    t = time.perf_counter()
+    with _progress.stage("[identify] the records' modes and the coupled linear part"):
+        fit, linear, lin = choose_linear_part(fit, meas, system, cfg, names=names, notes=notes)
+    if linear.form == "coupled" and lin is not None:
+        k0_ref = np.asarray(lin.k)
+    timings["linear"] = time.perf_counter() - t
+    return fit, linear, lin, k0_ref
 
 
 def paper_clone(event: Event, cfg: IdentifyConfig, cache, tb: TBLogger, timings: dict, *,

@@ -12,7 +12,7 @@ from ..errors import InputError
 from ..limits import check_count
 from ..model import Building
 from ..model.collapse import accommodate, get_collapse_model
-from ..systems import SYSTEMS
+from .capacity import chosen_law, law_posterior
 
 
 def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: bool | None = None,
@@ -91,22 +91,6 @@ def prepare_building(model: Clone | Building | str | os.PathLike, *, pdelta: boo
     return building, notes
 
 
-def chosen_law(model, collapse=None, notes: list[str] | None = None):
-    """The literature collapse law of ``model`` (a Clone or Building) before any evidence:
-    ``collapse`` where given, else the building's own, else its structural system's, else None."""
-    system = model.system if isinstance(model, Clone) else None
-    building = model.building if isinstance(model, Clone) else model
-    if collapse is not None:
-        return get_collapse_model(collapse)
-    law = building.collapse
-    if law is None and system is not None:
-        law = SYSTEMS[system].collapse if system in SYSTEMS else None
-        if law is not None and notes is not None:
-            notes.append(f"collapse model {law.name!r} chosen for the clone's structural system {system!r}: "
-                         f"strength loss as measured on such members ({law.source})")
-    return law
-
-
 def _collapse_law(model, building: Building, law, collapse, system: str | None, notes: list[str],
                   source: str | None = None):
     """The collapse law in force: ``collapse`` where given, else the clone's own, else its
@@ -117,8 +101,6 @@ def _collapse_law(model, building: Building, law, collapse, system: str | None, 
     elif law is None and system is not None:
         law = chosen_law(model, None, notes)
     if law is not None and building.height is not None:
-        from .capacity import law_posterior
-
         try:
             post = law_posterior(model, law, building)
         except InputError as err:  # said of the clone whose events give the drifts

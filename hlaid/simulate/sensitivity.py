@@ -91,6 +91,14 @@ def _rhs_tangent(y, Y, ag, n, D, m, k0, al, p, dy, de, kg, C, bw, Kc, bwc, P, dC
     ``(n, D)`` are scratch (the spring forces and their tangents); ``haslog[i]``: some direction
     moves story ``i``'s ``p`` (the log of the power is then needed). The loops over the
     directions hold no branch (the story's coefficients are formed first), so they vectorise."""
+    _story_tangent(y, Y, n, D, m, k0, al, p, dy, de, kg, P, haslog, f, F, out, OUT)
+    _floor_tangent(y, Y, ag, n, D, m, C, bw, Kc, bwc, dC, dKc, f, F, out, OUT)
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
+def _story_tangent(y, Y, n, D, m, k0, al, p, dy, de, kg, P, haslog, f, F, out, OUT):
+    """The story springs' part of :func:`_rhs_tangent`: each story's Bouc-Wen rates and their
+    tangents into ``out``/``OUT``, its spring force and tangent into ``f``/``F``."""
     u_below = 0.0
     v_below = 0.0
     for i in range(n):
@@ -143,6 +151,12 @@ def _rhs_tangent(y, Y, ag, n, D, m, k0, al, p, dy, de, kg, C, bw, Kc, bwc, P, dC
             OUT[i, d] = Y[n + i, d]
         u_below = u
         v_below = v
+
+
+@nb.njit(cache=True, fastmath=_FASTMATH, error_model="numpy")
+def _floor_tangent(y, Y, ag, n, D, m, C, bw, Kc, bwc, dC, dKc, f, F, out, OUT):
+    """The floors' part of :func:`_rhs_tangent`: each floor's acceleration from the story forces
+    ``f``, the damping ``C`` and the coupling ``Kc``, and its tangent from ``F``, ``dC``, ``dKc``."""
     for j in range(n):
         fd = 0.0
         lo, hi = max(0, j - bw), min(n, j + bw + 1)
