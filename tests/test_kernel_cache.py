@@ -1,0 +1,122 @@
+"""The kernels' numba cache (hlaid._jitcache): a user with no usable home on an install they cannot
+write still runs every command (the cache goes to a private temp folder, or is turned off), never
+numba's "cannot cache function ...: no locator available"."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_hostile import _measurement
+
+import hlaid
+from hlaid import _jitcache
+
+REPO = Path(__file__).resolve().parents[1]
+PACKAGE = Path(hlaid.__file__).resolve().parent
+
+READ_ONLY_INSTALL = """
+import os, sys, tempfile
+PACKAGE, EVERYWHERE = sys.argv[1], sys.argv[2] == "1"
+_temporary_file = tempfile.TemporaryFile
+def refuse(*a, dir=None, **k):  # the package (or every folder) cannot be written, as for a user on root's install
+    if dir is not None and (EVERYWHERE or os.path.abspath(dir).startswith(PACKAGE)):
+        raise PermissionError(13, "Permission denied", dir)
+    return _temporary_file(*a, dir=dir, **k)
+tempfile.TemporaryFile = refuse
+from hlaid._jitcache import configure
+print("cache:", configure(), flush=True)
+"""
+
+
+def _run(code: str, tmp: Path, *args: str, everywhere: bool = False) -> subprocess.CompletedProcess:
+    home = tmp / "home"
+    home.write_text("HOME names a file: no folder can be made in it\n")
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("XDG_", "NUMBA_CACHE"))}
+    env.update(HOME=str(home), TMPDIR=str(tmp / "temp"), PYTHONPATH=str(REPO))
+    (tmp / "temp").mkdir()
+    return subprocess.run([sys.executable, "-c", READ_ONLY_INSTALL + code, str(PACKAGE), "01"[everywhere], *args],
+                          capture_output=True, text=True, env=env, cwd=tmp, timeout=600)
+
+
+def test_a_user_without_home_on_a_read_only_install_runs_hla(tmp_path, table1):
+    meas = _measurement(tmp_path / "meas.npz", table1)
+    p = _run("from hlaid.cli import main\nsys.exit(main(sys.argv[3:]))", tmp_path, "hla", str(meas), "-o",
+             str(tmp_path / "out"))
+    assert p.returncode == 0, p.stderr
+    assert "cache: temp" in p.stdout and "cannot cache" not in p.stderr
+    private = tmp_path / "temp" / f"hlaid-numba-{os.getuid()}"
+    assert oct(private.stat().st_mode & 0o777) == "0o700"
+    assert any(private.rglob("halfcycles.reversals-*.nbi")), "the kernel is cached in the private folder"
+    assert (tmp_path / "out" / "hla.json").is_file()
+
+
+def test_nothing_writable_compiles_without_a_cache(tmp_path):
+    code = ("import numpy as np\nfrom hlaid.hla.halfcycles import reversals\n"
+            "print(*reversals(np.sin(np.linspace(0, 20, 400)), 0.1))")
+    p = _run(code, tmp_path, everywhere=True)
+    assert p.returncode == 0, p.stderr
+    from hlaid.hla.halfcycles import reversals
+
+    expected = reversals(np.sin(np.linspace(0, 20, 400)), 0.1)
+    assert p.stdout.split() == ["cache:", "off", *map(str, expected)]
+    assert not [p for p in (tmp_path / "temp").rglob("*") if p.is_file()], "nothing cached"
+
+
+@pytest.fixture
+def fresh(monkeypatch, tmp_path):
+    """``configure`` run again in this process, with numba's config replaced by a recorder."""
+    monkeypatch.setattr(_jitcache, "_chosen", None)
+    reloads: list[str | None] = []
+    fake = types.SimpleNamespace(reload_config=lambda: reloads.append(os.environ.get("NUMBA_CACHE_DIR")))
+    monkeypatch.setitem(sys.modules, "numba.core.config", fake)
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.delenv("XDG_CACHE_HOME", raising=False)
+    monkeypatch.setattr(_jitcache.tempfile, "tempdir", str(tmp_path))
+    return reloads
+
+
+def test_the_package_folder_comes_first_when_it_can_be_written(fresh, monkeypatch, tmp_path):
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "file" / "x"))
+    (tmp_path / "file").write_text("")
+    assert _jitcache.configure() == "in-tree" and "NUMBA_CACHE_DIR" not in os.environ
+    assert fresh == [None], "numba imported before hlaid reads the folder again"
+
+
+def test_a_users_numba_cache_dir_is_kept(fresh, monkeypatch, tmp_path):
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "mine"))
+    assert _jitcache.configure() == "user" and os.environ["NUMBA_CACHE_DIR"] == str(tmp_path / "mine")
+
+
+def test_a_read_only_install_uses_the_users_cache_folder(fresh, monkeypatch, tmp_path):
+    monkeypatch.setattr(_jitcache, "_PACKAGE", tmp_path / "pkg-is-a-file")
+    (tmp_path / "pkg-is-a-file").write_text("")
+    assert _jitcache.configure() == "cache"
+    assert os.environ["NUMBA_CACHE_DIR"] == str(tmp_path / "home" / ".cache" / "hlaid" / "numba")
+
+
+def test_a_temp_folder_another_user_can_write_is_not_used(fresh, monkeypatch, tmp_path):
+    monkeypatch.setattr(_jitcache, "_PACKAGE", tmp_path / "pkg-is-a-file")
+    (tmp_path / "pkg-is-a-file").write_text("")
+    monkeypatch.setenv("HOME", "")
+    monkeypatch.setattr(_jitcache, "_disable_caching", lambda: fresh.append("off"))
+    shared = tmp_path / f"hlaid-numba-{os.getuid()}"
+    shared.mkdir()
+    shared.chmod(0o777)
+    assert _jitcache.configure() == "off" and "off" in fresh
+    shared.chmod(0o700)
+    monkeypatch.setattr(_jitcache, "_chosen", None)
+    assert _jitcache.configure() == "temp" and os.environ["NUMBA_CACHE_DIR"] == str(shared)
+
+
+def test_every_cached_kernel_lives_where_the_package_folder_is_checked():
+    cached = {p.relative_to(PACKAGE).parts[0] for p in PACKAGE.rglob("*.py")
+              if re.search(r"njit\([^)]*cache\s*=\s*True", p.read_text())}
+    assert cached and cached <= set(_jitcache.KERNEL_PACKAGES), cached
