@@ -26,8 +26,9 @@ from pathlib import Path
 
 from ._userdirs import cache_root
 
-KERNEL_PACKAGES = ("simulate", "svm", "hla", "ida")
-"""The subpackages whose modules hold ``cache=True`` kernels (a test checks that no other does)."""
+KERNEL_PACKAGES = ("simulate", "model", "svm", "hla", "ida")
+"""The subpackages whose source files hold ``cache=True`` kernels (``model``: the story law's equations,
+compiled by ``simulate``; a test checks that no other does)."""
 
 _PACKAGE = Path(__file__).resolve().parent
 _chosen: str | None = None

@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 from typing import NoReturn
 
@@ -153,3 +154,17 @@ def story_drift(u: np.ndarray) -> np.ndarray:
 def rel_err(a: np.ndarray, ref: np.ndarray) -> float:
     """``max|a - ref| / max|ref|`` (NaNs, i.e. samples after an element's end, ignored)."""
     return float(np.nanmax(np.abs(a - ref)) / np.nanmax(np.abs(ref)))
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """mypy, when its test is to run, starts now in the background (see ``test_static.start``)."""
+    if any(item.nodeid.endswith("test_static.py::test_mypy_is_clean") for item in session.items):
+        import test_static
+
+        test_static.start("mypy", test_static.MYPY_ARGS)
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    test_static = sys.modules.get("test_static")
+    if test_static is not None:
+        test_static.stop()

@@ -117,6 +117,19 @@ def test_a_temp_folder_another_user_can_write_is_not_used(fresh, monkeypatch, tm
 
 
 def test_every_cached_kernel_lives_where_the_package_folder_is_checked():
-    cached = {p.relative_to(PACKAGE).parts[0] for p in PACKAGE.rglob("*.py")
-              if re.search(r"njit\([^)]*cache\s*=\s*True", p.read_text())}
-    assert cached and cached <= set(_jitcache.KERNEL_PACKAGES), cached
+    import importlib
+    import inspect
+
+    from numba.core.caching import NullCache
+    from numba.core.dispatcher import Dispatcher
+
+    for name in ("simulate._kernel", "simulate.path", "simulate.tangent", "simulate.sensitivity", "hla.halfcycles",
+                 "svm._solver", "svm._batch", "ida._spectrum"):
+        importlib.import_module(f"hlaid.{name}")
+    cached = {Path(inspect.getfile(d.py_func)).resolve().relative_to(PACKAGE).parts[0]
+              for m in list(sys.modules.values()) if getattr(m, "__name__", "").startswith("hlaid.")
+              for d in vars(m).values() if isinstance(d, Dispatcher) and not isinstance(d._cache, NullCache)}
+    sources = {p.relative_to(PACKAGE).parts[0] for p in PACKAGE.rglob("*.py")
+               if re.search(r"njit\([^)]*cache\s*=\s*True", p.read_text())}
+    assert {"model", "simulate"} <= cached and sources <= set(_jitcache.KERNEL_PACKAGES)
+    assert cached <= set(_jitcache.KERNEL_PACKAGES), cached
