@@ -133,3 +133,53 @@ def test_every_cached_kernel_lives_where_the_package_folder_is_checked():
                if re.search(r"njit\([^)]*cache\s*=\s*True", p.read_text())}
     assert {"model", "simulate"} <= cached and sources <= set(_jitcache.KERNEL_PACKAGES)
     assert cached <= set(_jitcache.KERNEL_PACKAGES), cached
+
+
+# ---------------------------------------------------------------------------- kernels compiled ahead
+def test_the_warm_up_finds_numbas_own_cache_folders(monkeypatch, tmp_path):
+    from numba.core import config
+    from numba.core.caching import UserProvidedCacheLocator
+
+    from hlaid import _warmup
+    from hlaid.simulate import path
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(config, "CACHE_DIR", str(tmp_path))
+    loc = UserProvidedCacheLocator(path._drive.py_func, path.__file__)
+    assert _warmup._cache_folder("simulate") == Path(loc.get_cache_path())
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    assert _warmup._cache_folder("simulate") == Path(path.__file__).parent / "__pycache__"
+
+
+def test_the_warm_up_runs_only_on_a_cold_cache(monkeypatch, tmp_path):
+    from hlaid import _warmup
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(_jitcache, "_chosen", "user")
+    assert _warmup.is_cold()
+    started = []
+    monkeypatch.setattr(_warmup.subprocess, "Popen", lambda *a, **k: started.append(a) or subprocess.run(["true"]))
+    for sub, name in _warmup._KERNELS:
+        folder = _warmup._cache_folder(sub)
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / f"{name}-12.py311.nbi").write_bytes(b"")
+    assert not _warmup.is_cold() and not _warmup.warm() and not started
+    monkeypatch.setattr(_jitcache, "_chosen", "off")
+    (folder / f"{name}-12.py311.nbi").unlink()
+    assert not _warmup.is_cold(), "no cache, nothing to warm"
+
+
+@pytest.mark.slow  # compiles every kernel from an empty cache (about 100 s of CPU)
+def test_the_warm_up_compiles_what_the_demo_uses(tmp_path):
+    """After the warm-up the demo's pipeline compiles no kernel: the tiny problems call them with the
+    argument types of the real work."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
+    env.update(NUMBA_CACHE_DIR=str(tmp_path / "nb"), HLAID_CACHE=str(tmp_path / "svm"), PYTHONPATH=str(REPO))
+    code = ("from hlaid import _warmup\nassert _warmup.warm()\nfrom numba.core import event\nn = []\n"
+            "class L(event.Listener):\n    def on_start(self, ev): pass\n"
+            "    def on_end(self, ev): n.append(ev.data['dispatcher'].py_func.__qualname__)\n"
+            "event.register('numba:compile', L())\nfrom hlaid.demo import run_demo\nrun_demo('out')\nprint(n)")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path,
+                       timeout=1800)
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert p.stdout.strip().splitlines()[-1] == "[]"
