@@ -1,13 +1,13 @@
 """Compile the slow numba kernels ahead, in parallel processes, when their cache is empty.
 
-A fresh install compiles its kernels the first time a command needs them, one after the other in
-that command's process: about 100 s of CPU for what ``hlaid demo`` uses, 45 s of it the path drive
-of the identification's training (:func:`hlaid.simulate.path._drive`). :func:`warm` compiles them
-in two processes at once (the path drive in one, the replay, tangent and collapse kernels in the
-other) on tiny problems that call them with the same argument types as the real work, and waits;
-numba's cache (:mod:`hlaid._jitcache`) then hands them to the command. With the cache already
-filled it does nothing (it looks for the kernels' index files, without importing numba).
-"""
+A fresh install compiles its kernels the first time a command needs them, one after the other:
+about 130 s of CPU for what ``hlaid demo`` uses, 45 s of it the path drive of the identification's
+training (:func:`hlaid.simulate.path._drive`). :func:`warm` compiles them in three processes at
+once (the path drive; the replay, tangent and collapse kernels; the kernel machines' solver, as
+the main process and as a pool worker run it) on tiny problems that call them with the argument
+types of the real work, and waits; numba's cache (:mod:`hlaid._jitcache`) then hands them to the
+command. With the cache already filled it does nothing (it looks for the kernels' index files,
+without importing numba)."""
 
 from __future__ import annotations
 
@@ -19,11 +19,12 @@ from pathlib import Path
 
 from . import _jitcache
 
-GROUPS = ("path", "replay")
+GROUPS = ("path", "replay", "svm")
 """The processes :func:`warm` starts, each compiling the kernels of :func:`_compile`."""
 
 _KERNELS = (("simulate", "path._drive"), ("simulate", "sensitivity.integrate_tangent"),
-            ("simulate", "_kernel.integrate"), ("simulate", "_kernel.integrate_collapse"))
+            ("simulate", "_kernel.integrate"), ("simulate", "_kernel.integrate_collapse"),
+            ("svm", "_solver._solve_serial"))
 """(subpackage, module.function) of the kernels whose index files say the cache is filled."""
 
 
@@ -74,6 +75,15 @@ def _compile(group: str) -> None:
         x = 5.0 * np.sin(np.linspace(0.0, 6.0, 60))[None]
         drive_story(x, k0=[2e4, 1.5e4], alpha=[0.2, 0.1], p=[2.0, 1.5], dy=[5.0, 4.0], delta_eta=[0.5, 0.5],
                     mass=100.0, dt=0.01, velocity=np.gradient(x, 0.01, axis=1))
+        return
+    if group == "svm":
+        from .svm import KernelSVC, _batch
+
+        rng = np.random.default_rng(0)
+        X, y = rng.normal(size=(30, 3)), np.repeat([0, 1, 2], 10)
+        KernelSVC().fit(X, y)  # the problems in parallel (the main process)
+        _batch.parallel_ok = lambda: False  # and one after the other (a pool worker)
+        KernelSVC().fit(X, y)
         return
     from .hla.halfcycles import reversals
     from .ida._spectrum import response_spectrum

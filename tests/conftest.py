@@ -158,7 +158,7 @@ def rel_err(a: np.ndarray, ref: np.ndarray) -> float:
 
 def pytest_collection_finish(session: pytest.Session) -> None:
     """mypy, when its test is to run, starts now in the background (see ``test_static.start``); a run
-    of many tests from a fresh clone compiles the numba kernels first, in two processes at once
+    of many tests from a fresh clone compiles the numba kernels first, in parallel processes
     (``hlaid._warmup``), instead of one after the other inside the first tests that need them."""
     if any(item.nodeid.endswith("test_static.py::test_mypy_is_clean") for item in session.items):
         import test_static
