@@ -164,7 +164,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
         import test_static
 
         test_static.start("mypy", test_static.MYPY_ARGS)
-    if len(session.items) >= 200:
+    if len(session.items) >= 200 and not session.config.option.collectonly:
         from hlaid import _warmup
 
         _warmup.warm()
