@@ -43,9 +43,9 @@ def start(name: str, args: list[str]) -> None:
     """Start ``name args`` now, in the background at a lower priority, for :func:`_check` to collect:
     mypy's minute runs on the second core while the other tests run on the first."""
     if name not in _STARTED and (shutil.which(name) or _tool_module(name)):
-        _STARTED[name] = subprocess.Popen([*_tool(name), *args], cwd=REPO, stdout=subprocess.PIPE,
-                                          stderr=subprocess.STDOUT, text=True,
-                                          preexec_fn=(lambda: os.nice(5)) if hasattr(os, "nice") else None)
+        nice = ["nice", "-n", "5"] if shutil.which("nice") else []
+        _STARTED[name] = subprocess.Popen([*nice, *_tool(name), *args], cwd=REPO, stdout=subprocess.PIPE,
+                                          stderr=subprocess.STDOUT, text=True)
 
 
 def stop() -> None:
