@@ -17,7 +17,10 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
+from ._jitcache import configure as _configure_kernel_cache
 from ._version import __version__
+
+_configure_kernel_cache()  # before numba is imported: a writable cache for the kernels, or none
 
 _LAZY: dict[str, tuple[str, ...]] = {
     # model and simulation

@@ -8,7 +8,9 @@ cluster (``--workers``, one thread each) or ``--scheduler``: identification (``-
 settings), then ``hlaid.ida.assess`` (ensemble IDA over the first R FEMA P695 far-field
 components) -- or, where that module is missing, the point-clone fallback (ensemble 0).
 
-Printed: wall time, per-unit cost (identify / assess / total; mean, median, worst), the
+Printed: wall time, per-unit cost (identify / assess / total; mean, median, worst), building-events
+per CPU-minute and the city-scale projection (``--city 1000,64``: 1000 buildings, one event each, on
+64 single-threaded workers, from the measured per-unit CPU times), the
 cluster overhead (wall minus the busiest worker's task time), and a projection of the wall time
 on W workers from the measured task times (greedy longest-first list scheduling of the measured
 per-unit times + the measured overhead; the task times are those measured here, where the
@@ -110,6 +112,7 @@ def main() -> int:
     ap.add_argument("--work", type=Path, default=Path("bench-fleet"), help="measurements, config and output")
     ap.add_argument("--project", default="1,2,4,8,16,32,64", help="worker counts of the projection")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--city", default="1000,64", help="BUILDINGS,CORES of the city-scale projection (one event each)")
     ap.add_argument("--json", type=Path, help="also write the figures as JSON")
     ap.add_argument("--resume", action="store_true",
                     help="continue an interrupted run (per-unit figures from every unit; wall time of this run only)")
@@ -163,6 +166,12 @@ def main() -> int:
     for w in (int(v) for v in a.project.split(",")):
         proj[w] = (makespan(tot, w) + overhead, makespan(cpu["total"], w) + overhead)
         print(f"| {w} | {proj[w][0]:.0f} | {proj[w][1]:.0f} |")
+    rate = len(ok) / (sum(cpu["total"]) / 60.0)
+    n_city, cores = (int(v) for v in a.city.split(","))
+    city = makespan([cpu["total"][i % len(ok)] for i in range(n_city)], cores) + overhead
+    print(f"\nCity scale: {rate:.2f} building-events per CPU-minute (this fleet's settings); {n_city} buildings, one "
+          f"event each, on a {cores}-core cluster (one single-threaded worker per core, the measured CPU times "
+          f"repeated): {city / 60:.0f} min ({n_city / rate / 60:.1f} core-hours)")
     if a.ensemble:
         scale = (44 / a.records) * (20 / a.ensemble)
         per = statistics.mean(cpu["identify"]) + statistics.mean(cpu["assess"]) * scale
@@ -173,6 +182,7 @@ def main() -> int:
         a.json.write_text(json.dumps({"args": {k: str(v) for k, v in vars(a).items()}, "wall_s": wall,
                                       "overhead_s": overhead, "identify_s": ide, "assess_s": ass, "total_s": tot,
                                       "cpu_s": cpu, "engine": engine, "projection_s": proj,
+                                      "building_events_per_cpu_minute": rate, "city": [n_city, cores, city],
                                       "load_average": os.getloadavg()}, indent=2))
     return 0
 

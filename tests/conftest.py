@@ -3,8 +3,12 @@
 - ``DATA``: the real third-party data of the project (``../shared/data`` next to the repository,
   resolved from this file, never an absolute path). Tests that read it take the ``data_dir``
   fixture (or are marked ``requires_data``) and are skipped cleanly when it is absent.
-- Optional tools and data (:func:`requires`, :func:`skip_or_fail`): a test that needs one is
-  skipped when it is missing, except under ``CI=true``, where it fails (CI installs them all).
+- Optional tools (:func:`requires`, :func:`import_optional`): a test that needs an extra the README's
+  install (``pip install -e ".[test]"``) does not bring (pelicun, quakeio, mdof, a usable OpenSeesPy,
+  a headless Chromium) is skipped with its reason when it is missing, under ``CI=true`` too: CI runs
+  exactly the README's install and test command.
+- The shared data (``requires(..., data=True)``, :func:`skip_or_fail`, ``data_dir``): skipped when
+  absent, except under ``CI=true``, where it fails (CI runs beside a copy of ``../shared``).
 - The paper's proof-of-concept structure (Table 1), built from the numbers in docs/DESIGN.md
   (``tests/reference_systems.py``), not from the package's config file.
 - A few real records, scaled to PGA 0.62 g and resampled to 200 Hz (the paper's case). They are
@@ -13,8 +17,8 @@
 
 from __future__ import annotations
 
-import importlib
 import os
+import sys
 from pathlib import Path
 from typing import NoReturn
 
@@ -32,54 +36,56 @@ DATA = REPO.parent / "shared" / "data"
 GROUND_MOTIONS = DATA / "ground_motions"
 
 ON_CI = os.environ.get("CI", "").lower() == "true"
-"""Under ``CI=true`` a missing optional tool or ``../shared/data`` fails the tests that need it."""
+"""Under ``CI=true`` missing ``../shared/data`` fails the tests that read it (a missing optional tool
+never does: it is skipped everywhere)."""
 
 
 def skip_or_fail(reason: str) -> NoReturn:
-    """Skip the running test because ``reason``; under ``CI=true`` fail it instead."""
+    """Skip the running test because the shared data is missing (``reason``); under ``CI=true`` fail it
+    instead. Not for optional tools: a test without one is skipped (:func:`requires`)."""
     if ON_CI:
-        pytest.fail(f"{reason} (CI=true: every optional tool and the shared data must be there)", pytrace=False)
+        pytest.fail(f"{reason} (CI=true: the shared data must be at ../shared/data)", pytrace=False)
     pytest.skip(reason)
 
 
-def import_optional(name: str):
-    """``pytest.importorskip(name)`` for an optional dependency; under ``CI=true`` the import must
-    succeed (an ImportError fails the test module instead of skipping it)."""
-    if ON_CI:
-        return importlib.import_module(name)
-    return pytest.importorskip(name)
+def import_optional(name: str, extra: str = ""):
+    """``pytest.importorskip(name)`` for an optional dependency (at module level: the module's tests
+    are skipped, never a collection error); ``extra`` says how to install it."""
+    return pytest.importorskip(name, reason=f"{name} not installed{f' ({extra})' if extra else ''}")
 
 
-def requires(available: bool, reason: str, *, in_ci: bool = True) -> pytest.MarkDecorator:
-    """Marker: the test needs something optional; when not ``available`` it is skipped with
-    ``reason`` (failed under ``CI=true``, see :func:`skip_or_fail`, unless ``in_ci`` is False:
-    a tool that CI does not install, whose tests are skipped there too)."""
-    return pytest.mark.requires(available=bool(available), reason=reason, in_ci=in_ci)
+def requires(available: bool, reason: str, *, data: bool = False) -> pytest.MarkDecorator:
+    """Marker: the test needs an optional tool (or, with ``data``, the shared data); when not
+    ``available`` it is skipped with ``reason`` (the shared data's absence fails under ``CI=true``,
+    see :func:`skip_or_fail`)."""
+    return pytest.mark.requires(available=bool(available), reason=reason, data=data)
 
 
-def _opensees_usable() -> bool:
+def _opensees_missing() -> str | None:
+    """Why OpenSeesPy cannot run here (not installed, or its shared libraries missing), or None."""
     from hlaid.opensees import OpenSeesUnavailable, import_opensees
 
     try:
         import_opensees()
-    except OpenSeesUnavailable:
-        return False
-    return True
+    except OpenSeesUnavailable as e:
+        return str(e)
+    return None
 
 
-needs_opensees = requires(_opensees_usable(), "openseespy not usable")
+OPENSEES_MISSING = _opensees_missing()
+needs_opensees = requires(OPENSEES_MISSING is None, OPENSEES_MISSING or "")
 """Marker of the tests that run OpenSeesPy."""
 
 
 def pytest_runtest_setup(item: pytest.Item) -> None:
     for mark in item.iter_markers("requires"):
         if not mark.kwargs["available"]:
-            if mark.kwargs.get("in_ci", True):
+            if mark.kwargs.get("data", False):
                 skip_or_fail(mark.kwargs["reason"])
             pytest.skip(mark.kwargs["reason"])
 
 
-requires_data = requires(GROUND_MOTIONS.is_dir(), f"shared data not found at {DATA}")
+requires_data = requires(GROUND_MOTIONS.is_dir(), f"shared data not found at {DATA}", data=True)
 """Marker for tests that read ``../shared/data``."""
 
 RECORDS = ("elcentro-1940-ns", "kocaeli-1999-dzc180", "northridge-1994-mul009")
@@ -148,3 +154,23 @@ def story_drift(u: np.ndarray) -> np.ndarray:
 def rel_err(a: np.ndarray, ref: np.ndarray) -> float:
     """``max|a - ref| / max|ref|`` (NaNs, i.e. samples after an element's end, ignored)."""
     return float(np.nanmax(np.abs(a - ref)) / np.nanmax(np.abs(ref)))
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """mypy, when its test is to run, starts now in the background (see ``test_static.start``); a run
+    of many tests from a fresh clone compiles the numba kernels first, in parallel processes
+    (``hlaid._warmup``), instead of one after the other inside the first tests that need them."""
+    if any(item.nodeid.endswith("test_static.py::test_mypy_is_clean") for item in session.items):
+        import test_static
+
+        test_static.start("mypy", test_static.MYPY_ARGS)
+    if len(session.items) >= 200 and not session.config.option.collectonly:
+        from hlaid import _warmup
+
+        _warmup.warm()
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    test_static = sys.modules.get("test_static")
+    if test_static is not None:
+        test_static.stop()

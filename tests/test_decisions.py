@@ -9,6 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 from conftest import DATA, REPO, requires
+from test_loss import needs_pelicun
 
 from hlaid.clone import Clone
 from hlaid.errors import InputError
@@ -238,7 +239,7 @@ def test_the_assessment_reports_each_event_and_the_survival(event):
 
 
 # ---------------------------------------------------------------------------- not assessed is not 0
-@requires(__import__("importlib").util.find_spec("pelicun") is not None, "pelicun not installed")
+@needs_pelicun
 def test_losses_without_a_collapse_fragility_do_not_report_zero(event, tmp_path):
     from hlaid.loss import LossConfig, clone_demands
     from hlaid.loss.assess import loss_of_demand_file
@@ -253,7 +254,7 @@ def test_losses_without_a_collapse_fragility_do_not_report_zero(event, tmp_path)
 
 
 # ---------------------------------------------------------------------------- a real frame
-@requires(STEEL.is_dir(), f"steel-frame data not found at {STEEL}")
+@requires(STEEL.is_dir(), f"steel-frame data not found at {STEEL}", data=True)
 @pytest.mark.slow  # one identification of a real record (about 2 minutes on 2 cores)
 def test_the_steel_frame_clone_of_s4_is_consistent_with_what_the_frame_did(tmp_path):
     """gm152 s4, the documented settings with the steel-moment-frame system, story heights 1 m:

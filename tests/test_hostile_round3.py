@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from test_hostile import HEIGHTS, _clone_dict, _measurement, refused, tree
+from test_loss import needs_pelicun
 
 from hlaid.clone import Clone
 from hlaid.errors import InputError
@@ -380,6 +381,7 @@ def test_an_event_source_longer_than_a_file_name_is_said_not_raised():
     assert meas is None and "cannot be looked up" in why and len(why) < 300
 
 
+@needs_pelicun  # the inventory is read by pelicun's loss assessment
 def test_an_inventory_quantity_no_building_holds_is_refused(tmp_path, capsys):
     demands = tmp_path / "d.csv"
     demands.write_text(",1-PID-1-1,1-PID-2-1,1-PID-3-1,1-RID-1-1\nUnits,rad,rad,rad,rad\n"

@@ -29,7 +29,7 @@ from hlaid.io.motion import read_at2
 from hlaid.io.smc import read_smc_channel
 from hlaid.units import G_MM_S2
 
-quakeio = import_optional("quakeio")
+quakeio = import_optional("quakeio", "pip install --no-deps quakeio==0.1.21")
 
 PACKAGE_RECORDS = Path(__file__).resolve().parents[1] / "hlaid" / "data" / "records"
 

@@ -36,8 +36,7 @@ from hlaid.studies.validation.linear_peer import (
 )
 from hlaid.synthetic import simulate_measurement
 
-needs_mdof = requires(importlib.util.find_spec("mdof") is not None, "mdof not installed (pip install hlaid[peer])",
-                      in_ci=False)
+needs_mdof = requires(importlib.util.find_spec("mdof") is not None, "mdof not installed (pip install 'hlaid[peer]')")
 BAND = (0.3, 20.0)
 HLA = HLAConfig()
 HLA_BAND = dataclasses.replace(HLA, preprocess=dataclasses.replace(HLA.preprocess, band_hz=BAND))

@@ -143,7 +143,7 @@ def test_script_bad_input_is_one_line(tmp_path, capsys):
     assert "figs" in err and "--force" in err and not (tmp_path / "new").exists()
 
 
-@requires(STEEL.is_dir(), f"steel-frame data not found at {STEEL}")
+@requires(STEEL.is_dir(), f"steel-frame data not found at {STEEL}", data=True)
 @pytest.mark.slow  # long: the default run stays under 10 minutes on 2 cores
 def test_steel_frame_end_to_end(tmp_path):
     """Real data, small settings: s1 stays elastic, so its clone is the labelled linear one;
