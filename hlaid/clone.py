@@ -68,6 +68,7 @@ from ._fileio import write_json
 from ._inputs import read_json
 from .errors import InputError, escape_controls, kind_of
 from .model import Building, Damping
+from .model.modes import ModalCheck
 from .model.schema import STATE_BOUNDS, check_damping_ratios, check_event, check_state
 from .model.state import BuildingState
 from .record import (
@@ -87,7 +88,6 @@ from .systems import SYSTEMS
 from .units import UNITS_JSON
 
 if TYPE_CHECKING:
-    from .model.modes import ModalCheck
     from .model.uncertainty import ParameterUncertainty
 
 FORMAT = "hlaid-clone"
@@ -336,8 +336,6 @@ def _linear_part(d: dict, source: str | None) -> dict:
     """The clone file's ``modes`` and ``linear`` blocks as the Clone's fields (absent: None)."""
     modes = None
     if d.get("modes") is not None:
-        from .model.modes import ModalCheck
-
         modes = ModalCheck.from_dict(d["modes"], source=source)
     linear = None if d.get("linear") is None else LinearPart.from_dict(d["linear"], source=source)
     return {"modes": modes, "linear": linear}

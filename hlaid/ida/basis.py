@@ -35,6 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .ownevent import OwnMotionCheck, p_collapse
+
 P_SURVIVED_FLAG = 0.5
 """P(collapse) at the intensity of an event the building survived from which on the figure
 contradicts the record more likely than not."""
@@ -46,16 +48,6 @@ building survived is flagged as extrapolated."""
 REPLAY_MISS_FLAG = 0.15
 """The clone's replay of its own events missing a story's peak drift by more than this fraction
 is flagged."""
-
-
-def p_collapse(im: float, median: float | None, beta: float | None) -> float | None:
-    """P(collapse | IM = ``im``) of the lognormal fragility (``median`` [g], ``beta``); None where
-    the fragility or the intensity is unknown."""
-    if median is None or beta is None or im is None or not (median > 0 and beta > 0 and math.isfinite(im)):
-        return None
-    if im <= 0:
-        return 0.0
-    return 0.5 * math.erfc(-math.log(im / median) / (beta * math.sqrt(2.0)))
 
 
 def survived_drift(clone) -> np.ndarray | None:
@@ -385,8 +377,6 @@ __all__ = ["AtEvent", "DecisionBasis", "EXTRAPOLATION_MARGIN", "P_SURVIVED_FLAG"
 
 def _own(d: Mapping):
     """An :class:`~hlaid.ida.ownevent.OwnMotionCheck` from its :meth:`to_dict`."""
-    from .ownevent import OwnMotionCheck
-
     def t(k):
         v = d.get(k)
         return None if v is None else tuple(float(x) for x in v)

@@ -16,17 +16,26 @@ writes them under the JSON keys ``p_collapse_own_motion`` and ``p_collapse_fragi
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
-
-from .basis import p_collapse
 
 OWN_MOTION = "P(collapse | the event's own motion), clone and ensemble replaying it"
 AT_INTENSITY = "P(collapse | another record of the event's intensity), the IDA fragility at its Sa(T1)"
 
 RESIDUAL_TOLERANCE = 0.003
 """The replay's residual drift ratio within this of the measured one (absolute) counts as met."""
+
+
+def p_collapse(im: float, median: float | None, beta: float | None) -> float | None:
+    """P(collapse | IM = ``im``) of the lognormal fragility (``median`` [g], ``beta``); None where
+    the fragility or the intensity is unknown."""
+    if median is None or beta is None or im is None or not (median > 0 and beta > 0 and math.isfinite(im)):
+        return None
+    if im <= 0:
+        return 0.0
+    return 0.5 * math.erfc(-math.log(im / median) / (beta * math.sqrt(2.0)))
 
 
 def fragility_at_im(im: float | None, median: float | None, beta: float | None) -> float | None:
