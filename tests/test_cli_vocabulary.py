@@ -59,7 +59,7 @@ def test_the_same_option_has_the_same_flags_and_default_in_every_command():
         spellings = set(by_command.values())
         assert len(spellings) == 1, f"{dest}: " + "; ".join(f"{c}: {s}" for c, s in sorted(by_command.items()))
     # the shared ones are where they should be, with the same default
-    assert {c for c in seen["ensemble"]} == {"predict", "demands"} and seen["ensemble"]["demands"][1] == "None"
+    assert {c for c in seen["ensemble"]} == {"predict", "demands", "ida"} and seen["ensemble"]["demands"][1] == "None"
     assert {"hla", "ida", "predict", "run"} <= set(seen["no_plots"])
     assert {"hla", "identify", "update", "predict", "demands"} <= set(seen["read"])
     assert {"ida", "demands", "export-opensees"} <= set(seen["heights"]) & set(seen["gravity_kN"]) & set(seen["pdelta"])

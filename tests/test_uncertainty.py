@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from hlaid.clone import Clone, load_clone
+from hlaid.clone import VERSION, Clone, load_clone
 from hlaid.errors import HlaidWarning, InputError
 from hlaid.model import Building
 from hlaid.uncertainty import ParameterUncertainty, calibration_factor, clone_ensemble, covariance, coverage, zscores
@@ -132,7 +132,7 @@ def test_clone_uncertainty_round_trip(tmp_path):
     c = _uncertain_clone()
     c.save(tmp_path / "c.json")
     d = json.loads((tmp_path / "c.json").read_text())
-    assert d["version"] == 3 and d["uncertainty"]["parameters"][0]["name"] == "k0"
+    assert d["version"] == VERSION and d["uncertainty"]["parameters"][0]["name"] == "k0"
     back = load_clone(tmp_path / "c.json")
     np.testing.assert_allclose(back.uncertainty.covariance, c.uncertainty.covariance, rtol=1e-12)
     np.testing.assert_allclose(back.uncertainty.centre, c.uncertainty.centre, rtol=1e-12)
@@ -149,7 +149,7 @@ def test_clone_uncertainty_round_trip(tmp_path):
 def test_version_1_files_still_read(tmp_path):
     d = Clone(building=_building()).to_dict()
     d["version"] = 1
-    for key in ("uncertainty", "system", "events", "state"):  # fields of later versions
+    for key in ("uncertainty", "system", "events", "state", "identification", "settings"):  # later versions' fields
         d.pop(key, None)
     (tmp_path / "v1.json").write_text(json.dumps(d))
     c = load_clone(tmp_path / "v1.json")
@@ -158,10 +158,10 @@ def test_version_1_files_still_read(tmp_path):
     (tmp_path / "v1u.json").write_text(json.dumps(d))
     with pytest.raises(InputError, match="unknown field 'uncertainty'"):
         load_clone(tmp_path / "v1u.json")
-    d["version"] = 4
-    (tmp_path / "v4.json").write_text(json.dumps(d))
-    with pytest.raises(InputError, match="clone version 4 is not supported; this hlaid reads versions 1, 2, 3"):
-        load_clone(tmp_path / "v4.json")
+    d["version"] = VERSION + 1
+    (tmp_path / "vnext.json").write_text(json.dumps(d))
+    with pytest.raises(InputError, match=f"clone version {VERSION + 1} is not supported; this hlaid reads versions 1, "):
+        load_clone(tmp_path / "vnext.json")
 
 
 @pytest.mark.parametrize("change, message", [

@@ -16,6 +16,7 @@ from hlaid.clone import Clone
 from hlaid.errors import InputError
 from hlaid.events.predict import predict_event
 from hlaid.events.replay import own_replay, summary_line
+from hlaid.record import EventRecord
 from hlaid.identify.auto import BROAD_BAND_HZ, records_band
 from hlaid.model import Damping
 from hlaid.motions import GroundMotion
@@ -139,15 +140,15 @@ def test_the_prediction_names_its_bands_and_the_replay_record_round_trips(table1
     assert d["band"] == "records" and "hla" in d["other_bands"] and d["other_bands"]["hla"]["meaning"]
     exact = own_replay(table1, meas)
     soft = own_replay(table1.replace(k0=table1.k0 * 0.6), meas)
-    assert max(abs(v) for v in exact["peak_drift_error"]) < 0.01
-    assert max(abs(v) for v in soft["peak_drift_error"]) > 0.1
-    events = ({"name": "quake", "replay": exact}, {"name": "other", "replay": soft})
+    assert max(abs(v) for v in exact.peak_drift_error) < 0.01
+    assert max(abs(v) for v in soft.peak_drift_error) > 0.1
+    events = (EventRecord(name="quake", replay=exact), EventRecord(name="other", replay=soft))
     c = Clone(building=table1, events=events)
     c.save(tmp_path / "c.json")
     back = Clone.load(tmp_path / "c.json")
-    err = np.asarray(soft["peak_drift_error"])
+    err = np.asarray(soft.peak_drift_error)
     j = int(np.argmax(np.abs(err)))
-    assert back.own_replay_miss() == (pytest.approx(err[j]), j, "other", tuple(soft["band_hz"]))
+    assert back.own_replay_miss() == (pytest.approx(err[j]), j, "other", tuple(soft.band_hz))
     line = summary_line(back.events)
     assert line is not None and "quake" in line and f"{100 * err[j]:+.0f}" in line
 

@@ -89,7 +89,7 @@ class EventMotions:
         return [(n, m) for n, m in zip(self.names, self.motions) if m is not None]
 
 
-def _matches(event: EventRecord, motion: GroundMotion) -> bool:
+def recorded_with(event: EventRecord, motion: GroundMotion) -> bool:
     """Whether ``motion`` is the ground motion ``event`` (a clone's event record) was recorded with."""
     if event.dt is None or event.duration_s is None or event.pga_g is None:
         return False
@@ -146,7 +146,7 @@ def _read_event(event: EventRecord, base: Path | None) -> tuple[GroundMotion | N
         return None, why
     name, src = event.name or "an event", event.source
     motion = meas.ground_motion(name=str(name), source=str(meas.source or src))
-    if not _matches(event, motion):
+    if not recorded_with(event, motion):
         return None, (f"{escape_controls(name)}: its file {escape_controls(src)} read with the default reader does "
                       "not hold this event (a file of several events, or reader options): pass the motion")
     return motion, None
@@ -160,7 +160,7 @@ def event_motions(clone: Clone, given: Sequence[GroundMotion | None] = ()) -> Ev
     names, motions, starts, missing = [], [], [], []
     for k, e in enumerate(clone.events):
         name = e.label(k)
-        m = next((g for g in at_hand if _matches(e, g)), None)
+        m = next((g for g in at_hand if recorded_with(e, g)), None)
         why = None
         if m is None:
             m, why = _read_event(e, base)

@@ -39,14 +39,14 @@ def recorded_events(clone, extra=(), *, at_hand=(), read_options=None):
     per event ``(name, measurement or None, in_clone, why)``."""
     from pathlib import Path
 
-    from ..events.evidence import _matches, read_event
+    from ..events.evidence import recorded_with, read_event
     from ..io import read
     from ..measurement import Measurement
 
     base = Path(clone.building.source).parent if clone.building.source else None
     out = []
     for k, e in enumerate(clone.events):
-        meas = next((m for m in at_hand if _matches(e, m.ground_motion())), None)
+        meas = next((m for m in at_hand if recorded_with(e, m.ground_motion())), None)
         why = None
         if meas is None:
             meas, why = read_event(e, base)

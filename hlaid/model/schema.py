@@ -171,7 +171,7 @@ class Damping:
     ratio: float = bounded(0.05, lo=0.0, hi=1.0, hi_open=True)
     modes: tuple[int, int] = bounded((1, 2), lo=1, hi="STORIES")
     ratio2: float | None = bounded(None, lo=0.0, hi=1.0, hi_open=True)
-    higher: tuple[float, ...] = ()
+    higher: tuple[float, ...] = bounded((), lo=0.0, hi=1.0, hi_open=True)
 
     def __post_init__(self):
         if self.kind not in DAMPING_KINDS:
