@@ -262,9 +262,12 @@ class _Lines:
 
 
 def _longest_line(block: bytes) -> int:
-    """Bytes of the longest complete line within ``block`` (cheap: a scan only when the block is
-    longer than :data:`MAX_LINE_BYTES`)."""
+    """Bytes of the longest complete line within ``block``, or 0 where none can reach
+    :data:`MAX_LINE_BYTES` (cheap: a scan of its lines only when some half of that holds no newline)."""
     if len(block) <= MAX_LINE_BYTES:
+        return 0
+    half = MAX_LINE_BYTES // 2  # a newline in every aligned half-window: every line is shorter than the limit
+    if all(block.find(b"\n", i, i + half) >= 0 for i in range(0, len(block) - half + 1, half)):
         return 0
     longest, start = 0, 0
     while (end := block.find(b"\n", start)) >= 0:

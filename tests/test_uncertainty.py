@@ -160,7 +160,7 @@ def test_version_1_files_still_read(tmp_path):
         load_clone(tmp_path / "v1u.json")
     d["version"] = VERSION + 1
     (tmp_path / "vnext.json").write_text(json.dumps(d))
-    with pytest.raises(InputError, match=f"clone version {VERSION + 1} is not supported; this hlaid reads versions 1, "):
+    with pytest.raises(InputError, match=f"clone version {VERSION + 1} is not supported; this hlaid reads"):
         load_clone(tmp_path / "vnext.json")
 
 

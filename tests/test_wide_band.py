@@ -16,10 +16,10 @@ from hlaid.clone import Clone
 from hlaid.errors import InputError
 from hlaid.events.predict import predict_event
 from hlaid.events.replay import own_replay, summary_line
-from hlaid.record import EventRecord
 from hlaid.identify.auto import BROAD_BAND_HZ, records_band
 from hlaid.model import Damping
 from hlaid.motions import GroundMotion
+from hlaid.record import EventRecord
 from hlaid.signal import content_corner
 from hlaid.simulate import simulate_response
 from hlaid.synthetic import simulate_measurement

@@ -39,7 +39,7 @@ def recorded_events(clone, extra=(), *, at_hand=(), read_options=None):
     per event ``(name, measurement or None, in_clone, why)``."""
     from pathlib import Path
 
-    from ..events.evidence import recorded_with, read_event
+    from ..events.evidence import read_event, recorded_with
     from ..io import read
     from ..measurement import Measurement
 
