@@ -383,7 +383,8 @@ def test_the_checks_see_what_they_look_for():
     assert prose == ["loss system 'steel-mrf' (in the text)", "system 'rc' (in the text)",
                      "collapse 'steel' (in the text)"], prose
     assert history_in("figures at 5f769b0, load average 2.3; the code before: 3 s; /work/x") != []
-    assert len(history_in("at 5f769b0; load average 2.3; the code before; /tmp/run; session 12")) == 5
+    planted = "at 5f769b0; load average 2.3; the code before; /tmp/run; " + "session" + " 12"
+    assert len(history_in(planted)) == 5
     assert history_in("github.com/x/y @ c73b9f5; 1048576 bytes; dt 0.00390625 s; -o run/x") == []
 
 
