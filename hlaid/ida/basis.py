@@ -11,9 +11,9 @@ fleet`` turn a clone into a decision. Each prints and stores (``basis`` in its J
 * **Survival contradicted**: that fragility at or above :data:`P_SURVIVED_FLAG` at an event the
   building survived. Not a contradiction by itself (other records of the intensity may be worse),
   but a sign that the clone, its collapse law or the story heights may be wrong there.
-* **The drift the building survived** (:func:`survived_drift`): per story the largest drift
-  MEASURED in the events the clone was identified from (:func:`hlaid.ida.capacity.survived_peaks`),
-  never the clone's replay of them. The collapse law is conditioned on the same drifts
+* **The drift the building survived** (:meth:`hlaid.clone.Clone.survived_drift`, measured only): per
+  story the largest drift MEASURED in the events the clone was identified from, never the clone's
+  replay of them. The collapse law is conditioned on the same drifts
   (:mod:`hlaid.model.capacity`).
 * **Extrapolation**: the decision's demand (median peak drift ratio) beyond
   :data:`EXTRAPOLATION_MARGIN` times the largest drift ratio the building survived. A clone's
@@ -48,14 +48,6 @@ building survived is flagged as extrapolated."""
 REPLAY_MISS_FLAG = 0.15
 """The clone's replay of its own events missing a story's peak drift by more than this fraction
 is flagged."""
-
-
-def survived_drift(clone) -> np.ndarray | None:
-    """``(story,)`` the drift each story of ``clone``'s building was measured to survive [mm] (see
-    the module doc); None where no event recorded one."""
-    from .capacity import survived_peaks
-
-    return survived_peaks(clone)
 
 
 @dataclass(frozen=True)
@@ -106,7 +98,8 @@ class DecisionBasis:
     events : P(collapse) at each event the clone recorded
     heights_mm : the story heights the figures use [mm] (None: none known)
     heights_assumed : True where they were given (command line, config), not measured
-    survived_mm : the drift each story survived [mm] (:func:`survived_drift`; None: not recorded)
+    survived_mm : the drift each story survived [mm] (:meth:`~hlaid.clone.Clone.survived_drift`,
+        measured only; None: not recorded)
     fitted_mm : the drift each story went through in the records or in the clone's replay of them,
         whichever is larger [mm] (the range the clone was fitted on; None: as ``survived_mm``)
     demand_ratio : the decision's median peak drift ratio (None: the command has none)
@@ -315,7 +308,7 @@ def decision_basis(clone, *, events: Iterable[AtEvent | Mapping] = (), heights=N
     if events_note is None and clone is not None and not clone.events:
         events_note = "the clone records no events it was identified from (an older clone file)"
     h = heights if heights is not None else (None if clone is None else clone.building.height)
-    seen = None if clone is None else survived_drift(clone)
+    seen = None if clone is None else clone.survived_drift(measured_only=True)
     fitted = None if clone is None else clone.survived_drift()  # the records' or the clone's replay of them
     return DecisionBasis(events=evs, heights_mm=None if h is None else tuple(float(v) for v in h),
                          heights_assumed=bool(heights_assumed and h is not None),
@@ -372,7 +365,7 @@ def ida_events(clone, ida, motions: Sequence[tuple[str, object]] | None = None) 
 
 
 __all__ = ["AtEvent", "DecisionBasis", "EXTRAPOLATION_MARGIN", "P_SURVIVED_FLAG", "REPLAY_MISS_FLAG", "decision_basis",
-           "events_at", "ida_events", "p_collapse", "survived_drift"]
+           "events_at", "ida_events", "p_collapse"]
 
 
 def _own(d: Mapping):

@@ -1,25 +1,17 @@
 """What the building survived, as evidence on its collapse law (:mod:`hlaid.model.capacity`).
 
-:func:`survived_peaks` is the one reader of the clone's record of what each event measured;
-:func:`law_posterior` conditions a collapse law on it for a building prepared for an assessment.
+:meth:`hlaid.clone.Clone.survived_drift` (``measured_only=True``) is the one reader of the clone's
+record of what each event measured; :func:`law_posterior` conditions a collapse law on it for a
+building prepared for an assessment.
 """
 
 from __future__ import annotations
-
-import numpy as np
 
 from ..clone import Clone
 from ..model import Building
 from ..model.capacity import CapacityPosterior, capacity_posterior
 from ..model.collapse import CollapseModel, get_collapse_model
 from ..systems import SYSTEMS
-
-
-def survived_peaks(clone: Clone) -> np.ndarray | None:
-    """``(story,)`` the largest drift of each story MEASURED over the events the building survived
-    and the clone was identified from [mm] (not the clone's replay of them); None where no event
-    recorded one."""
-    return clone.survived_drift(measured_only=True)
 
 
 def chosen_law(model, collapse=None, notes: list[str] | None = None):
@@ -41,11 +33,11 @@ def chosen_law(model, collapse=None, notes: list[str] | None = None):
 def law_posterior(model: Clone | Building, law: CollapseModel, building: Building) -> CapacityPosterior:
     """The posterior of ``law``'s capping drift for ``building`` (prepared: its heights and ``dy``)
     given what ``model`` (a Clone; a Building records nothing) survived."""
-    survived = survived_peaks(model) if isinstance(model, Clone) else None
+    survived = model.survived_drift(measured_only=True) if isinstance(model, Clone) else None
     return capacity_posterior(law, dy=building.dy, height=building.height, survived=survived)
 
 
-__all__ = ["capacity_record", "chosen_law", "law_posterior", "survived_peaks"]
+__all__ = ["capacity_record", "chosen_law", "law_posterior"]
 
 
 def capacity_record(clone: Clone, building: Building, collapse=None) -> dict | None:

@@ -300,7 +300,7 @@ def clone_demands(clone: Clone | str | os.PathLike, records, *, level: float | N
 def extrapolation_flags(clone: Clone, pid: np.ndarray, height: np.ndarray) -> list[str]:
     """A line where the median peak drift ratio of the realisations ``pid`` ``(realisation,
     story)`` lies beyond :data:`~hlaid.ida.basis.EXTRAPOLATION_MARGIN` times the largest the building
-    survived (:func:`hlaid.ida.basis.survived_drift`): demands the clone extrapolates to."""
+    survived (:meth:`hlaid.clone.Clone.survived_drift`): demands the clone extrapolates to."""
     from ..ida.basis import decision_basis
 
     if pid.size == 0:
